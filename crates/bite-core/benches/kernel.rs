@@ -1,0 +1,247 @@
+//! Kernel micro-benchmarks on the formation graph.
+//!
+//! - `steady_tick`: a robot walking in formation, nothing changes: the cost
+//!   Algorithm 1 pays every control tick just to monitor every behavior on
+//!   the stack. Goal ≤ 500 ns.
+//! - `percept_tick`: the walked distance changes every tick (as it does
+//!   while walking), so every termination condition on the stack is
+//!   re-evaluated.
+//! - `decision_step`: the tick on which a leg ends: pop the stack,
+//!   terminate, choose the next behavior, allocate the roles of the next
+//!   leg and expand down to the new leaf (silent protocols, one robot).
+//! - `condition_eval`: one typical termination condition.
+
+use bite_core::graph::load_str;
+use bite_core::ids::{BeliefId, RobotId};
+use bite_core::interaction::Registry;
+use bite_core::kernel::Kernel;
+use bite_core::mission::Mission;
+use bite_core::time::Time;
+use bite_core::value::Value;
+use bite_core::{BehaviorGraph, Config};
+use std::sync::Arc;
+
+fn main() {
+    divan::main();
+}
+
+fn formation() -> Arc<Mission> {
+    let g: BehaviorGraph = load_str(
+        &Arc::from("formation.yaml"),
+        include_str!("../../../examples/formation.yaml"),
+    )
+    .expect("formation graph");
+    // Silent protocols everywhere, so that one kernel runs alone.
+    let cfg = Config::load_str(
+        &Arc::from("silent.yaml"),
+        "defaults: { terminate: term.local }",
+    )
+    .expect("config");
+    let g = g.with_config(&cfg).expect("config applies");
+    Arc::new(Mission::new(g, &Registry::core()).expect("mission"))
+}
+
+struct Walking {
+    kernel: Kernel,
+    leg: BeliefId,
+    dist: BeliefId,
+    now: Time,
+}
+
+/// A kernel of a 3-robot team, robot 0, walking a triangle leg as the lead.
+fn walking() -> Walking {
+    let m = formation();
+    let sym = m.graph().symbols().clone();
+    let id = |n: &str| sym.get(n).expect("belief");
+    let mut k = Kernel::new(m, RobotId(0), 1);
+    let peers = id("peers_located");
+    k.tick(Time::ZERO, &[]);
+    k.tick(Time::from_millis(100), &[(peers, Value::Bool(true))]);
+    k.tick(Time::from_millis(200), &[]);
+    while k.poll_output().is_some() {}
+    let names: Vec<&str> = k
+        .stack()
+        .iter()
+        .map(|f| k.mission().graph().name_of(f.behavior))
+        .collect();
+    assert_eq!(names, ["formation", "triangle", "walk", "lead"], "setup");
+    Walking {
+        leg: id("leg_walked"),
+        dist: id("distance_walked"),
+        kernel: k,
+        now: Time::from_millis(200),
+    }
+}
+
+#[divan::bench]
+fn steady_tick(b: divan::Bencher) {
+    let mut w = walking();
+    b.bench_local(|| {
+        w.now += std::time::Duration::from_millis(100);
+        w.kernel.tick(w.now, &[]);
+        divan::black_box(w.kernel.poll_output());
+    });
+}
+
+#[divan::bench]
+fn percept_tick(b: divan::Bencher) {
+    let mut w = walking();
+    let mut d = 0.0;
+    b.bench_local(|| {
+        w.now += std::time::Duration::from_millis(100);
+        d += 1e-6;
+        let p = [(w.dist, Value::Num(d)), (w.leg, Value::Num(d))];
+        w.kernel.tick(w.now, &p);
+        divan::black_box(w.kernel.poll_output());
+    });
+}
+
+/// One decision step: the end of a leg through to the next leg's leaf.
+fn decide(w: &mut Walking) {
+    // The leg is over: walk ends, the team chooses `search` (point B), and
+    // the robot starts searching; then the search ends, the team chooses
+    // `walk` (point A), allocates the roles (point C) and expands to `lead`.
+    let peers = w
+        .kernel
+        .beliefs()
+        .symbols()
+        .get("peers_located")
+        .expect("belief");
+    w.kernel.tick(
+        w.now,
+        &[(w.leg, Value::Num(2.0)), (peers, Value::Bool(false))],
+    );
+    w.kernel.tick(
+        w.now + std::time::Duration::from_millis(100),
+        &[(peers, Value::Bool(true)), (w.leg, Value::Num(0.0))],
+    );
+    while w.kernel.poll_output().is_some() {}
+}
+
+#[divan::bench]
+fn decision_step(b: divan::Bencher) {
+    // Check once, outside the measurement, that the step does what it says.
+    let mut w = walking();
+    w.now += std::time::Duration::from_millis(100);
+    decide(&mut w);
+    let g = w.kernel.mission().graph().clone();
+    let stack: Vec<(&str, u32)> = w
+        .kernel
+        .stack()
+        .iter()
+        .map(|f| (g.name_of(f.behavior), f.epoch))
+        .collect();
+    assert_eq!(
+        stack,
+        [("formation", 1), ("triangle", 1), ("walk", 2), ("lead", 1)]
+    );
+    b.with_inputs(|| {
+        let mut w = walking();
+        w.now += std::time::Duration::from_millis(100);
+        w
+    })
+    .bench_local_values(|mut w| {
+        // The leg is over: walk ends, the team chooses `search` (point B),
+        // and the robot starts searching; then the search ends, the team
+        // chooses `walk` (point A), allocates the roles (point C) and
+        // expands down to `lead`.
+        let peers = w
+            .kernel
+            .beliefs()
+            .symbols()
+            .get("peers_located")
+            .expect("belief");
+        w.kernel.tick(
+            w.now,
+            &[(w.leg, Value::Num(2.0)), (peers, Value::Bool(false))],
+        );
+        w.kernel.tick(
+            w.now + std::time::Duration::from_millis(100),
+            &[(peers, Value::Bool(true)), (w.leg, Value::Num(0.0))],
+        );
+        while w.kernel.poll_output().is_some() {}
+        divan::black_box(w.kernel.leaf().map(|f| f.behavior));
+        w
+    });
+}
+
+/// Conditions of increasing complexity, on beliefs that are all set.
+#[divan::bench(args = [
+    "distance_walked >= 6 && peers_located",
+    "not obstacle_near",
+    "dist(pos, goal) < 0.5 || elapsed > 30 && runs < 3",
+    "known(target) && norm(target - pos) * 2 <= max(range, 1) && colour == 'red'",
+])]
+fn condition(b: divan::Bencher, src: &str) {
+    use bite_core::belief::{BeliefStore, Source, Symbols};
+    use bite_core::cond::{Env, Expr, Resolver};
+    struct R<'a>(&'a mut Symbols);
+    impl Resolver for R<'_> {
+        fn belief(&mut self, name: &str) -> BeliefId {
+            self.0.intern(name)
+        }
+        fn behavior(&self, _: &str) -> Option<bite_core::ids::BehaviorId> {
+            None
+        }
+    }
+    let mut sym = Symbols::new();
+    let e = Expr::parse(src, &mut R(&mut sym)).expect("condition parses");
+    let sym = Arc::new(sym);
+    let mut store = BeliefStore::new(sym.clone());
+    let t = Time::ZERO;
+    for (name, v) in [
+        ("distance_walked", Value::Num(7.0)),
+        ("peers_located", Value::Bool(true)),
+        ("obstacle_near", Value::Bool(false)),
+        ("pos", Value::Vec2([1.0, 2.0])),
+        ("goal", Value::Vec2([4.0, 6.0])),
+        ("target", Value::Vec2([3.0, 3.0])),
+        ("range", Value::Num(5.0)),
+        ("colour", Value::from("red")),
+    ] {
+        store.set_named(name, v, t, Source::Given);
+    }
+    struct E<'a>(&'a BeliefStore);
+    impl Env for E<'_> {
+        fn belief(&self, id: BeliefId) -> Option<&Value> {
+            self.0.value(id)
+        }
+        fn belief_age(&self, _: BeliefId) -> Option<f64> {
+            Some(0.0)
+        }
+        fn elapsed(&self) -> f64 {
+            12.0
+        }
+        fn runs(&self, _: Option<bite_core::ids::BehaviorId>) -> u32 {
+            1
+        }
+    }
+    let env = E(&store);
+    b.bench_local(|| divan::black_box(e.eval(divan::black_box(&env))));
+}
+
+#[divan::bench]
+fn condition_eval(b: divan::Bencher) {
+    let m = formation();
+    let g = m.graph();
+    let walk = g.find("formation").expect("formation");
+    let until = g.behavior(walk).until.clone().expect("until");
+    let w = walking();
+    struct E<'a>(&'a bite_core::belief::BeliefStore);
+    impl bite_core::cond::Env for E<'_> {
+        fn belief(&self, id: BeliefId) -> Option<&Value> {
+            self.0.value(id)
+        }
+        fn belief_age(&self, _: BeliefId) -> Option<f64> {
+            None
+        }
+        fn elapsed(&self) -> f64 {
+            0.0
+        }
+        fn runs(&self, _: Option<bite_core::ids::BehaviorId>) -> u32 {
+            1
+        }
+    }
+    let env = E(w.kernel.beliefs());
+    b.bench_local(|| divan::black_box(until.eval(&env)));
+}

@@ -1,0 +1,216 @@
+//! The belief store: what one robot believes, each belief with its time and
+//! source.
+//!
+//! Belief names are interned once (when the behavior graph is loaded) into
+//! [`BeliefId`]s, so evaluating a condition is an array lookup. A store
+//! counts its changes in [`BeliefStore::version`]; the kernel skips
+//! re-evaluating conditions when nothing they could read has changed.
+
+use crate::ids::{BeliefId, RobotId};
+use crate::time::Time;
+use crate::value::Value;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// Interned belief names. Shared (behind an `Arc`) by a graph and every
+/// store created for it.
+#[derive(Clone, Debug, Default)]
+pub struct Symbols {
+    names: Vec<Arc<str>>,
+    index: BTreeMap<Arc<str>, BeliefId>,
+}
+
+impl Symbols {
+    /// An empty table.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// The id of `name`, adding it if it is new.
+    pub fn intern(&mut self, name: &str) -> BeliefId {
+        if let Some(id) = self.index.get(name) {
+            return *id;
+        }
+        let id = BeliefId(self.names.len() as u32);
+        let name: Arc<str> = Arc::from(name);
+        self.names.push(name.clone());
+        self.index.insert(name, id);
+        id
+    }
+    /// The id of `name`, if it is known.
+    pub fn get(&self, name: &str) -> Option<BeliefId> {
+        self.index.get(name).copied()
+    }
+    /// The name of `id`.
+    pub fn name(&self, id: BeliefId) -> &str {
+        self.names.get(id.index()).map_or("?", |n| n)
+    }
+    /// Number of interned names.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+    /// True when no name is interned.
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+    /// All names with their ids, in id order.
+    pub fn iter(&self) -> impl Iterator<Item = (BeliefId, &str)> {
+        self.names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (BeliefId(i as u32), &**n))
+    }
+}
+
+/// Where a belief came from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind", content = "robot")]
+pub enum Source {
+    /// The robot's own sensors or skills.
+    Percept,
+    /// A teammate told us.
+    Teammate(RobotId),
+    /// Set by the engine itself (initial beliefs, configuration).
+    Given,
+}
+
+/// One belief: a value, when it was last set, and by whom.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Belief {
+    /// The value.
+    pub value: Value,
+    /// When it was set.
+    pub time: Time,
+    /// Who set it.
+    pub source: Source,
+}
+
+/// What one robot believes.
+#[derive(Clone, Debug)]
+pub struct BeliefStore {
+    symbols: Arc<Symbols>,
+    slots: Vec<Option<Belief>>,
+    /// Beliefs whose names no condition of the graph mentions (kept so that
+    /// they can be shown and shared, never read by the kernel).
+    extra: BTreeMap<Arc<str>, Belief>,
+    version: u64,
+}
+
+impl BeliefStore {
+    /// An empty store over the graph's symbol table.
+    pub fn new(symbols: Arc<Symbols>) -> Self {
+        let slots = vec![None; symbols.len()];
+        BeliefStore {
+            symbols,
+            slots,
+            extra: BTreeMap::new(),
+            version: 0,
+        }
+    }
+    /// The symbol table.
+    pub fn symbols(&self) -> &Arc<Symbols> {
+        &self.symbols
+    }
+    /// Incremented by every change; unchanged sets do not count.
+    #[inline]
+    pub fn version(&self) -> u64 {
+        self.version
+    }
+    /// The belief `id`, if set.
+    #[inline]
+    pub fn get(&self, id: BeliefId) -> Option<&Belief> {
+        self.slots.get(id.index()).and_then(Option::as_ref)
+    }
+    /// The value of belief `id`, if set.
+    #[inline]
+    pub fn value(&self, id: BeliefId) -> Option<&Value> {
+        self.get(id).map(|b| &b.value)
+    }
+    /// The belief called `name`, if set.
+    pub fn get_named(&self, name: &str) -> Option<&Belief> {
+        match self.symbols.get(name) {
+            Some(id) => self.get(id),
+            None => self.extra.get(name),
+        }
+    }
+    /// Set belief `id`. Returns whether the value changed (a re-set to the
+    /// same value only refreshes the time and source).
+    pub fn set(&mut self, id: BeliefId, value: Value, time: Time, source: Source) -> bool {
+        let Some(slot) = self.slots.get_mut(id.index()) else {
+            return false;
+        };
+        let changed = !matches!(slot, Some(b) if b.value.same_as(&value));
+        *slot = Some(Belief {
+            value,
+            time,
+            source,
+        });
+        if changed {
+            self.version += 1;
+        }
+        changed
+    }
+    /// Set the belief called `name` (interned or not). Returns whether the
+    /// value changed.
+    pub fn set_named(&mut self, name: &str, value: Value, time: Time, source: Source) -> bool {
+        if let Some(id) = self.symbols.get(name) {
+            return self.set(id, value, time, source);
+        }
+        let changed = !matches!(self.extra.get(name), Some(b) if b.value.same_as(&value));
+        self.extra.insert(
+            Arc::from(name),
+            Belief {
+                value,
+                time,
+                source,
+            },
+        );
+        if changed {
+            self.version += 1;
+        }
+        changed
+    }
+    /// Forget belief `id`. Returns whether it was set.
+    pub fn clear(&mut self, id: BeliefId) -> bool {
+        match self.slots.get_mut(id.index()) {
+            Some(slot @ Some(_)) => {
+                *slot = None;
+                self.version += 1;
+                true
+            }
+            _ => false,
+        }
+    }
+    /// Every set belief with its name, interned ones first (in id order),
+    /// then the others by name.
+    pub fn iter(&self) -> impl Iterator<Item = (&str, &Belief)> {
+        let interned = self.slots.iter().enumerate().filter_map(|(i, b)| {
+            b.as_ref()
+                .map(|b| (self.symbols.name(BeliefId(i as u32)), b))
+        });
+        interned.chain(self.extra.iter().map(|(n, b)| (&**n, b)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn set_reports_changes_and_bumps_version() {
+        let mut sym = Symbols::new();
+        let a = sym.intern("a");
+        assert_eq!(sym.intern("a"), a);
+        let mut store = BeliefStore::new(Arc::new(sym));
+        assert!(store.set(a, Value::Num(1.0), Time(5), Source::Percept));
+        let v = store.version();
+        assert!(!store.set(a, Value::Num(1.0), Time(6), Source::Percept));
+        assert_eq!(store.version(), v, "an unchanged value is not a change");
+        assert_eq!(store.get(a).unwrap().time, Time(6), "but time is refreshed");
+        assert!(store.set_named("other", Value::Bool(true), Time(7), Source::Given));
+        assert_eq!(store.get_named("other").unwrap().value, Value::Bool(true));
+        assert_eq!(store.iter().count(), 2);
+        assert!(store.clear(a));
+        assert!(store.value(a).is_none());
+    }
+}

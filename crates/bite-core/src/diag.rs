@@ -1,0 +1,210 @@
+//! Diagnostics: what is wrong with a user's file, and where.
+//!
+//! Every error a user can cause by writing a file names the file, the line
+//! and the column, says what was expected, and where possible how to fix it.
+
+use serde::Serialize;
+use std::fmt;
+use std::sync::Arc;
+
+/// A position in a source file (1-based line and column; 0 = unknown).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub struct Loc {
+    /// 1-based line.
+    pub line: u32,
+    /// 1-based column (in characters).
+    pub col: u32,
+}
+
+impl Loc {
+    /// A known position.
+    pub const fn new(line: u32, col: u32) -> Self {
+        Loc { line, col }
+    }
+    /// Unknown position.
+    pub const UNKNOWN: Loc = Loc { line: 0, col: 0 };
+    /// True when the position is known.
+    pub fn is_known(&self) -> bool {
+        self.line > 0
+    }
+}
+
+impl From<serde_saphyr::Location> for Loc {
+    fn from(l: serde_saphyr::Location) -> Self {
+        Loc {
+            line: u32::try_from(l.line()).unwrap_or(u32::MAX),
+            col: u32::try_from(l.column()).unwrap_or(u32::MAX),
+        }
+    }
+}
+
+/// How bad a diagnostic is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Severity {
+    /// The file is still usable.
+    Warning,
+    /// The file is rejected.
+    Error,
+}
+
+/// One finding about a file.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct Diagnostic {
+    /// Error or warning.
+    pub severity: Severity,
+    /// The file, as the user named it.
+    pub file: Arc<str>,
+    /// Where in it.
+    pub loc: Loc,
+    /// What is wrong / what was expected.
+    pub message: String,
+    /// How to fix it, when we can tell.
+    pub hint: Option<String>,
+    /// More text shown under the message (a caret under an expression, a
+    /// YAML snippet).
+    pub detail: Option<String>,
+    /// A short stable code naming the rule (`unknown-reference`, ...), for
+    /// tests and for users searching the docs.
+    pub code: &'static str,
+}
+
+impl Diagnostic {
+    /// An error.
+    pub fn error(
+        file: &Arc<str>,
+        loc: Loc,
+        code: &'static str,
+        message: impl Into<String>,
+    ) -> Self {
+        Diagnostic {
+            severity: Severity::Error,
+            file: file.clone(),
+            loc,
+            message: message.into(),
+            hint: None,
+            detail: None,
+            code,
+        }
+    }
+    /// A warning.
+    pub fn warning(
+        file: &Arc<str>,
+        loc: Loc,
+        code: &'static str,
+        message: impl Into<String>,
+    ) -> Self {
+        Diagnostic {
+            severity: Severity::Warning,
+            ..Diagnostic::error(file, loc, code, message)
+        }
+    }
+    /// Attach a hint.
+    pub fn with_hint(mut self, hint: impl Into<String>) -> Self {
+        self.hint = Some(hint.into());
+        self
+    }
+    /// Attach more text (shown indented under the message).
+    pub fn with_detail(mut self, detail: impl Into<String>) -> Self {
+        self.detail = Some(detail.into());
+        self
+    }
+    /// True for errors.
+    pub fn is_error(&self) -> bool {
+        self.severity == Severity::Error
+    }
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let sev = match self.severity {
+            Severity::Error => "error",
+            Severity::Warning => "warning",
+        };
+        if self.loc.is_known() {
+            write!(f, "{}:{}:{}: ", self.file, self.loc.line, self.loc.col)?;
+        } else {
+            write!(f, "{}: ", self.file)?;
+        }
+        write!(f, "{sev}[{}]: {}", self.code, self.message)?;
+        if let Some(d) = &self.detail {
+            for line in d.lines() {
+                write!(f, "\n    {line}")?;
+            }
+        }
+        if let Some(h) = &self.hint {
+            write!(f, "\n  hint: {h}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Several diagnostics, at least one of them an error.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Diagnostics(pub Vec<Diagnostic>);
+
+impl Diagnostics {
+    /// The errors only.
+    pub fn errors(&self) -> impl Iterator<Item = &Diagnostic> {
+        self.0.iter().filter(|d| d.is_error())
+    }
+    /// True when some diagnostic has this code.
+    pub fn has(&self, code: &str) -> bool {
+        self.0.iter().any(|d| d.code == code)
+    }
+}
+
+impl fmt::Display for Diagnostics {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (i, d) in self.0.iter().enumerate() {
+            if i > 0 {
+                writeln!(f)?;
+            }
+            write!(f, "{d}")?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for Diagnostics {}
+
+/// "did you mean `x`?" for a misspelt name, if one of `candidates` is close.
+pub fn did_you_mean<'a>(
+    name: &str,
+    candidates: impl IntoIterator<Item = &'a str>,
+) -> Option<String> {
+    let mut best: Option<(f64, &str)> = None;
+    for c in candidates {
+        let score = strsim::jaro_winkler(name, c);
+        if score > 0.8 && best.is_none_or(|(s, _)| score > s) {
+            best = Some((score, c));
+        }
+    }
+    best.map(|(_, c)| format!("did you mean `{c}`?"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn display_names_file_line_col_and_hint() {
+        let f: Arc<str> = Arc::from("g.yaml");
+        let d = Diagnostic::error(
+            &f,
+            Loc::new(3, 7),
+            "unknown-reference",
+            "no behavior `wlak`",
+        )
+        .with_hint("did you mean `walk`?");
+        assert_eq!(
+            d.to_string(),
+            "g.yaml:3:7: error[unknown-reference]: no behavior `wlak`\n  hint: did you mean `walk`?"
+        );
+        assert_eq!(
+            did_you_mean("wlak", ["walk", "search"]),
+            Some("did you mean `walk`?".into())
+        );
+        assert_eq!(did_you_mean("zzz", ["walk"]), None);
+    }
+}

@@ -1,0 +1,253 @@
+//! What a kernel reports: the raw material of run logs, summaries and
+//! invariant checks.
+
+use crate::ids::{BehaviorId, RobotId, TeamId};
+use crate::interaction::Assignment;
+use crate::msg::InstanceKey;
+use crate::value::Value;
+use serde::Serialize;
+
+/// How a behavior came to be selected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Via {
+    /// The start behavior b0.
+    Start,
+    /// The only enabled child of its parent (no allocation needed).
+    Expansion,
+    /// Assigned by an allocation.
+    Allocation,
+    /// The only way on along the execution chain (not a synchronization point).
+    Sequence,
+    /// Chosen by a synchronization protocol.
+    Decision,
+    /// Returned by a termination protocol as the next behavior under the parent.
+    Replacement,
+}
+
+/// Why a behavior ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind", content = "behavior")]
+pub enum EndReason {
+    /// Its termination condition held on this robot.
+    Until,
+    /// Its execution chain ran out of successors.
+    ChainEnded,
+    /// The team ended it (a termination protocol decided it).
+    Team,
+    /// An ancestor ended; descendants are popped with it.
+    Ancestor(BehaviorId),
+}
+
+/// Why an incoming message was dropped.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DropReason {
+    /// Sent by this robot.
+    OwnMessage,
+    /// Sender is not in the roster.
+    UnknownSender,
+    /// Same `(sender, seq)` seen before, or older than the replay window.
+    Duplicate,
+    /// Names a behavior, kind or epoch that cannot exist.
+    Malformed,
+    /// For a team this robot is not in.
+    NotMember,
+    /// From a robot that is not in the team it names.
+    SenderNotMember,
+    /// For an instance that is already over (stale epoch, dissolved team).
+    Stale,
+    /// The buffer of messages for instances not started yet is full, or a
+    /// buffered message expired.
+    BufferOverflow,
+}
+
+/// Subteams up to this size are logged member by member.
+pub const LOG_MEMBERS_LIMIT: usize = 64;
+
+/// The members of a child in a logged allocation: the list for small
+/// subteams, a count and fingerprint for large ones (10,000 robots each
+/// logging 10,000 ids would be 10⁸ entries per allocation).
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(untagged)]
+pub enum MembersLog {
+    /// Every member.
+    List(Vec<RobotId>),
+    /// A large subteam.
+    Summary {
+        /// Number of members.
+        count: u32,
+        /// [`MemberSet::fingerprint`](crate::org::MemberSet::fingerprint), hex.
+        fingerprint: String,
+    },
+}
+
+impl MembersLog {
+    /// Number of members.
+    pub fn len(&self) -> usize {
+        match self {
+            MembersLog::List(v) => v.len(),
+            MembersLog::Summary { count, .. } => *count as usize,
+        }
+    }
+    /// True when empty.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// The decision of an instance, for the log.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum OutcomeLog {
+    /// Selected successor (`None`: chain ended).
+    Sync {
+        /// The choice.
+        choice: Option<BehaviorId>,
+    },
+    /// Allocation: each child with its members.
+    Allocate {
+        /// `(child, members)`.
+        assignment: Vec<(BehaviorId, MembersLog)>,
+    },
+    /// Termination, with an optional replacement.
+    Terminate {
+        /// Replacement behavior.
+        next: Option<BehaviorId>,
+    },
+}
+
+impl OutcomeLog {
+    /// The log form of an allocation.
+    pub fn allocation(a: &Assignment) -> Self {
+        OutcomeLog::Allocate {
+            assignment: a
+                .0
+                .iter()
+                .map(|(b, m)| {
+                    let n = m.len();
+                    let log = if n <= LOG_MEMBERS_LIMIT {
+                        MembersLog::List(m.to_vec())
+                    } else {
+                        MembersLog::Summary {
+                            count: n as u32,
+                            fingerprint: format!("{:016x}", m.fingerprint()),
+                        }
+                    };
+                    (*b, log)
+                })
+                .collect(),
+        }
+    }
+}
+
+/// Something that happened in a kernel.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "event")]
+pub enum Event {
+    /// A behavior was pushed onto the stack.
+    Selected {
+        /// The behavior.
+        behavior: BehaviorId,
+        /// The subteam executing it.
+        team: TeamId,
+        /// Team's execution count of it (the epoch of its instances).
+        epoch: u32,
+        /// Stack depth (0 = root).
+        depth: u32,
+        /// How it was selected.
+        via: Via,
+    },
+    /// A behavior was popped.
+    Terminated {
+        /// The behavior.
+        behavior: BehaviorId,
+        /// Its subteam.
+        team: TeamId,
+        /// Its epoch.
+        epoch: u32,
+        /// Why.
+        reason: EndReason,
+    },
+    /// A condition held and changed what the robot does.
+    ConditionHeld {
+        /// The behavior whose condition it is.
+        behavior: BehaviorId,
+        /// `until` or `pre`.
+        field: &'static str,
+        /// The beliefs the condition reads, with their values.
+        beliefs: Vec<(String, Option<Value>)>,
+    },
+    /// A protocol instance started (the robot reached the point).
+    InteractionStarted {
+        /// The instance.
+        instance: InstanceKey,
+        /// Protocol name.
+        protocol: &'static str,
+    },
+    /// A protocol instance decided.
+    InteractionDecided {
+        /// The instance.
+        instance: InstanceKey,
+        /// Protocol name.
+        protocol: &'static str,
+        /// The decision.
+        outcome: OutcomeLog,
+        /// How long this robot waited for it, in microseconds.
+        waited_us: u64,
+        /// Messages this robot sent for it so far.
+        sent: u32,
+        /// Bytes this robot sent for it so far.
+        bytes: u64,
+        /// Messages this robot received for it so far.
+        received: u32,
+        /// True when the deadline passed and the fallback decided.
+        timed_out: bool,
+    },
+    /// An instance was abandoned (an ancestor ended first).
+    InteractionAborted {
+        /// The instance.
+        instance: InstanceKey,
+        /// Protocol name.
+        protocol: &'static str,
+    },
+    /// The deadline of an instance passed.
+    InteractionTimedOut {
+        /// The instance.
+        instance: InstanceKey,
+        /// Protocol name.
+        protocol: &'static str,
+        /// Whether the protocol decided by itself at the deadline (else the
+        /// kernel applied the silent rule of its kind).
+        protocol_decided: bool,
+    },
+    /// A non-atomic behavior has no enabled child yet; the robot waits.
+    WaitingForChild {
+        /// The behavior.
+        behavior: BehaviorId,
+    },
+    /// An allocation gave this robot no child (more members than places).
+    Unassigned {
+        /// The allocation point.
+        behavior: BehaviorId,
+    },
+    /// An incoming message was dropped.
+    Dropped {
+        /// Its sender (as claimed).
+        from: RobotId,
+        /// Why.
+        reason: DropReason,
+    },
+    /// A teammate broke a protocol's rules; its message was ignored.
+    ProtocolViolation {
+        /// The instance.
+        instance: InstanceKey,
+        /// What happened.
+        what: String,
+    },
+    /// The stack emptied: the mission is over for this robot.
+    MissionCompleted,
+    /// Too many transitions in one step (conditions that are immediately
+    /// true around a sequential cycle); the kernel yields until the next input.
+    TransitionLimit,
+}

@@ -1,0 +1,838 @@
+//! Loading and validating behavior graphs.
+//!
+//! Validation collects every problem it can find in one pass (instead of
+//! stopping at the first), each with file, line and column, what was
+//! expected, and a hint where one helps.
+
+use super::spec::{BehaviorSpec, BindingSpec, GraphSpec, Ordered, RobotsSpec};
+use super::{Behavior, BehaviorGraph, Binding, MAX_BEHAVIORS, MAX_DEPTH, MAX_ROBOTS, Skill};
+use crate::belief::Symbols;
+use crate::cond::{CondError, Expr, Resolver};
+use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
+use crate::ids::{BehaviorId, BeliefId};
+use crate::msg::Kind;
+use crate::roster::{RobotInfo, Roster};
+use crate::time::parse_duration;
+use crate::value::Value;
+use crate::yaml::{MAX_FILE_BYTES, json_to_value};
+use serde_saphyr::Spanned;
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::path::Path;
+use std::sync::Arc;
+
+/// Load and validate a behavior graph file.
+pub fn load(path: &Path) -> Result<BehaviorGraph, Diagnostics> {
+    let (file, text) = crate::yaml::read_file(path)?;
+    load_str(&file, &text)
+}
+
+/// Load and validate a behavior graph from text; `file` names it in messages.
+pub fn load_str(file: &Arc<str>, text: &str) -> Result<BehaviorGraph, Diagnostics> {
+    if text.len() > MAX_FILE_BYTES {
+        return Err(Diagnostics(vec![Diagnostic::error(
+            file,
+            Loc::UNKNOWN,
+            "too-large",
+            format!(
+                "file is {} bytes; the limit is {MAX_FILE_BYTES}",
+                text.len()
+            ),
+        )]));
+    }
+    let spec: GraphSpec = crate::yaml::parse(file, text)?;
+    Builder {
+        file: file.clone(),
+        text,
+        diags: Vec::new(),
+        labels: BTreeMap::new(),
+    }
+    .build(spec)
+}
+
+struct Builder<'a> {
+    file: Arc<str>,
+    text: &'a str,
+    diags: Vec<Diagnostic>,
+    /// Point labels seen so far: label → behavior.
+    labels: BTreeMap<String, String>,
+}
+
+struct NameResolver<'a> {
+    symbols: &'a mut Symbols,
+    by_name: &'a BTreeMap<String, BehaviorId>,
+}
+
+impl Resolver for NameResolver<'_> {
+    fn belief(&mut self, name: &str) -> BeliefId {
+        self.symbols.intern(name)
+    }
+    fn behavior(&self, name: &str) -> Option<BehaviorId> {
+        self.by_name.get(name).copied()
+    }
+    fn behavior_names(&self) -> Vec<&str> {
+        self.by_name.keys().map(String::as_str).collect()
+    }
+}
+
+fn valid_name(n: &str) -> bool {
+    let mut cs = n.chars();
+    matches!(cs.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
+        && cs.all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+}
+
+impl Builder<'_> {
+    fn err(&mut self, loc: Loc, code: &'static str, msg: impl Into<String>) -> &mut Diagnostic {
+        self.diags
+            .push(Diagnostic::error(&self.file, loc, code, msg));
+        let n = self.diags.len() - 1;
+        &mut self.diags[n]
+    }
+    fn warn(&mut self, loc: Loc, code: &'static str, msg: impl Into<String>) {
+        self.diags
+            .push(Diagnostic::warning(&self.file, loc, code, msg));
+    }
+
+    fn build(mut self, spec: GraphSpec) -> Result<BehaviorGraph, Diagnostics> {
+        let roster = self.roster(spec.team.as_ref());
+        let Some(behaviors) = spec.behaviors else {
+            self.err(
+                Loc::new(1, 1),
+                "no-behaviors",
+                "the graph has no `behaviors:` section",
+            );
+            return Err(Diagnostics(self.diags));
+        };
+        let section_loc = Loc::from(behaviors.referenced);
+        let entries = behaviors.value.0;
+        if entries.is_empty() {
+            self.err(section_loc, "no-behaviors", "`behaviors:` is empty");
+            return Err(Diagnostics(self.diags));
+        }
+        if entries.len() > MAX_BEHAVIORS {
+            self.err(
+                section_loc,
+                "too-large",
+                format!(
+                    "the graph has {} behaviors; the limit is {MAX_BEHAVIORS}",
+                    entries.len()
+                ),
+            );
+            return Err(Diagnostics(self.diags));
+        }
+
+        // Names and ids.
+        let mut by_name = BTreeMap::new();
+        for (i, (name, _)) in entries.iter().enumerate() {
+            if !valid_name(&name.value) {
+                self.err(
+                    Loc::from(name.referenced),
+                    "bad-name",
+                    format!(
+                        "`{}` is not a valid behavior name: use letters, digits, `_` and `-`, starting with a letter",
+                        name.value
+                    ),
+                );
+            }
+            by_name.insert(name.value.clone(), BehaviorId(i as u32));
+        }
+
+        let mut symbols = Symbols::new();
+        let mut out: Vec<Behavior> = Vec::with_capacity(entries.len());
+        let mut child_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(entries.len());
+        let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(entries.len());
+        for (i, (name, body)) in entries.into_iter().enumerate() {
+            let id = BehaviorId(i as u32);
+            let loc = Loc::from(name.referenced);
+            let spec = body.value;
+            let (children, crefs) = self.edges(&spec.children, &by_name, &name.value, "child");
+            let (next, _) = self.edges(&spec.next, &by_name, &name.value, "successor");
+            for c in &spec.children {
+                if spec.next.iter().any(|n| n.value == c.value) {
+                    self.err(
+                        Loc::from(c.referenced),
+                        "sequential-and-decomposition",
+                        format!(
+                            "`{}` is both a child and a sequential successor of `{}` (S ∩ V must be empty)",
+                            c.value, name.value
+                        ),
+                    )
+                    .hint = Some("an edge is either `children` (decomposition) or `next` (sequence), not both".into());
+                }
+            }
+            let mut resolver = NameResolver {
+                symbols: &mut symbols,
+                by_name: &by_name,
+            };
+            let pre = self.condition(&spec.pre, &mut resolver, "pre", Some("bool"));
+            let until = self.condition(&spec.until, &mut resolver, "until", Some("bool"));
+            let utility = self.condition(&spec.utility, &mut resolver, "utility", Some("number"));
+            let (bindings, labels) = self.bindings(&name.value, &spec);
+            let members = spec
+                .members
+                .as_ref()
+                .map_or((1, u32::MAX), |m| (m.value.min, m.value.max));
+            member_locs.push(spec.members.as_ref().map(|m| Loc::from(m.referenced)));
+            let skill = spec.skill.map(|s| Skill {
+                name: s.value.name,
+                params: s.value.params,
+            });
+            child_refs.push(crefs);
+            out.push(Behavior {
+                id,
+                name: name.value,
+                description: spec.description,
+                team: spec.team,
+                children,
+                next,
+                pre,
+                until,
+                utility,
+                skill,
+                members,
+                bindings,
+                labels,
+                loc,
+            });
+        }
+
+        let start = match &spec.start {
+            None => {
+                let roots: Vec<&str> = roots(&out)
+                    .iter()
+                    .map(|b| out[b.index()].name.as_str())
+                    .collect();
+                let d = self.err(
+                    Loc::new(1, 1),
+                    "missing-start",
+                    "the graph has no `start:` behavior (b0, where execution begins)",
+                );
+                if !roots.is_empty() {
+                    d.hint = Some(format!(
+                        "add `start: {}` (behaviors nothing leads to: {})",
+                        roots[0],
+                        roots.join(", ")
+                    ));
+                }
+                None
+            }
+            Some(s) => match by_name.get(&s.value) {
+                Some(id) => Some(*id),
+                None => {
+                    let hint = did_you_mean(&s.value, by_name.keys().map(String::as_str));
+                    let d = self.err(
+                        Loc::from(s.referenced),
+                        "unknown-reference",
+                        format!("the start behavior `{}` is not defined", s.value),
+                    );
+                    d.hint = hint;
+                    None
+                }
+            },
+        };
+
+        self.check_decomposition(&out, &child_refs);
+        self.check_chain_heads(&out, &child_refs);
+        self.check_bindings_fit(&out);
+        self.check_members(&out, &member_locs);
+        if let Some(start) = start {
+            self.check_reachable(&out, start);
+        }
+        let defaults = self.defaults(&spec.defaults);
+        let initial_beliefs = self.beliefs(&spec.beliefs);
+
+        if self.diags.iter().any(Diagnostic::is_error) {
+            return Err(Diagnostics(self.diags));
+        }
+        let (Some(start), Some(roster)) = (start, roster) else {
+            return Err(Diagnostics(self.diags));
+        };
+        Ok(BehaviorGraph {
+            name: spec.graph.unwrap_or_else(|| stem(&self.file)),
+            description: spec.description,
+            file: self.file.clone(),
+            behaviors: out,
+            by_name,
+            start,
+            symbols: Arc::new(symbols),
+            roster: Arc::new(roster),
+            defaults,
+            initial_beliefs,
+            config: None,
+            warnings: self.diags,
+        })
+    }
+
+    fn roster(&mut self, team: Option<&super::spec::TeamSpec>) -> Option<Roster> {
+        let Some(team) = team else {
+            return Some(Roster::anonymous(1));
+        };
+        let loc = Loc::from(team.robots.referenced);
+        match &team.robots.value {
+            RobotsSpec::Count(0) => {
+                self.err(loc, "empty-team", "a team needs at least one robot");
+                None
+            }
+            RobotsSpec::Count(n) if *n as usize > MAX_ROBOTS => {
+                self.err(
+                    loc,
+                    "too-large",
+                    format!("{n} robots; the limit is {MAX_ROBOTS}"),
+                );
+                None
+            }
+            RobotsSpec::Count(n) => Some(Roster::anonymous(*n as usize)),
+            RobotsSpec::List(list) => {
+                if list.is_empty() {
+                    self.err(loc, "empty-team", "a team needs at least one robot");
+                    return None;
+                }
+                let mut seen = BTreeSet::new();
+                let mut robots = Vec::new();
+                for r in list {
+                    let rloc = Loc::from(r.referenced);
+                    if !seen.insert(r.value.name.clone()) {
+                        self.err(
+                            rloc,
+                            "duplicate-robot",
+                            format!("robot `{}` is listed twice", r.value.name),
+                        );
+                    }
+                    let mut attributes = BTreeMap::new();
+                    for (k, v) in &r.value.attributes {
+                        match json_to_value(v) {
+                            Some(v) => {
+                                attributes.insert(k.clone(), v);
+                            }
+                            None => {
+                                self.err(
+                                    rloc,
+                                    "bad-value",
+                                    format!(
+                                        "attribute `{k}` of robot `{}` must be a bool, number, text or [x, y]",
+                                        r.value.name
+                                    ),
+                                );
+                            }
+                        }
+                    }
+                    robots.push(RobotInfo {
+                        name: r.value.name.clone(),
+                        attributes,
+                    });
+                }
+                Some(Roster::new(robots))
+            }
+        }
+    }
+
+    fn edges(
+        &mut self,
+        refs: &[Spanned<String>],
+        by_name: &BTreeMap<String, BehaviorId>,
+        owner: &str,
+        what: &str,
+    ) -> (Vec<BehaviorId>, Vec<(BehaviorId, Loc)>) {
+        let mut ids = Vec::new();
+        let mut locs = Vec::new();
+        for r in refs {
+            let loc = Loc::from(r.referenced);
+            match by_name.get(&r.value) {
+                Some(id) if ids.contains(id) => {
+                    self.err(
+                        loc,
+                        "duplicate-edge",
+                        format!("`{}` is listed twice as a {what} of `{owner}`", r.value),
+                    );
+                }
+                Some(id) => {
+                    ids.push(*id);
+                    locs.push((*id, loc));
+                }
+                None => {
+                    let hint = did_you_mean(&r.value, by_name.keys().map(String::as_str));
+                    let d = self.err(
+                        loc,
+                        "unknown-reference",
+                        format!(
+                            "`{owner}` names `{}` as a {what}, but no behavior is called `{}`",
+                            r.value, r.value
+                        ),
+                    );
+                    d.hint = hint;
+                }
+            }
+        }
+        (ids, locs)
+    }
+
+    fn condition(
+        &mut self,
+        src: &Option<Spanned<String>>,
+        resolver: &mut NameResolver<'_>,
+        field: &str,
+        want: Option<&'static str>,
+    ) -> Option<Expr> {
+        let s = src.as_ref()?;
+        match Expr::parse(&s.value, resolver) {
+            Ok(e) => {
+                if let (Some(want), Some(got)) = (want, e.static_type())
+                    && want != got
+                {
+                    self.err(
+                        Loc::from(s.referenced),
+                        "condition-type",
+                        format!(
+                            "`{field}` must be a {want} expression, but `{}` is a {got}",
+                            s.value
+                        ),
+                    );
+                    return None;
+                }
+                Some(e)
+            }
+            Err(ce) => {
+                let loc = expr_loc(self.text, Loc::from(s.referenced), &s.value, &ce);
+                let d = self.err(
+                    loc,
+                    "bad-condition",
+                    format!("in `{field}`: {}", ce.message),
+                );
+                d.detail = Some(ce.render(&s.value));
+                d.hint = ce.hint.clone();
+                None
+            }
+        }
+    }
+
+    fn binding(&mut self, spec: &Spanned<BindingSpec>) -> Binding {
+        make_binding(&self.file, spec, &mut self.diags)
+    }
+
+    fn bindings(
+        &mut self,
+        behavior: &str,
+        spec: &BehaviorSpec,
+    ) -> ([Option<Binding>; 3], [Option<String>; 3]) {
+        let mut bindings: [Option<Binding>; 3] = [None, None, None];
+        let mut labels: [Option<String>; 3] = [None, None, None];
+        for (kind, b) in [
+            (Kind::Sync, &spec.sync),
+            (Kind::Allocate, &spec.allocate),
+            (Kind::Terminate, &spec.terminate),
+        ] {
+            let Some(b) = b else { continue };
+            if let Some(label) = &b.value.point {
+                let at = Loc::from(label.referenced);
+                if !valid_name(&label.value) {
+                    self.err(
+                        at,
+                        "bad-name",
+                        format!(
+                            "point label `{}` must be letters, digits, `_` or `-`",
+                            label.value
+                        ),
+                    );
+                }
+                match self.labels.get(&label.value) {
+                    Some(other) if other == behavior => {
+                        self.err(
+                            at,
+                            "duplicate-point",
+                            format!(
+                                "point label `{}` is used twice in `{behavior}`",
+                                label.value
+                            ),
+                        );
+                    }
+                    Some(other) => {
+                        let msg = format!(
+                            "point label `{}` is used by `{other}` and `{behavior}`",
+                            label.value
+                        );
+                        self.err(at, "duplicate-point", msg);
+                    }
+                    None => {
+                        self.labels
+                            .insert(label.value.clone(), behavior.to_string());
+                    }
+                }
+                labels[kind.index()] = Some(label.value.clone());
+            }
+            bindings[kind.index()] = Some(self.binding(b));
+        }
+        (bindings, labels)
+    }
+
+    fn defaults(&mut self, d: &super::spec::DefaultsSpec) -> [Option<Binding>; 3] {
+        let mut out: [Option<Binding>; 3] = [None, None, None];
+        for (kind, b) in [
+            (Kind::Sync, &d.sync),
+            (Kind::Allocate, &d.allocate),
+            (Kind::Terminate, &d.terminate),
+        ] {
+            if let Some(b) = b {
+                if let Some(p) = &b.value.point {
+                    self.err(
+                        Loc::from(p.referenced),
+                        "bad-binding",
+                        "a default binding cannot carry a `point` label",
+                    );
+                }
+                out[kind.index()] = Some(self.binding(b));
+            }
+        }
+        out
+    }
+
+    fn beliefs(&mut self, spec: &Ordered<serde_json::Value>) -> Vec<(String, Value)> {
+        let mut out = Vec::new();
+        for (k, v) in &spec.0 {
+            match json_to_value(&v.value) {
+                Some(val) => out.push((k.value.clone(), val)),
+                None => {
+                    self.err(
+                        Loc::from(v.referenced),
+                        "bad-value",
+                        format!(
+                            "initial belief `{}` must be a bool, number, text or [x, y]",
+                            k.value
+                        ),
+                    );
+                }
+            }
+        }
+        out
+    }
+
+    /// V must be acyclic (a behavior cannot be its own ancestor) and not
+    /// deeper than [`MAX_DEPTH`].
+    fn check_decomposition(&mut self, bs: &[Behavior], child_refs: &[Vec<(BehaviorId, Loc)>]) {
+        // Iterative DFS with colours: 0 new, 1 on the path, 2 done.
+        let n = bs.len();
+        let mut colour = vec![0u8; n];
+        let mut depth = vec![0usize; n];
+        let mut reported = BTreeSet::new();
+        for root in 0..n {
+            if colour[root] != 0 {
+                continue;
+            }
+            let mut stack: Vec<(usize, usize)> = vec![(root, 0)];
+            colour[root] = 1;
+            while let Some(&mut (v, ref mut next)) = stack.last_mut() {
+                if let Some(&c) = bs[v].children.get(*next) {
+                    *next += 1;
+                    let c = c.index();
+                    match colour[c] {
+                        0 => {
+                            colour[c] = 1;
+                            stack.push((c, 0));
+                        }
+                        1 => {
+                            let from = stack.iter().position(|(x, _)| *x == c).unwrap_or(0);
+                            let mut cycle: Vec<usize> =
+                                stack[from..].iter().map(|(x, _)| *x).collect();
+                            let key: BTreeSet<usize> = cycle.iter().copied().collect();
+                            if reported.insert(key.into_iter().collect::<Vec<_>>()) {
+                                cycle.push(c);
+                                let path: Vec<&str> =
+                                    cycle.iter().map(|x| bs[*x].name.as_str()).collect();
+                                let loc = child_refs[v]
+                                    .iter()
+                                    .find(|(id, _)| id.index() == c)
+                                    .map_or(bs[v].loc, |(_, l)| *l);
+                                let d = self.err(
+                                    loc,
+                                    "decomposition-cycle",
+                                    format!(
+                                        "decomposition cycle: {} (a behavior cannot be its own ancestor)",
+                                        path.join(" → ")
+                                    ),
+                                );
+                                d.hint = Some(
+                                    "to repeat a behavior, use a sequential edge (`next`), which may cycle".into(),
+                                );
+                            }
+                        }
+                        _ => {}
+                    }
+                } else {
+                    colour[v] = 2;
+                    depth[v] = 1 + bs[v]
+                        .children
+                        .iter()
+                        .map(|c| {
+                            if colour[c.index()] == 2 {
+                                depth[c.index()]
+                            } else {
+                                0
+                            }
+                        })
+                        .max()
+                        .unwrap_or(0);
+                    stack.pop();
+                }
+            }
+        }
+        // `depth` counts the behaviors on the longest decomposition path from
+        // a behavior (a leaf has depth 1); the levels below it are one fewer.
+        if let Some((i, d)) = depth.iter().enumerate().max_by_key(|(_, d)| **d)
+            && d.saturating_sub(1) > MAX_DEPTH
+        {
+            self.err(
+                bs[i].loc,
+                "too-deep",
+                format!(
+                    "decomposition below `{}` is {} levels deep; the limit is {MAX_DEPTH}",
+                    bs[i].name,
+                    d - 1
+                ),
+            );
+        }
+    }
+
+    /// A child must head an execution chain: nothing may enter it by a
+    /// sequential edge except from its own chain (a cycle back to the head).
+    fn check_chain_heads(&mut self, bs: &[Behavior], child_refs: &[Vec<(BehaviorId, Loc)>]) {
+        let mut incoming: Vec<Vec<BehaviorId>> = vec![Vec::new(); bs.len()];
+        for b in bs {
+            for n in &b.next {
+                incoming[n.index()].push(b.id);
+            }
+        }
+        let mut checked = BTreeSet::new();
+        for (p, refs) in child_refs.iter().enumerate() {
+            for (c, loc) in refs {
+                if incoming[c.index()].is_empty() || !checked.insert((p, c.index())) {
+                    continue;
+                }
+                let chain = seq_reach(bs, *c);
+                // An edge from the parent itself is the S ∩ V error, reported once.
+                for x in incoming[c.index()].iter().filter(|x| x.index() != p) {
+                    if !chain.contains(x) {
+                        let (child, parent, from) =
+                            (&bs[c.index()].name, &bs[p].name, &bs[x.index()].name);
+                        let d = self.err(
+                            *loc,
+                            "child-not-chain-head",
+                            format!(
+                                "`{child}` is a child of `{parent}`, so it must head an execution chain, but `{from}` leads into it sequentially from outside its chain"
+                            ),
+                        );
+                        d.hint = Some(format!(
+                            "remove `{child}` from the `children` of `{parent}` (it already runs after `{from}`), or remove `{child}` from the `next` of `{from}`"
+                        ));
+                        break;
+                    }
+                }
+            }
+        }
+    }
+
+    /// A binding on a behavior that is not that kind of point is unused.
+    fn check_bindings_fit(&mut self, bs: &[Behavior]) {
+        for b in bs {
+            for kind in Kind::ALL {
+                let Some(bind) = &b.bindings[kind.index()] else {
+                    continue;
+                };
+                let team_next = b.next.iter().filter(|n| bs[n.index()].team).count();
+                let why = match kind {
+                    Kind::Sync if team_next < 2 => Some(format!(
+                        "it has {team_next} team successor(s); a synchronization point needs two or more"
+                    )),
+                    Kind::Allocate if b.children.len() < 2 => Some(format!(
+                        "it has {} child(ren); an allocation point needs two or more",
+                        b.children.len()
+                    )),
+                    Kind::Terminate if !b.team => {
+                        Some("it is not a team behavior (add `team: true`)".to_string())
+                    }
+                    _ => None,
+                };
+                if let Some(why) = why {
+                    self.warn(
+                        bind.loc,
+                        "binding-unused",
+                        format!(
+                            "`{}` binds {} protocol but is not {} point: {why}",
+                            b.name,
+                            kind.a_noun(),
+                            kind.a_noun()
+                        ),
+                    );
+                }
+            }
+        }
+    }
+
+    fn check_members(&mut self, bs: &[Behavior], locs: &[Option<Loc>]) {
+        for (i, loc) in locs.iter().enumerate() {
+            let Some(loc) = loc else { continue };
+            let allocated = bs
+                .iter()
+                .any(|p| p.children.len() >= 2 && p.children.contains(&BehaviorId(i as u32)));
+            if !allocated {
+                self.warn(
+                    *loc,
+                    "members-unused",
+                    format!(
+                        "`{}` sets `members` but is never a child of an allocation point",
+                        bs[i].name
+                    ),
+                );
+            }
+        }
+    }
+
+    fn check_reachable(&mut self, bs: &[Behavior], start: BehaviorId) {
+        let mut seen = vec![false; bs.len()];
+        let mut q = VecDeque::from([start]);
+        seen[start.index()] = true;
+        while let Some(b) = q.pop_front() {
+            for n in bs[b.index()].children.iter().chain(&bs[b.index()].next) {
+                if !seen[n.index()] {
+                    seen[n.index()] = true;
+                    q.push_back(*n);
+                }
+            }
+        }
+        for b in bs {
+            if !seen[b.id.index()] {
+                self.warn(
+                    b.loc,
+                    "unreachable",
+                    format!(
+                        "`{}` can never run: no path of `children`/`next` edges leads to it from `{}`",
+                        b.name,
+                        bs[start.index()].name
+                    ),
+                );
+            }
+        }
+    }
+}
+
+/// A binding from its spec; bad durations become diagnostics.
+pub(crate) fn make_binding(
+    file: &Arc<str>,
+    spec: &Spanned<BindingSpec>,
+    diags: &mut Vec<Diagnostic>,
+) -> Binding {
+    let loc = Loc::from(spec.referenced);
+    let mut dur = |text: &Option<Spanned<crate::yaml::DurationText>>, what: &str| {
+        text.as_ref()
+            .and_then(|t| match parse_duration(&t.value.0) {
+                Ok(d) => Some(d),
+                Err(e) => {
+                    diags.push(Diagnostic::error(
+                        file,
+                        Loc::from(t.referenced),
+                        "bad-duration",
+                        format!("`{what}`: {e}"),
+                    ));
+                    None
+                }
+            })
+    };
+    let deadline = dur(&spec.value.deadline, "deadline");
+    let retry = dur(&spec.value.retry, "retry");
+    Binding {
+        protocol: spec.value.protocol.clone(),
+        deadline,
+        retry,
+        params: spec.value.params.clone(),
+        file: file.clone(),
+        loc,
+    }
+}
+
+/// Behaviors reachable from `b` along sequential edges, `b` included.
+fn seq_reach(bs: &[Behavior], b: BehaviorId) -> BTreeSet<BehaviorId> {
+    let mut seen = BTreeSet::from([b]);
+    let mut q = VecDeque::from([b]);
+    while let Some(x) = q.pop_front() {
+        for n in &bs[x.index()].next {
+            if seen.insert(*n) {
+                q.push_back(*n);
+            }
+        }
+    }
+    seen
+}
+
+/// Behaviors with no incoming edge of either kind (candidates for `start`).
+fn roots(bs: &[Behavior]) -> Vec<BehaviorId> {
+    let mut has_in = vec![false; bs.len()];
+    for b in bs {
+        for n in b.children.iter().chain(&b.next) {
+            has_in[n.index()] = true;
+        }
+    }
+    bs.iter()
+        .filter(|b| !has_in[b.id.index()])
+        .map(|b| b.id)
+        .collect()
+}
+
+fn stem(file: &str) -> String {
+    Path::new(file)
+        .file_stem()
+        .map_or_else(|| file.to_string(), |s| s.to_string_lossy().into_owned())
+}
+
+/// The file position of byte `ce.span.start` of an expression whose YAML
+/// scalar starts at `at`. Exact for single-line plain and quoted scalars;
+/// for block scalars, the line holding the offending token.
+fn expr_loc(src: &str, at: Loc, value: &str, ce: &CondError) -> Loc {
+    let off = ce.span.start.min(value.len());
+    let Some(line) = (at.line as usize)
+        .checked_sub(1)
+        .and_then(|l| src.lines().nth(l))
+    else {
+        return at;
+    };
+    let rest: String = line
+        .chars()
+        .skip(at.col.saturating_sub(1) as usize)
+        .collect();
+    let prefix = value.get(..off).map_or(0, |p| p.chars().count()) as u32;
+    if rest.starts_with(value) {
+        return Loc::new(at.line, at.col + prefix);
+    }
+    if (rest.starts_with('"') || rest.starts_with('\'')) && rest[1..].starts_with(value) {
+        return Loc::new(at.line, at.col + 1 + prefix);
+    }
+    // A scalar over several lines (plain, or a `|` / `>` block): the value
+    // joins its lines with one character (a newline or a space). The first
+    // line starts at `at`; the others after their indentation. Walk the
+    // lines in step with the value.
+    let mut value_off = 0usize;
+    for (i, line) in src.lines().enumerate().skip(at.line as usize - 1) {
+        let first = i + 1 == at.line as usize;
+        let (content, indent): (String, usize) = if first {
+            let skip = at.col.saturating_sub(1) as usize;
+            (line.chars().skip(skip).collect(), skip)
+        } else {
+            let t = line.trim_start();
+            (t.to_string(), line.chars().count() - t.chars().count())
+        };
+        let content = content.trim_end();
+        if value
+            .get(value_off..)
+            .is_none_or(|v| !v.starts_with(content))
+        {
+            break;
+        }
+        let end = value_off + content.len();
+        if off < end || (off == end && end == value.len()) {
+            let col = value
+                .get(value_off.min(off)..off)
+                .map_or(0, |p| p.chars().count())
+                + indent
+                + 1;
+            return Loc::new(i as u32 + 1, col as u32);
+        }
+        value_off = end + 1;
+    }
+    at
+}

@@ -1,0 +1,480 @@
+//! Social interaction behaviors: the pluggable coordination protocols.
+//!
+//! BITE's kernel never coordinates by itself. At every synchronization,
+//! allocation and termination point it starts an *instance* of the protocol
+//! bound to that point and waits for the instance's [`Outcome`]. Protocols
+//! are registered by name in a [`Registry`]; the graph and configuration
+//! files bind them to points by name, so swapping a protocol is a one-line
+//! configuration change.
+//!
+//! A protocol is a [`Protocol`] (a named, configurable factory) that creates
+//! [`Interaction`]s (one per instance). An interaction is a sans-IO state
+//! machine: the kernel calls it with a [`Cx`] giving read access to what the
+//! robot knows and collecting its effects — messages to send, a timer, the
+//! decision. It must be bounded: when its deadline passes the kernel calls
+//! [`Interaction::on_deadline`], which must decide from what is known; if it
+//! still does not, the kernel applies the silent rule of its kind
+//! (first candidate / allocation by id / local termination) and reports a
+//! timeout.
+
+use crate::belief::BeliefStore;
+use crate::cond::Env;
+use crate::graph::BehaviorGraph;
+use crate::ids::BeliefId;
+use crate::ids::{BehaviorId, RobotId};
+use crate::msg::{Body, InstanceKey, Kind};
+use crate::org::{MemberSet, Organization, Team};
+use crate::roster::Roster;
+use crate::time::Time;
+use crate::value::Value;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The seeded random generator handed to kernels and protocols.
+pub type Rng = rand_chacha::ChaCha8Rng;
+
+/// Protocol parameters as written in a graph or configuration file.
+pub type Params = serde_json::Value;
+
+/// Creates a fresh instance of a configured protocol.
+pub type Factory = Arc<dyn Fn() -> Box<dyn Interaction> + Send + Sync>;
+
+/// A coordination protocol, registered by name.
+pub trait Protocol: Send + Sync {
+    /// The name used in files (`sync.vote`).
+    fn name(&self) -> &'static str;
+    /// Other accepted names (the paper's `SF8`).
+    fn aliases(&self) -> &'static [&'static str] {
+        &[]
+    }
+    /// Which points it can be bound to.
+    fn kind(&self) -> Kind;
+    /// Whether it sends messages.
+    fn communicates(&self) -> bool;
+    /// One line for `bite protocols`.
+    fn summary(&self) -> &'static str;
+    /// Deadline used when a binding does not give one.
+    fn default_deadline(&self) -> Duration {
+        Duration::from_secs(5)
+    }
+    /// Validate `params` (JSON `null` when none are given) and return a
+    /// factory of instances configured with them.
+    fn configure(&self, params: &Params) -> Result<Factory, String>;
+}
+
+/// One running protocol instance (see the module documentation).
+pub trait Interaction: Send {
+    /// The instance begins. For synchronization and allocation this is when
+    /// the robot reaches the point; for termination it is when the behavior
+    /// starts (the instance is *armed* for the behavior's whole run, so that
+    /// teammates can end it, e.g. the first robot to see the goal).
+    fn start(&mut self, cx: &mut Cx<'_>);
+    /// Termination only: this robot's own reason to end the behavior
+    /// happened (its termination condition held or its chain ended). The
+    /// robot now waits for the decision.
+    fn local_done(&mut self, _cx: &mut Cx<'_>) {}
+    /// A message for this instance from teammate `from` (a member of the
+    /// team, never this robot, never a duplicate). Also called after the
+    /// decision while the instance lingers, so that it can answer
+    /// retransmissions idempotently.
+    fn on_message(&mut self, cx: &mut Cx<'_>, from: RobotId, body: &Body);
+    /// The timer set with [`Cx::wake_at`] fired.
+    fn on_timer(&mut self, _cx: &mut Cx<'_>) {}
+    /// The deadline passed without a decision: decide now from what is
+    /// known. The kernel reports a timeout either way.
+    fn on_deadline(&mut self, cx: &mut Cx<'_>);
+}
+
+/// What the kernel gives an instance to decide about.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PointInput {
+    /// Choose the next behavior after the point behavior.
+    Sync {
+        /// Successors whose preconditions hold for this robot, graph order.
+        candidates: Vec<BehaviorId>,
+        /// All successors, graph order.
+        successors: Vec<BehaviorId>,
+    },
+    /// Split the team among the point behavior's children.
+    Allocate {
+        /// Children whose preconditions hold for this robot, graph order.
+        children: Vec<ChildSlot>,
+    },
+    /// End the point behavior together.
+    Terminate,
+}
+
+/// A child of an allocation point and how many members it wants.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ChildSlot {
+    /// The child behavior (head of an execution chain).
+    pub behavior: BehaviorId,
+    /// Fewest members that make it worth running (at least 1).
+    pub min: u32,
+    /// Most members it can use.
+    pub max: u32,
+}
+
+/// An allocation: each child with the members assigned to it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Assignment(pub Vec<(BehaviorId, MemberSet)>);
+
+impl Assignment {
+    /// The child assigned to `r`, if any.
+    pub fn child_of(&self, r: RobotId) -> Option<(usize, BehaviorId)> {
+        self.0
+            .iter()
+            .enumerate()
+            .find(|(_, (_, m))| m.contains(r))
+            .map(|(i, (b, _))| (i, *b))
+    }
+}
+
+/// The decision of an instance.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Outcome {
+    /// The selected successor (`None`: end of the execution chain).
+    Sync(Option<BehaviorId>),
+    /// The allocation.
+    Allocate(Assignment),
+    /// The behavior is over; optionally a new behavior to run under the
+    /// same parent.
+    Terminate(Option<BehaviorId>),
+}
+
+/// Who a message goes to.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Recipients {
+    /// One teammate.
+    One(RobotId),
+    /// Every member of the set except the sender (a team multicast: one
+    /// message on the air, counted once).
+    Team(Arc<MemberSet>),
+}
+
+/// Effects an instance produced during one call.
+#[derive(Debug, Default)]
+pub struct Effects {
+    /// Messages to send.
+    pub sends: Vec<(Recipients, Body)>,
+    /// Earliest requested wake-up.
+    pub wake: Option<Time>,
+    /// The decision, once taken.
+    pub outcome: Option<Outcome>,
+    /// Protocol violations noticed in incoming messages (logged, ignored).
+    pub violations: Vec<String>,
+}
+
+/// The context of one call into an [`Interaction`].
+pub struct Cx<'a> {
+    now: Time,
+    me: RobotId,
+    key: InstanceKey,
+    team: &'a Team,
+    org: &'a Organization,
+    runs: &'a BTreeMap<BehaviorId, u32>,
+    graph: &'a BehaviorGraph,
+    roster: &'a Roster,
+    beliefs: &'a BeliefStore,
+    rng: &'a mut Rng,
+    input: &'a PointInput,
+    retry: Duration,
+    deadline: Time,
+    decided: bool,
+    fx: &'a mut Effects,
+}
+
+/// Everything needed to build a [`Cx`] (for runtimes and protocol tests).
+pub struct CxParts<'a> {
+    /// Current time.
+    pub now: Time,
+    /// This robot.
+    pub me: RobotId,
+    /// The instance.
+    pub key: InstanceKey,
+    /// The team running it.
+    pub team: &'a Team,
+    /// This robot's organization hierarchy.
+    pub org: &'a Organization,
+    /// Run counts of the candidates' parent execution (what `runs` reads).
+    pub runs: &'a BTreeMap<BehaviorId, u32>,
+    /// The behavior graph.
+    pub graph: &'a BehaviorGraph,
+    /// The roster.
+    pub roster: &'a Roster,
+    /// This robot's beliefs.
+    pub beliefs: &'a BeliefStore,
+    /// This robot's random generator.
+    pub rng: &'a mut Rng,
+    /// What to decide about.
+    pub input: &'a PointInput,
+    /// Retransmission interval of the binding.
+    pub retry: Duration,
+    /// When the instance must have decided.
+    pub deadline: Time,
+    /// Whether the instance already decided (it lingers to answer).
+    pub decided: bool,
+    /// Where effects go.
+    pub fx: &'a mut Effects,
+}
+
+impl<'a> Cx<'a> {
+    /// Assemble a context.
+    pub fn new(p: CxParts<'a>) -> Self {
+        Cx {
+            now: p.now,
+            me: p.me,
+            key: p.key,
+            team: p.team,
+            org: p.org,
+            runs: p.runs,
+            graph: p.graph,
+            roster: p.roster,
+            beliefs: p.beliefs,
+            rng: p.rng,
+            input: p.input,
+            retry: p.retry,
+            deadline: p.deadline,
+            decided: p.decided,
+            fx: p.fx,
+        }
+    }
+    /// Current time.
+    pub fn now(&self) -> Time {
+        self.now
+    }
+    /// This robot.
+    pub fn me(&self) -> RobotId {
+        self.me
+    }
+    /// The instance.
+    pub fn key(&self) -> InstanceKey {
+        self.key
+    }
+    /// The team running the instance.
+    pub fn team(&self) -> &Team {
+        self.team
+    }
+    /// Number of members.
+    pub fn team_size(&self) -> usize {
+        self.team.size as usize
+    }
+    /// Members in id order.
+    pub fn members(&self) -> impl Iterator<Item = RobotId> + '_ {
+        self.team.members.iter()
+    }
+    /// The coordinator of the instance: the lowest-id member.
+    pub fn leader(&self) -> RobotId {
+        self.team.leader().unwrap_or(self.me)
+    }
+    /// True when this robot coordinates.
+    pub fn is_leader(&self) -> bool {
+        self.leader() == self.me
+    }
+    /// This robot's organization hierarchy.
+    pub fn org(&self) -> &Organization {
+        self.org
+    }
+    /// The behavior graph.
+    pub fn graph(&self) -> &BehaviorGraph {
+        self.graph
+    }
+    /// The `utility` of behavior `b` for this robot, if it declares one and
+    /// it evaluates to a number.
+    pub fn utility(&self, b: BehaviorId) -> Option<f64> {
+        let u = self.graph.get(b)?.utility.as_ref()?;
+        let env = CxEnv {
+            beliefs: self.beliefs,
+            runs: self.runs,
+            own: b,
+            now: self.now,
+        };
+        u.eval_value(&env)?.as_num().filter(|x| x.is_finite())
+    }
+    /// This robot's preference among `options`, restricted to the
+    /// candidates enabled for it: highest utility, ties and behaviors
+    /// without utility broken by graph order. `None` if none is enabled.
+    pub fn preferred(&self, options: &[BehaviorId]) -> Option<BehaviorId> {
+        self.ranking(options).into_iter().next()
+    }
+    /// This robot's full ranking of the enabled candidates among
+    /// `options`, best first (same order as [`Cx::preferred`]).
+    pub fn ranking(&self, options: &[BehaviorId]) -> Vec<BehaviorId> {
+        let mut ranked: Vec<(usize, Option<f64>, BehaviorId)> = options
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| self.candidates().contains(b))
+            .map(|(i, b)| (i, self.utility(*b), *b))
+            .collect();
+        ranked.sort_by(|a, b| match (a.1, b.1) {
+            (Some(x), Some(y)) => y.total_cmp(&x).then(a.0.cmp(&b.0)),
+            (Some(_), None) => std::cmp::Ordering::Less,
+            (None, Some(_)) => std::cmp::Ordering::Greater,
+            (None, None) => a.0.cmp(&b.0),
+        });
+        ranked.into_iter().map(|(_, _, b)| b).collect()
+    }
+    /// The roster (robot attributes).
+    pub fn roster(&self) -> &Roster {
+        self.roster
+    }
+    /// This robot's beliefs.
+    pub fn beliefs(&self) -> &BeliefStore {
+        self.beliefs
+    }
+    /// This robot's seeded random generator.
+    pub fn rng(&mut self) -> &mut Rng {
+        self.rng
+    }
+    /// What to decide about.
+    pub fn input(&self) -> &PointInput {
+        self.input
+    }
+    /// Candidates of a synchronization instance (empty otherwise).
+    pub fn candidates(&self) -> &[BehaviorId] {
+        match self.input {
+            PointInput::Sync { candidates, .. } => candidates,
+            _ => &[],
+        }
+    }
+    /// Children of an allocation instance (empty otherwise).
+    pub fn children(&self) -> &[ChildSlot] {
+        match self.input {
+            PointInput::Allocate { children } => children,
+            _ => &[],
+        }
+    }
+    /// Retransmission interval.
+    pub fn retry(&self) -> Duration {
+        self.retry
+    }
+    /// Deadline of the instance.
+    pub fn deadline(&self) -> Time {
+        self.deadline
+    }
+    /// Send `body` to one teammate.
+    pub fn send(&mut self, to: RobotId, body: Body) {
+        if to != self.me {
+            self.fx.sends.push((Recipients::One(to), body));
+        }
+    }
+    /// Send `body` to every other member of the team.
+    pub fn broadcast(&mut self, body: Body) {
+        if self.team.size > 1 {
+            self.fx
+                .sends
+                .push((Recipients::Team(self.team.members.clone()), body));
+        }
+    }
+    /// Ask to be called back (`on_timer`) at `t`.
+    pub fn wake_at(&mut self, t: Time) {
+        self.fx.wake = Some(self.fx.wake.map_or(t, |w| w.min(t)));
+    }
+    /// Ask to be called back after the retry interval.
+    pub fn wake_after_retry(&mut self) {
+        let t = self.now + self.retry;
+        self.wake_at(t);
+    }
+    /// Take the decision (the first decision counts; later ones are ignored).
+    pub fn decide(&mut self, outcome: Outcome) {
+        if !self.decided && self.fx.outcome.is_none() {
+            self.fx.outcome = Some(outcome);
+        }
+    }
+    /// True once the instance has decided.
+    pub fn is_decided(&self) -> bool {
+        self.decided || self.fx.outcome.is_some()
+    }
+    /// Record a protocol violation by a teammate (the message is ignored).
+    pub fn violation(&mut self, what: impl Into<String>) {
+        self.fx.violations.push(what.into());
+    }
+}
+
+/// What a utility expression reads inside a protocol.
+struct CxEnv<'a> {
+    beliefs: &'a BeliefStore,
+    runs: &'a BTreeMap<BehaviorId, u32>,
+    own: BehaviorId,
+    now: Time,
+}
+
+impl Env for CxEnv<'_> {
+    fn belief(&self, id: BeliefId) -> Option<&Value> {
+        self.beliefs.value(id)
+    }
+    fn belief_age(&self, id: BeliefId) -> Option<f64> {
+        self.beliefs
+            .get(id)
+            .map(|b| (self.now - b.time).as_secs_f64())
+    }
+    fn elapsed(&self) -> f64 {
+        0.0
+    }
+    fn runs(&self, b: Option<BehaviorId>) -> u32 {
+        self.runs.get(&b.unwrap_or(self.own)).copied().unwrap_or(0)
+    }
+}
+
+/// The protocols available to a mission, by name.
+#[derive(Clone, Default)]
+pub struct Registry {
+    protocols: BTreeMap<&'static str, Arc<dyn Protocol>>,
+    aliases: BTreeMap<&'static str, &'static str>,
+}
+
+impl fmt::Debug for Registry {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_list().entries(self.protocols.keys()).finish()
+    }
+}
+
+impl Registry {
+    /// An empty registry.
+    pub fn new() -> Self {
+        Self::default()
+    }
+    /// The silent rules built into the kernel: `sync.by-rule`,
+    /// `alloc.by-id`, `term.local`.
+    pub fn core() -> Self {
+        let mut r = Self::new();
+        r.register(Arc::new(crate::rules::SyncByRule));
+        r.register(Arc::new(crate::rules::AllocById));
+        r.register(Arc::new(crate::rules::TermLocal));
+        r
+    }
+    /// Add a protocol (replacing one of the same name).
+    pub fn register(&mut self, p: Arc<dyn Protocol>) {
+        for a in p.aliases() {
+            self.aliases.insert(a, p.name());
+        }
+        self.protocols.insert(p.name(), p);
+    }
+    /// Look a protocol up by name or alias.
+    pub fn get(&self, name: &str) -> Option<&Arc<dyn Protocol>> {
+        self.protocols
+            .get(name)
+            .or_else(|| self.aliases.get(name).and_then(|n| self.protocols.get(n)))
+    }
+    /// All protocols in name order.
+    pub fn iter(&self) -> impl Iterator<Item = &Arc<dyn Protocol>> {
+        self.protocols.values()
+    }
+    /// All names and aliases (for "did you mean").
+    pub fn names(&self) -> impl Iterator<Item = &'static str> + '_ {
+        self.protocols
+            .keys()
+            .copied()
+            .chain(self.aliases.keys().copied())
+    }
+    /// The protocol used at a point of kind `kind` when nothing is bound.
+    pub fn default_for(kind: Kind) -> &'static str {
+        match kind {
+            Kind::Sync => "sync.by-rule",
+            Kind::Allocate => "alloc.by-id",
+            Kind::Terminate => "term.wait-all",
+        }
+    }
+}

@@ -1,0 +1,1328 @@
+//! The BITE control kernel: Algorithm 1 (CONTROL) of the paper, as a
+//! sans-IO state machine, one per robot.
+//!
+//! The runtime drives it with [`Kernel::tick`] (time and percepts),
+//! [`Kernel::message`] (a teammate's message) and [`Kernel::timer`], then
+//! drains [`Kernel::poll_output`] (messages to send, events) and asks
+//! [`Kernel::poll_timeout`] when to call again. The behavior stack G is
+//! [`Kernel::stack`]. Nothing here reads a clock, a socket or a random
+//! source: time is an argument and randomness a seeded generator.
+//!
+//! How Algorithm 1 maps onto the phases of the state machine:
+//!
+//! | Algorithm 1 | here |
+//! |---|---|
+//! | 1–2 push b0 | `begin` |
+//! | 3a–3d expand, `Allocate` at allocation points | `Phase::Expand`, `Phase::Allocating` |
+//! | 4a–4c run the stack, first termination pops descendants | `ended_frame` + `end_frame`, checked on every input for *every* frame |
+//! | 5–7 pop, `Terminate`, optional new child | `Phase::Terminating` |
+//! | 8a–8e choose the next behavior (`Decide` at synchronization points), empty chain terminates the parent | `Phase::Selecting`, `chain_end` |
+//! | 9 loop | `advance` |
+//!
+//! Where Algorithm 1 blocks inside `Allocate`, `Terminate` or `Decide`, the
+//! kernel starts a protocol instance and returns; termination conditions of
+//! the behaviors still on the stack keep being monitored while it waits, and
+//! an ancestor that ends aborts the instance.
+
+use crate::belief::{BeliefStore, Source};
+use crate::cond::{Env, Expr};
+use crate::dedup::ReplayWindow;
+use crate::event::{DropReason, EndReason, Event, OutcomeLog, Via};
+use crate::graph::BehaviorGraph;
+use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
+use crate::interaction::{
+    Assignment, ChildSlot, Cx, CxParts, Effects, Interaction, Outcome, PointInput, Recipients, Rng,
+};
+use crate::mission::Mission;
+use crate::msg::{Body, Envelope, InstanceKey, Kind, encoded_len};
+use crate::org::{MemberSet, Organization};
+use crate::rules;
+use crate::time::Time;
+use crate::value::Value;
+use rand::SeedableRng;
+use serde::Serialize;
+use std::collections::{BTreeMap, VecDeque};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Bounds on the work and memory of one kernel.
+#[derive(Clone, Debug)]
+pub struct Limits {
+    /// Transitions processed for one input before yielding.
+    pub max_transitions: u32,
+    /// Messages buffered for protocol instances not started yet.
+    pub max_pending: usize,
+    /// How long a buffered message is kept.
+    pub pending_ttl: Duration,
+}
+
+impl Limits {
+    /// Defaults scaled to the team size (a leader may hear from everyone
+    /// before it reaches the point).
+    pub fn for_team(n: usize) -> Self {
+        Limits {
+            max_transitions: 512,
+            max_pending: 4096.max(4 * n),
+            pending_ttl: Duration::from_secs(60),
+        }
+    }
+}
+
+/// One entry of the behavior stack G.
+#[derive(Clone, Debug, Serialize)]
+pub struct Frame {
+    /// The behavior.
+    pub behavior: BehaviorId,
+    /// The subteam executing it.
+    pub team: TeamId,
+    /// The team's execution count of it.
+    pub epoch: u32,
+    /// When this robot started it.
+    pub started: Time,
+    /// Its allocation created subteams (dissolved when it ends).
+    #[serde(skip)]
+    allocated: bool,
+    /// Its termination protocol decided while it was still running here.
+    #[serde(skip)]
+    team_ended: bool,
+    /// Belief and stack versions at which `until` was last found false.
+    #[serde(skip)]
+    until_false_at: Option<(u64, u64)>,
+    /// The input during which it was pushed.
+    #[serde(skip)]
+    born: u64,
+    /// How many times each behavior has been started directly under this
+    /// frame, during this execution of it (what `runs` reads in conditions).
+    #[serde(skip)]
+    runs: BTreeMap<BehaviorId, u32>,
+}
+
+impl Frame {
+    fn term_key(&self) -> InstanceKey {
+        InstanceKey {
+            team: self.team,
+            behavior: self.behavior,
+            kind: Kind::Terminate,
+            epoch: self.epoch,
+        }
+    }
+}
+
+/// A message to send.
+#[derive(Clone, Debug)]
+pub struct Outgoing {
+    /// Recipients.
+    pub to: Recipients,
+    /// The message.
+    pub envelope: Envelope,
+    /// Its encoded size.
+    pub bytes: u32,
+}
+
+/// What the kernel produces.
+#[derive(Clone, Debug)]
+pub enum Output {
+    /// Send a message.
+    Send(Outgoing),
+    /// Something happened.
+    Event(Event),
+}
+
+/// An input from the runtime.
+#[derive(Clone, Debug)]
+pub enum Input<'a> {
+    /// Control tick with fresh percepts.
+    Tick {
+        /// Belief updates from sensors and skills.
+        percepts: &'a [(BeliefId, Value)],
+    },
+    /// A teammate's message.
+    Message(Envelope),
+    /// A timer fired (see [`Kernel::poll_timeout`]).
+    Timer,
+}
+
+/// Counters of one kernel.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Stats {
+    /// Messages sent (a team multicast counts once).
+    pub sent: u64,
+    /// Bytes sent.
+    pub bytes_sent: u64,
+    /// Messages received and accepted.
+    pub received: u64,
+    /// Messages dropped, by reason.
+    pub dropped: BTreeMap<DropReason, u64>,
+    /// Messages buffered for instances not started yet.
+    pub buffered: u64,
+    /// Behaviors selected.
+    pub selections: u64,
+    /// Instances that hit their deadline.
+    pub timeouts: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum State {
+    /// Termination instance of a running behavior, before local termination.
+    Armed,
+    /// Waiting for the decision.
+    Active,
+    /// Decided; lingers to answer retransmissions.
+    Decided,
+}
+
+struct Instance {
+    protocol: &'static str,
+    imp: Box<dyn Interaction>,
+    input: PointInput,
+    retry: Duration,
+    deadline_len: Duration,
+    state: State,
+    waiting_since: Option<Time>,
+    deadline: Time,
+    wake: Option<Time>,
+    outcome: Option<Outcome>,
+    timed_out: bool,
+    sent: u32,
+    bytes: u64,
+    received: u32,
+    linger_until: Time,
+}
+
+#[derive(Debug)]
+enum Phase {
+    NotStarted,
+    /// The top frame must be expanded (Algorithm 1, line 3).
+    Expand,
+    /// The top frame has no enabled child; re-checked when beliefs change.
+    WaitChild {
+        seen: (u64, u64),
+    },
+    /// Waiting for the allocation at the top frame.
+    Allocating(InstanceKey),
+    /// The leaf is atomic and runs.
+    Run,
+    /// `frame` was popped; waiting for its termination protocol.
+    Terminating {
+        frame: Frame,
+        key: Option<InstanceKey>,
+    },
+    /// `frame` ended; choosing its successor.
+    Selecting {
+        frame: Frame,
+        key: Option<InstanceKey>,
+    },
+    /// The stack emptied.
+    Finished,
+}
+
+/// A buffered message for an instance not started yet.
+struct Pending {
+    at: Time,
+    from: RobotId,
+    body: Body,
+}
+
+/// The control kernel of one robot.
+pub struct Kernel {
+    mission: Arc<Mission>,
+    me: RobotId,
+    beliefs: BeliefStore,
+    org: Organization,
+    rng: Rng,
+    stack: Vec<Frame>,
+    phase: Phase,
+    instances: BTreeMap<InstanceKey, Instance>,
+    /// Highest epoch known to be over, per (team, behavior, kind).
+    closed: BTreeMap<(TeamId, BehaviorId, Kind), u32>,
+    pending: BTreeMap<InstanceKey, Vec<Pending>>,
+    pending_len: usize,
+    windows: BTreeMap<RobotId, ReplayWindow>,
+    next_seq: u64,
+    out: VecDeque<Output>,
+    now: Time,
+    stack_version: u64,
+    /// Inputs handled so far.
+    inputs: u64,
+    /// Run counts of the top-level execution chain (behaviors with no parent frame).
+    root_runs: BTreeMap<BehaviorId, u32>,
+    next_due: Option<Time>,
+    gc_at: Time,
+    limits: Limits,
+    stats: Stats,
+}
+
+/// What a condition of behavior `own` can read.
+struct FrameEnv<'a> {
+    beliefs: &'a BeliefStore,
+    /// Run counts in the current execution of `own`'s parent.
+    runs: &'a BTreeMap<BehaviorId, u32>,
+    now: Time,
+    started: Time,
+    own: BehaviorId,
+}
+
+impl Env for FrameEnv<'_> {
+    #[inline]
+    fn belief(&self, id: BeliefId) -> Option<&Value> {
+        self.beliefs.value(id)
+    }
+    fn belief_age(&self, id: BeliefId) -> Option<f64> {
+        self.beliefs
+            .get(id)
+            .map(|b| (self.now - b.time).as_secs_f64())
+    }
+    fn elapsed(&self) -> f64 {
+        (self.now - self.started).as_secs_f64()
+    }
+    fn runs(&self, b: Option<BehaviorId>) -> u32 {
+        self.runs.get(&b.unwrap_or(self.own)).copied().unwrap_or(0)
+    }
+}
+
+impl Kernel {
+    /// A kernel for robot `me` of the mission's roster, seeded with `seed`.
+    pub fn new(mission: Arc<Mission>, me: RobotId, seed: u64) -> Self {
+        let n = mission.graph().roster().len();
+        Self::with_root(mission, me, seed, Arc::new(MemberSet::all(n)))
+    }
+
+    /// Like [`Kernel::new`], sharing the root team's member set (a simulator
+    /// running thousands of kernels stores it once).
+    pub fn with_root(mission: Arc<Mission>, me: RobotId, seed: u64, root: Arc<MemberSet>) -> Self {
+        let graph = mission.graph().clone();
+        let n = graph.roster().len();
+        Kernel {
+            beliefs: BeliefStore::new(graph.symbols().clone()),
+            org: Organization::with_root(root),
+            rng: Rng::seed_from_u64(seed),
+            me,
+            mission,
+            stack: Vec::new(),
+            phase: Phase::NotStarted,
+            instances: BTreeMap::new(),
+            closed: BTreeMap::new(),
+            pending: BTreeMap::new(),
+            pending_len: 0,
+            windows: BTreeMap::new(),
+            next_seq: 1,
+            out: VecDeque::new(),
+            now: Time::ZERO,
+            stack_version: 0,
+            inputs: 0,
+            root_runs: BTreeMap::new(),
+            next_due: None,
+            gc_at: Time::ZERO,
+            limits: Limits::for_team(n),
+            stats: Stats::default(),
+        }
+    }
+
+    /// Replace the limits.
+    pub fn set_limits(&mut self, limits: Limits) {
+        self.limits = limits;
+    }
+
+    // ----- inputs -------------------------------------------------------
+
+    /// Handle one input at time `now`.
+    pub fn handle(&mut self, now: Time, input: Input<'_>) {
+        match input {
+            Input::Tick { percepts } => self.tick(now, percepts),
+            Input::Message(env) => self.message(now, env),
+            Input::Timer => self.timer(now),
+        }
+    }
+
+    /// A control tick: record percepts, fire due timers, run Algorithm 1
+    /// until it must wait.
+    pub fn tick(&mut self, now: Time, percepts: &[(BeliefId, Value)]) {
+        self.set_now(now);
+        for (id, v) in percepts {
+            self.beliefs.set(*id, v.clone(), self.now, Source::Percept);
+        }
+        self.step();
+    }
+
+    /// A teammate's message.
+    pub fn message(&mut self, now: Time, env: Envelope) {
+        self.set_now(now);
+        if matches!(self.phase, Phase::NotStarted) {
+            self.begin();
+        }
+        self.route(env);
+        self.step();
+    }
+
+    /// A timer fired.
+    pub fn timer(&mut self, now: Time) {
+        self.set_now(now);
+        self.step();
+    }
+
+    /// Set a belief from outside the tick (e.g. the world model relaying a
+    /// teammate's report). Takes effect at the next input.
+    pub fn set_belief(&mut self, id: BeliefId, value: Value, source: Source) -> bool {
+        self.beliefs.set(id, value, self.now, source)
+    }
+
+    fn set_now(&mut self, now: Time) {
+        // Time never goes backwards inside the kernel, whatever the runtime does.
+        self.now = self.now.max(now);
+    }
+
+    fn step(&mut self) {
+        self.inputs += 1;
+        if self.next_due.is_some_and(|t| t <= self.now) {
+            self.fire_timers();
+        }
+        self.advance();
+        if self.now >= self.gc_at {
+            self.gc();
+            self.gc_at = self.now + Duration::from_secs(1);
+        }
+    }
+
+    // ----- outputs ------------------------------------------------------
+
+    /// The next output, if any.
+    pub fn poll_output(&mut self) -> Option<Output> {
+        self.out.pop_front()
+    }
+    /// When the kernel next needs a [`Kernel::timer`] call.
+    pub fn poll_timeout(&self) -> Option<Time> {
+        self.next_due
+    }
+    /// The behavior stack G, root first.
+    pub fn stack(&self) -> &[Frame] {
+        &self.stack
+    }
+    /// The leaf of the stack (the behavior whose skill runs).
+    pub fn leaf(&self) -> Option<&Frame> {
+        self.stack.last()
+    }
+    /// Incremented by every push and pop.
+    pub fn stack_version(&self) -> u64 {
+        self.stack_version
+    }
+    /// True once the mission is over for this robot.
+    pub fn is_finished(&self) -> bool {
+        matches!(self.phase, Phase::Finished)
+    }
+    /// True while the robot waits for a protocol decision.
+    pub fn is_interacting(&self) -> bool {
+        match &self.phase {
+            Phase::Allocating(_) => true,
+            Phase::Terminating { key, .. } | Phase::Selecting { key, .. } => key.is_some(),
+            _ => false,
+        }
+    }
+    /// A short name of what the kernel is doing.
+    pub fn phase_name(&self) -> &'static str {
+        match self.phase {
+            Phase::NotStarted => "not-started",
+            Phase::Expand => "expanding",
+            Phase::WaitChild { .. } => "waiting-for-child",
+            Phase::Allocating(_) => "allocating",
+            Phase::Run => "running",
+            Phase::Terminating { .. } => "terminating",
+            Phase::Selecting { .. } => "selecting",
+            Phase::Finished => "finished",
+        }
+    }
+    /// This robot.
+    pub fn me(&self) -> RobotId {
+        self.me
+    }
+    /// Its beliefs.
+    pub fn beliefs(&self) -> &BeliefStore {
+        &self.beliefs
+    }
+    /// Its copy of the organization hierarchy.
+    pub fn org(&self) -> &Organization {
+        &self.org
+    }
+    /// Its counters.
+    pub fn stats(&self) -> &Stats {
+        &self.stats
+    }
+    /// The mission.
+    pub fn mission(&self) -> &Arc<Mission> {
+        &self.mission
+    }
+    /// Current kernel time.
+    pub fn now(&self) -> Time {
+        self.now
+    }
+
+    fn emit(&mut self, e: Event) {
+        self.out.push_back(Output::Event(e));
+    }
+
+    // ----- Algorithm 1 --------------------------------------------------
+
+    fn graph(&self) -> &BehaviorGraph {
+        self.mission.graph()
+    }
+
+    /// Lines 1–2: push b0 for the whole team.
+    fn begin(&mut self) {
+        let graph = self.mission.graph().clone();
+        for (name, v) in graph.initial_beliefs() {
+            self.beliefs
+                .set_named(name, v.clone(), self.now, Source::Given);
+        }
+        self.push(graph.start(), TeamId::ROOT, Via::Start);
+    }
+
+    fn versions(&self) -> (u64, u64) {
+        (self.beliefs.version(), self.stack_version)
+    }
+
+    /// Run transitions until the kernel must wait for an input.
+    fn advance(&mut self) {
+        for _ in 0..self.limits.max_transitions {
+            if !matches!(self.phase, Phase::NotStarted | Phase::Finished)
+                && let Some((i, reason)) = self.ended_frame()
+            {
+                self.end_frame(i, reason);
+                continue;
+            }
+            let progressed = match &self.phase {
+                Phase::NotStarted => {
+                    self.begin();
+                    true
+                }
+                Phase::Finished | Phase::Run => false,
+                Phase::Expand => self.expand(),
+                Phase::WaitChild { seen } => {
+                    if *seen == self.versions() {
+                        false
+                    } else if self.enabled_children().is_empty() {
+                        self.phase = Phase::WaitChild {
+                            seen: self.versions(),
+                        };
+                        false
+                    } else {
+                        self.phase = Phase::Expand;
+                        true
+                    }
+                }
+                Phase::Allocating(key) => {
+                    let key = *key;
+                    self.finish_allocation(key)
+                }
+                Phase::Terminating { .. } => self.finish_termination(),
+                Phase::Selecting { .. } => self.select(),
+            };
+            if !progressed {
+                return;
+            }
+        }
+        self.emit(Event::TransitionLimit);
+    }
+
+    /// Line 4: the root-most frame that must end — its termination
+    /// condition holds, or its team ended it.
+    fn ended_frame(&mut self) -> Option<(usize, EndReason)> {
+        let vers = self.versions();
+        let graph = self.mission.graph();
+        for i in 0..self.stack.len() {
+            let f = &self.stack[i];
+            if f.team_ended {
+                return Some((i, EndReason::Team));
+            }
+            if f.born == self.inputs {
+                // A behavior runs for at least one input: its termination
+                // condition is first checked at the next input, after the
+                // runtime has started its skill and reported fresh percepts.
+                continue;
+            }
+            let Some(until) = &graph.behavior(f.behavior).until else {
+                continue;
+            };
+            if !until.depends_on_time() && f.until_false_at == Some(vers) {
+                continue;
+            }
+            let runs = match i {
+                0 => &self.root_runs,
+                _ => &self.stack[i - 1].runs,
+            };
+            let env = FrameEnv {
+                beliefs: &self.beliefs,
+                runs,
+                now: self.now,
+                started: f.started,
+                own: f.behavior,
+            };
+            if until.eval(&env) {
+                let e = self.condition_event(f.behavior, "until", until);
+                self.out.push_back(Output::Event(e));
+                return Some((i, EndReason::Until));
+            }
+            self.stack[i].until_false_at = Some(vers);
+        }
+        None
+    }
+
+    fn condition_event(&self, behavior: BehaviorId, field: &'static str, e: &Expr) -> Event {
+        let sym = self.beliefs.symbols();
+        Event::ConditionHeld {
+            behavior,
+            field,
+            beliefs: e
+                .beliefs()
+                .iter()
+                .map(|id| (sym.name(*id).to_string(), self.beliefs.value(*id).cloned()))
+                .collect(),
+        }
+    }
+
+    /// Lines 4b–6: pop the descendants of frame `i` and `i` itself, and
+    /// start its synchronized termination.
+    fn end_frame(&mut self, i: usize, reason: EndReason) {
+        self.abort_phase();
+        let ended = self.stack[i].behavior;
+        while self.stack.len() > i + 1 {
+            if let Some(f) = self.stack.pop() {
+                self.abort(f.term_key());
+                self.retire(&f, EndReason::Ancestor(ended));
+            }
+        }
+        let Some(frame) = self.stack.pop() else {
+            return;
+        };
+        self.retire(&frame, reason);
+        let key = frame.term_key();
+        let key = if self.instances.contains_key(&key) {
+            self.term_local_done(key);
+            Some(key)
+        } else {
+            None
+        };
+        self.phase = Phase::Terminating { frame, key };
+    }
+
+    /// Bookkeeping for a popped frame: links, subteams, event.
+    fn retire(&mut self, f: &Frame, reason: EndReason) {
+        self.stack_version += 1;
+        self.org.unlink(f.behavior, f.team);
+        if f.allocated {
+            let n = self.graph().behavior(f.behavior).children.len();
+            for idx in 0..n {
+                self.org
+                    .dissolve(TeamId::derive(f.team, f.behavior, f.epoch, idx as u32));
+            }
+        }
+        self.emit(Event::Terminated {
+            behavior: f.behavior,
+            team: f.team,
+            epoch: f.epoch,
+            reason,
+        });
+    }
+
+    /// An ancestor ended while an interaction was in flight: abandon it.
+    fn abort_phase(&mut self) {
+        match std::mem::replace(&mut self.phase, Phase::Run) {
+            Phase::Allocating(k) => self.abort(k),
+            Phase::Terminating { key: Some(k), .. } | Phase::Selecting { key: Some(k), .. } => {
+                self.abort(k)
+            }
+            _ => {}
+        }
+    }
+
+    fn abort(&mut self, key: InstanceKey) {
+        let Some(inst) = self.instances.get_mut(&key) else {
+            return;
+        };
+        if inst.state == State::Decided {
+            // Keep it lingering to answer teammates, but let it be collected.
+            inst.outcome = None;
+            return;
+        }
+        let protocol = inst.protocol;
+        let announced = inst.state == State::Active;
+        self.instances.remove(&key);
+        self.close(key);
+        if announced {
+            self.emit(Event::InteractionAborted {
+                instance: key,
+                protocol,
+            });
+        }
+    }
+
+    fn close(&mut self, key: InstanceKey) {
+        let e = self
+            .closed
+            .entry((key.team, key.behavior, key.kind))
+            .or_insert(0);
+        *e = (*e).max(key.epoch);
+        self.drop_pending(key);
+    }
+
+    /// Push `b` for `team`, arming its termination protocol if it is a team
+    /// behavior.
+    fn push(&mut self, b: BehaviorId, team: TeamId, via: Via) {
+        let parent_runs = match self.stack.last_mut() {
+            Some(p) => &mut p.runs,
+            None => &mut self.root_runs,
+        };
+        *parent_runs.entry(b).or_insert(0) += 1;
+        let epoch = self.org.start_run(team, b);
+        self.org.link(b, team);
+        let depth = self.stack.len() as u32;
+        self.stack.push(Frame {
+            behavior: b,
+            team,
+            epoch,
+            started: self.now,
+            allocated: false,
+            team_ended: false,
+            until_false_at: None,
+            born: self.inputs,
+            runs: BTreeMap::new(),
+        });
+        self.stack_version += 1;
+        self.stats.selections += 1;
+        self.emit(Event::Selected {
+            behavior: b,
+            team,
+            epoch,
+            depth,
+            via,
+        });
+        if self.graph().is_term_point(b) {
+            let key = InstanceKey {
+                team,
+                behavior: b,
+                kind: Kind::Terminate,
+                epoch,
+            };
+            self.start_instance(key, PointInput::Terminate);
+        }
+        self.phase = Phase::Expand;
+    }
+
+    fn enabled_children(&self) -> Vec<ChildSlot> {
+        let Some(top) = self.stack.last() else {
+            return Vec::new();
+        };
+        let graph = self.mission.graph();
+        self.mission
+            .child_slots(top.behavior)
+            .iter()
+            .filter(|c| self.pre_holds(graph, c.behavior))
+            .copied()
+            .collect()
+    }
+
+    /// Precondition of `b`, a candidate to run directly under the current
+    /// top of the stack.
+    fn pre_holds(&self, graph: &BehaviorGraph, b: BehaviorId) -> bool {
+        graph.behavior(b).pre.as_ref().is_none_or(|pre| {
+            pre.eval(&FrameEnv {
+                beliefs: &self.beliefs,
+                runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
+                now: self.now,
+                started: self.now,
+                own: b,
+            })
+        })
+    }
+
+    /// Line 3: expand the top frame.
+    fn expand(&mut self) -> bool {
+        let Some(top) = self.stack.last() else {
+            self.phase = Phase::Finished;
+            return false;
+        };
+        let (b, team, epoch) = (top.behavior, top.team, top.epoch);
+        if self.graph().behavior(b).is_atomic() {
+            self.phase = Phase::Run;
+            return false;
+        }
+        let enabled = self.enabled_children();
+        if enabled.is_empty() {
+            self.emit(Event::WaitingForChild { behavior: b });
+            self.phase = Phase::WaitChild {
+                seen: self.versions(),
+            };
+            return false;
+        }
+        if self.graph().is_alloc_point(b) {
+            let key = InstanceKey {
+                team,
+                behavior: b,
+                kind: Kind::Allocate,
+                epoch,
+            };
+            self.phase = Phase::Allocating(key);
+            self.start_instance(key, PointInput::Allocate { children: enabled });
+            return true;
+        }
+        self.push(enabled[0].behavior, team, Via::Expansion);
+        true
+    }
+
+    /// Line 3c continued: apply the allocation once decided.
+    fn finish_allocation(&mut self, key: InstanceKey) -> bool {
+        let Some(outcome) = self.take_outcome(key) else {
+            return false;
+        };
+        let Outcome::Allocate(asg) = outcome else {
+            return false;
+        };
+        let (b, team, epoch) = (key.behavior, key.team, key.epoch);
+        let children = self.graph().behavior(b).children.clone();
+        if let Some(top) = self.stack.last_mut() {
+            top.allocated = true;
+        }
+        let mut mine = None;
+        for (child, members) in &asg.0 {
+            if members.is_empty() {
+                continue;
+            }
+            let Some(idx) = children.iter().position(|c| c == child) else {
+                continue;
+            };
+            let tid = TeamId::derive(team, b, epoch, idx as u32);
+            self.org
+                .add_subteam(team, tid, Arc::new(members.clone()), (b, epoch, idx as u32));
+            self.org.link(*child, tid);
+            if members.contains(self.me) {
+                mine = Some((*child, tid));
+            }
+        }
+        match mine {
+            Some((child, tid)) => self.push(child, tid, Via::Allocation),
+            None => {
+                // No place for this robot: its (empty) execution chain is
+                // over, so it terminates the allocating behavior (line 8b)
+                // and, under `term.wait-all`, waits for the others.
+                self.emit(Event::Unassigned { behavior: b });
+                let i = self.stack.len() - 1;
+                self.phase = Phase::Run;
+                self.end_frame(i, EndReason::ChainEnded);
+            }
+        }
+        true
+    }
+
+    /// Lines 6–7: once the termination protocol decided, run its
+    /// replacement behavior or go on to select a successor.
+    fn finish_termination(&mut self) -> bool {
+        let Phase::Terminating { key, .. } = &self.phase else {
+            return false;
+        };
+        let outcome = match *key {
+            None => Outcome::Terminate(None),
+            Some(k) => match self.take_outcome(k) {
+                Some(o) => o,
+                None => return false,
+            },
+        };
+        let Phase::Terminating { frame, .. } = std::mem::replace(&mut self.phase, Phase::Run)
+        else {
+            return false;
+        };
+        match outcome {
+            Outcome::Terminate(Some(next)) if self.graph().get(next).is_some() => {
+                self.push(next, frame.team, Via::Replacement);
+            }
+            _ => self.phase = Phase::Selecting { frame, key: None },
+        }
+        true
+    }
+
+    /// Line 8: choose the next behavior of the execution chain.
+    fn select(&mut self) -> bool {
+        let Phase::Selecting { frame, key } = &self.phase else {
+            return false;
+        };
+        let (b, team, epoch) = (frame.behavior, frame.team, frame.epoch);
+        let graph = self.mission.graph().clone();
+        match *key {
+            None => {
+                let beh = graph.behavior(b);
+                if beh.next.is_empty() {
+                    return self.chain_end();
+                }
+                let enabled: Vec<BehaviorId> = beh
+                    .next
+                    .iter()
+                    .copied()
+                    .filter(|s| self.pre_holds(&graph, *s))
+                    .collect();
+                if graph.is_sync_point(b) {
+                    // The team decides jointly even when this robot sees
+                    // fewer than two enabled successors: its teammates may
+                    // see more. Silent rules reduce to lines 8b–8d exactly.
+                    let key = InstanceKey {
+                        team,
+                        behavior: b,
+                        kind: Kind::Sync,
+                        epoch,
+                    };
+                    if let Phase::Selecting { key: k, .. } = &mut self.phase {
+                        *k = Some(key);
+                    }
+                    self.start_instance(
+                        key,
+                        PointInput::Sync {
+                            candidates: enabled,
+                            successors: beh.next.clone(),
+                        },
+                    );
+                    return true;
+                }
+                match enabled.first() {
+                    Some(s) => {
+                        let s = *s;
+                        if let Some(pre) = &graph.behavior(s).pre {
+                            let e = self.condition_event(s, "pre", pre);
+                            self.emit(e);
+                        }
+                        self.phase = Phase::Run;
+                        self.push(s, team, Via::Sequence);
+                        true
+                    }
+                    None => self.chain_end(),
+                }
+            }
+            Some(k) => {
+                let Some(outcome) = self.take_outcome(k) else {
+                    return false;
+                };
+                match outcome {
+                    Outcome::Sync(Some(s)) => {
+                        self.phase = Phase::Run;
+                        self.push(s, team, Via::Decision);
+                        true
+                    }
+                    _ => self.chain_end(),
+                }
+            }
+        }
+    }
+
+    /// Line 8b: the execution chain is over, so its parent terminates.
+    fn chain_end(&mut self) -> bool {
+        self.phase = Phase::Run;
+        if self.stack.is_empty() {
+            self.phase = Phase::Finished;
+            self.emit(Event::MissionCompleted);
+            return false;
+        }
+        let i = self.stack.len() - 1;
+        self.end_frame(i, EndReason::ChainEnded);
+        true
+    }
+
+    // ----- protocol instances -------------------------------------------
+
+    fn start_instance(&mut self, key: InstanceKey, input: PointInput) {
+        let Some(bound) = self.mission.bound(key.behavior, key.kind) else {
+            return;
+        };
+        let armed = key.kind == Kind::Terminate;
+        let inst = Instance {
+            protocol: bound.protocol.name(),
+            imp: (bound.factory)(),
+            input,
+            retry: bound.retry,
+            deadline_len: bound.deadline,
+            state: if armed { State::Armed } else { State::Active },
+            waiting_since: if armed { None } else { Some(self.now) },
+            deadline: if armed {
+                Time::MAX
+            } else {
+                self.now + bound.deadline
+            },
+            wake: None,
+            outcome: None,
+            timed_out: false,
+            sent: 0,
+            bytes: 0,
+            received: 0,
+            linger_until: Time::MAX,
+        };
+        let protocol = inst.protocol;
+        self.instances.insert(key, inst);
+        if !armed {
+            self.emit(Event::InteractionStarted {
+                instance: key,
+                protocol,
+            });
+        }
+        self.call(key, |imp, cx| imp.start(cx));
+        self.refresh_due();
+        if let Some(msgs) = self.pending.remove(&key) {
+            self.pending_len -= msgs.len();
+            for m in msgs {
+                self.deliver(key, m.from, m.body);
+            }
+        }
+    }
+
+    /// This robot's own reason to end the behavior of `key` happened.
+    fn term_local_done(&mut self, key: InstanceKey) {
+        let now = self.now;
+        let Some(inst) = self.instances.get_mut(&key) else {
+            return;
+        };
+        if inst.state != State::Armed {
+            return;
+        }
+        inst.state = State::Active;
+        inst.waiting_since = Some(now);
+        inst.deadline = now + inst.deadline_len;
+        let protocol = inst.protocol;
+        self.emit(Event::InteractionStarted {
+            instance: key,
+            protocol,
+        });
+        self.call(key, |imp, cx| imp.local_done(cx));
+        self.refresh_due();
+    }
+
+    fn take_outcome(&mut self, key: InstanceKey) -> Option<Outcome> {
+        self.instances.get_mut(&key).and_then(|i| i.outcome.take())
+    }
+
+    /// Call into an instance with a fresh context, then apply its effects.
+    fn call(&mut self, key: InstanceKey, f: impl FnOnce(&mut dyn Interaction, &mut Cx<'_>)) {
+        let Some(mut inst) = self.instances.remove(&key) else {
+            return;
+        };
+        let Some(team) = self.org.team(key.team) else {
+            // The team dissolved under the instance: nothing to do.
+            self.instances.insert(key, inst);
+            return;
+        };
+        let mut fx = Effects::default();
+        {
+            let mut cx = Cx::new(CxParts {
+                now: self.now,
+                me: self.me,
+                key,
+                team,
+                org: &self.org,
+                runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
+                graph: self.mission.graph(),
+                roster: self.mission.graph().roster(),
+                beliefs: &self.beliefs,
+                rng: &mut self.rng,
+                input: &inst.input,
+                retry: inst.retry,
+                deadline: inst.deadline,
+                decided: inst.state == State::Decided,
+                fx: &mut fx,
+            });
+            f(&mut *inst.imp, &mut cx);
+        }
+        self.apply_effects(key, &mut inst, fx);
+        self.instances.insert(key, inst);
+    }
+
+    fn apply_effects(&mut self, key: InstanceKey, inst: &mut Instance, fx: Effects) {
+        for (to, body) in fx.sends {
+            let envelope = Envelope {
+                instance: key,
+                sender: self.me,
+                seq: self.next_seq,
+                body,
+            };
+            self.next_seq += 1;
+            let bytes = encoded_len(&envelope) as u32;
+            inst.sent += 1;
+            inst.bytes += u64::from(bytes);
+            self.stats.sent += 1;
+            self.stats.bytes_sent += u64::from(bytes);
+            self.out.push_back(Output::Send(Outgoing {
+                to,
+                envelope,
+                bytes,
+            }));
+        }
+        if let Some(w) = fx.wake {
+            inst.wake = Some(inst.wake.map_or(w, |x| x.min(w)));
+            self.next_due = Some(self.next_due.map_or(w, |x| x.min(w)));
+        }
+        for what in fx.violations {
+            self.emit(Event::ProtocolViolation {
+                instance: key,
+                what,
+            });
+        }
+        if let Some(outcome) = fx.outcome
+            && inst.state != State::Decided
+        {
+            let outcome = self.validate(key, inst, outcome);
+            let was_armed = inst.state == State::Armed;
+            inst.state = State::Decided;
+            inst.linger_until = self.now + inst.deadline_len.max(Duration::from_secs(1)) * 2;
+            let waited = inst.waiting_since.map_or(Duration::ZERO, |t| self.now - t);
+            self.emit(Event::InteractionDecided {
+                instance: key,
+                protocol: inst.protocol,
+                outcome: match &outcome {
+                    Outcome::Sync(c) => OutcomeLog::Sync { choice: *c },
+                    Outcome::Allocate(a) => OutcomeLog::allocation(a),
+                    Outcome::Terminate(n) => OutcomeLog::Terminate { next: *n },
+                },
+                waited_us: waited.as_micros() as u64,
+                sent: inst.sent,
+                bytes: inst.bytes,
+                received: inst.received,
+                timed_out: inst.timed_out,
+            });
+            inst.outcome = Some(outcome);
+            let e = self
+                .closed
+                .entry((key.team, key.behavior, key.kind))
+                .or_insert(0);
+            *e = (*e).max(key.epoch);
+            if was_armed {
+                // The team ended a behavior this robot is still running.
+                if let Some(f) = self.stack.iter_mut().find(|f| f.term_key() == key) {
+                    f.team_ended = true;
+                }
+            }
+        }
+    }
+
+    /// Check a decision against what the instance was asked; a protocol bug
+    /// or a forged message must not corrupt the kernel, so an invalid
+    /// decision is replaced by the silent rule of its kind.
+    fn validate(&mut self, key: InstanceKey, inst: &Instance, outcome: Outcome) -> Outcome {
+        let graph = self.mission.graph().clone();
+        let ok = match (&outcome, &inst.input) {
+            (Outcome::Sync(None), PointInput::Sync { .. }) => true,
+            (Outcome::Sync(Some(s)), PointInput::Sync { successors, .. }) => successors.contains(s),
+            (Outcome::Allocate(a), PointInput::Allocate { .. }) => {
+                self.allocation_valid(key, &graph, a)
+            }
+            (Outcome::Terminate(n), PointInput::Terminate) => {
+                n.is_none_or(|n| graph.get(n).is_some())
+            }
+            _ => false,
+        };
+        if ok {
+            return outcome;
+        }
+        self.emit(Event::ProtocolViolation {
+            instance: key,
+            what: format!("{} decided an invalid outcome {outcome:?}", inst.protocol),
+        });
+        match &inst.input {
+            PointInput::Sync { candidates, .. } => Outcome::Sync(candidates.first().copied()),
+            PointInput::Allocate { children } => match self.org.team(key.team) {
+                Some(t) => Outcome::Allocate(rules::assign_by_id(&t.members, children)),
+                None => Outcome::Allocate(Assignment(Vec::new())),
+            },
+            PointInput::Terminate => Outcome::Terminate(None),
+        }
+    }
+
+    /// Members are team members, each in at most one child, children are
+    /// children of the point.
+    fn allocation_valid(&self, key: InstanceKey, graph: &BehaviorGraph, a: &Assignment) -> bool {
+        let Some(team) = self.org.team(key.team) else {
+            return false;
+        };
+        let children = &graph.behavior(key.behavior).children;
+        let mut seen = MemberSet::empty(self.org.roster_len());
+        for (c, m) in &a.0 {
+            if !children.contains(c)
+                || m.roster_len() != seen.roster_len()
+                || !m.is_subset(&team.members)
+                || !m.is_disjoint(&seen)
+            {
+                return false;
+            }
+            seen.union_with(m);
+        }
+        true
+    }
+
+    fn fire_timers(&mut self) {
+        let now = self.now;
+        let due: Vec<InstanceKey> = self
+            .instances
+            .iter()
+            .filter(|(_, i)| i.wake.is_some_and(|w| w <= now))
+            .map(|(k, _)| *k)
+            .collect();
+        for k in due {
+            if let Some(i) = self.instances.get_mut(&k) {
+                i.wake = None;
+            }
+            self.call(k, |imp, cx| imp.on_timer(cx));
+        }
+        let expired: Vec<InstanceKey> = self
+            .instances
+            .iter()
+            .filter(|(_, i)| i.state == State::Active && i.deadline <= now)
+            .map(|(k, _)| *k)
+            .collect();
+        for k in expired {
+            if let Some(i) = self.instances.get_mut(&k) {
+                i.timed_out = true;
+            }
+            self.stats.timeouts += 1;
+            self.call(k, |imp, cx| imp.on_deadline(cx));
+            let protocol_decided = self
+                .instances
+                .get(&k)
+                .is_some_and(|i| i.state == State::Decided);
+            if !protocol_decided {
+                self.call(k, |_, cx| {
+                    let o = rules::fallback(cx);
+                    cx.decide(o);
+                });
+            }
+            let protocol = self.instances.get(&k).map_or("?", |i| i.protocol);
+            self.emit(Event::InteractionTimedOut {
+                instance: k,
+                protocol,
+                protocol_decided,
+            });
+        }
+        self.refresh_due();
+    }
+
+    fn refresh_due(&mut self) {
+        self.next_due = self
+            .instances
+            .values()
+            .flat_map(|i| {
+                let d = (i.state == State::Active).then_some(i.deadline);
+                i.wake.into_iter().chain(d)
+            })
+            .min();
+    }
+
+    // ----- messages ------------------------------------------------------
+
+    fn drop_msg(&mut self, from: RobotId, reason: DropReason) {
+        *self.stats.dropped.entry(reason).or_insert(0) += 1;
+        // Duplicates, stale messages and our own echoes are normal on a
+        // lossy, duplicating network: counted, not logged one by one.
+        if !matches!(
+            reason,
+            DropReason::Duplicate | DropReason::Stale | DropReason::OwnMessage
+        ) {
+            self.emit(Event::Dropped { from, reason });
+        }
+    }
+
+    /// Validate a message and hand it to its instance, or buffer it for an
+    /// instance this robot has not reached yet.
+    fn route(&mut self, env: Envelope) {
+        let from = env.sender;
+        if from == self.me {
+            return self.drop_msg(from, DropReason::OwnMessage);
+        }
+        if from.index() >= self.org.roster_len() {
+            return self.drop_msg(from, DropReason::UnknownSender);
+        }
+        let key = env.instance;
+        let graph = self.mission.graph();
+        let well_formed = key.epoch > 0
+            && graph.get(key.behavior).is_some()
+            && graph.is_point(key.behavior, key.kind);
+        if !well_formed {
+            return self.drop_msg(from, DropReason::Malformed);
+        }
+        if !self.windows.entry(from).or_default().accept(env.seq) {
+            return self.drop_msg(from, DropReason::Duplicate);
+        }
+        match self.org.team(key.team) {
+            Some(t) if !t.contains(self.me) => return self.drop_msg(from, DropReason::NotMember),
+            Some(t) if !t.contains(from) => {
+                return self.drop_msg(from, DropReason::SenderNotMember);
+            }
+            Some(_) => {}
+            None if self.org.is_dead(key.team) => return self.drop_msg(from, DropReason::Stale),
+            None => {}
+        }
+        if self.instances.contains_key(&key) {
+            self.stats.received += 1;
+            return self.deliver(key, from, env.body);
+        }
+        if self
+            .closed
+            .get(&(key.team, key.behavior, key.kind))
+            .is_some_and(|e| key.epoch <= *e)
+        {
+            return self.drop_msg(from, DropReason::Stale);
+        }
+        if self.pending_len >= self.limits.max_pending {
+            return self.drop_msg(from, DropReason::BufferOverflow);
+        }
+        self.stats.received += 1;
+        self.stats.buffered += 1;
+        self.pending_len += 1;
+        self.pending.entry(key).or_default().push(Pending {
+            at: self.now,
+            from,
+            body: env.body,
+        });
+    }
+
+    fn deliver(&mut self, key: InstanceKey, from: RobotId, body: Body) {
+        if let Some(i) = self.instances.get_mut(&key) {
+            i.received += 1;
+        }
+        self.call(key, |imp, cx| imp.on_message(cx, from, &body));
+        self.refresh_due();
+    }
+
+    fn drop_pending(&mut self, key: InstanceKey) {
+        if let Some(v) = self.pending.remove(&key) {
+            self.pending_len -= v.len();
+        }
+    }
+
+    /// Forget instances that stopped lingering and buffered messages that
+    /// can no longer be used.
+    fn gc(&mut self) {
+        let now = self.now;
+        self.instances.retain(|_, i| {
+            !(i.state == State::Decided && i.linger_until <= now && i.outcome.is_none())
+        });
+        let ttl = self.limits.pending_ttl;
+        let closed = &self.closed;
+        let org = &self.org;
+        let mut expired = 0usize;
+        self.pending.retain(|k, v| {
+            let stale = closed
+                .get(&(k.team, k.behavior, k.kind))
+                .is_some_and(|e| k.epoch <= *e)
+                || org.is_dead(k.team);
+            let before = v.len();
+            if stale {
+                v.clear();
+            } else {
+                v.retain(|m| now - m.at < ttl);
+            }
+            expired += before - v.len();
+            !v.is_empty()
+        });
+        if expired > 0 {
+            self.pending_len -= expired;
+            *self
+                .stats
+                .dropped
+                .entry(DropReason::BufferOverflow)
+                .or_insert(0) += expired as u64;
+        }
+        self.refresh_due();
+    }
+}
+
+#[cfg(test)]
+mod tests;

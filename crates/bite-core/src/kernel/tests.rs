@@ -1,0 +1,611 @@
+//! Unit tests for each step of Algorithm 1, on hand-built graphs, with a
+//! tiny harness that delivers every message at once.
+
+use super::*;
+use crate::event::{DropReason, EndReason, Event, Via};
+use crate::graph::load_str;
+use crate::interaction::{Factory, Params, Protocol, Registry};
+use std::collections::VecDeque;
+
+/// A communicating test protocol: the first member to finish ends the
+/// behavior for everyone (so that "the team ended it" can be tested here,
+/// without the protocol library).
+struct FirstWins;
+struct FirstWinsInst;
+impl Interaction for FirstWinsInst {
+    fn start(&mut self, _cx: &mut Cx<'_>) {}
+    fn local_done(&mut self, cx: &mut Cx<'_>) {
+        cx.broadcast(Body::Release { next: None });
+        cx.decide(Outcome::Terminate(None));
+    }
+    fn on_message(&mut self, cx: &mut Cx<'_>, _from: RobotId, body: &Body) {
+        if let Body::Release { next } = body {
+            cx.decide(Outcome::Terminate(*next));
+        }
+    }
+    fn on_deadline(&mut self, cx: &mut Cx<'_>) {
+        cx.decide(Outcome::Terminate(None));
+    }
+}
+impl Protocol for FirstWins {
+    fn name(&self) -> &'static str {
+        "term.test-first"
+    }
+    fn kind(&self) -> Kind {
+        Kind::Terminate
+    }
+    fn communicates(&self) -> bool {
+        true
+    }
+    fn summary(&self) -> &'static str {
+        "test"
+    }
+    fn configure(&self, _p: &Params) -> Result<Factory, String> {
+        Ok(Arc::new(|| Box::new(FirstWinsInst) as Box<dyn Interaction>))
+    }
+}
+
+/// A synchronization protocol that never decides by itself.
+struct Silent;
+struct SilentInst;
+impl Interaction for SilentInst {
+    fn start(&mut self, _cx: &mut Cx<'_>) {}
+    fn on_message(&mut self, _cx: &mut Cx<'_>, _f: RobotId, _b: &Body) {}
+    fn on_deadline(&mut self, _cx: &mut Cx<'_>) {}
+}
+impl Protocol for Silent {
+    fn name(&self) -> &'static str {
+        "sync.test-never"
+    }
+    fn kind(&self) -> Kind {
+        Kind::Sync
+    }
+    fn communicates(&self) -> bool {
+        false
+    }
+    fn summary(&self) -> &'static str {
+        "test"
+    }
+    fn configure(&self, _p: &Params) -> Result<Factory, String> {
+        Ok(Arc::new(|| Box::new(SilentInst) as Box<dyn Interaction>))
+    }
+}
+
+fn registry() -> Registry {
+    let mut r = Registry::core();
+    r.register(Arc::new(FirstWins));
+    r.register(Arc::new(Silent));
+    r
+}
+
+struct Harness {
+    kernels: Vec<Kernel>,
+    events: Vec<(RobotId, Event)>,
+    wire: VecDeque<(RobotId, Envelope)>,
+    now: Time,
+}
+
+impl Harness {
+    fn new(yaml: &str, robots: usize) -> Harness {
+        let g = load_str(&Arc::from("test.yaml"), yaml).unwrap_or_else(|d| panic!("{d}"));
+        let g = g.with_team_size(robots);
+        let m = Arc::new(Mission::new(g, &registry()).unwrap_or_else(|d| panic!("{d}")));
+        Harness {
+            kernels: (0..robots as u32)
+                .map(|r| Kernel::new(m.clone(), RobotId(r), u64::from(r)))
+                .collect(),
+            events: Vec::new(),
+            wire: VecDeque::new(),
+            now: Time::ZERO,
+        }
+    }
+    fn id(&self, belief: &str) -> BeliefId {
+        self.kernels[0]
+            .beliefs()
+            .symbols()
+            .get(belief)
+            .unwrap_or_else(|| panic!("no belief {belief}"))
+    }
+    /// Advance to `ms` and tick every robot with the same percepts.
+    fn tick(&mut self, ms: u64, percepts: &[(&str, Value)]) {
+        let p: Vec<(BeliefId, Value)> = percepts
+            .iter()
+            .map(|(n, v)| (self.id(n), v.clone()))
+            .collect();
+        self.now = Time::from_millis(ms);
+        for i in 0..self.kernels.len() {
+            self.kernels[i].tick(self.now, &p);
+            self.drain(i);
+        }
+        self.pump();
+    }
+    /// Tick one robot only.
+    fn tick_one(&mut self, r: usize, ms: u64, percepts: &[(&str, Value)]) {
+        let p: Vec<(BeliefId, Value)> = percepts
+            .iter()
+            .map(|(n, v)| (self.id(n), v.clone()))
+            .collect();
+        self.now = Time::from_millis(ms);
+        self.kernels[r].tick(self.now, &p);
+        self.drain(r);
+        self.pump();
+    }
+    fn drain(&mut self, i: usize) {
+        while let Some(o) = self.kernels[i].poll_output() {
+            match o {
+                Output::Send(s) => match s.to {
+                    Recipients::One(r) => self.wire.push_back((r, s.envelope)),
+                    Recipients::Team(set) => {
+                        for r in set.iter().filter(|r| r.index() != i) {
+                            self.wire.push_back((r, s.envelope.clone()));
+                        }
+                    }
+                },
+                Output::Event(e) => self.events.push((RobotId(i as u32), e)),
+            }
+        }
+    }
+    fn pump(&mut self) {
+        while let Some((to, env)) = self.wire.pop_front() {
+            self.kernels[to.index()].message(self.now, env);
+            self.drain(to.index());
+        }
+    }
+    fn stack(&self, r: usize) -> Vec<&str> {
+        let g = self.kernels[r].mission().graph();
+        self.kernels[r]
+            .stack()
+            .iter()
+            .map(|f| g.name_of(f.behavior))
+            .collect()
+    }
+    fn events_of(&self, r: usize) -> Vec<&Event> {
+        self.events
+            .iter()
+            .filter(|(x, _)| x.index() == r)
+            .map(|(_, e)| e)
+            .collect()
+    }
+    fn name(&self, b: BehaviorId) -> &str {
+        self.kernels[0].mission().graph().name_of(b)
+    }
+    fn selected_via(&self, r: usize, behavior: &str) -> Vec<Via> {
+        self.events_of(r)
+            .into_iter()
+            .filter_map(|e| match e {
+                Event::Selected {
+                    behavior: b, via, ..
+                } if self.name(*b) == behavior => Some(*via),
+                _ => None,
+            })
+            .collect()
+    }
+    fn terminated(&self, r: usize, behavior: &str) -> Vec<EndReason> {
+        self.events_of(r)
+            .into_iter()
+            .filter_map(|e| match e {
+                Event::Terminated {
+                    behavior: b,
+                    reason,
+                    ..
+                } if self.name(*b) == behavior => Some(*reason),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
+const T: Value = Value::Bool(true);
+const F: Value = Value::Bool(false);
+
+#[test]
+fn expansion_with_one_child_pushes_it_directly() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [mid] }
+  mid: { team: true, children: [leaf] }
+  leaf: { skill: idle, until: done }",
+        2,
+    );
+    h.tick(0, &[]);
+    for r in 0..2 {
+        assert_eq!(h.stack(r), ["root", "mid", "leaf"]);
+        assert_eq!(h.selected_via(r, "mid"), [Via::Expansion]);
+        assert_eq!(h.selected_via(r, "root"), [Via::Start]);
+        assert_eq!(h.kernels[r].leaf().map(|f| f.team), Some(TeamId::ROOT));
+    }
+}
+
+#[test]
+fn expansion_with_allocation_splits_the_team_and_links_both_ways() {
+    let mut h = Harness::new(
+        "start: walk
+defaults: { terminate: term.local }
+behaviors:
+  walk: { team: true, children: [lead, left, right] }
+  lead: { skill: lead, members: 1 }
+  left: { skill: slot, members: 1 }
+  right: { skill: slot }",
+        4,
+    );
+    h.tick(0, &[]);
+    assert_eq!(h.stack(0), ["walk", "lead"]);
+    assert_eq!(h.stack(1), ["walk", "left"]);
+    assert_eq!(h.stack(2), ["walk", "right"]);
+    assert_eq!(
+        h.stack(3),
+        ["walk", "right"],
+        "the unbounded child takes the rest"
+    );
+    assert_eq!(h.selected_via(2, "right"), [Via::Allocation]);
+    // Every robot knows the whole split, both ways.
+    let k = &h.kernels[0];
+    let g = k.mission().graph().clone();
+    let right = g.find("right").unwrap();
+    let teams: Vec<TeamId> = k.org().teams_running(right).collect();
+    assert_eq!(teams.len(), 1);
+    let t = k.org().team(teams[0]).unwrap();
+    assert_eq!(t.members.to_vec(), [RobotId(2), RobotId(3)]);
+    assert_eq!(t.parent, Some(TeamId::ROOT));
+    assert_eq!(k.org().behaviors_of(teams[0]).collect::<Vec<_>>(), [right]);
+    assert_eq!(
+        h.kernels[3].leaf().unwrap().team,
+        teams[0],
+        "same derived id everywhere"
+    );
+    k.org().check_invariants().unwrap();
+}
+
+#[test]
+fn terminating_a_mid_stack_behavior_pops_its_descendants() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [phase1] }
+  phase1: { team: true, children: [work], until: alarm, next: [phase2] }
+  work: { skill: dig, until: dug }
+  phase2: { skill: flee }",
+        1,
+    );
+    h.tick(0, &[]);
+    assert_eq!(h.stack(0), ["root", "phase1", "work"]);
+    h.tick(100, &[("alarm", T)]);
+    assert_eq!(h.stack(0), ["root", "phase2"]);
+    let phase1 = h.kernels[0].mission().graph().find("phase1").unwrap();
+    assert_eq!(h.terminated(0, "work"), [EndReason::Ancestor(phase1)]);
+    assert_eq!(h.terminated(0, "phase1"), [EndReason::Until]);
+    // The condition that fired is reported with the beliefs it read.
+    assert!(h.events_of(0).iter().any(|e| matches!(e,
+        Event::ConditionHeld { field: "until", beliefs, .. }
+            if beliefs == &vec![("alarm".to_string(), Some(T))])));
+}
+
+#[test]
+fn the_end_of_a_chain_terminates_the_parent_and_then_the_mission() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { skill: x, until: a_done, next: [b] }
+  b: { skill: y, until: b_done }",
+        1,
+    );
+    h.tick(0, &[]);
+    h.tick(100, &[("a_done", T)]);
+    assert_eq!(h.stack(0), ["root", "b"]);
+    assert_eq!(h.selected_via(0, "b"), [Via::Sequence]);
+    h.tick(200, &[("b_done", T)]);
+    assert!(h.stack(0).is_empty());
+    assert_eq!(h.terminated(0, "root"), [EndReason::ChainEnded]);
+    assert!(h.kernels[0].is_finished());
+    assert!(h.events_of(0).contains(&&Event::MissionCompleted));
+}
+
+#[test]
+fn a_single_enabled_successor_is_taken_without_a_protocol() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local, sync: sync.test-never }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, until: a_done, next: [b, c] }
+  b: { pre: want_b, until: never }
+  c: { pre: want_c, until: never }",
+        2,
+    );
+    // `b` and `c` are not team behaviors: `a` is not a synchronization
+    // point, so the choice is local (first enabled in graph order).
+    h.tick(0, &[]);
+    h.tick(100, &[("a_done", T), ("want_c", T)]);
+    for r in 0..2 {
+        assert_eq!(h.stack(r), ["root", "c"]);
+        assert_eq!(h.selected_via(r, "c"), [Via::Sequence]);
+    }
+}
+
+#[test]
+fn several_enabled_successors_at_a_sync_point_are_decided_by_the_protocol() {
+    let yaml = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, until: a_done, next: [b, c, d] }
+  b: { team: true, pre: want_b, until: never }
+  c: { team: true, pre: want_c, until: never }
+  d: { team: true, pre: want_d, until: never }";
+    let mut h = Harness::new(yaml, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[("a_done", T), ("want_c", T), ("want_d", T)]);
+    for r in 0..3 {
+        assert_eq!(
+            h.stack(r),
+            ["root", "c"],
+            "sync.by-rule: first enabled in graph order"
+        );
+        assert_eq!(h.selected_via(r, "c"), [Via::Decision]);
+    }
+    // None enabled: the chain ends and the parent terminates.
+    let mut h = Harness::new(yaml, 1);
+    h.tick(0, &[]);
+    h.tick(100, &[("a_done", T)]);
+    assert!(h.kernels[0].is_finished());
+}
+
+#[test]
+fn a_sequential_cycle_repeats_a_behavior_by_choice() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [patrol] }
+  patrol: { team: true, skill: go, pre: 'runs < 3', until: lap_done, next: [patrol, home] }
+  home: { team: true, pre: 'runs(patrol) >= 3', until: at_home }",
+        1,
+    );
+    // `patrol` may follow itself; `runs(patrol)` counts its executions.
+    h.tick(0, &[]);
+    let mut lap = 0;
+    while h.stack(0) == ["root", "patrol"] && lap < 10 {
+        lap += 1;
+        h.tick(100 * lap, &[("lap_done", T)]);
+        h.tick(100 * lap + 50, &[("lap_done", F)]);
+    }
+    assert_eq!(h.stack(0), ["root", "home"]);
+    assert_eq!(
+        h.selected_via(0, "patrol").len(),
+        3,
+        "patrol ran three times"
+    );
+    let epochs: Vec<u32> = h
+        .events_of(0)
+        .iter()
+        .filter_map(|e| match e {
+            Event::Selected {
+                behavior, epoch, ..
+            } if h.name(*behavior) == "patrol" => Some(*epoch),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(epochs, [1, 2, 3], "each repetition is a new epoch");
+}
+
+#[test]
+fn a_new_behavior_runs_for_at_least_one_input() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { until: go, next: [b] }
+  b: { until: go }",
+        1,
+    );
+    h.tick(0, &[]);
+    h.tick(100, &[("go", T)]);
+    assert_eq!(
+        h.stack(0),
+        ["root", "b"],
+        "b is not ended by the input that selected it"
+    );
+    h.tick(200, &[]);
+    assert!(h.kernels[0].is_finished(), "but by the next one");
+}
+
+#[test]
+fn the_team_can_end_a_behavior_a_member_is_still_running() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [search] }
+  search: { team: true, skill: look, until: found, next: [report], terminate: term.test-first }
+  report: { team: true, until: never }",
+        3,
+    );
+    h.tick(0, &[]);
+    // Only robot 1 sees the target.
+    h.tick_one(1, 100, &[("found", T)]);
+    for r in 0..3 {
+        assert_eq!(h.stack(r), ["root", "report"], "robot {r}");
+    }
+    assert_eq!(h.terminated(1, "search"), [EndReason::Until]);
+    assert_eq!(h.terminated(0, "search"), [EndReason::Team]);
+    assert_eq!(h.terminated(2, "search"), [EndReason::Team]);
+}
+
+#[test]
+fn a_protocol_that_misses_its_deadline_is_replaced_by_the_silent_rule() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, until: a_done, next: [b, c], sync: { protocol: sync.test-never, deadline: 2s } }
+  b: { team: true, until: never }
+  c: { team: true, until: never }",
+        2,
+    );
+    h.tick(0, &[]);
+    h.tick(100, &[("a_done", T)]);
+    assert_eq!(h.stack(0), ["root"], "waiting for the decision");
+    assert!(h.kernels[0].is_interacting());
+    assert_eq!(h.kernels[0].poll_timeout(), Some(Time::from_millis(2100)));
+    h.now = Time::from_millis(2100);
+    h.kernels[0].timer(h.now);
+    h.drain(0);
+    assert_eq!(h.stack(0), ["root", "b"]);
+    assert!(h.events_of(0).iter().any(|e| matches!(
+        e,
+        Event::InteractionTimedOut {
+            protocol_decided: false,
+            ..
+        }
+    )));
+    assert!(h.events_of(0).iter().any(|e| matches!(
+        e,
+        Event::InteractionDecided {
+            timed_out: true,
+            ..
+        }
+    )));
+    assert_eq!(h.kernels[0].stats().timeouts, 1);
+}
+
+#[test]
+fn a_behavior_without_enabled_children_waits_for_one() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [gated] }
+  gated: { pre: door_open, until: never }",
+        1,
+    );
+    h.tick(0, &[]);
+    assert_eq!(h.stack(0), ["root"]);
+    assert_eq!(h.kernels[0].phase_name(), "waiting-for-child");
+    h.tick(100, &[]);
+    h.tick(200, &[("door_open", T)]);
+    assert_eq!(h.stack(0), ["root", "gated"]);
+    let waits = h
+        .events_of(0)
+        .iter()
+        .filter(|e| matches!(e, Event::WaitingForChild { .. }))
+        .count();
+    assert_eq!(waits, 1, "reported once, not every tick");
+}
+
+#[test]
+fn a_member_left_without_a_child_ends_its_part_of_the_parent() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [split], next: [after] }
+  split: { team: true, children: [x, y] }
+  x: { members: 1, until: never }
+  y: { members: 1, until: never }
+  after: { until: never }",
+        3,
+    );
+    h.tick(0, &[]);
+    assert_eq!(h.stack(0), ["root", "split", "x"]);
+    assert_eq!(h.stack(1), ["root", "split", "y"]);
+    assert!(
+        h.events_of(2)
+            .iter()
+            .any(|e| matches!(e, Event::Unassigned { .. }))
+    );
+    assert_eq!(h.terminated(2, "split"), [EndReason::ChainEnded]);
+}
+
+#[test]
+fn messages_are_deduplicated_and_stale_or_foreign_ones_dropped() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [s], }
+  s: { team: true, until: found, terminate: term.test-first, next: [t] }
+  t: { team: true, until: never, terminate: term.test-first }",
+        2,
+    );
+    h.tick(0, &[]);
+    let g = h.kernels[0].mission().graph().clone();
+    let s = g.find("s").unwrap();
+    let t = g.find("t").unwrap();
+    let env = |seq: u64, behavior: BehaviorId, kind: Kind, epoch: u32| Envelope {
+        instance: InstanceKey {
+            team: TeamId::ROOT,
+            behavior,
+            kind,
+            epoch,
+        },
+        sender: RobotId(1),
+        seq,
+        body: Body::Ack,
+    };
+    let k = &mut h.kernels[0];
+    // A message for an instance not reached yet is buffered...
+    k.message(Time(1), env(1, t, Kind::Terminate, 1));
+    assert_eq!(k.stats().buffered, 1);
+    // ...a duplicate is dropped...
+    k.message(Time(2), env(1, t, Kind::Terminate, 1));
+    // ...so is a message naming a point that does not exist (`t` has a
+    // single successor: it is not a synchronization point)...
+    k.message(Time(3), env(2, t, Kind::Sync, 1));
+    // ...and one for a team the robot is not in, and one from itself.
+    let mut foreign = env(3, s, Kind::Terminate, 1);
+    foreign.instance.team = TeamId(42);
+    k.message(Time(4), foreign);
+    let mut own = env(4, s, Kind::Terminate, 1);
+    own.sender = RobotId(0);
+    k.message(Time(5), own);
+    let dropped = &k.stats().dropped;
+    assert_eq!(dropped.get(&DropReason::Duplicate), Some(&1));
+    assert_eq!(dropped.get(&DropReason::Malformed), Some(&1));
+    assert_eq!(dropped.get(&DropReason::OwnMessage), Some(&1));
+    // TeamId(42) is unknown, not known dead: buffered as a possible future team.
+    assert_eq!(k.stats().buffered, 2);
+    // Once `s` #1 is decided, its instance lingers to answer teammates...
+    h.tick(100, &[("found", T)]);
+    let k = &mut h.kernels[0];
+    let received = k.stats().received;
+    k.message(Time::from_millis(150), env(10, s, Kind::Terminate, 1));
+    assert_eq!(k.stats().received, received + 1);
+    // ...and after the linger period its late messages are stale.
+    h.tick(20_000, &[]);
+    let k = &mut h.kernels[0];
+    k.message(Time::from_millis(20_050), env(12, s, Kind::Terminate, 1));
+    assert_eq!(k.stats().dropped.get(&DropReason::Stale), Some(&1));
+    // Ids from beyond the roster are rejected before anything else.
+    let mut stranger = env(11, s, Kind::Terminate, 1);
+    stranger.sender = RobotId(99);
+    k.message(Time::from_millis(160), stranger);
+    assert_eq!(k.stats().dropped.get(&DropReason::UnknownSender), Some(&1));
+}
+
+#[test]
+fn kernels_are_deterministic() {
+    let yaml = "start: root
+defaults: { terminate: term.test-first }
+behaviors:
+  root: { team: true, children: [split], until: all_done }
+  split: { team: true, children: [a, b, c], until: step }
+  a: { team: true, until: step }
+  b: { team: true, until: step }
+  c: { team: true, until: step }";
+    let run = || {
+        let mut h = Harness::new(yaml, 5);
+        for i in 0..20 {
+            h.tick(i * 100, &[("step", Value::Bool(i % 3 == 0))]);
+        }
+        h.tick(3000, &[("all_done", T)]);
+        format!("{:?}", h.events)
+    };
+    assert_eq!(run(), run());
+}

@@ -1,0 +1,297 @@
+//! Coordination messages between kernels.
+//!
+//! Every message names the protocol instance it belongs to — team, point
+//! behavior, kind and epoch — plus its sender and a per-sender sequence
+//! number. Receivers drop duplicates by `(sender, seq)` and stale epochs by
+//! instance, so a late message from an old decision can never change a new
+//! one, and a duplicated message changes nothing.
+
+use crate::ids::{BehaviorId, RobotId, TeamId};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+
+/// The three kinds of social interaction behavior (the paper's three links
+/// between task behaviors and interaction behaviors).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kind {
+    /// Synchronized selection among sequential successors (`Decide`).
+    Sync,
+    /// Allocation of children to subteams (`Allocate`).
+    Allocate,
+    /// Synchronized termination (`Terminate`).
+    Terminate,
+}
+
+impl Kind {
+    /// All kinds, in a fixed order (also the index order of per-kind arrays).
+    pub const ALL: [Kind; 3] = [Kind::Sync, Kind::Allocate, Kind::Terminate];
+    /// Index for per-kind arrays.
+    #[inline]
+    pub const fn index(self) -> usize {
+        match self {
+            Kind::Sync => 0,
+            Kind::Allocate => 1,
+            Kind::Terminate => 2,
+        }
+    }
+    /// The word used in files and point names.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Kind::Sync => "sync",
+            Kind::Allocate => "allocate",
+            Kind::Terminate => "terminate",
+        }
+    }
+    /// The noun used in messages: "synchronization", "allocation", "termination".
+    pub const fn noun(self) -> &'static str {
+        match self {
+            Kind::Sync => "synchronization",
+            Kind::Allocate => "allocation",
+            Kind::Terminate => "termination",
+        }
+    }
+    /// The noun with its article: "a synchronization", "an allocation".
+    pub const fn a_noun(self) -> &'static str {
+        match self {
+            Kind::Sync => "a synchronization",
+            Kind::Allocate => "an allocation",
+            Kind::Terminate => "a termination",
+        }
+    }
+    /// Parse the word used in files.
+    pub fn parse(s: &str) -> Option<Kind> {
+        match s {
+            "sync" => Some(Kind::Sync),
+            "allocate" | "alloc" => Some(Kind::Allocate),
+            "terminate" | "term" => Some(Kind::Terminate),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Kind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Identity of one protocol instance: the interaction of kind `kind` that
+/// team `team` runs at behavior `behavior` during its `epoch`-th execution of
+/// it (epochs count from 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct InstanceKey {
+    /// The subteam running the interaction.
+    pub team: TeamId,
+    /// The point behavior (the behavior terminated, decided after, or allocated).
+    pub behavior: BehaviorId,
+    /// Which interaction.
+    pub kind: Kind,
+    /// The team's execution count of `behavior` when the instance started.
+    pub epoch: u32,
+}
+
+impl fmt::Display for InstanceKey {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}/b{}/{}#{}",
+            self.team, self.behavior.0, self.kind, self.epoch
+        )
+    }
+}
+
+/// One coordination message.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Envelope {
+    /// The protocol instance it belongs to.
+    pub instance: InstanceKey,
+    /// Who sent it.
+    pub sender: RobotId,
+    /// Per-sender sequence number, strictly increasing from 1.
+    pub seq: u64,
+    /// What it says.
+    pub body: Body,
+}
+
+/// Message bodies of the interaction library. Protocols outside this crate
+/// can use [`Body::Custom`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum Body {
+    /// Coordinator's call for votes on these candidates (graph order).
+    Propose {
+        /// The candidate successors.
+        candidates: Vec<BehaviorId>,
+    },
+    /// A member's vote (`None` = abstain: no candidate is enabled for it).
+    Vote {
+        /// The chosen candidate.
+        choice: Option<BehaviorId>,
+    },
+    /// A member's ranked ballot, best first.
+    Ballot {
+        /// Candidates in order of preference.
+        ranking: Vec<BehaviorId>,
+    },
+    /// A synchronization decision (`None` = end the execution chain).
+    Decision {
+        /// The selected successor.
+        choice: Option<BehaviorId>,
+    },
+    /// An allocation decision: for each child, its members.
+    Assignment {
+        /// `(child, members)` pairs in child order.
+        assignment: Vec<(BehaviorId, Vec<RobotId>)>,
+    },
+    /// A number a member announces (a bid, a cost, a value read from beliefs).
+    Value {
+        /// What the number is about (a child for bids, `None` otherwise).
+        about: Option<BehaviorId>,
+        /// The number.
+        value: f64,
+    },
+    /// A member's attribute (allocation by attribute).
+    Attribute {
+        /// Attribute name.
+        name: String,
+        /// Attribute value.
+        value: String,
+    },
+    /// "I am done with this behavior" (barrier arrival).
+    Done,
+    /// "Your message was received" (stops the sender's retries).
+    Ack,
+    /// "The team has ended this behavior" (barrier release, first-wins stop).
+    /// `next` optionally names a new behavior to run under the same parent.
+    Release {
+        /// Optional replacement behavior under the same parent.
+        next: Option<BehaviorId>,
+    },
+    /// "Is this decided?" — answered with the decision if there is one.
+    Query,
+    /// A protocol-defined message for protocols outside the library.
+    Custom {
+        /// Protocol-chosen tag.
+        tag: u16,
+        /// Protocol-encoded data.
+        data: Vec<u8>,
+    },
+}
+
+impl Body {
+    /// A short name for logs and counters.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Body::Propose { .. } => "propose",
+            Body::Vote { .. } => "vote",
+            Body::Ballot { .. } => "ballot",
+            Body::Decision { .. } => "decision",
+            Body::Assignment { .. } => "assignment",
+            Body::Value { .. } => "value",
+            Body::Attribute { .. } => "attribute",
+            Body::Done => "done",
+            Body::Ack => "ack",
+            Body::Release { .. } => "release",
+            Body::Query => "query",
+            Body::Custom { .. } => "custom",
+        }
+    }
+}
+
+/// Wire format version (first byte of every encoded message).
+pub const WIRE_VERSION: u8 = 1;
+/// Largest encoded message a kernel accepts.
+pub const MAX_WIRE_BYTES: usize = 64 * 1024;
+
+/// Why bytes could not be decoded into an [`Envelope`].
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum WireError {
+    /// Empty input.
+    #[error("empty message")]
+    Empty,
+    /// Unknown version byte.
+    #[error("unsupported wire version {0} (this build speaks {WIRE_VERSION})")]
+    Version(u8),
+    /// Over [`MAX_WIRE_BYTES`].
+    #[error("message of {0} bytes exceeds the {MAX_WIRE_BYTES}-byte limit")]
+    TooLarge(usize),
+    /// The payload does not decode.
+    #[error("malformed message: {0}")]
+    Malformed(String),
+}
+
+/// Encode an envelope: one version byte, then postcard.
+pub fn encode(env: &Envelope) -> Vec<u8> {
+    let out = vec![WIRE_VERSION];
+    // Serializing plain data into a Vec cannot fail.
+    match postcard::to_extend(env, out) {
+        Ok(v) => v,
+        Err(_) => vec![WIRE_VERSION],
+    }
+}
+
+/// Encoded size of an envelope in bytes (what the byte counters report).
+pub fn encoded_len(env: &Envelope) -> usize {
+    1 + postcard::experimental::serialized_size(env).unwrap_or(0)
+}
+
+/// Decode bytes received from the network. Never panics.
+pub fn decode(bytes: &[u8]) -> Result<Envelope, WireError> {
+    let (&version, rest) = bytes.split_first().ok_or(WireError::Empty)?;
+    if bytes.len() > MAX_WIRE_BYTES {
+        return Err(WireError::TooLarge(bytes.len()));
+    }
+    if version != WIRE_VERSION {
+        return Err(WireError::Version(version));
+    }
+    let (env, tail): (Envelope, &[u8]) =
+        postcard::take_from_bytes(rest).map_err(|e| WireError::Malformed(e.to_string()))?;
+    if !tail.is_empty() {
+        return Err(WireError::Malformed(format!(
+            "{} trailing bytes",
+            tail.len()
+        )));
+    }
+    Ok(env)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Envelope {
+        Envelope {
+            instance: InstanceKey {
+                team: TeamId::ROOT,
+                behavior: BehaviorId(4),
+                kind: Kind::Sync,
+                epoch: 2,
+            },
+            sender: RobotId(1),
+            seq: 17,
+            body: Body::Vote {
+                choice: Some(BehaviorId(5)),
+            },
+        }
+    }
+
+    #[test]
+    fn roundtrip_and_size() {
+        let e = sample();
+        let bytes = encode(&e);
+        assert_eq!(bytes.len(), encoded_len(&e));
+        assert_eq!(decode(&bytes).unwrap(), e);
+    }
+
+    #[test]
+    fn garbage_is_an_error_not_a_panic() {
+        assert_eq!(decode(&[]), Err(WireError::Empty));
+        assert_eq!(decode(&[9, 1, 2]), Err(WireError::Version(9)));
+        let mut bytes = encode(&sample());
+        bytes.truncate(bytes.len() - 1);
+        assert!(matches!(decode(&bytes), Err(WireError::Malformed(_))));
+        let mut long = encode(&sample());
+        long.push(0);
+        assert!(matches!(decode(&long), Err(WireError::Malformed(_))));
+    }
+}

@@ -1,0 +1,160 @@
+//! Reading user files: YAML with locations, limits and clear errors.
+//!
+//! Shared by every file format of the engine (graphs, configurations,
+//! scenarios), so that all of them report problems the same way: file,
+//! line, column, what was expected, with a snippet.
+
+use crate::diag::{Diagnostic, Diagnostics, Loc};
+use crate::value::Value;
+use std::path::Path;
+use std::sync::Arc;
+
+pub use crate::graph::spec::{DurationText, Ordered};
+
+/// Largest file accepted, in bytes.
+pub const MAX_FILE_BYTES: usize = 16 * 1024 * 1024;
+
+/// Read a file for parsing: its display name and text.
+pub fn read_file(path: &Path) -> Result<(Arc<str>, String), Diagnostics> {
+    let file: Arc<str> = Arc::from(path.display().to_string());
+    let text = read_text(&file, path)?;
+    Ok((file, text))
+}
+
+/// Read a user file with a size limit, as a diagnostic on failure.
+pub fn read_text(file: &Arc<str>, path: &Path) -> Result<String, Diagnostics> {
+    let meta = std::fs::metadata(path).map_err(|e| io_error(file, &e))?;
+    if meta.len() > MAX_FILE_BYTES as u64 {
+        return Err(Diagnostics(vec![Diagnostic::error(
+            file,
+            Loc::UNKNOWN,
+            "too-large",
+            format!(
+                "file is {} bytes; the limit is {MAX_FILE_BYTES}",
+                meta.len()
+            ),
+        )]));
+    }
+    std::fs::read_to_string(path).map_err(|e| io_error(file, &e))
+}
+
+fn io_error(file: &Arc<str>, e: &std::io::Error) -> Diagnostics {
+    Diagnostics(vec![Diagnostic::error(
+        file,
+        Loc::UNKNOWN,
+        "io",
+        format!("cannot read the file: {e}"),
+    )])
+}
+
+/// Parse YAML text into a spec type, turning syntax and shape errors into a
+/// diagnostic with location and snippet.
+pub fn parse<T: serde::de::DeserializeOwned>(
+    file: &Arc<str>,
+    text: &str,
+) -> Result<T, Diagnostics> {
+    let mut budget = serde_saphyr::Budget::default();
+    budget.max_depth = 64;
+    // Room for the largest graph accepted (100,000 behaviors); the file
+    // size limit bounds the work anyway.
+    budget.max_nodes = 10_000_000;
+    budget.max_events = 20_000_000;
+    budget.max_aliases = 1_000;
+    budget.max_anchors = 1_000;
+    let mut options = serde_saphyr::Options::default();
+    options.budget = Some(budget);
+    // YAML 1.2 booleans only: `y`, `no`, `on` stay text (a behavior or skill
+    // may well be called `on`), and `yes` for a boolean is an error rather
+    // than a silent surprise.
+    options.strict_booleans = true;
+    serde_saphyr::from_str_with_options::<T>(text, options).map_err(|e| {
+        let loc = e.location().map(Loc::from).unwrap_or(Loc::UNKNOWN);
+        let plain = e.render_with_options(serde_saphyr::render_options! {
+            snippets: serde_saphyr::SnippetMode::Off,
+        });
+        // The plain rendering ends with " at line L column C"; we print the
+        // location ourselves.
+        let message = match plain.find(" at line ") {
+            Some(i) => plain[..i].to_string(),
+            None => plain.clone(),
+        };
+        let message = message
+            .trim_start_matches("error: ")
+            .trim_start_matches(|c: char| c.is_ascii_digit() || c == ':' || c == ' ')
+            .to_string();
+        let message = strip_line_col_prefix(&message);
+        let (message, hint) = explain(&message);
+        let snippet = e.render_with_options(serde_saphyr::render_options! {
+            source_name: Some(&**file),
+        });
+        let mut d = Diagnostic::error(file, loc, "yaml", message).with_detail(snippet);
+        d.hint = hint;
+        Diagnostics(vec![d])
+    })
+}
+
+/// Turn the YAML library's wording into the user's: what is wrong in
+/// their file, and how to fix it.
+fn explain(m: &str) -> (String, Option<String>) {
+    if let Some(rest) = m.strip_prefix("duplicate mapping key: ") {
+        let key = rest.split(',').next().unwrap_or(rest).trim();
+        return (
+            format!("`{key}` is defined twice in the same mapping"),
+            Some("names must be unique: rename or merge the two entries".into()),
+        );
+    }
+    if let Some(rest) = m.strip_prefix("budget breached: ") {
+        let what = rest.split([' ', '{']).next().unwrap_or(rest);
+        let limit = match what {
+            "Depth" => "nesting deeper than 64 levels",
+            "Events" | "Nodes" => "too many YAML elements",
+            "Aliases" => "too many aliases",
+            "Anchors" => "too many anchors",
+            _ => "a YAML safety limit",
+        };
+        return (format!("the file exceeds a limit: {limit}"), None);
+    }
+    if let Some(rest) = m.strip_prefix("unknown field `")
+        && let Some((field, expected)) = rest.split_once('`')
+    {
+        // "..., expected one of a, b, c" (with or without backticks).
+        let list = expected
+            .split_once("expected one of ")
+            .or_else(|| expected.split_once("expected "))
+            .map_or("", |(_, l)| l);
+        let options: Vec<&str> = list
+            .split(',')
+            .map(|o| o.trim().trim_matches('`'))
+            .filter(|o| !o.is_empty())
+            .collect();
+        let hint = crate::diag::did_you_mean(field, options.iter().copied()).or_else(|| {
+            (!options.is_empty()).then(|| format!("the known keys are: {}", options.join(", ")))
+        });
+        return (format!("unknown key `{field}`"), hint);
+    }
+    (m.to_string(), None)
+}
+
+fn strip_line_col_prefix(m: &str) -> String {
+    // "line 3 column 11: invalid boolean" -> "invalid boolean"
+    if let Some(rest) = m.strip_prefix("line ")
+        && let Some(i) = rest.find(": ")
+        && rest[..i].contains("column")
+    {
+        return rest[i + 2..].to_string();
+    }
+    m.to_string()
+}
+
+/// A JSON value from a file as a belief value.
+pub fn json_to_value(v: &serde_json::Value) -> Option<Value> {
+    match v {
+        serde_json::Value::Bool(b) => Some(Value::Bool(*b)),
+        serde_json::Value::Number(n) => n.as_f64().map(Value::Num),
+        serde_json::Value::String(s) => Some(Value::Text(Arc::from(s.as_str()))),
+        serde_json::Value::Array(a) if a.len() == 2 => {
+            Some(Value::Vec2([a[0].as_f64()?, a[1].as_f64()?]))
+        }
+        _ => None,
+    }
+}
