@@ -1,0 +1,277 @@
+//! Invariants checked over a recorded run (record, then check — as etcd's
+//! robustness tests do). Every scenario and property test runs these.
+//!
+//! - **agreement**: all members that decided a synchronization instance
+//!   normally (not by timeout) chose the same successor;
+//! - **allocation**: all members that decided an allocation instance
+//!   normally hold the same assignment; no robot is given two children; no
+//!   child is left without members while another child has more than its
+//!   minimum; no member is left out while a child has room;
+//! - **team termination**: once a communicating termination protocol
+//!   decided that the team ended a behavior, every member running it ends it
+//!   (unless it crashed, or the run stopped within the grace period);
+//! - **epochs**: a robot's executions of a behavior by a team are numbered
+//!   1, 2, 3… with no repeat;
+//! - **stack**: every termination matches an earlier selection;
+//! - **organization**: every robot's hierarchy is structurally sound.
+
+use crate::runner::RunReport;
+use bite_core::event::{Event, MembersLog, OutcomeLog};
+use bite_core::ids::{BehaviorId, RobotId, TeamId};
+use bite_core::mission::Mission;
+use bite_core::msg::{InstanceKey, Kind};
+use bite_core::time::Time;
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::time::Duration;
+
+/// A broken invariant.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Violation {
+    /// Which invariant.
+    pub invariant: &'static str,
+    /// What happened.
+    pub detail: String,
+}
+
+impl fmt::Display for Violation {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "[{}] {}", self.invariant, self.detail)
+    }
+}
+
+/// Check every invariant over a recorded run.
+pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
+    let mut v = Vec::new();
+    let graph = mission.graph();
+    let name = |b: BehaviorId| graph.name_of(b).to_string();
+    let mut sync: BTreeMap<InstanceKey, BTreeMap<RobotId, Option<BehaviorId>>> = BTreeMap::new();
+    let mut alloc: BTreeMap<InstanceKey, BTreeMap<RobotId, Vec<(BehaviorId, MembersLog)>>> =
+        BTreeMap::new();
+    let mut ended: BTreeMap<InstanceKey, Time> = BTreeMap::new();
+    let mut selected: BTreeMap<(TeamId, BehaviorId, u32), BTreeSet<RobotId>> = BTreeMap::new();
+    let mut terminated: BTreeSet<(TeamId, BehaviorId, u32, RobotId)> = BTreeSet::new();
+    let mut last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32> = BTreeMap::new();
+    for rec in &report.history {
+        match &rec.event {
+            Event::InteractionDecided {
+                instance,
+                outcome,
+                timed_out: false,
+                ..
+            } => match outcome {
+                OutcomeLog::Sync { choice } => {
+                    sync.entry(*instance)
+                        .or_default()
+                        .insert(rec.robot, *choice);
+                }
+                OutcomeLog::Allocate { assignment } => {
+                    alloc
+                        .entry(*instance)
+                        .or_default()
+                        .insert(rec.robot, assignment.clone());
+                }
+                OutcomeLog::Terminate { .. } => {
+                    let communicates = mission
+                        .bound(instance.behavior, Kind::Terminate)
+                        .is_some_and(|b| b.protocol.communicates());
+                    if communicates {
+                        ended.entry(*instance).or_insert(rec.t);
+                    }
+                }
+            },
+            Event::Selected {
+                behavior,
+                team,
+                epoch,
+                ..
+            } => {
+                selected
+                    .entry((*team, *behavior, *epoch))
+                    .or_default()
+                    .insert(rec.robot);
+                let last = last_epoch.entry((rec.robot, *team, *behavior)).or_insert(0);
+                if *epoch != *last + 1 {
+                    v.push(Violation {
+                        invariant: "epochs",
+                        detail: format!(
+                            "{} started `{}` for team {team} with epoch {epoch} after epoch {last}",
+                            rec.robot,
+                            name(*behavior)
+                        ),
+                    });
+                }
+                *last = *epoch;
+            }
+            Event::Terminated {
+                behavior,
+                team,
+                epoch,
+                ..
+            } => {
+                if !selected
+                    .get(&(*team, *behavior, *epoch))
+                    .is_some_and(|s| s.contains(&rec.robot))
+                {
+                    v.push(Violation {
+                        invariant: "stack",
+                        detail: format!(
+                            "{} terminated `{}` #{epoch} without selecting it",
+                            rec.robot,
+                            name(*behavior)
+                        ),
+                    });
+                }
+                terminated.insert((*team, *behavior, *epoch, rec.robot));
+            }
+            _ => {}
+        }
+    }
+    for (key, choices) in &sync {
+        let distinct: BTreeSet<_> = choices.values().collect();
+        if distinct.len() > 1 {
+            v.push(Violation {
+                invariant: "agreement",
+                detail: format!(
+                    "members chose different successors after `{}` ({key}): {}",
+                    name(key.behavior),
+                    choices
+                        .iter()
+                        .map(|(r, c)| format!("{r}→{}", c.map_or("end".to_string(), name)))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            });
+        }
+    }
+    for (key, views) in &alloc {
+        let distinct: BTreeSet<_> = views.values().collect();
+        if distinct.len() > 1 {
+            v.push(Violation {
+                invariant: "allocation",
+                detail: format!(
+                    "members hold different allocations at `{}` ({key})",
+                    name(key.behavior)
+                ),
+            });
+            continue;
+        }
+        let Some(asg) = views.values().next() else {
+            continue;
+        };
+        let slots = mission.child_slots(key.behavior);
+        // Member lists are logged for subteams up to 64 robots; larger ones
+        // are compared by fingerprint above and counted here.
+        let mut seen = BTreeSet::new();
+        let mut listed = true;
+        for (_, members) in asg {
+            match members {
+                MembersLog::List(ms) => {
+                    for m in ms {
+                        if !seen.insert(*m) {
+                            v.push(Violation {
+                                invariant: "allocation",
+                                detail: format!(
+                                    "{m} got two children at `{}` ({key})",
+                                    name(key.behavior)
+                                ),
+                            });
+                        }
+                    }
+                }
+                MembersLog::Summary { .. } => listed = false,
+            }
+        }
+        let assigned: usize = asg.iter().map(|(_, m)| m.len()).sum();
+        let count = |c: &BehaviorId| {
+            asg.iter()
+                .find(|(b, _)| b == c)
+                .map_or(0, |(_, m)| m.len() as u32)
+        };
+        let spare = asg.iter().any(|(b, m)| {
+            slots
+                .iter()
+                .any(|s| s.behavior == *b && m.len() as u32 > s.min)
+        });
+        for (b, members) in asg {
+            if members.is_empty() && spare {
+                v.push(Violation {
+                    invariant: "allocation",
+                    detail: format!(
+                        "child `{}` left without members at `{}` ({key}) while another child has more than it needs",
+                        name(*b),
+                        name(key.behavior)
+                    ),
+                });
+            }
+        }
+        let room = asg
+            .iter()
+            .any(|(b, _)| slots.iter().any(|s| s.behavior == *b && count(b) < s.max));
+        if !listed && assigned < views.len() && room {
+            v.push(Violation {
+                invariant: "allocation",
+                detail: format!(
+                    "{} of {} members got no child at `{}` ({key}) although a child had room",
+                    views.len() - assigned,
+                    views.len(),
+                    name(key.behavior)
+                ),
+            });
+        }
+        for r in views.keys().filter(|_| listed) {
+            if !seen.contains(r) && room {
+                v.push(Violation {
+                    invariant: "allocation",
+                    detail: format!(
+                        "{r} got no child at `{}` ({key}) although a child had room",
+                        name(key.behavior)
+                    ),
+                });
+            }
+        }
+    }
+    let crashed: BTreeSet<RobotId> = report
+        .crashes
+        .iter()
+        .filter(|(_, t)| *t <= report.end)
+        .map(|(r, _)| *r)
+        .collect();
+    for (key, t) in &ended {
+        let grace = mission
+            .bound(key.behavior, Kind::Terminate)
+            .map_or(Duration::from_secs(10), |b| {
+                b.deadline * 2 + Duration::from_secs(1)
+            });
+        if report.end < *t + grace {
+            continue;
+        }
+        for r in selected
+            .get(&(key.team, key.behavior, key.epoch))
+            .into_iter()
+            .flatten()
+        {
+            if !crashed.contains(r)
+                && !terminated.contains(&(key.team, key.behavior, key.epoch, *r))
+            {
+                v.push(Violation {
+                    invariant: "team-termination",
+                    detail: format!(
+                        "{r} still runs `{}` #{} although its team ended it at {t}",
+                        name(key.behavior),
+                        key.epoch
+                    ),
+                });
+            }
+        }
+    }
+    for f in &report.finals {
+        if let Err(e) = &f.org_check {
+            v.push(Violation {
+                invariant: "organization",
+                detail: format!("{}: {e}", f.robot),
+            });
+        }
+    }
+    v
+}

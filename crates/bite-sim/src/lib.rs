@@ -1,0 +1,29 @@
+//! # bite-sim
+//!
+//! Simulators that drive BITE kernels. This crate holds the
+//! coordination-only simulator: a deterministic discrete-event runner in
+//! which N kernels talk over a seeded simulated network (latency, jitter,
+//! loss, duplication, reordering, partitions) and act in a *timed-skill
+//! world*, where a skill sets its completion beliefs after a duration drawn
+//! from the scenario. No physics: this is what lets teams of thousands be
+//! studied and tested.
+//!
+//! - [`scenario`]: scenario files;
+//! - [`net`]: the simulated network;
+//! - [`world`]: the timed-skill world;
+//! - [`runner`]: the event loop, run logs and reports;
+//! - [`summary`]: what a run cost;
+//! - [`check`]: invariants checked over a recorded run.
+
+#![warn(missing_docs)]
+
+pub mod check;
+pub mod log;
+pub mod net;
+pub mod runner;
+pub mod scenario;
+pub mod summary;
+pub mod world;
+
+pub use runner::{RunOptions, RunReport, prepare, run};
+pub use scenario::Scenario;

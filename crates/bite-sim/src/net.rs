@@ -1,0 +1,227 @@
+//! A seeded simulated network: latency, jitter, loss, duplication,
+//! reordering (from jitter), symmetric and one-way partitions, and crashed
+//! robots. Every draw comes from the network's own seeded generator, so a run
+//! is reproducible from its seed.
+
+use bite_core::ids::RobotId;
+use bite_core::interaction::Rng;
+use bite_core::time::Time;
+use rand::{RngExt, SeedableRng};
+use serde::Serialize;
+use std::time::Duration;
+
+/// How messages travel.
+#[derive(Clone, Debug, PartialEq)]
+pub struct NetModel {
+    /// Fixed one-way latency.
+    pub latency: Duration,
+    /// Extra latency drawn uniformly from `0..=jitter` per copy (this is
+    /// what reorders messages).
+    pub jitter: Duration,
+    /// Probability that a copy is lost.
+    pub loss: f64,
+    /// Probability that a message is delivered twice (and `duplicate²` that
+    /// it is delivered three times).
+    pub duplicate: f64,
+    /// Partitions in force during given intervals.
+    pub partitions: Vec<Partition>,
+}
+
+impl Default for NetModel {
+    fn default() -> Self {
+        NetModel {
+            latency: Duration::from_millis(2),
+            jitter: Duration::from_millis(3),
+            loss: 0.0,
+            duplicate: 0.0,
+            partitions: Vec::new(),
+        }
+    }
+}
+
+/// A partition of the network during `[from, until)`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Partition {
+    /// Start.
+    pub from: Time,
+    /// End.
+    pub until: Time,
+    /// Which links are cut.
+    pub cut: Cut,
+}
+
+/// Which links a partition cuts.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Cut {
+    /// Symmetric: robots in different groups cannot talk. Robots not listed
+    /// form one more group together.
+    Groups(Vec<Vec<RobotId>>),
+    /// One-way: messages from any of `from` to any of `to` are dropped.
+    OneWay {
+        /// Senders cut off.
+        from: Vec<RobotId>,
+        /// Receivers they cannot reach.
+        to: Vec<RobotId>,
+    },
+}
+
+impl Cut {
+    fn blocks(&self, from: RobotId, to: RobotId) -> bool {
+        match self {
+            Cut::Groups(groups) => {
+                let g = |r: RobotId| groups.iter().position(|g| g.contains(&r));
+                g(from) != g(to)
+            }
+            Cut::OneWay { from: f, to: t } => f.contains(&from) && t.contains(&to),
+        }
+    }
+}
+
+/// Network counters.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct NetStats {
+    /// Copies handed to the network (one per recipient).
+    pub attempts: u64,
+    /// Copies scheduled for delivery (duplicates included).
+    pub delivered: u64,
+    /// Copies lost at random.
+    pub lost: u64,
+    /// Extra copies created by duplication.
+    pub duplicated: u64,
+    /// Copies dropped by a partition.
+    pub partitioned: u64,
+}
+
+/// The network of one simulated run.
+#[derive(Clone, Debug)]
+pub struct SimNet {
+    model: NetModel,
+    rng: Rng,
+    stats: NetStats,
+}
+
+impl SimNet {
+    /// A network following `model`, seeded with `seed`.
+    pub fn new(model: NetModel, seed: u64) -> Self {
+        SimNet {
+            model,
+            rng: Rng::seed_from_u64(seed),
+            stats: NetStats::default(),
+        }
+    }
+    /// The model.
+    pub fn model(&self) -> &NetModel {
+        &self.model
+    }
+    /// The counters.
+    pub fn stats(&self) -> &NetStats {
+        &self.stats
+    }
+    /// True if a partition cuts `from → to` at `now`.
+    pub fn cut(&self, now: Time, from: RobotId, to: RobotId) -> bool {
+        self.model
+            .partitions
+            .iter()
+            .any(|p| p.from <= now && now < p.until && p.cut.blocks(from, to))
+    }
+    /// Send one copy from `from` to `to` at `now`: the delivery times of the
+    /// copies that arrive (none if lost or cut, two or three if duplicated).
+    pub fn transmit(&mut self, now: Time, from: RobotId, to: RobotId, out: &mut Vec<Time>) {
+        out.clear();
+        self.stats.attempts += 1;
+        if self.cut(now, from, to) {
+            self.stats.partitioned += 1;
+            return;
+        }
+        let mut copies = 1;
+        if self.model.duplicate > 0.0 && self.rng.random_bool(self.model.duplicate.min(1.0)) {
+            copies += 1;
+            if self.rng.random_bool(self.model.duplicate.min(1.0)) {
+                copies += 1;
+            }
+        }
+        self.stats.duplicated += copies - 1;
+        for _ in 0..copies {
+            if self.model.loss > 0.0 && self.rng.random_bool(self.model.loss.min(1.0)) {
+                self.stats.lost += 1;
+                continue;
+            }
+            let jitter = self.model.jitter.as_micros() as u64;
+            let extra = if jitter > 0 {
+                self.rng.random_range(0..=jitter)
+            } else {
+                0
+            };
+            out.push(now + self.model.latency + Duration::from_micros(extra));
+            self.stats.delivered += 1;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reproducible_and_counts_add_up() {
+        let model = NetModel {
+            loss: 0.2,
+            duplicate: 0.3,
+            ..NetModel::default()
+        };
+        let mut a = SimNet::new(model.clone(), 9);
+        let mut b = SimNet::new(model, 9);
+        let (mut ta, mut tb) = (Vec::new(), Vec::new());
+        for i in 0..1000 {
+            a.transmit(Time(i), RobotId(0), RobotId(1), &mut ta);
+            b.transmit(Time(i), RobotId(0), RobotId(1), &mut tb);
+            assert_eq!(ta, tb);
+            for t in &ta {
+                assert!(*t >= Time(i) + Duration::from_millis(2));
+                assert!(*t <= Time(i) + Duration::from_millis(5));
+            }
+        }
+        let s = a.stats();
+        assert_eq!(s.attempts, 1000);
+        assert_eq!(s.attempts + s.duplicated, s.delivered + s.lost);
+        assert!(s.lost > 100 && s.lost < 400, "{s:?}");
+        assert!(s.duplicated > 200, "{s:?}");
+    }
+
+    #[test]
+    fn partitions_cut_links_in_their_interval_only() {
+        let model = NetModel {
+            partitions: vec![
+                Partition {
+                    from: Time::from_millis(10),
+                    until: Time::from_millis(20),
+                    cut: Cut::Groups(vec![vec![RobotId(0), RobotId(1)]]),
+                },
+                Partition {
+                    from: Time::from_millis(30),
+                    until: Time::from_millis(40),
+                    cut: Cut::OneWay {
+                        from: vec![RobotId(0)],
+                        to: vec![RobotId(2)],
+                    },
+                },
+            ],
+            ..NetModel::default()
+        };
+        let net = SimNet::new(model, 1);
+        let (r0, r1, r2) = (RobotId(0), RobotId(1), RobotId(2));
+        assert!(!net.cut(Time::from_millis(5), r0, r2));
+        assert!(
+            net.cut(Time::from_millis(15), r0, r2),
+            "r2 is in the unlisted group"
+        );
+        assert!(net.cut(Time::from_millis(15), r2, r1));
+        assert!(!net.cut(Time::from_millis(15), r0, r1));
+        assert!(net.cut(Time::from_millis(35), r0, r2));
+        assert!(!net.cut(Time::from_millis(35), r2, r0), "one-way");
+        assert!(
+            !net.cut(Time::from_millis(40), r0, r2),
+            "interval is half-open"
+        );
+    }
+}

@@ -1,0 +1,485 @@
+//! The discrete-event team runner: N kernels, the timed-skill world and the
+//! seeded network in one process, on a simulated clock.
+//!
+//! Events are processed in time order, ties in the order they were
+//! scheduled, so a run is a pure function of (mission, scenario, seed).
+//! Control ticks reach every robot at the scenario's rate; messages and
+//! kernel timers are delivered at their own times in between.
+
+use crate::log::{Namer, RunLog};
+use crate::net::SimNet;
+use crate::scenario::{Resolved, Scenario};
+use crate::summary::{Aggregator, Summary};
+use crate::world::{RobotWorld, SkillBook};
+use bite_core::belief::Source;
+use bite_core::diag::{Diagnostic, Diagnostics};
+use bite_core::event::{DropReason, Event};
+use bite_core::graph::BehaviorGraph;
+use bite_core::ids::{BeliefId, Fnv1a, RobotId};
+use bite_core::interaction::{Recipients, Registry};
+use bite_core::kernel::{Frame, Kernel, Output, Stats};
+use bite_core::mission::Mission;
+use bite_core::msg::Envelope;
+use bite_core::org::MemberSet;
+use bite_core::time::Time;
+use bite_core::value::Value;
+use serde_json::json;
+use std::cmp::{Ordering, Reverse};
+use std::collections::{BTreeMap, BinaryHeap};
+use std::io::Write;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// A seed for one purpose of one robot, derived from the run's seed.
+pub fn derive_seed(seed: u64, purpose: &str, robot: u32) -> u64 {
+    let mut h = Fnv1a::new();
+    h.write(&seed.to_le_bytes());
+    h.write(purpose.as_bytes());
+    h.write(&robot.to_le_bytes());
+    // One SplitMix64 round to spread FNV's low-entropy high bits.
+    let mut z = h.finish().wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// Build the mission for a run: the graph resized to the team size the
+/// caller or the scenario asks for, with protocols resolved.
+pub fn prepare(
+    graph: &BehaviorGraph,
+    scenario: &Scenario,
+    robots: Option<usize>,
+    registry: &Registry,
+) -> Result<Arc<Mission>, Diagnostics> {
+    let graph = match robots.or(scenario.robots) {
+        Some(n) if n != graph.roster().len() => graph.with_team_size(n),
+        _ => graph.clone(),
+    };
+    Ok(Arc::new(Mission::new(graph, registry)?))
+}
+
+/// Progress of a running simulation.
+#[derive(Clone, Copy, Debug)]
+pub struct Progress {
+    /// Simulated time.
+    pub now: Time,
+    /// Robots that completed the mission.
+    pub finished: usize,
+    /// Team size.
+    pub robots: usize,
+}
+
+/// How to run.
+#[derive(Default)]
+pub struct RunOptions<'a> {
+    /// Seed (default: the scenario's).
+    pub seed: Option<u64>,
+    /// Time limit (default: the scenario's).
+    pub time_limit: Option<Duration>,
+    /// Where to write the JSON-lines run log.
+    pub log: Option<&'a mut dyn Write>,
+    /// Keep every event in memory for checking (tests).
+    pub record: bool,
+    /// Called about once per simulated second.
+    pub progress: Option<&'a mut dyn FnMut(Progress)>,
+}
+
+/// One recorded event.
+#[derive(Clone, Debug)]
+pub struct Record {
+    /// When.
+    pub t: Time,
+    /// Which robot.
+    pub robot: RobotId,
+    /// What.
+    pub event: Event,
+}
+
+/// The state of one robot at the end of a run.
+#[derive(Clone, Debug)]
+pub struct FinalRobot {
+    /// Which robot.
+    pub robot: RobotId,
+    /// It crashed (by the scenario).
+    pub crashed: bool,
+    /// It completed the mission.
+    pub finished: bool,
+    /// Its behavior stack at the end.
+    pub stack: Vec<Frame>,
+    /// Result of its organization's structural check.
+    pub org_check: Result<(), String>,
+    /// Its kernel's counters.
+    pub stats: Stats,
+}
+
+/// What a run produced.
+#[derive(Debug)]
+pub struct RunReport {
+    /// The summary.
+    pub summary: Summary,
+    /// Every event, when recording was asked for.
+    pub history: Vec<Record>,
+    /// Robots at the end.
+    pub finals: Vec<FinalRobot>,
+    /// Scenario warnings.
+    pub warnings: Vec<Diagnostic>,
+    /// When each robot crashed.
+    pub crashes: Vec<(RobotId, Time)>,
+    /// When the run stopped.
+    pub end: Time,
+}
+
+enum What {
+    Control,
+    Deliver { to: RobotId, env: Arc<Envelope> },
+    Timer(RobotId),
+    Fact(usize),
+    Crash(RobotId),
+}
+
+struct Scheduled {
+    at: Time,
+    seq: u64,
+    what: What,
+}
+
+impl PartialEq for Scheduled {
+    fn eq(&self, o: &Self) -> bool {
+        (self.at, self.seq) == (o.at, o.seq)
+    }
+}
+impl Eq for Scheduled {}
+impl PartialOrd for Scheduled {
+    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Scheduled {
+    fn cmp(&self, o: &Self) -> Ordering {
+        (self.at, self.seq).cmp(&(o.at, o.seq))
+    }
+}
+
+struct Sim<'a, 'w> {
+    book: SkillBook,
+    kernels: Vec<Kernel>,
+    worlds: Vec<RobotWorld>,
+    crashed: Vec<bool>,
+    versions: Vec<u64>,
+    timers: Vec<Option<Time>>,
+    net: SimNet,
+    queue: BinaryHeap<Reverse<Scheduled>>,
+    seq: u64,
+    now: Time,
+    agg: Aggregator,
+    log: RunLog<'w>,
+    record: bool,
+    history: Vec<Record>,
+    resolved: Resolved,
+    fact_ids: Vec<Vec<(BeliefId, Value)>>,
+    percepts: Vec<(BeliefId, Value)>,
+    times: Vec<Time>,
+    graph: Arc<BehaviorGraph>,
+    progress: Option<&'a mut dyn FnMut(Progress)>,
+}
+
+impl Sim<'_, '_> {
+    fn schedule(&mut self, at: Time, what: What) {
+        self.seq += 1;
+        self.queue.push(Reverse(Scheduled {
+            at,
+            seq: self.seq,
+            what,
+        }));
+    }
+
+    fn drain(&mut self, r: RobotId) {
+        let i = r.index();
+        while let Some(o) = self.kernels[i].poll_output() {
+            match o {
+                Output::Send(out) => {
+                    let key = out.envelope.instance;
+                    self.agg.sent(key.behavior, key.kind, out.bytes);
+                    let env = Arc::new(out.envelope);
+                    match &out.to {
+                        Recipients::One(x) => self.transmit(r, *x, &env),
+                        Recipients::Team(set) => {
+                            for x in set.iter() {
+                                if x != r {
+                                    self.transmit(r, x, &env);
+                                }
+                            }
+                        }
+                    }
+                }
+                Output::Event(e) => {
+                    self.agg.event(self.now, r, &e);
+                    if self.log.is_writing() {
+                        let rec = Namer::new(&self.graph).record(self.now, r, &e);
+                        self.log.write(&rec);
+                    }
+                    if self.record {
+                        self.history.push(Record {
+                            t: self.now,
+                            robot: r,
+                            event: e,
+                        });
+                    }
+                }
+            }
+        }
+        let k = &self.kernels[i];
+        if k.stack_version() != self.versions[i] {
+            self.versions[i] = k.stack_version();
+            let leaf = k.leaf().map(|f| f.behavior);
+            let started = self.worlds[i].leaf_changed(&self.book, leaf, self.now);
+            for (id, v) in started {
+                self.kernels[i].set_belief(*id, v.clone(), Source::Percept);
+            }
+        }
+        if let Some(t) = self.kernels[i].poll_timeout()
+            && self.timers[i].is_none_or(|s| t < s || s < self.now)
+        {
+            self.timers[i] = Some(t);
+            let at = t.max(self.now);
+            self.schedule(at, What::Timer(r));
+        }
+    }
+
+    fn transmit(&mut self, from: RobotId, to: RobotId, env: &Arc<Envelope>) {
+        let mut times = std::mem::take(&mut self.times);
+        self.net.transmit(self.now, from, to, &mut times);
+        for t in &times {
+            self.schedule(
+                *t,
+                What::Deliver {
+                    to,
+                    env: env.clone(),
+                },
+            );
+        }
+        self.times = times;
+    }
+
+    fn live_all_finished(&self) -> bool {
+        self.kernels
+            .iter()
+            .zip(&self.crashed)
+            .all(|(k, c)| *c || k.is_finished())
+    }
+
+    fn run(&mut self, limit: Time, period: Duration) -> Time {
+        self.schedule(Time::ZERO, What::Control);
+        for i in 0..self.resolved.events.len() {
+            let at = self.resolved.events[i].at;
+            self.schedule(at, What::Fact(i));
+        }
+        for i in 0..self.resolved.crashes.len() {
+            let (r, at) = self.resolved.crashes[i];
+            self.schedule(at, What::Crash(r));
+        }
+        let n = self.kernels.len();
+        let mut next_progress = Time::ZERO;
+        while let Some(Reverse(s)) = self.queue.pop() {
+            if s.at > limit {
+                return limit;
+            }
+            self.now = s.at;
+            match s.what {
+                What::Control => {
+                    for i in 0..n {
+                        if self.crashed[i] {
+                            continue;
+                        }
+                        let mut percepts = std::mem::take(&mut self.percepts);
+                        self.worlds[i].tick(self.now, &mut percepts);
+                        self.kernels[i].tick(self.now, &percepts);
+                        self.percepts = percepts;
+                        self.drain(RobotId(i as u32));
+                    }
+                    if self.live_all_finished() {
+                        return self.now;
+                    }
+                    if self.now >= next_progress {
+                        next_progress = self.now + Duration::from_secs(1);
+                        let finished = self.kernels.iter().filter(|k| k.is_finished()).count();
+                        if let Some(p) = self.progress.as_mut() {
+                            p(Progress {
+                                now: self.now,
+                                finished,
+                                robots: n,
+                            });
+                        }
+                    }
+                    let next = self.now + period;
+                    self.schedule(next, What::Control);
+                }
+                What::Deliver { to, env } => {
+                    if !self.crashed[to.index()] {
+                        self.kernels[to.index()].message(self.now, (*env).clone());
+                        self.drain(to);
+                    }
+                }
+                What::Timer(r) => {
+                    let i = r.index();
+                    if !self.crashed[i]
+                        && self.kernels[i]
+                            .poll_timeout()
+                            .is_some_and(|t| t <= self.now)
+                    {
+                        self.timers[i] = None;
+                        self.kernels[i].timer(self.now);
+                        self.drain(r);
+                    }
+                }
+                What::Fact(idx) => {
+                    let targets: Vec<RobotId> = match &self.resolved.events[idx].robots {
+                        Some(rs) => rs.clone(),
+                        None => (0..n as u32).map(RobotId).collect(),
+                    };
+                    for r in targets {
+                        self.worlds[r.index()].inject(self.fact_ids[idx].iter().cloned());
+                    }
+                }
+                What::Crash(r) => {
+                    self.crashed[r.index()] = true;
+                    if self.log.is_writing() {
+                        let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "crashed"});
+                        self.log.write(&rec);
+                    }
+                    if self.live_all_finished() {
+                        return self.now;
+                    }
+                }
+            }
+        }
+        self.now
+    }
+}
+
+/// Run a mission in the timed-skill world.
+pub fn run(
+    mission: Arc<Mission>,
+    scenario: &Scenario,
+    opts: RunOptions<'_>,
+) -> Result<RunReport, Diagnostics> {
+    let graph = mission.graph().clone();
+    let resolved = scenario.resolve(&graph)?;
+    let warnings = resolved.warnings.clone();
+    let seed = opts.seed.unwrap_or(scenario.seed);
+    let n = graph.roster().len();
+    let root = Arc::new(MemberSet::all(n));
+    let kernels = (0..n as u32)
+        .map(|r| {
+            Kernel::with_root(
+                mission.clone(),
+                RobotId(r),
+                derive_seed(seed, "kernel", r),
+                root.clone(),
+            )
+        })
+        .collect();
+    let worlds = (0..n as u32)
+        .map(|r| RobotWorld::new(derive_seed(seed, "world", r)))
+        .collect();
+    let sym = graph.symbols().clone();
+    let fact_ids = resolved
+        .events
+        .iter()
+        .map(|fact| {
+            fact.set
+                .iter()
+                .filter_map(|(name, v)| sym.get(name).map(|id| (id, v.clone())))
+                .collect()
+        })
+        .collect();
+    let mut log = RunLog::new(opts.log);
+    log.write(&json!({
+        "t": 0.0,
+        "event": "run_started",
+        "graph": graph.name(),
+        "config": graph.config_name(),
+        "scenario": scenario.name,
+        "seed": seed,
+        "robots": n,
+        "engine": concat!("bite ", env!("CARGO_PKG_VERSION")),
+    }));
+    let mut sim = Sim {
+        book: SkillBook::new(scenario, &graph),
+        kernels,
+        worlds,
+        crashed: vec![false; n],
+        versions: vec![u64::MAX; n],
+        timers: vec![None; n],
+        net: SimNet::new(resolved.network.clone(), derive_seed(seed, "net", 0)),
+        queue: BinaryHeap::new(),
+        seq: 0,
+        now: Time::ZERO,
+        agg: Aggregator::new(n),
+        log,
+        record: opts.record,
+        history: Vec::new(),
+        resolved,
+        fact_ids,
+        percepts: Vec::new(),
+        times: Vec::new(),
+        graph: graph.clone(),
+        progress: opts.progress,
+    };
+    let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);
+    let period = Duration::from_secs_f64(1.0 / scenario.control_hz);
+    let end = sim.run(limit, period);
+
+    let mut dropped: BTreeMap<DropReason, u64> = BTreeMap::new();
+    for k in &sim.kernels {
+        for (r, c) in &k.stats().dropped {
+            *dropped.entry(*r).or_insert(0) += c;
+        }
+    }
+    let finals = sim
+        .kernels
+        .iter()
+        .enumerate()
+        .map(|(i, k)| FinalRobot {
+            robot: RobotId(i as u32),
+            crashed: sim.crashed[i],
+            finished: k.is_finished(),
+            stack: k.stack().to_vec(),
+            org_check: k.org().check_invariants(),
+            stats: k.stats().clone(),
+        })
+        .collect();
+    let crashes = sim.resolved.crashes.clone();
+    let fingerprint = sim.log.fingerprint();
+    let summary = std::mem::take(&mut sim.agg).finish(
+        &mission,
+        &scenario.name,
+        seed,
+        end,
+        &sim.crashed,
+        sim.net.stats().clone(),
+        dropped,
+        fingerprint,
+    );
+    sim.log.write(&json!({
+        "t": end.as_secs_f64(),
+        "event": "run_finished",
+        "summary": summary,
+    }));
+    if let Err(e) = sim.log.finish() {
+        return Err(Diagnostics(vec![Diagnostic::error(
+            &Arc::from("run log"),
+            bite_core::diag::Loc::UNKNOWN,
+            "io",
+            format!("cannot write the run log: {e}"),
+        )]));
+    }
+    Ok(RunReport {
+        summary,
+        history: std::mem::take(&mut sim.history),
+        finals,
+        warnings,
+        crashes,
+        end,
+    })
+}

@@ -1,0 +1,720 @@
+//! Scenario files for the timed-skill world (see `docs/scenario-format.md`).
+//!
+//! A scenario says how long skills take and what they make robots believe,
+//! what the network does, which facts change when, which robots crash, the
+//! seed and the time limit. The same behavior graph runs against any
+//! scenario.
+
+use crate::net::{Cut, NetModel, Partition};
+use bite_core::diag::{Diagnostic, Diagnostics, Loc};
+use bite_core::graph::BehaviorGraph;
+use bite_core::ids::RobotId;
+use bite_core::time::{Time, parse_duration};
+use bite_core::value::Value;
+use bite_core::yaml::{DurationText, Ordered, json_to_value};
+use serde::Deserialize;
+use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
+use serde_saphyr::Spanned;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// A random quantity drawn per robot and per skill execution.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Dist {
+    /// Always this value.
+    Const(f64),
+    /// Uniform in `[lo, hi]`.
+    Uniform(f64, f64),
+    /// Normal with mean and standard deviation, truncated at zero.
+    Normal(f64, f64),
+    /// Exponential with this mean.
+    Exponential(f64),
+}
+
+impl<'de> Deserialize<'de> for Dist {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Dist;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(
+                    "a number, `[lo, hi]` (uniform), `{uniform: [lo, hi]}`, `{normal: [mean, sd]}` or `{exponential: mean}`",
+                )
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> Result<Dist, E> {
+                Ok(Dist::Const(v))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<Dist, E> {
+                Ok(Dist::Const(v as f64))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> Result<Dist, E> {
+                Ok(Dist::Const(v as f64))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<Dist, A::Error> {
+                let lo: f64 = s
+                    .next_element()?
+                    .ok_or_else(|| de::Error::invalid_length(0, &self))?;
+                let hi: f64 = s
+                    .next_element()?
+                    .ok_or_else(|| de::Error::invalid_length(1, &self))?;
+                if s.next_element::<f64>()?.is_some() {
+                    return Err(de::Error::custom("a uniform range has exactly two bounds"));
+                }
+                Ok(Dist::Uniform(lo, hi))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<Dist, A::Error> {
+                let Some(key) = m.next_key::<String>()? else {
+                    return Err(de::Error::custom("empty distribution"));
+                };
+                let d = match key.as_str() {
+                    "uniform" => {
+                        let [lo, hi]: [f64; 2] = m.next_value()?;
+                        Dist::Uniform(lo, hi)
+                    }
+                    "normal" => {
+                        let [mean, sd]: [f64; 2] = m.next_value()?;
+                        Dist::Normal(mean, sd)
+                    }
+                    "exponential" => Dist::Exponential(m.next_value()?),
+                    other => {
+                        return Err(de::Error::unknown_field(
+                            other,
+                            &["uniform", "normal", "exponential"],
+                        ));
+                    }
+                };
+                if m.next_key::<String>()?.is_some() {
+                    return Err(de::Error::custom("a distribution has exactly one kind"));
+                }
+                Ok(d)
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+impl Dist {
+    fn check(&self) -> Result<(), String> {
+        let ok = match *self {
+            Dist::Const(v) => v.is_finite(),
+            Dist::Uniform(a, b) => a.is_finite() && b.is_finite() && a <= b,
+            Dist::Normal(m, s) => m.is_finite() && s.is_finite() && s >= 0.0,
+            Dist::Exponential(m) => m.is_finite() && m > 0.0,
+        };
+        if ok {
+            Ok(())
+        } else {
+            Err(format!(
+                "invalid distribution {self:?} (bounds must be finite and ordered, spreads non-negative)"
+            ))
+        }
+    }
+    /// Draw a value.
+    pub fn sample(&self, rng: &mut bite_core::interaction::Rng) -> f64 {
+        use rand::RngExt;
+        use rand_distr::Distribution;
+        match *self {
+            Dist::Const(v) => v,
+            Dist::Uniform(a, b) if a < b => rng.random_range(a..=b),
+            Dist::Uniform(a, _) => a,
+            Dist::Normal(m, s) => match rand_distr::Normal::new(m, s) {
+                Ok(n) => n.sample(rng).max(0.0),
+                Err(_) => m,
+            },
+            Dist::Exponential(mean) => match rand_distr::Exp::new(1.0 / mean) {
+                Ok(e) => e.sample(rng),
+                Err(_) => mean,
+            },
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScenarioSpec {
+    scenario: Option<String>,
+    description: Option<String>,
+    world: Option<Spanned<String>>,
+    seed: Option<u64>,
+    robots: Option<Spanned<u64>>,
+    control_hz: Option<Spanned<f64>>,
+    time_limit: Option<Spanned<DurationText>>,
+    #[serde(default)]
+    network: Option<Spanned<NetSpec>>,
+    #[serde(default)]
+    skills: Ordered<SkillSpec>,
+    #[serde(default)]
+    events: Vec<Spanned<EventSpec>>,
+    #[serde(default)]
+    crashes: Vec<Spanned<CrashSpec>>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct NetSpec {
+    latency: Option<DurationText>,
+    jitter: Option<DurationText>,
+    #[serde(default)]
+    loss: f64,
+    #[serde(default)]
+    duplicate: f64,
+    #[serde(default)]
+    partitions: Vec<Spanned<PartitionSpec>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PartitionSpec {
+    from: DurationText,
+    until: DurationText,
+    groups: Option<Vec<Vec<RobotRef>>>,
+    one_way: Option<OneWaySpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OneWaySpec {
+    from: Vec<RobotRef>,
+    to: Vec<RobotRef>,
+}
+
+/// A robot named in a scenario: roster name or index.
+#[derive(Clone, Debug, PartialEq)]
+pub enum RobotRef {
+    /// By roster index.
+    Index(u64),
+    /// By name.
+    Name(String),
+}
+
+impl<'de> Deserialize<'de> for RobotRef {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = RobotRef;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a robot name or index")
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> Result<RobotRef, E> {
+                Ok(RobotRef::Index(v))
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> Result<RobotRef, E> {
+                Ok(RobotRef::Name(v.to_string()))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct SkillSpec {
+    duration: Option<Dist>,
+    #[serde(default)]
+    rate: Ordered<Dist>,
+    speed: Option<Dist>,
+    #[serde(default)]
+    drives: Vec<String>,
+    #[serde(default)]
+    start: Ordered<serde_json::Value>,
+    #[serde(default)]
+    done: Ordered<serde_json::Value>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct EventSpec {
+    at: DurationText,
+    robots: Option<Vec<RobotRef>>,
+    set: Ordered<serde_json::Value>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CrashSpec {
+    robot: RobotRef,
+    at: DurationText,
+}
+
+/// What a skill does in the timed world.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SkillModel {
+    /// Time until the skill completes (`None`: never by itself).
+    pub duration: Option<Dist>,
+    /// Numeric beliefs that grow at a rate (per second) while it runs,
+    /// each rate drawn independently.
+    pub rates: Vec<(String, Dist)>,
+    /// One rate drawn per execution that drives every belief of `drives`
+    /// (a robot's leg and total distance grow at the same pace).
+    pub speed: Option<Dist>,
+    /// Beliefs driven by `speed`.
+    pub drives: Vec<String>,
+    /// Beliefs set when it starts.
+    pub on_start: Vec<(String, Value)>,
+    /// Beliefs set when it completes.
+    pub on_done: Vec<(String, Value)>,
+}
+
+/// Facts that change at a time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WorldEvent {
+    /// When.
+    pub at: Time,
+    /// For whom (`None`: everyone).
+    pub robots: Option<Vec<RobotRef>>,
+    /// What becomes true.
+    pub set: Vec<(String, Value)>,
+    /// Where it is written.
+    pub loc: Loc,
+}
+
+/// A robot that stops at a time (no more ticks, messages or timers).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Crash {
+    /// Which robot.
+    pub robot: RobotRef,
+    /// When.
+    pub at: Time,
+    /// Where it is written.
+    pub loc: Loc,
+}
+
+/// A partition as written, robots not yet resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PartitionRef {
+    /// Start.
+    pub from: Time,
+    /// End.
+    pub until: Time,
+    /// Symmetric groups, or `None` for a one-way cut.
+    pub groups: Option<Vec<Vec<RobotRef>>>,
+    /// One-way cut: senders and receivers.
+    pub one_way: Option<(Vec<RobotRef>, Vec<RobotRef>)>,
+    /// Where it is written.
+    pub loc: Loc,
+}
+
+/// Facts that become true for some robots at a time, resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimedFact {
+    /// When.
+    pub at: Time,
+    /// For whom (`None`: everyone).
+    pub robots: Option<Vec<RobotId>>,
+    /// What.
+    pub set: Vec<(String, Value)>,
+}
+
+/// A scenario resolved against a graph: robot ids instead of names.
+#[derive(Clone, Debug)]
+pub struct Resolved {
+    /// The network, partitions included.
+    pub network: NetModel,
+    /// Timed facts.
+    pub events: Vec<TimedFact>,
+    /// Crashes: who, when.
+    pub crashes: Vec<(RobotId, Time)>,
+    /// Warnings (beliefs nobody reads, skills the scenario does not describe).
+    pub warnings: Vec<Diagnostic>,
+}
+
+/// A scenario of the timed-skill world.
+#[derive(Clone, Debug)]
+pub struct Scenario {
+    /// Name.
+    pub name: String,
+    /// Free text.
+    pub description: Option<String>,
+    /// File it came from.
+    pub file: Arc<str>,
+    /// Default seed of runs.
+    pub seed: u64,
+    /// Team size override.
+    pub robots: Option<usize>,
+    /// Control rate (ticks per second).
+    pub control_hz: f64,
+    /// Runs stop here if the mission has not completed.
+    pub time_limit: Duration,
+    /// The network (without partitions; see `partitions`).
+    pub network: NetModel,
+    /// Partitions, robots unresolved.
+    pub partitions: Vec<PartitionRef>,
+    /// Skills by name.
+    pub skills: BTreeMap<String, SkillModel>,
+    /// Timed facts.
+    pub events: Vec<WorldEvent>,
+    /// Robot crashes.
+    pub crashes: Vec<Crash>,
+}
+
+impl Default for Scenario {
+    fn default() -> Self {
+        Scenario {
+            name: "default".into(),
+            description: None,
+            file: Arc::from("<built-in>"),
+            seed: 1,
+            robots: None,
+            control_hz: 10.0,
+            time_limit: Duration::from_secs(3600),
+            network: NetModel::default(),
+            partitions: Vec::new(),
+            skills: BTreeMap::new(),
+            events: Vec::new(),
+            crashes: Vec::new(),
+        }
+    }
+}
+
+fn dur(file: &Arc<str>, loc: Loc, t: &DurationText, diags: &mut Vec<Diagnostic>) -> Duration {
+    match parse_duration(&t.0) {
+        Ok(d) => d,
+        Err(e) => {
+            diags.push(Diagnostic::error(file, loc, "bad-duration", e));
+            Duration::ZERO
+        }
+    }
+}
+
+fn values(
+    file: &Arc<str>,
+    o: &Ordered<serde_json::Value>,
+    diags: &mut Vec<Diagnostic>,
+) -> Vec<(String, Value)> {
+    let mut out = Vec::new();
+    for (k, v) in &o.0 {
+        match json_to_value(&v.value) {
+            Some(x) => out.push((k.value.clone(), x)),
+            None => diags.push(Diagnostic::error(
+                file,
+                Loc::from(v.referenced),
+                "bad-value",
+                format!("`{}` must be a bool, number, text or [x, y]", k.value),
+            )),
+        }
+    }
+    out
+}
+
+impl Scenario {
+    /// Load a scenario file.
+    pub fn load(path: &Path) -> Result<Scenario, Diagnostics> {
+        let (file, text) = bite_core::yaml::read_file(path)?;
+        Self::load_str(&file, &text)
+    }
+
+    /// Parse a scenario from text; `file` names it in messages.
+    pub fn load_str(file: &Arc<str>, text: &str) -> Result<Scenario, Diagnostics> {
+        let spec: ScenarioSpec = bite_core::yaml::parse(file, text)?;
+        let mut d = Vec::new();
+        if let Some(w) = &spec.world
+            && w.value != "timed"
+        {
+            d.push(
+                Diagnostic::error(
+                    file,
+                    Loc::from(w.referenced),
+                    "unknown-world",
+                    format!("unknown world `{}`", w.value),
+                )
+                .with_hint("the discrete-event runner simulates `world: timed`"),
+            );
+        }
+        let control_hz = match &spec.control_hz {
+            Some(h) if !(h.value.is_finite() && h.value > 0.0 && h.value <= 1000.0) => {
+                d.push(Diagnostic::error(
+                    file,
+                    Loc::from(h.referenced),
+                    "bad-value",
+                    "`control_hz` must be between 0 and 1000",
+                ));
+                10.0
+            }
+            Some(h) => h.value,
+            None => 10.0,
+        };
+        let robots = match &spec.robots {
+            Some(r) if r.value == 0 || r.value > bite_core::graph::MAX_ROBOTS as u64 => {
+                d.push(Diagnostic::error(
+                    file,
+                    Loc::from(r.referenced),
+                    "bad-value",
+                    format!(
+                        "`robots` must be between 1 and {}",
+                        bite_core::graph::MAX_ROBOTS
+                    ),
+                ));
+                None
+            }
+            Some(r) => Some(r.value as usize),
+            None => None,
+        };
+        let time_limit = spec
+            .time_limit
+            .as_ref()
+            .map_or(Duration::from_secs(3600), |t| {
+                dur(file, Loc::from(t.referenced), &t.value, &mut d)
+            });
+        let mut partitions = Vec::new();
+        let network = match &spec.network {
+            None => NetModel::default(),
+            Some(n) => {
+                let loc = Loc::from(n.referenced);
+                let n = &n.value;
+                for (what, p) in [("loss", n.loss), ("duplicate", n.duplicate)] {
+                    if !(0.0..=1.0).contains(&p) {
+                        d.push(Diagnostic::error(
+                            file,
+                            loc,
+                            "bad-value",
+                            format!("`{what}` is a probability: between 0 and 1, found {p}"),
+                        ));
+                    }
+                }
+                for p in &n.partitions {
+                    let ploc = Loc::from(p.referenced);
+                    if p.value.groups.is_some() == p.value.one_way.is_some() {
+                        d.push(Diagnostic::error(
+                            file,
+                            ploc,
+                            "bad-partition",
+                            "a partition has either `groups` or `one_way`",
+                        ));
+                        continue;
+                    }
+                    partitions.push(PartitionRef {
+                        from: Time::ZERO + dur(file, ploc, &p.value.from, &mut d),
+                        until: Time::ZERO + dur(file, ploc, &p.value.until, &mut d),
+                        groups: p.value.groups.clone(),
+                        one_way: p
+                            .value
+                            .one_way
+                            .as_ref()
+                            .map(|o| (o.from.clone(), o.to.clone())),
+                        loc: ploc,
+                    });
+                }
+                NetModel {
+                    latency: n
+                        .latency
+                        .as_ref()
+                        .map_or(NetModel::default().latency, |t| dur(file, loc, t, &mut d)),
+                    jitter: n
+                        .jitter
+                        .as_ref()
+                        .map_or(NetModel::default().jitter, |t| dur(file, loc, t, &mut d)),
+                    loss: n.loss,
+                    duplicate: n.duplicate,
+                    partitions: Vec::new(),
+                }
+            }
+        };
+        let mut skills = BTreeMap::new();
+        for (name, s) in &spec.skills.0 {
+            let sloc = Loc::from(s.referenced);
+            let s = &s.value;
+            let check = |dist: &Dist, d: &mut Vec<Diagnostic>| {
+                if let Err(e) = dist.check() {
+                    d.push(Diagnostic::error(file, sloc, "bad-value", e));
+                }
+            };
+            if let Some(x) = &s.duration {
+                check(x, &mut d);
+            }
+            if let Some(x) = &s.speed {
+                check(x, &mut d);
+            }
+            if s.speed.is_some() == s.drives.is_empty() {
+                d.push(Diagnostic::error(
+                    file,
+                    sloc,
+                    "bad-skill",
+                    format!(
+                        "skill `{}`: `speed` and `drives` go together (a speed drives a list of beliefs)",
+                        name.value
+                    ),
+                ));
+            }
+            for (_, r) in &s.rate.0 {
+                check(&r.value, &mut d);
+            }
+            skills.insert(
+                name.value.clone(),
+                SkillModel {
+                    duration: s.duration,
+                    rates: s
+                        .rate
+                        .0
+                        .iter()
+                        .map(|(k, v)| (k.value.clone(), v.value))
+                        .collect(),
+                    speed: s.speed,
+                    drives: s.drives.clone(),
+                    on_start: values(file, &s.start, &mut d),
+                    on_done: values(file, &s.done, &mut d),
+                },
+            );
+        }
+        let mut events = Vec::new();
+        for e in &spec.events {
+            let loc = Loc::from(e.referenced);
+            events.push(WorldEvent {
+                at: Time::ZERO + dur(file, loc, &e.value.at, &mut d),
+                robots: e.value.robots.clone(),
+                set: values(file, &e.value.set, &mut d),
+                loc,
+            });
+        }
+        events.sort_by_key(|e| e.at);
+        let mut crashes = Vec::new();
+        for c in &spec.crashes {
+            let loc = Loc::from(c.referenced);
+            crashes.push(Crash {
+                robot: c.value.robot.clone(),
+                at: Time::ZERO + dur(file, loc, &c.value.at, &mut d),
+                loc,
+            });
+        }
+        if d.iter().any(Diagnostic::is_error) {
+            return Err(Diagnostics(d));
+        }
+        Ok(Scenario {
+            name: spec.scenario.unwrap_or_else(|| {
+                Path::new(&**file)
+                    .file_stem()
+                    .map_or_else(|| file.to_string(), |s| s.to_string_lossy().into_owned())
+            }),
+            description: spec.description,
+            file: file.clone(),
+            seed: spec.seed.unwrap_or(1),
+            robots,
+            control_hz,
+            time_limit,
+            network,
+            partitions,
+            skills,
+            events,
+            crashes,
+        })
+    }
+
+    /// Resolve robot names against the graph's roster and check what can
+    /// only be checked against a graph: robots exist (error), beliefs the
+    /// scenario sets are read by some condition and skills the graph uses
+    /// are described (warnings).
+    pub fn resolve(&self, graph: &BehaviorGraph) -> Result<Resolved, Diagnostics> {
+        let roster = graph.roster();
+        let mut errors = Vec::new();
+        let mut one = |r: &RobotRef, loc: Loc| -> Option<RobotId> {
+            let id = match r {
+                RobotRef::Index(i) => (*i < roster.len() as u64).then_some(RobotId(*i as u32)),
+                RobotRef::Name(n) => roster.find(n),
+            };
+            if id.is_none() {
+                let what = match r {
+                    RobotRef::Index(i) => format!("robot {i}"),
+                    RobotRef::Name(n) => format!("robot `{n}`"),
+                };
+                errors.push(Diagnostic::error(
+                    &self.file,
+                    loc,
+                    "unknown-robot",
+                    format!("no {what} in the team of {} robots", roster.len()),
+                ));
+            }
+            id
+        };
+        let mut many = |rs: &[RobotRef], loc: Loc| -> Vec<RobotId> {
+            rs.iter().filter_map(|r| one(r, loc)).collect()
+        };
+        let mut network = self.network.clone();
+        for p in &self.partitions {
+            let cut = match (&p.groups, &p.one_way) {
+                (Some(g), _) => Cut::Groups(g.iter().map(|g| many(g, p.loc)).collect()),
+                (None, Some((f, t))) => Cut::OneWay {
+                    from: many(f, p.loc),
+                    to: many(t, p.loc),
+                },
+                (None, None) => continue,
+            };
+            network.partitions.push(Partition {
+                from: p.from,
+                until: p.until,
+                cut,
+            });
+        }
+        let events = self
+            .events
+            .iter()
+            .map(|e| TimedFact {
+                at: e.at,
+                robots: e.robots.as_ref().map(|r| many(r, e.loc)),
+                set: e.set.clone(),
+            })
+            .collect();
+        let mut crashes = Vec::new();
+        for c in &self.crashes {
+            if let Some(r) = one(&c.robot, c.loc) {
+                crashes.push((r, c.at));
+            }
+        }
+        if !errors.is_empty() {
+            return Err(Diagnostics(errors));
+        }
+        let mut warnings = Vec::new();
+        let symbols = graph.symbols();
+        let mut warned = std::collections::BTreeSet::new();
+        let set_by_skills = self.skills.values().flat_map(|s| {
+            s.rates
+                .iter()
+                .map(|(n, _)| n)
+                .chain(&s.drives)
+                .chain(s.on_start.iter().chain(&s.on_done).map(|(n, _)| n))
+                .map(|n| (n, Loc::UNKNOWN))
+        });
+        let set_by_events = self
+            .events
+            .iter()
+            .flat_map(|e| e.set.iter().map(move |(n, _)| (n, e.loc)));
+        for (n, loc) in set_by_skills.chain(set_by_events) {
+            if symbols.get(n).is_none() && warned.insert(n.clone()) {
+                warnings.push(Diagnostic::warning(
+                    &self.file,
+                    loc,
+                    "unused-belief",
+                    format!(
+                        "the scenario sets `{n}`, but no condition of graph `{}` reads it",
+                        graph.name()
+                    ),
+                ));
+            }
+        }
+        let mut missing = std::collections::BTreeSet::new();
+        for b in graph.behaviors() {
+            if let Some(s) = &b.skill
+                && b.is_atomic()
+                && !self.skills.contains_key(&s.name)
+                && missing.insert(s.name.clone())
+            {
+                warnings.push(Diagnostic::warning(
+                    &self.file,
+                    Loc::UNKNOWN,
+                    "unknown-skill",
+                    format!(
+                        "skill `{}` (behavior `{}`) is not described by the scenario: it runs until a condition ends its behavior",
+                        s.name, b.name
+                    ),
+                ));
+            }
+        }
+        Ok(Resolved {
+            network,
+            events,
+            crashes,
+            warnings,
+        })
+    }
+}

@@ -1,0 +1,405 @@
+//! The summary at the end of a run: did the mission complete, how long it
+//! took, how long robots spent in each kind of interaction, and what the
+//! coordination cost in messages and bytes — per kind and per point.
+
+use crate::net::NetStats;
+use bite_core::event::{DropReason, Event};
+use bite_core::ids::{BehaviorId, RobotId};
+use bite_core::mission::Mission;
+use bite_core::msg::Kind;
+use bite_core::time::Time;
+use serde::Serialize;
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+
+/// A quantity per interaction kind.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct PerKind<T> {
+    /// Synchronization.
+    pub sync: T,
+    /// Allocation.
+    pub allocate: T,
+    /// Termination.
+    pub terminate: T,
+}
+
+impl<T: Copy + std::ops::Add<Output = T>> PerKind<T> {
+    /// The slot of a kind.
+    pub fn get_mut(&mut self, k: Kind) -> &mut T {
+        match k {
+            Kind::Sync => &mut self.sync,
+            Kind::Allocate => &mut self.allocate,
+            Kind::Terminate => &mut self.terminate,
+        }
+    }
+    /// The value of a kind.
+    pub fn get(&self, k: Kind) -> T {
+        match k {
+            Kind::Sync => self.sync,
+            Kind::Allocate => self.allocate,
+            Kind::Terminate => self.terminate,
+        }
+    }
+    /// Sum over kinds.
+    pub fn total(&self) -> T {
+        self.sync + self.allocate + self.terminate
+    }
+}
+
+/// Cost of one coordination point over the run.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct PointSummary {
+    /// Point name.
+    pub point: String,
+    /// Kind.
+    pub kind: String,
+    /// Protocol bound to it.
+    pub protocol: String,
+    /// Distinct instances decided (team decisions).
+    pub instances: u64,
+    /// Per-robot decisions (each member decides each instance).
+    pub decisions: u64,
+    /// Mean time a robot waited for a decision, seconds.
+    pub mean_wait: f64,
+    /// Longest wait, seconds.
+    pub max_wait: f64,
+    /// Messages sent (a team multicast counts once).
+    pub messages: u64,
+    /// Bytes sent.
+    pub bytes: u64,
+    /// Instances that hit their deadline (per robot).
+    pub timeouts: u64,
+}
+
+/// How a run ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Ending {
+    /// Every robot that did not crash completed the mission.
+    Completed,
+    /// The time limit came first.
+    TimeLimit,
+}
+
+/// The summary of a run.
+#[derive(Clone, Debug, Serialize)]
+pub struct Summary {
+    /// Graph name.
+    pub graph: String,
+    /// Configuration name.
+    pub config: Option<String>,
+    /// Scenario name.
+    pub scenario: String,
+    /// Seed.
+    pub seed: u64,
+    /// Team size.
+    pub robots: usize,
+    /// How the run ended.
+    pub ending: Ending,
+    /// True when every live robot completed the mission.
+    pub completed: bool,
+    /// Robots that completed.
+    pub completed_robots: usize,
+    /// Robots that crashed.
+    pub crashed_robots: usize,
+    /// Task time: when the last live robot completed (or the time limit), seconds.
+    pub task_time: f64,
+    /// Mean time per robot spent waiting in interactions, seconds.
+    pub interaction_time: PerKind<f64>,
+    /// Longest per-robot interaction time, seconds.
+    pub interaction_time_max: PerKind<f64>,
+    /// Per-robot decisions.
+    pub decisions: PerKind<u64>,
+    /// Per-robot instances that hit their deadline.
+    pub timeouts: u64,
+    /// Messages sent (multicast counts once).
+    pub messages: PerKind<u64>,
+    /// Bytes sent.
+    pub bytes: PerKind<u64>,
+    /// What the network did.
+    pub network: NetStats,
+    /// Messages dropped by kernels, by reason.
+    pub dropped: BTreeMap<DropReason, u64>,
+    /// Protocol violations reported.
+    pub violations: u64,
+    /// Per point.
+    pub points: Vec<PointSummary>,
+    /// Fingerprint of the run log (equal logs have equal fingerprints).
+    pub log_fingerprint: String,
+}
+
+/// Collects a summary from the event stream.
+#[derive(Debug, Default)]
+pub struct Aggregator {
+    wait: Vec<PerKind<f64>>,
+    decisions: PerKind<u64>,
+    timeouts: u64,
+    messages: PerKind<u64>,
+    bytes: PerKind<u64>,
+    violations: u64,
+    completed: BTreeMap<RobotId, Time>,
+    points: BTreeMap<(BehaviorId, Kind), PointAcc>,
+}
+
+/// Running totals of one point.
+#[derive(Debug, Default)]
+struct PointAcc {
+    summary: PointSummary,
+    /// Instances seen (team, epoch), to count each once.
+    seen: BTreeSet<(u64, u32)>,
+    total_wait: f64,
+}
+
+impl Aggregator {
+    /// For a team of `n`.
+    pub fn new(n: usize) -> Self {
+        Aggregator {
+            wait: vec![PerKind::default(); n],
+            ..Default::default()
+        }
+    }
+
+    fn point(&mut self, b: BehaviorId, k: Kind) -> &mut PointAcc {
+        self.points.entry((b, k)).or_default()
+    }
+
+    /// Account one sent message.
+    pub fn sent(&mut self, b: BehaviorId, k: Kind, bytes: u32) {
+        *self.messages.get_mut(k) += 1;
+        *self.bytes.get_mut(k) += u64::from(bytes);
+        let p = &mut self.point(b, k).summary;
+        p.messages += 1;
+        p.bytes += u64::from(bytes);
+    }
+
+    /// Account one event.
+    pub fn event(&mut self, t: Time, robot: RobotId, e: &Event) {
+        match e {
+            Event::InteractionDecided {
+                instance,
+                waited_us,
+                timed_out,
+                ..
+            } => {
+                let w = *waited_us as f64 / 1e6;
+                if let Some(slot) = self.wait.get_mut(robot.index()) {
+                    *slot.get_mut(instance.kind) += w;
+                }
+                *self.decisions.get_mut(instance.kind) += 1;
+                let acc = self.point(instance.behavior, instance.kind);
+                let p = &mut acc.summary;
+                p.decisions += 1;
+                acc.total_wait += w;
+                p.max_wait = p.max_wait.max(w);
+                if *timed_out {
+                    p.timeouts += 1;
+                }
+                if acc.seen.insert((instance.team.0, instance.epoch)) {
+                    p.instances += 1;
+                }
+            }
+            Event::InteractionTimedOut { .. } => self.timeouts += 1,
+            Event::ProtocolViolation { .. } => self.violations += 1,
+            Event::MissionCompleted => {
+                self.completed.insert(robot, t);
+            }
+            _ => {}
+        }
+    }
+
+    /// Time when `robot` completed, if it did.
+    pub fn completed_at(&self, robot: RobotId) -> Option<Time> {
+        self.completed.get(&robot).copied()
+    }
+
+    /// Finish the summary.
+    #[allow(clippy::too_many_arguments)]
+    pub fn finish(
+        self,
+        mission: &Mission,
+        scenario: &str,
+        seed: u64,
+        end: Time,
+        crashed: &[bool],
+        network: NetStats,
+        dropped: BTreeMap<DropReason, u64>,
+        log_fingerprint: u64,
+    ) -> Summary {
+        let graph = mission.graph();
+        let n = crashed.len();
+        let live: Vec<RobotId> = (0..n as u32)
+            .map(RobotId)
+            .filter(|r| !crashed[r.index()])
+            .collect();
+        let completed_robots = live
+            .iter()
+            .filter(|r| self.completed.contains_key(r))
+            .count();
+        let completed = !live.is_empty() && completed_robots == live.len();
+        let task_time = if completed {
+            live.iter()
+                .filter_map(|r| self.completed.get(r))
+                .max()
+                .copied()
+                .unwrap_or(end)
+        } else {
+            end
+        };
+        let mut mean = PerKind::<f64>::default();
+        let mut max = PerKind::<f64>::default();
+        for w in &self.wait {
+            for k in Kind::ALL {
+                *mean.get_mut(k) += w.get(k) / n.max(1) as f64;
+                let m = max.get_mut(k);
+                *m = m.max(w.get(k));
+            }
+        }
+        let points = self
+            .points
+            .into_iter()
+            .map(|((b, k), acc)| {
+                let (mut p, total) = (acc.summary, acc.total_wait);
+                p.point = graph.point_name(b, k);
+                p.kind = k.to_string();
+                p.protocol = mission
+                    .bound(b, k)
+                    .map_or("?", |x| x.protocol.name())
+                    .to_string();
+                p.mean_wait = if p.decisions > 0 {
+                    total / p.decisions as f64
+                } else {
+                    0.0
+                };
+                p
+            })
+            .collect();
+        Summary {
+            graph: graph.name().to_string(),
+            config: graph.config_name().map(str::to_string),
+            scenario: scenario.to_string(),
+            seed,
+            robots: n,
+            ending: if completed {
+                Ending::Completed
+            } else {
+                Ending::TimeLimit
+            },
+            completed,
+            completed_robots,
+            crashed_robots: n - live.len(),
+            task_time: task_time.as_secs_f64(),
+            interaction_time: mean,
+            interaction_time_max: max,
+            decisions: self.decisions,
+            timeouts: self.timeouts,
+            messages: self.messages,
+            bytes: self.bytes,
+            network,
+            dropped,
+            violations: self.violations,
+            points,
+            log_fingerprint: format!("{log_fingerprint:016x}"),
+        }
+    }
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "mission `{}`{} on scenario `{}`, {} robots, seed {}",
+            self.graph,
+            self.config
+                .as_ref()
+                .map(|c| format!(" (config `{c}`)"))
+                .unwrap_or_default(),
+            self.scenario,
+            self.robots,
+            self.seed
+        )?;
+        writeln!(
+            f,
+            "  outcome          {}  ({} of {} robots completed{})",
+            if self.completed {
+                "COMPLETED"
+            } else {
+                "NOT COMPLETED (time limit)"
+            },
+            self.completed_robots,
+            self.robots - self.crashed_robots,
+            if self.crashed_robots > 0 {
+                format!(", {} crashed", self.crashed_robots)
+            } else {
+                String::new()
+            }
+        )?;
+        writeln!(f, "  task time        {:.2} s", self.task_time)?;
+        writeln!(
+            f,
+            "  interaction time {:.2} s per robot (sync {:.2}, allocation {:.2}, termination {:.2}; max {:.2})",
+            self.interaction_time.total(),
+            self.interaction_time.sync,
+            self.interaction_time.allocate,
+            self.interaction_time.terminate,
+            self.interaction_time_max.total()
+        )?;
+        writeln!(
+            f,
+            "  messages         {} ({} bytes): sync {}, allocation {}, termination {}",
+            self.messages.total(),
+            self.bytes.total(),
+            self.messages.sync,
+            self.messages.allocate,
+            self.messages.terminate
+        )?;
+        writeln!(
+            f,
+            "  network          {} deliveries, {} lost, {} duplicated, {} cut by partitions",
+            self.network.delivered,
+            self.network.lost,
+            self.network.duplicated,
+            self.network.partitioned
+        )?;
+        if self.timeouts > 0 || self.violations > 0 || !self.dropped.is_empty() {
+            let dropped: Vec<String> = self
+                .dropped
+                .iter()
+                .map(|(r, n)| {
+                    format!(
+                        "{n} {}",
+                        serde_json::to_value(r)
+                            .ok()
+                            .and_then(|v| v.as_str().map(str::to_string))
+                            .unwrap_or_default()
+                    )
+                })
+                .collect();
+            writeln!(
+                f,
+                "  anomalies        {} timeouts, {} protocol violations, dropped: {}",
+                self.timeouts,
+                self.violations,
+                if dropped.is_empty() {
+                    "none".to_string()
+                } else {
+                    dropped.join(", ")
+                }
+            )?;
+        }
+        if !self.points.is_empty() {
+            writeln!(
+                f,
+                "  {:<22} {:<10} {:<16} {:>9} {:>10} {:>9} {:>9}",
+                "point", "kind", "protocol", "instances", "mean wait", "messages", "timeouts"
+            )?;
+            for p in &self.points {
+                writeln!(
+                    f,
+                    "  {:<22} {:<10} {:<16} {:>9} {:>9.3}s {:>9} {:>9}",
+                    p.point, p.kind, p.protocol, p.instances, p.mean_wait, p.messages, p.timeouts
+                )?;
+            }
+        }
+        Ok(())
+    }
+}

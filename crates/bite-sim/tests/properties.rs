@@ -1,0 +1,357 @@
+//! Property tests over random valid behavior graphs, team sizes 1-12,
+//! random protocol bindings and network faults (loss, duplication, jitter,
+//! reordering).
+//!
+//! Properties, checked on every run (see `bite_sim::check`):
+//! - agreement: all members of a subteam select the same successor;
+//! - allocation covers every child that some member can take and gives
+//!   each member exactly one child;
+//! - no robot keeps running a behavior its subteam ended;
+//! - every run ends — completion, or a reported protocol timeout — within
+//!   the time limit.
+//!
+//! A graph is generated from a seed, as YAML text (so the loader is
+//! exercised too). On failure the graph and scenario are written under
+//! `target/proptest-failures/` and the message gives the command that
+//! replays the run.
+
+use bite_core::graph::load_str;
+use bite_core::interaction::Rng;
+use bite_sim::check::check;
+use bite_sim::runner::RunOptions;
+use bite_sim::{Scenario, prepare, run};
+use proptest::prelude::*;
+use rand::{RngExt, SeedableRng};
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+/// A generated mission: graph and scenario text.
+#[derive(Debug, Clone)]
+struct Generated {
+    graph: String,
+    scenario: String,
+}
+
+struct Gen {
+    rng: Rng,
+    behaviors: Vec<String>,
+    skills: Vec<String>,
+    facts: usize,
+    events: Vec<String>,
+    next_id: usize,
+}
+
+impl Gen {
+    fn name(&mut self, prefix: &str) -> String {
+        self.next_id += 1;
+        format!("{prefix}{}", self.next_id)
+    }
+    fn team(&mut self) -> &'static str {
+        if self.rng.random_bool(0.8) {
+            "true"
+        } else {
+            "false"
+        }
+    }
+    fn sync(&mut self) -> &'static str {
+        ["sync.by-rule", "sync.vote"][self.rng.random_range(0..2)]
+    }
+    fn term(&mut self) -> &'static str {
+        ["term.local", "term.wait-all", "term.wait-all"][self.rng.random_range(0..3)]
+    }
+
+    /// An atomic behavior that ends when its timed skill completes.
+    fn atomic(&mut self, name: &str, pre: Option<String>, next: &[String], members: Option<&str>) {
+        let (lo, hi) = (
+            self.rng.random_range(0.2..4.0),
+            self.rng.random_range(4.0..9.0),
+        );
+        self.skills.push(format!(
+            "  s_{name}: {{ duration: [{lo:.2}, {hi:.2}], start: {{ {name}_done: false }}, done: {{ {name}_done: true }} }}"
+        ));
+        let team = self.team();
+        let mut b =
+            format!("  {name}:\n    team: {team}\n    skill: s_{name}\n    until: {name}_done\n");
+        self.finish(&mut b, pre, next, members);
+        self.behaviors.push(b);
+    }
+
+    fn finish(
+        &mut self,
+        b: &mut String,
+        pre: Option<String>,
+        next: &[String],
+        members: Option<&str>,
+    ) {
+        if let Some(p) = pre {
+            let _ = writeln!(b, "    pre: '{p}'");
+        }
+        if !next.is_empty() {
+            let _ = writeln!(b, "    next: [{}]", next.join(", "));
+            if next.len() >= 2 && self.rng.random_bool(0.5) {
+                let s = self.sync();
+                let _ = writeln!(b, "    sync: {s}");
+            }
+        }
+        if let Some(m) = members {
+            let _ = writeln!(b, "    members: \"{m}\"");
+        }
+        if self.rng.random_bool(0.3) {
+            let t = self.term();
+            let _ = writeln!(b, "    terminate: {t}");
+        }
+    }
+
+    /// A precondition on a fact that is the same for every robot all run
+    /// long, so that silent protocols agree.
+    fn fact_pre(&mut self) -> Option<String> {
+        if self.facts == 0 || !self.rng.random_bool(0.4) {
+            return None;
+        }
+        let f = self.rng.random_range(0..self.facts);
+        Some(if self.rng.random_bool(0.5) {
+            format!("f{f}")
+        } else {
+            format!("not f{f}")
+        })
+    }
+
+    /// An execution chain; returns its head.
+    fn chain(&mut self, depth: usize, members: Option<&str>) -> String {
+        let len = self.rng.random_range(1..=3);
+        let names: Vec<String> = (0..len).map(|_| self.name("b")).collect();
+        let cycle = len >= 2 && self.rng.random_bool(0.3);
+        for i in 0..len {
+            let name = names[i].clone();
+            let mut next: Vec<String> = names.get(i + 1).cloned().into_iter().collect();
+            // A choice point: an alternative successor that rejoins the chain.
+            if i + 1 < len && self.rng.random_bool(0.35) {
+                let alt = self.name("alt");
+                let rejoin: Vec<String> = names.get(i + 2).cloned().into_iter().collect();
+                let pre = self.fact_pre();
+                self.atomic(&alt, pre, &rejoin, None);
+                next.push(alt);
+            }
+            if cycle && i + 1 == len {
+                next.push(names[0].clone());
+            }
+            // The head of a chain that cycles is bounded by its run count;
+            // the head of any chain takes its `members` constraint.
+            let pre = if i == 0 && cycle {
+                Some(format!("runs < {}", self.rng.random_range(2..4)))
+            } else if i > 0 {
+                self.fact_pre()
+            } else {
+                None
+            };
+            let m = if i == 0 { members } else { None };
+            if depth < 3 && self.rng.random_bool(0.45) {
+                self.composite(&name, depth, pre, &next, m);
+            } else {
+                self.atomic(&name, pre, &next, m);
+            }
+        }
+        names[0].clone()
+    }
+
+    /// A behavior decomposed into one to three execution chains.
+    fn composite(
+        &mut self,
+        name: &str,
+        depth: usize,
+        pre: Option<String>,
+        next: &[String],
+        members: Option<&str>,
+    ) {
+        let k = self.rng.random_range(1..=3);
+        let mut heads = Vec::new();
+        for _ in 0..k {
+            let m = match self.rng.random_range(0..4) {
+                0 => Some("1"),
+                1 => Some("1.."),
+                2 => Some("2.."),
+                _ => None,
+            };
+            heads.push(self.chain(depth + 1, if k >= 2 { m } else { None }));
+        }
+        let team = self.team();
+        let mut b = format!(
+            "  {name}:\n    team: {team}\n    children: [{}]\n",
+            heads.join(", ")
+        );
+        if self.rng.random_bool(0.25) {
+            // Sometimes the parent ends on a global fact, cutting its chains short.
+            let g = self.events.len();
+            let at = self.rng.random_range(3.0..60.0);
+            self.events
+                .push(format!("  - {{ at: {at:.1}s, set: {{ g{g}: true }} }}"));
+            let _ = writeln!(b, "    until: g{g}");
+        }
+        self.finish(&mut b, pre, next, members);
+        self.behaviors.push(b);
+    }
+}
+
+fn generate(seed: u64, robots: usize, loss: f64, dup: f64, jitter_ms: u64) -> Generated {
+    let mut g = Gen {
+        rng: Rng::seed_from_u64(seed),
+        behaviors: Vec::new(),
+        skills: Vec::new(),
+        facts: 3,
+        events: Vec::new(),
+        next_id: 0,
+    };
+    let sync = g.sync();
+    let term = g.term();
+    let facts: Vec<String> = (0..g.facts)
+        .map(|i| format!("f{i}: {}", g.rng.random_bool(0.5)))
+        .collect();
+    g.composite("root", 0, None, &[], None);
+    let graph = format!(
+        "graph: random-{seed}\nteam: {{ robots: {robots} }}\nstart: root\n\
+         defaults: {{ sync: {sync}, allocate: alloc.by-id, terminate: {term} }}\n\
+         beliefs: {{ {} }}\nbehaviors:\n{}",
+        facts.join(", "),
+        g.behaviors.join("")
+    );
+    let scenario = format!(
+        "scenario: random-{seed}\nseed: {seed}\ncontrol_hz: 10\ntime_limit: 1500s\n\
+         network: {{ latency: 2ms, jitter: {jitter_ms}ms, loss: {loss}, duplicate: {dup} }}\n\
+         skills:\n{}\n{}",
+        g.skills.join("\n"),
+        if g.events.is_empty() {
+            String::new()
+        } else {
+            format!("events:\n{}\n", g.events.join("\n"))
+        }
+    );
+    Generated { graph, scenario }
+}
+
+/// Save a failing case and return the command that replays it.
+fn save_failure(seed: u64, case: &Generated) -> String {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../target/proptest-failures");
+    let _ = std::fs::create_dir_all(&dir);
+    let gp = dir.join(format!("random-{seed}.yaml"));
+    let sp = dir.join(format!("random-{seed}-scenario.yaml"));
+    let _ = std::fs::write(&gp, &case.graph);
+    let _ = std::fs::write(&sp, &case.scenario);
+    format!("bite run {} --scenario {}", gp.display(), sp.display())
+}
+
+fn run_case(
+    seed: u64,
+    robots: usize,
+    loss: f64,
+    dup: f64,
+    jitter_ms: u64,
+) -> Result<(), TestCaseError> {
+    let faults = loss > 0.0 || dup > 0.0;
+    let case = generate(seed, robots, loss, dup, jitter_ms);
+    let graph = match load_str(&Arc::from(format!("random-{seed}.yaml")), &case.graph) {
+        Ok(g) => g,
+        Err(d) => {
+            let cmd = save_failure(seed, &case);
+            return Err(TestCaseError::fail(format!(
+                "generated graph invalid: {d}\nreplay: {cmd}"
+            )));
+        }
+    };
+    let sc = Scenario::load_str(&Arc::from("scenario.yaml"), &case.scenario)
+        .map_err(|d| TestCaseError::fail(format!("generated scenario invalid: {d}")))?;
+    let mission = prepare(&graph, &sc, None, &bite_protocols::registry())
+        .map_err(|d| TestCaseError::fail(format!("{d}")))?;
+    let report = run(
+        mission.clone(),
+        &sc,
+        RunOptions {
+            record: true,
+            ..RunOptions::default()
+        },
+    )
+    .map_err(|d| TestCaseError::fail(format!("{d}")))?;
+    let violations = check(&report, &mission);
+    let s = &report.summary;
+    // Without faults every mission completes; with faults it may instead
+    // report a protocol timeout, but never end silently.
+    let ended = s.completed || (faults && s.timeouts > 0);
+    if !violations.is_empty() || !ended || s.violations > 0 {
+        let cmd = save_failure(seed, &case);
+        return Err(TestCaseError::fail(format!(
+            "seed {seed}, {robots} robots, loss {loss}, dup {dup}, jitter {jitter_ms}ms\n{s}\n\
+             violations:\n{}\nreplay: {cmd}",
+            violations
+                .iter()
+                .map(|v| v.to_string())
+                .collect::<Vec<_>>()
+                .join("\n")
+        )));
+    }
+    Ok(())
+}
+
+fn cases() -> u32 {
+    std::env::var("PROPTEST_CASES")
+        .ok()
+        .and_then(|c| c.parse().ok())
+        .unwrap_or(64)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
+
+    /// Fault-free network: every invariant holds and every run completes.
+    #[test]
+    fn random_teams_agree_and_complete(seed in any::<u64>(), robots in 1usize..=12) {
+        run_case(seed, robots, 0.0, 0.0, 3)?;
+    }
+
+    /// Loss, duplication and reordering up to 30%: invariants still hold,
+    /// and every run ends (completion or a reported timeout).
+    #[test]
+    fn random_teams_survive_network_faults(
+        seed in any::<u64>(),
+        robots in 1usize..=12,
+        loss in prop_oneof![Just(0.0), 0.0f64..0.3],
+        dup in prop_oneof![Just(0.0), 0.0f64..0.3],
+        jitter in 0u64..200,
+    ) {
+        run_case(seed, robots, loss, dup, jitter)?;
+    }
+}
+
+#[test]
+fn generated_graphs_exercise_every_structure() {
+    // The generator must produce what the properties are about: allocation
+    // points, synchronization points, sequential cycles, nested allocation.
+    let mut alloc = 0;
+    let mut sync = 0;
+    let mut cycles = 0;
+    for seed in 0..40 {
+        let g = generate(seed, 4, 0.0, 0.0, 3);
+        let graph = load_str(&Arc::from("g.yaml"), &g.graph)
+            .unwrap_or_else(|d| panic!("seed {seed}: {d}\n{}", g.graph));
+        for p in graph.points() {
+            match p.kind {
+                bite_core::msg::Kind::Allocate => alloc += 1,
+                bite_core::msg::Kind::Sync => sync += 1,
+                _ => {}
+            }
+        }
+        cycles += usize::from(g.graph.contains("runs <"));
+    }
+    assert!(
+        alloc > 20 && sync > 20 && cycles > 5,
+        "alloc {alloc}, sync {sync}, cycles {cycles}"
+    );
+}
+
+#[test]
+#[ignore = "debug helper: writes a few generated cases to target/proptest-failures"]
+fn dump_some_cases() {
+    for seed in [1u64, 2, 3] {
+        let case = generate(seed, 5, 0.1, 0.1, 50);
+        eprintln!("{}", save_failure(seed, &case));
+    }
+}
