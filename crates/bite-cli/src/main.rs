@@ -1,0 +1,495 @@
+//! `bite` — run, check and draw BITE multi-robot missions.
+
+use anyhow::{Context, Result};
+use bite_core::diag::{Diagnostic, Diagnostics};
+use bite_core::graph::BehaviorGraph;
+use bite_core::{Config, Mission};
+use bite_sim::runner::{Progress, RunOptions};
+use bite_sim::{Scenario, prepare, run};
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The formation example, built in so that `bite run` works anywhere.
+const FORMATION_GRAPH: &str = include_str!("../../../examples/formation.yaml");
+const FORMATION_SCENARIO: &str = include_str!("../../../examples/scenarios/formation.yaml");
+
+#[derive(Parser)]
+#[command(
+    name = "bite",
+    version,
+    about = "BITE teamwork engine: run, check and draw multi-robot missions",
+    long_about = "BITE (Bar Ilan Teamwork Engine) in Rust. A team of robots coordinates itself: \
+                  you write a behavior graph, BITE finds where the robots must agree and runs \
+                  the protocol you bind at each of those points."
+)]
+struct Cli {
+    #[command(subcommand)]
+    cmd: Cmd,
+}
+
+#[derive(Subcommand)]
+enum Cmd {
+    /// Run a mission in the simulator (default: the built-in formation example).
+    Run(RunArgs),
+    /// Validate a behavior graph and list its coordination points with their protocols.
+    Check {
+        /// The behavior graph (YAML).
+        graph: PathBuf,
+        /// A configuration file binding protocols to points.
+        #[arg(long)]
+        config: Option<PathBuf>,
+    },
+    /// Print a behavior graph as Graphviz DOT (sequential and decomposition edges, points).
+    Graph {
+        /// The behavior graph (YAML).
+        graph: PathBuf,
+        /// A configuration file binding protocols to points.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Graphviz DOT output (the only format so far).
+        #[arg(long, default_value_t = true)]
+        dot: bool,
+        /// Write to this file instead of standard output.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
+    /// List the interaction protocols that can be bound to points.
+    Protocols,
+    /// Whole-system benchmarks.
+    Bench {
+        #[command(subcommand)]
+        which: BenchCmd,
+    },
+}
+
+#[derive(clap::Args)]
+struct RunArgs {
+    /// The behavior graph (YAML). Default: the built-in formation example.
+    graph: Option<PathBuf>,
+    /// A configuration file binding protocols to points (e.g. a Table II row).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// The scenario (timed-skill world). Default: `scenarios/<graph name>.yaml`
+    /// next to the graph if it exists.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
+    /// Seed (default: the scenario's).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Team size (default: the scenario's, else the graph's).
+    #[arg(long)]
+    robots: Option<usize>,
+    /// Stop after this much simulated time (e.g. `120s`).
+    #[arg(long, value_parser = parse_dur)]
+    time_limit: Option<Duration>,
+    /// Where to write the JSON-lines run log (default: `out/<graph>-seed<seed>.jsonl`).
+    #[arg(long)]
+    log: Option<PathBuf>,
+    /// Print the summary as JSON instead of text.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Subcommand)]
+enum BenchCmd {
+    /// A whole team in the timed-skill world: simulated seconds per wall second.
+    Team {
+        /// Team size.
+        #[arg(long, default_value_t = 1000)]
+        robots: usize,
+        /// The behavior graph (default: the built-in formation example).
+        #[arg(long)]
+        graph: Option<PathBuf>,
+        /// The scenario (default: the built-in formation scenario).
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// A configuration file.
+        #[arg(long)]
+        config: Option<PathBuf>,
+        /// Simulated time to run (default: until the mission completes).
+        #[arg(long, value_parser = parse_dur)]
+        sim_time: Option<Duration>,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
+}
+
+fn parse_dur(s: &str) -> Result<Duration, String> {
+    bite_core::time::parse_duration(s)
+}
+
+/// A failure that has already been explained to the user.
+#[derive(Debug)]
+struct Reported(u8);
+impl std::fmt::Display for Reported {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "exit {}", self.0)
+    }
+}
+impl std::error::Error for Reported {}
+
+fn print_diags(d: &[Diagnostic]) {
+    for x in d {
+        eprintln!("{x}");
+    }
+}
+
+/// Print diagnostics and turn them into an exit code 2 failure.
+fn bad_input(d: Diagnostics) -> anyhow::Error {
+    print_diags(&d.0);
+    let n = d.errors().count();
+    eprintln!("{n} error{} found", if n == 1 { "" } else { "s" });
+    anyhow::Error::new(Reported(2))
+}
+
+fn load_graph(path: Option<&Path>, config: Option<&Path>) -> Result<BehaviorGraph> {
+    let graph = match path {
+        Some(p) => bite_core::graph::load(p).map_err(bad_input)?,
+        None => bite_core::graph::load_str(
+            &Arc::from("examples/formation.yaml (built in)"),
+            FORMATION_GRAPH,
+        )
+        .map_err(bad_input)?,
+    };
+    print_diags(graph.warnings());
+    match config {
+        Some(c) => {
+            let cfg = Config::load(c).map_err(bad_input)?;
+            graph.with_config(&cfg).map_err(bad_input)
+        }
+        None => Ok(graph),
+    }
+}
+
+fn load_scenario(
+    graph_path: Option<&Path>,
+    scenario: Option<&Path>,
+    graph: &BehaviorGraph,
+) -> Result<Scenario> {
+    if let Some(s) = scenario {
+        return Scenario::load(s).map_err(bad_input);
+    }
+    match graph_path {
+        None => Scenario::load_str(
+            &Arc::from("examples/scenarios/formation.yaml (built in)"),
+            FORMATION_SCENARIO,
+        )
+        .map_err(bad_input),
+        Some(p) => {
+            let stem = p
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let dir = p.parent().unwrap_or(Path::new("."));
+            let guess = dir.join("scenarios").join(format!("{stem}.yaml"));
+            if guess.exists() {
+                eprintln!("scenario: {}", guess.display());
+                Scenario::load(&guess).map_err(bad_input)
+            } else {
+                eprintln!(
+                    "note: no scenario given and {} does not exist: using an empty timed world \
+                     (skills take no time and set nothing) for graph `{}`",
+                    guess.display(),
+                    graph.name()
+                );
+                Ok(Scenario::default())
+            }
+        }
+    }
+}
+
+fn registry() -> bite_core::interaction::Registry {
+    bite_protocols::registry()
+}
+
+fn cmd_run(a: RunArgs) -> Result<ExitCode> {
+    let graph = load_graph(a.graph.as_deref(), a.config.as_deref())?;
+    let scenario = load_scenario(a.graph.as_deref(), a.scenario.as_deref(), &graph)?;
+    let mission = prepare(&graph, &scenario, a.robots, &registry()).map_err(bad_input)?;
+    let seed = a.seed.unwrap_or(scenario.seed);
+    let log_path = a.log.unwrap_or_else(|| {
+        let mut name = mission.graph().name().to_string();
+        if let Some(c) = mission.graph().config_name() {
+            name.push('-');
+            name.push_str(c);
+        }
+        PathBuf::from("out").join(format!("{name}-seed{seed}.jsonl"))
+    });
+    if let Some(dir) = log_path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let file = std::fs::File::create(&log_path)
+        .with_context(|| format!("creating the run log {}", log_path.display()))?;
+    let mut writer = std::io::BufWriter::new(file);
+    let limit = a.time_limit.unwrap_or(scenario.time_limit);
+    let bar = ProgressBar::new(limit.as_secs().max(1));
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} simulated {pos}/{len} s [{bar:30}] {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut on_progress = |p: Progress| {
+        bar.set_position(p.now.as_secs_f64() as u64);
+        bar.set_message(format!("{}/{} robots done", p.finished, p.robots));
+    };
+    let report = run(
+        mission.clone(),
+        &scenario,
+        RunOptions {
+            seed: Some(seed),
+            time_limit: a.time_limit,
+            log: Some(&mut writer),
+            record: false,
+            progress: Some(&mut on_progress),
+        },
+    )
+    .map_err(bad_input)?;
+    bar.finish_and_clear();
+    drop(writer);
+    print_diags(&report.warnings);
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&report.summary)?);
+    } else {
+        print!("{}", report.summary);
+        println!("  run log          {}", log_path.display());
+        if !report.summary.completed {
+            println!(
+                "  replay           bite run {} --seed {seed}",
+                describe_inputs(&mission, &scenario)
+            );
+        }
+    }
+    Ok(if report.summary.completed {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// The arguments that reproduce a run, for the replay hint.
+fn describe_inputs(mission: &Mission, scenario: &Scenario) -> String {
+    let built_in = |f: &str| f.ends_with("(built in)") || f.starts_with('<');
+    let mut parts = Vec::new();
+    let g = mission.graph();
+    if !built_in(g.file()) {
+        parts.push(g.file().to_string());
+    }
+    if !built_in(&scenario.file) {
+        parts.push(format!("--scenario {}", scenario.file));
+    }
+    parts.push(format!("--robots {}", g.roster().len()));
+    parts.join(" ")
+}
+
+fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
+    let g = load_graph(Some(graph), config)?;
+    let mission = Mission::new(g, &registry()).map_err(bad_input)?;
+    let g = mission.graph();
+    println!("{g}");
+    if let Some(c) = g.config_name() {
+        println!("configuration `{c}`");
+    }
+    let points = mission.points();
+    println!(
+        "{} coordination points (found from the graph's structure):",
+        points.len()
+    );
+    println!(
+        "  {:<26} {:<10} {:<16} {:>9}  where",
+        "point", "kind", "protocol", "deadline"
+    );
+    for (p, b) in points {
+        let beh = g.behavior(p.behavior);
+        let why = match p.kind {
+            bite_core::msg::Kind::Sync => format!(
+                "after `{}`: choose among {}",
+                beh.name,
+                beh.next
+                    .iter()
+                    .map(|n| format!("`{}`", g.name_of(*n)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            bite_core::msg::Kind::Allocate => format!(
+                "`{}` splits its team among {}",
+                beh.name,
+                beh.children
+                    .iter()
+                    .map(|n| format!("`{}`", g.name_of(*n)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            bite_core::msg::Kind::Terminate => {
+                format!("team behavior `{}` ends together", beh.name)
+            }
+        };
+        println!(
+            "  {:<26} {:<10} {:<16} {:>8.1}s  {}",
+            p.name,
+            p.kind.to_string(),
+            b.protocol.name(),
+            b.deadline.as_secs_f64(),
+            why
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Result<ExitCode> {
+    let g = load_graph(Some(graph), config)?;
+    let mission = Mission::new(g, &registry()).map_err(bad_input)?;
+    let dot = bite_core::graph::dot::to_dot_with(mission.graph(), &|b, k| {
+        mission
+            .bound(b, k)
+            .map_or("?".into(), |x| x.protocol.name().to_string())
+    });
+    match output {
+        Some(p) => std::fs::write(p, dot).with_context(|| format!("writing {}", p.display()))?,
+        None => std::io::stdout().write_all(dot.as_bytes())?,
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn cmd_protocols() -> ExitCode {
+    let r = registry();
+    println!(
+        "{:<16} {:<10} {:<6} {:<8} summary",
+        "name", "kind", "comm", "aliases"
+    );
+    for p in r.iter() {
+        println!(
+            "{:<16} {:<10} {:<6} {:<8} {}",
+            p.name(),
+            p.kind().to_string(),
+            if p.communicates() { "yes" } else { "no" },
+            p.aliases().join(","),
+            p.summary()
+        );
+    }
+    ExitCode::SUCCESS
+}
+
+#[allow(clippy::disallowed_methods)] // a benchmark measures wall time
+fn cmd_bench_team(
+    robots: usize,
+    graph: Option<&Path>,
+    scenario: Option<&Path>,
+    config: Option<&Path>,
+    sim_time: Option<Duration>,
+    seed: u64,
+) -> Result<ExitCode> {
+    let g = load_graph(graph, config)?;
+    let sc = match (graph, scenario) {
+        (_, Some(s)) => Scenario::load(s).map_err(bad_input)?,
+        (None, None) => load_scenario(None, None, &g)?,
+        (Some(p), None) => load_scenario(Some(p), None, &g)?,
+    };
+    let mission = prepare(&g, &sc, Some(robots), &registry()).map_err(bad_input)?;
+    eprintln!(
+        "bench team: {} robots, graph `{}`, scenario `{}`, control at {} Hz, seed {seed}",
+        robots,
+        mission.graph().name(),
+        sc.name,
+        sc.control_hz
+    );
+    let bar = ProgressBar::new(sim_time.unwrap_or(sc.time_limit).as_secs().max(1));
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} simulated {pos}/{len} s [{bar:30}] {msg} ({elapsed})",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut on_progress = |p: Progress| {
+        bar.set_position(p.now.as_secs_f64() as u64);
+        bar.set_message(format!("{}/{} done", p.finished, p.robots));
+    };
+    let start = std::time::Instant::now();
+    let report = run(
+        mission,
+        &sc,
+        RunOptions {
+            seed: Some(seed),
+            time_limit: sim_time,
+            log: None,
+            record: false,
+            progress: Some(&mut on_progress),
+        },
+    )
+    .map_err(bad_input)?;
+    let wall = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let sim = report.end.as_secs_f64();
+    let s = &report.summary;
+    println!("robots               {robots}");
+    println!(
+        "simulated time       {sim:.1} s ({})",
+        if s.completed {
+            "mission completed"
+        } else {
+            "stopped at the limit"
+        }
+    );
+    println!("wall time            {wall:.2} s");
+    println!(
+        "speed                {:.1}x real time (simulated s per wall s)",
+        sim / wall.max(1e-9)
+    );
+    println!(
+        "robot-ticks per s    {:.0}",
+        robots as f64 * sim * sc.control_hz / wall.max(1e-9)
+    );
+    println!(
+        "messages             {} sent, {} delivered",
+        s.messages.total(),
+        s.network.delivered
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.cmd {
+        Cmd::Run(a) => cmd_run(a),
+        Cmd::Check { graph, config } => cmd_check(&graph, config.as_deref()),
+        Cmd::Graph {
+            graph,
+            config,
+            output,
+            ..
+        } => cmd_graph(&graph, config.as_deref(), output.as_deref()),
+        Cmd::Protocols => Ok(cmd_protocols()),
+        Cmd::Bench {
+            which:
+                BenchCmd::Team {
+                    robots,
+                    graph,
+                    scenario,
+                    config,
+                    sim_time,
+                    seed,
+                },
+        } => cmd_bench_team(
+            robots,
+            graph.as_deref(),
+            scenario.as_deref(),
+            config.as_deref(),
+            sim_time,
+            seed,
+        ),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => match e.downcast_ref::<Reported>() {
+            Some(Reported(code)) => ExitCode::from(*code),
+            None => {
+                eprintln!("error: {e:#}");
+                ExitCode::from(1)
+            }
+        },
+    }
+}
