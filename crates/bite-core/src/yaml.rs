@@ -84,13 +84,44 @@ pub fn parse<T: serde::de::DeserializeOwned>(
             .to_string();
         let message = strip_line_col_prefix(&message);
         let (message, hint) = explain(&message);
-        let snippet = e.render_with_options(serde_saphyr::render_options! {
-            source_name: Some(&**file),
-        });
+        let snippet = snippet(text, loc);
         let mut d = Diagnostic::error(file, loc, "yaml", message).with_detail(snippet);
         d.hint = hint;
         Diagnostics(vec![d])
     })
+}
+
+/// The source lines around `loc` with a caret under its column:
+///
+/// ```text
+///  4 |   a:
+///  5 |     nxt: [b]
+///    |     ^
+/// ```
+pub fn snippet(text: &str, loc: Loc) -> String {
+    if !loc.is_known() {
+        return String::new();
+    }
+    let line = loc.line as usize;
+    let width = line.to_string().len();
+    let mut out = String::new();
+    for (i, l) in text
+        .lines()
+        .enumerate()
+        .skip(line.saturating_sub(2))
+        .take(2)
+    {
+        if i + 1 > line {
+            break;
+        }
+        out.push_str(&format!("{:>width$} | {l}\n", i + 1));
+    }
+    out.push_str(&format!(
+        "{:>width$} | {}^",
+        "",
+        " ".repeat(loc.col.saturating_sub(1) as usize)
+    ));
+    out
 }
 
 /// Turn the YAML library's wording into the user's: what is wrong in
