@@ -8,11 +8,38 @@ use bite_sim::runner::{Progress, RunOptions};
 use bite_sim::{Scenario, prepare, run};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::io::Write;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Duration;
+
+/// `println!` that ends the program quietly when the reader of standard
+/// output has gone away (`bite check g.yaml | head`) instead of panicking.
+macro_rules! outln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let mut o = std::io::stdout().lock();
+        if let Err(e) = writeln!(o, $($t)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+        }
+    }};
+}
+
+/// `print!` with the same behavior as [`outln!`].
+macro_rules! out {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let mut o = std::io::stdout().lock();
+        if let Err(e) = write!(o, $($t)*) {
+            if e.kind() == std::io::ErrorKind::BrokenPipe {
+                std::process::exit(0);
+            }
+        }
+    }};
+}
 
 /// The formation example, built in so that `bite run` works anywhere.
 const FORMATION_GRAPH: &str = include_str!("../../../examples/formation.yaml");
@@ -253,12 +280,12 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     drop(writer);
     print_diags(&report.warnings);
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&report.summary)?);
+        outln!("{}", serde_json::to_string_pretty(&report.summary)?);
     } else {
-        print!("{}", report.summary);
-        println!("  run log          {}", log_path.display());
+        out!("{}", report.summary);
+        outln!("  run log          {}", log_path.display());
         if !report.summary.completed {
-            println!(
+            outln!(
                 "  replay           bite run {} --seed {seed}",
                 describe_inputs(&mission, &scenario)
             );
@@ -290,18 +317,21 @@ fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
     let g = load_graph(Some(graph), config)?;
     let mission = Mission::new(g, &registry()).map_err(bad_input)?;
     let g = mission.graph();
-    println!("{g}");
+    outln!("{g}");
     if let Some(c) = g.config_name() {
-        println!("configuration `{c}`");
+        outln!("configuration `{c}`");
     }
     let points = mission.points();
-    println!(
+    outln!(
         "{} coordination points (found from the graph's structure):",
         points.len()
     );
-    println!(
+    outln!(
         "  {:<26} {:<10} {:<16} {:>9}  where",
-        "point", "kind", "protocol", "deadline"
+        "point",
+        "kind",
+        "protocol",
+        "deadline"
     );
     for (p, b) in points {
         let beh = g.behavior(p.behavior);
@@ -328,7 +358,7 @@ fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
                 format!("team behavior `{}` ends together", beh.name)
             }
         };
-        println!(
+        outln!(
             "  {:<26} {:<10} {:<16} {:>8.1}s  {}",
             p.name,
             p.kind.to_string(),
@@ -350,19 +380,22 @@ fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Resu
     });
     match output {
         Some(p) => std::fs::write(p, dot).with_context(|| format!("writing {}", p.display()))?,
-        None => std::io::stdout().write_all(dot.as_bytes())?,
+        None => out!("{dot}"),
     }
     Ok(ExitCode::SUCCESS)
 }
 
 fn cmd_protocols() -> ExitCode {
     let r = registry();
-    println!(
+    outln!(
         "{:<16} {:<10} {:<6} {:<8} summary",
-        "name", "kind", "comm", "aliases"
+        "name",
+        "kind",
+        "comm",
+        "aliases"
     );
     for p in r.iter() {
-        println!(
+        outln!(
             "{:<16} {:<10} {:<6} {:<8} {}",
             p.name(),
             p.kind().to_string(),
@@ -425,8 +458,8 @@ fn cmd_bench_team(
     bar.finish_and_clear();
     let sim = report.end.as_secs_f64();
     let s = &report.summary;
-    println!("robots               {robots}");
-    println!(
+    outln!("robots               {robots}");
+    outln!(
         "simulated time       {sim:.1} s ({})",
         if s.completed {
             "mission completed"
@@ -434,16 +467,16 @@ fn cmd_bench_team(
             "stopped at the limit"
         }
     );
-    println!("wall time            {wall:.2} s");
-    println!(
+    outln!("wall time            {wall:.2} s");
+    outln!(
         "speed                {:.1}x real time (simulated s per wall s)",
         sim / wall.max(1e-9)
     );
-    println!(
+    outln!(
         "robot-ticks per s    {:.0}",
         robots as f64 * sim * sc.control_hz / wall.max(1e-9)
     );
-    println!(
+    outln!(
         "messages             {} sent, {} delivered",
         s.messages.total(),
         s.network.delivered
