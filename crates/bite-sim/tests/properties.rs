@@ -346,12 +346,3 @@ fn generated_graphs_exercise_every_structure() {
         "alloc {alloc}, sync {sync}, cycles {cycles}"
     );
 }
-
-#[test]
-#[ignore = "debug helper: writes a few generated cases to target/proptest-failures"]
-fn dump_some_cases() {
-    for seed in [1u64, 2, 3] {
-        let case = generate(seed, 5, 0.1, 0.1, 50);
-        eprintln!("{}", save_failure(seed, &case));
-    }
-}

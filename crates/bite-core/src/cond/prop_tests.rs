@@ -557,16 +557,3 @@ proptest! {
         prop_assert_eq!(ids.len(), names.beliefs.len());
     }
 }
-
-#[test]
-#[ignore]
-fn show_samples() {
-    use proptest::strategy::ValueTree;
-    use proptest::test_runner::TestRunner;
-    let mut runner = TestRunner::deterministic();
-    let s = arb_expr();
-    for _ in 0..15 {
-        let a = s.new_tree(&mut runner).unwrap().current();
-        println!("{}", print(&a));
-    }
-}

@@ -843,4 +843,3 @@ fn eval_through_dyn_env() {
     assert!(e.eval(env));
     assert_eq!(e.eval_value(env), Some(Value::Bool(true)));
 }
-
