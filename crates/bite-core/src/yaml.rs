@@ -91,6 +91,30 @@ pub fn parse<T: serde::de::DeserializeOwned>(
     })
 }
 
+/// The lines of a file as YAML counts them: a line ends at `\n`, `\r\n`
+/// or a lone `\r` (so reported line numbers match the text shown).
+pub fn lines(text: &str) -> impl Iterator<Item = &str> {
+    let mut rest = Some(text);
+    std::iter::from_fn(move || {
+        let t = rest?;
+        match t.find(['\n', '\r']) {
+            Some(i) => {
+                let next = if t[i..].starts_with("\r\n") {
+                    i + 2
+                } else {
+                    i + 1
+                };
+                rest = Some(&t[next..]);
+                Some(&t[..i])
+            }
+            None => {
+                rest = None;
+                (!t.is_empty()).then_some(t)
+            }
+        }
+    })
+}
+
 /// The source lines around `loc` with a caret under its column:
 ///
 /// ```text
@@ -122,6 +146,20 @@ pub fn snippet(text: &str, loc: Loc) -> String {
         " ".repeat(loc.col.saturating_sub(1) as usize)
     ));
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_end_like_yaml_lines() {
+        let v: Vec<&str> = lines("a\nb\r\nc\rd").collect();
+        assert_eq!(v, ["a", "b", "c", "d"]);
+        assert_eq!(lines("x\n").collect::<Vec<_>>(), ["x"]);
+        assert_eq!(lines("").count(), 0);
+        assert_eq!(lines("\r\r").collect::<Vec<_>>(), ["", ""]);
+    }
 }
 
 /// Turn the YAML library's wording into the user's: what is wrong in

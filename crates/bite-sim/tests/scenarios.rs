@@ -56,21 +56,40 @@ fn simulate(g: &BehaviorGraph, sc: &Scenario, seed: u64) -> Outcome {
     }
 }
 
+/// The command that replays a run (for failure messages).
+fn replay(o: &Outcome) -> String {
+    let s = &o.report.summary;
+    format!(
+        "replay: bite run examples/{}.yaml --scenario examples/scenarios/{}.yaml --seed {}{}",
+        s.graph,
+        s.graph,
+        s.seed,
+        s.config
+            .as_ref()
+            .map(|c| format!(" (configuration {c})"))
+            .unwrap_or_default()
+    )
+}
+
 /// Fail with the seed and the command that replays the run.
 fn assert_clean(o: &Outcome, what: &str) {
     let v = check(&o.report, &o.mission);
     let s = &o.report.summary;
     assert!(
         v.is_empty(),
-        "{what}: invariants broken (replay: bite run examples/{}.yaml --seed {}):\n{}",
-        s.graph,
-        s.seed,
+        "{what}: invariants broken ({}):\n{}",
+        replay(o),
         v.iter()
             .map(|x| x.to_string())
             .collect::<Vec<_>>()
             .join("\n")
     );
-    assert_eq!(s.violations, 0, "{what}: protocol violations");
+    assert_eq!(
+        s.violations,
+        0,
+        "{what}: protocol violations ({})",
+        replay(o)
+    );
 }
 
 /// The behaviors robot `r` selected, in order.
@@ -95,7 +114,7 @@ fn formation_completes_in_the_paper_order() {
         1,
     );
     let s = &o.report.summary;
-    assert!(s.completed, "{s}");
+    assert!(s.completed, "{s}\n{}", replay(&o));
     assert_eq!(s.timeouts, 0, "{s}");
     assert_clean(&o, "formation");
     // Triangle first (search, then walk legs led by robot 0), then line.
@@ -143,7 +162,7 @@ fn a_sequential_cycle_repeats_laps_by_vote() {
         3,
     );
     let s = &o.report.summary;
-    assert!(s.completed, "{s}");
+    assert!(s.completed, "{s}\n{}", replay(&o));
     assert_clean(&o, "patrol");
     let seq = selections(&o, 1);
     let laps = seq.iter().filter(|b| *b == "lap").count();
@@ -185,7 +204,7 @@ fn nested_allocation_splits_a_subteam_again() {
         5,
     );
     let s = &o.report.summary;
-    assert!(s.completed, "{s}");
+    assert!(s.completed, "{s}\n{}", replay(&o));
     assert_clean(&o, "squads");
     let g = o.mission.graph();
     // Every robot reached a leaf two allocations deep, in a team whose parent
@@ -229,7 +248,7 @@ fn formation_under_vote_and_faults_still_agrees() {
     for seed in 1..=4 {
         let o = simulate(&g, &sc, seed);
         let s = &o.report.summary;
-        assert!(s.completed, "seed {seed}: {s}");
+        assert!(s.completed, "seed {seed}: {s}\n{}", replay(&o));
         assert_clean(&o, &format!("formation with votes, 15% loss, seed {seed}"));
         assert!(s.network.lost > 0 && s.network.duplicated > 0);
     }
@@ -249,7 +268,7 @@ fn a_partition_delays_but_does_not_break_the_barrier() {
     let o = simulate(&g, &sc, 1);
     let s = &o.report.summary;
     assert!(s.network.partitioned > 0, "{s}");
-    assert!(s.completed, "{s}");
+    assert!(s.completed, "{s}\n{}", replay(&o));
     assert_clean(&o, "partition");
 }
 
@@ -278,7 +297,7 @@ fn a_crashed_robot_does_not_hang_the_team() {
     let o = simulate(&g, &scenario("crash.yaml", &text), 1);
     let s = &o.report.summary;
     assert_eq!(s.crashed_robots, 1);
-    assert!(s.completed, "{s}");
+    assert!(s.completed, "{s}\n{}", replay(&o));
     assert!(s.timeouts > 0, "the silence was a timeout and a decision");
     assert_clean(&o, "crash");
 }

@@ -787,7 +787,7 @@ fn expr_loc(src: &str, at: Loc, value: &str, ce: &CondError) -> Loc {
     let off = ce.span.start.min(value.len());
     let Some(line) = (at.line as usize)
         .checked_sub(1)
-        .and_then(|l| src.lines().nth(l))
+        .and_then(|l| crate::yaml::lines(src).nth(l))
     else {
         return at;
     };
@@ -807,7 +807,10 @@ fn expr_loc(src: &str, at: Loc, value: &str, ce: &CondError) -> Loc {
     // line starts at `at`; the others after their indentation. Walk the
     // lines in step with the value.
     let mut value_off = 0usize;
-    for (i, line) in src.lines().enumerate().skip(at.line as usize - 1) {
+    for (i, line) in crate::yaml::lines(src)
+        .enumerate()
+        .skip(at.line as usize - 1)
+    {
         let first = i + 1 == at.line as usize;
         let (content, indent): (String, usize) = if first {
             let skip = at.col.saturating_sub(1) as usize;
