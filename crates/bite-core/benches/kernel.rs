@@ -174,7 +174,7 @@ fn decision_step(b: divan::Bencher) {
 ])]
 fn condition(b: divan::Bencher, src: &str) {
     use bite_core::belief::{BeliefStore, Source, Symbols};
-    use bite_core::cond::{Env, Expr, Resolver};
+    use bite_core::cond::{Expr, Resolver};
     struct R<'a>(&'a mut Symbols);
     impl Resolver for R<'_> {
         fn belief(&mut self, name: &str) -> BeliefId {
@@ -201,22 +201,14 @@ fn condition(b: divan::Bencher, src: &str) {
     ] {
         store.set_named(name, v, t, Source::Given);
     }
-    struct E<'a>(&'a BeliefStore);
-    impl Env for E<'_> {
-        fn belief(&self, id: BeliefId) -> Option<&Value> {
-            self.0.value(id)
-        }
-        fn belief_age(&self, _: BeliefId) -> Option<f64> {
-            Some(0.0)
-        }
-        fn elapsed(&self) -> f64 {
-            12.0
-        }
-        fn runs(&self, _: Option<bite_core::ids::BehaviorId>) -> u32 {
-            1
-        }
-    }
-    let env = E(&store);
+    let runs = std::collections::BTreeMap::new();
+    let env = bite_core::belief::BeliefEnv {
+        beliefs: &store,
+        runs: &runs,
+        now: Time::from_millis(12_000),
+        started: Time::ZERO,
+        own: bite_core::ids::BehaviorId(0),
+    };
     b.bench_local(|| divan::black_box(e.eval(divan::black_box(&env))));
 }
 
@@ -227,21 +219,13 @@ fn condition_eval(b: divan::Bencher) {
     let walk = g.find("formation").expect("formation");
     let until = g.behavior(walk).until.clone().expect("until");
     let w = walking();
-    struct E<'a>(&'a bite_core::belief::BeliefStore);
-    impl bite_core::cond::Env for E<'_> {
-        fn belief(&self, id: BeliefId) -> Option<&Value> {
-            self.0.value(id)
-        }
-        fn belief_age(&self, _: BeliefId) -> Option<f64> {
-            None
-        }
-        fn elapsed(&self) -> f64 {
-            0.0
-        }
-        fn runs(&self, _: Option<bite_core::ids::BehaviorId>) -> u32 {
-            1
-        }
-    }
-    let env = E(w.kernel.beliefs());
+    let runs = std::collections::BTreeMap::new();
+    let env = bite_core::belief::BeliefEnv {
+        beliefs: w.kernel.beliefs(),
+        runs: &runs,
+        now: Time::ZERO,
+        started: Time::ZERO,
+        own: walk,
+    };
     b.bench_local(|| divan::black_box(until.eval(&env)));
 }

@@ -145,9 +145,7 @@ impl BeliefStore {
             time,
             source,
         });
-        if changed {
-            self.version += 1;
-        }
+        self.version += u64::from(changed);
         changed
     }
     /// Set the belief called `name` (interned or not). Returns whether the
@@ -156,18 +154,14 @@ impl BeliefStore {
         if let Some(id) = self.symbols.get(name) {
             return self.set(id, value, time, source);
         }
-        let changed = !matches!(self.extra.get(name), Some(b) if b.value.same_as(&value));
-        self.extra.insert(
-            Arc::from(name),
-            Belief {
-                value,
-                time,
-                source,
-            },
-        );
-        if changed {
-            self.version += 1;
-        }
+        let belief = Belief {
+            value,
+            time,
+            source,
+        };
+        let old = self.extra.insert(Arc::from(name), belief.clone());
+        let changed = !matches!(old, Some(b) if b.value.same_as(&belief.value));
+        self.version += u64::from(changed);
         changed
     }
     /// Forget belief `id`. Returns whether it was set.
@@ -189,6 +183,42 @@ impl BeliefStore {
                 .map(|b| (self.symbols.name(BeliefId(i as u32)), b))
         });
         interned.chain(self.extra.iter().map(|(n, b)| (&**n, b)))
+    }
+}
+
+/// What a condition reads when evaluated for a behavior `own`: the robot's
+/// beliefs, the run counts of `own`'s parent execution, and time.
+///
+/// The one environment the kernel (for `pre` and `until`) and protocols
+/// (for `utility`) evaluate conditions in.
+pub struct BeliefEnv<'a> {
+    /// The robot's beliefs.
+    pub beliefs: &'a BeliefStore,
+    /// Starts of each behavior in the current execution of `own`'s parent.
+    pub runs: &'a BTreeMap<crate::ids::BehaviorId, u32>,
+    /// Now.
+    pub now: Time,
+    /// When `own` started (now, for a behavior not started yet).
+    pub started: Time,
+    /// The behavior whose condition is evaluated.
+    pub own: crate::ids::BehaviorId,
+}
+
+impl crate::cond::Env for BeliefEnv<'_> {
+    #[inline]
+    fn belief(&self, id: BeliefId) -> Option<&Value> {
+        self.beliefs.value(id)
+    }
+    fn belief_age(&self, id: BeliefId) -> Option<f64> {
+        self.beliefs
+            .get(id)
+            .map(|b| (self.now - b.time).as_secs_f64())
+    }
+    fn elapsed(&self) -> f64 {
+        (self.now - self.started).as_secs_f64()
+    }
+    fn runs(&self, b: Option<crate::ids::BehaviorId>) -> u32 {
+        self.runs.get(&b.unwrap_or(self.own)).copied().unwrap_or(0)
     }
 }
 

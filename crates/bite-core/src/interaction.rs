@@ -18,15 +18,12 @@
 //! timeout.
 
 use crate::belief::BeliefStore;
-use crate::cond::Env;
 use crate::graph::BehaviorGraph;
-use crate::ids::BeliefId;
 use crate::ids::{BehaviorId, RobotId};
 use crate::msg::{Body, InstanceKey, Kind};
 use crate::org::{MemberSet, Organization, Team};
 use crate::roster::Roster;
 use crate::time::Time;
-use crate::value::Value;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Arc;
@@ -285,11 +282,12 @@ impl<'a> Cx<'a> {
     /// it evaluates to a number.
     pub fn utility(&self, b: BehaviorId) -> Option<f64> {
         let u = self.graph.get(b)?.utility.as_ref()?;
-        let env = CxEnv {
+        let env = crate::belief::BeliefEnv {
             beliefs: self.beliefs,
             runs: self.runs,
-            own: b,
             now: self.now,
+            started: self.now,
+            own: b,
         };
         u.eval_value(&env)?.as_num().filter(|x| x.is_finite())
     }
@@ -390,31 +388,6 @@ impl<'a> Cx<'a> {
     /// Record a protocol violation by a teammate (the message is ignored).
     pub fn violation(&mut self, what: impl Into<String>) {
         self.fx.violations.push(what.into());
-    }
-}
-
-/// What a utility expression reads inside a protocol.
-struct CxEnv<'a> {
-    beliefs: &'a BeliefStore,
-    runs: &'a BTreeMap<BehaviorId, u32>,
-    own: BehaviorId,
-    now: Time,
-}
-
-impl Env for CxEnv<'_> {
-    fn belief(&self, id: BeliefId) -> Option<&Value> {
-        self.beliefs.value(id)
-    }
-    fn belief_age(&self, id: BeliefId) -> Option<f64> {
-        self.beliefs
-            .get(id)
-            .map(|b| (self.now - b.time).as_secs_f64())
-    }
-    fn elapsed(&self) -> f64 {
-        0.0
-    }
-    fn runs(&self, b: Option<BehaviorId>) -> u32 {
-        self.runs.get(&b.unwrap_or(self.own)).copied().unwrap_or(0)
     }
 }
 

@@ -24,18 +24,21 @@ pub fn read_file(path: &Path) -> Result<(Arc<str>, String), Diagnostics> {
 /// Read a user file with a size limit, as a diagnostic on failure.
 pub fn read_text(file: &Arc<str>, path: &Path) -> Result<String, Diagnostics> {
     let meta = std::fs::metadata(path).map_err(|e| io_error(file, &e))?;
-    if meta.len() > MAX_FILE_BYTES as u64 {
+    check_size(file, meta.len())?;
+    std::fs::read_to_string(path).map_err(|e| io_error(file, &e))
+}
+
+/// Reject a file over [`MAX_FILE_BYTES`] before doing any work on it.
+fn check_size(file: &Arc<str>, len: u64) -> Result<(), Diagnostics> {
+    if len > MAX_FILE_BYTES as u64 {
         return Err(Diagnostics(vec![Diagnostic::error(
             file,
             Loc::UNKNOWN,
             "too-large",
-            format!(
-                "file is {} bytes; the limit is {MAX_FILE_BYTES}",
-                meta.len()
-            ),
+            format!("file is {len} bytes; the limit is {MAX_FILE_BYTES}"),
         )]));
     }
-    std::fs::read_to_string(path).map_err(|e| io_error(file, &e))
+    Ok(())
 }
 
 fn io_error(file: &Arc<str>, e: &std::io::Error) -> Diagnostics {
@@ -53,6 +56,7 @@ pub fn parse<T: serde::de::DeserializeOwned>(
     file: &Arc<str>,
     text: &str,
 ) -> Result<T, Diagnostics> {
+    check_size(file, text.len() as u64)?;
     let mut budget = serde_saphyr::Budget::default();
     budget.max_depth = 64;
     // Room for the largest graph accepted (100,000 behaviors); the file

@@ -14,7 +14,7 @@ use crate::msg::Kind;
 use crate::roster::{RobotInfo, Roster};
 use crate::time::parse_duration;
 use crate::value::Value;
-use crate::yaml::{MAX_FILE_BYTES, json_to_value};
+use crate::yaml::json_to_value;
 use serde_saphyr::Spanned;
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::path::Path;
@@ -28,17 +28,6 @@ pub fn load(path: &Path) -> Result<BehaviorGraph, Diagnostics> {
 
 /// Load and validate a behavior graph from text; `file` names it in messages.
 pub fn load_str(file: &Arc<str>, text: &str) -> Result<BehaviorGraph, Diagnostics> {
-    if text.len() > MAX_FILE_BYTES {
-        return Err(Diagnostics(vec![Diagnostic::error(
-            file,
-            Loc::UNKNOWN,
-            "too-large",
-            format!(
-                "file is {} bytes; the limit is {MAX_FILE_BYTES}",
-                text.len()
-            ),
-        )]));
-    }
     let spec: GraphSpec = crate::yaml::parse(file, text)?;
     Builder {
         file: file.clone(),

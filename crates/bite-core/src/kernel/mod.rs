@@ -24,8 +24,8 @@
 //! the behaviors still on the stack keep being monitored while it waits, and
 //! an ancestor that ends aborts the instance.
 
-use crate::belief::{BeliefStore, Source};
-use crate::cond::{Env, Expr};
+use crate::belief::{BeliefEnv, BeliefStore, Source};
+use crate::cond::Expr;
 use crate::dedup::ReplayWindow;
 use crate::event::{DropReason, EndReason, Event, OutcomeLog, Via};
 use crate::graph::BehaviorGraph;
@@ -250,34 +250,6 @@ pub struct Kernel {
     gc_at: Time,
     limits: Limits,
     stats: Stats,
-}
-
-/// What a condition of behavior `own` can read.
-struct FrameEnv<'a> {
-    beliefs: &'a BeliefStore,
-    /// Run counts in the current execution of `own`'s parent.
-    runs: &'a BTreeMap<BehaviorId, u32>,
-    now: Time,
-    started: Time,
-    own: BehaviorId,
-}
-
-impl Env for FrameEnv<'_> {
-    #[inline]
-    fn belief(&self, id: BeliefId) -> Option<&Value> {
-        self.beliefs.value(id)
-    }
-    fn belief_age(&self, id: BeliefId) -> Option<f64> {
-        self.beliefs
-            .get(id)
-            .map(|b| (self.now - b.time).as_secs_f64())
-    }
-    fn elapsed(&self) -> f64 {
-        (self.now - self.started).as_secs_f64()
-    }
-    fn runs(&self, b: Option<BehaviorId>) -> u32 {
-        self.runs.get(&b.unwrap_or(self.own)).copied().unwrap_or(0)
-    }
 }
 
 impl Kernel {
@@ -548,7 +520,7 @@ impl Kernel {
                 0 => &self.root_runs,
                 _ => &self.stack[i - 1].runs,
             };
-            let env = FrameEnv {
+            let env = BeliefEnv {
                 beliefs: &self.beliefs,
                 runs,
                 now: self.now,
@@ -723,7 +695,7 @@ impl Kernel {
     /// top of the stack.
     fn pre_holds(&self, graph: &BehaviorGraph, b: BehaviorId) -> bool {
         graph.behavior(b).pre.as_ref().is_none_or(|pre| {
-            pre.eval(&FrameEnv {
+            pre.eval(&BeliefEnv {
                 beliefs: &self.beliefs,
                 runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
                 now: self.now,
