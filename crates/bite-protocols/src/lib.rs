@@ -22,6 +22,7 @@
 
 #![warn(missing_docs)]
 
+pub mod lap;
 mod vote;
 mod wait_all;
 
