@@ -59,6 +59,27 @@ pub trait Protocol: Send + Sync {
     /// Validate `params` (JSON `null` when none are given) and return a
     /// factory of instances configured with them.
     fn configure(&self, params: &Params) -> Result<Factory, String>;
+    /// The answer to a teammate's late message for an instance this robot
+    /// has finished and forgotten (only its outcome is remembered): a
+    /// barrier answers a late arrival with its release, a vote answers a
+    /// late vote with its result. `None`: no answer.
+    fn late_reply(&self, _closed: Closed, _body: &Body) -> Option<Body> {
+        None
+    }
+}
+
+/// How an instance this robot has forgotten ended (what
+/// [`Protocol::late_reply`] can rely on).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Closed {
+    /// A synchronization that chose this successor (`None`: chain ended).
+    Synced(Option<BehaviorId>),
+    /// An allocation.
+    Allocated,
+    /// A termination, with its replacement behavior if any.
+    Terminated(Option<BehaviorId>),
+    /// This robot left before the instance decided.
+    Left,
 }
 
 /// One running protocol instance (see the module documentation).
@@ -69,9 +90,8 @@ pub trait Interaction: Send {
     /// teammates can end it, e.g. the first robot to see the goal).
     fn start(&mut self, cx: &mut Cx<'_>);
     /// Termination only: this robot's own reason to end the behavior
-    /// happened (its termination condition held or its chain ended). The
-    /// robot now waits for the decision.
-    fn local_done(&mut self, _cx: &mut Cx<'_>) {}
+    /// happened (`why`). The robot now waits for the decision.
+    fn local_done(&mut self, _cx: &mut Cx<'_>, _why: LocalEnd) {}
     /// A message for this instance from teammate `from` (a member of the
     /// team, never this robot, never a duplicate). Also called after the
     /// decision while the instance lingers, so that it can answer
@@ -82,6 +102,25 @@ pub trait Interaction: Send {
     /// The deadline passed without a decision: decide now from what is
     /// known. The kernel reports a timeout either way.
     fn on_deadline(&mut self, cx: &mut Cx<'_>);
+    /// This robot leaves the instance before it decided (an ancestor
+    /// behavior ended). Tell the teammates what they need to go on without
+    /// it (a barrier member reports itself done, a coordinator releases who
+    /// waits for it). The instance then lingers: [`Cx::is_aborted`] is true
+    /// and [`Interaction::on_message`] may still answer teammates.
+    fn on_abort(&mut self, _cx: &mut Cx<'_>) {}
+}
+
+/// Why this robot is done with a behavior (what a termination protocol is
+/// told in [`Interaction::local_done`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LocalEnd {
+    /// Its termination condition held: this robot believes the joint goal
+    /// reached (or to be abandoned).
+    Condition,
+    /// Its part is over: its execution chain under the behavior ended.
+    ChainEnded,
+    /// It has no part: the behavior's allocation gave it no child.
+    Idle,
 }
 
 /// What the kernel gives an instance to decide about.
@@ -162,6 +201,9 @@ pub struct Effects {
     pub outcome: Option<Outcome>,
     /// Protocol violations noticed in incoming messages (logged, ignored).
     pub violations: Vec<String>,
+    /// Push the deadline back by a whole deadline from now (the coordinator
+    /// was heard from, so waiting on is not waiting on a dead teammate).
+    pub postpone: bool,
 }
 
 /// The context of one call into an [`Interaction`].
@@ -180,6 +222,7 @@ pub struct Cx<'a> {
     retry: Duration,
     deadline: Time,
     decided: bool,
+    aborted: bool,
     fx: &'a mut Effects,
 }
 
@@ -213,6 +256,8 @@ pub struct CxParts<'a> {
     pub deadline: Time,
     /// Whether the instance already decided (it lingers to answer).
     pub decided: bool,
+    /// Whether this robot left the instance before it decided.
+    pub aborted: bool,
     /// Where effects go.
     pub fx: &'a mut Effects,
 }
@@ -235,6 +280,7 @@ impl<'a> Cx<'a> {
             retry: p.retry,
             deadline: p.deadline,
             decided: p.decided,
+            aborted: p.aborted,
             fx: p.fx,
         }
     }
@@ -375,11 +421,22 @@ impl<'a> Cx<'a> {
         let t = self.now + self.retry;
         self.wake_at(t);
     }
-    /// Take the decision (the first decision counts; later ones are ignored).
+    /// Take the decision (the first decision counts; later ones, and any
+    /// after the robot left the instance, are ignored).
     pub fn decide(&mut self, outcome: Outcome) {
-        if !self.decided && self.fx.outcome.is_none() {
+        if !self.decided && !self.aborted && self.fx.outcome.is_none() {
             self.fx.outcome = Some(outcome);
         }
+    }
+    /// True when this robot left the instance before it decided (it
+    /// lingers only to answer teammates).
+    pub fn is_aborted(&self) -> bool {
+        self.aborted
+    }
+    /// Push the deadline back a whole deadline from now: the coordinator is
+    /// alive, so waiting on is not waiting on a dead teammate.
+    pub fn postpone_deadline(&mut self) {
+        self.fx.postpone = true;
     }
     /// True once the instance has decided.
     pub fn is_decided(&self) -> bool {

@@ -123,7 +123,7 @@ impl Interaction for Silent {
             cx.decide(o);
         }
     }
-    fn local_done(&mut self, cx: &mut Cx<'_>) {
+    fn local_done(&mut self, cx: &mut Cx<'_>, _why: crate::interaction::LocalEnd) {
         cx.decide(Outcome::Terminate(None));
     }
     fn on_message(&mut self, cx: &mut Cx<'_>, from: crate::ids::RobotId, body: &Body) {

@@ -6,15 +6,21 @@
 //! member votes for its preferred successor among those enabled for it
 //! (highest `utility`, then graph order), or abstains if none is enabled.
 //! The winner has the most votes; ties go to the earlier successor in graph
-//! order; if everyone abstains the execution chain ends. Members resend
-//! their vote (or ask for the call with `Query`) every retry interval until
-//! the result arrives; the leader answers late votes and queries with the
-//! result. At its deadline the leader tallies the votes it has.
+//! order; if everyone abstains the execution chain ends. A member without
+//! the result asks for it (`Query`) with exponential backoff; the leader
+//! answers with the result, or calls a member again whose vote it has not
+//! received, and calls missing voters again on its own timer. At its
+//! deadline the leader tallies the votes it has. A leader that leaves early
+//! announces the tally so far; a member that leaves before voting abstains.
 //!
-//! Messages, no faults: one call, n−1 votes, one result: n + 1. Rounds: 3.
+//! Messages, no faults, members reaching the point together: one call, n−1
+//! votes, one result: n + 1. Rounds: 3. Members that arrive late cost one
+//! query each per backoff period they wait (0.5, 1, 2… s by default).
 
 use bite_core::ids::{BehaviorId, RobotId};
-use bite_core::interaction::{Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol};
+use bite_core::interaction::{
+    Closed, Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol,
+};
 use bite_core::msg::{Body, Kind};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -53,6 +59,15 @@ impl Protocol for Vote {
             Box::new(Ballot::default()) as Box<dyn Interaction>
         }))
     }
+    fn late_reply(&self, closed: Closed, body: &Body) -> Option<Body> {
+        // A late vote or question gets the result this robot applied.
+        match (closed, body) {
+            (Closed::Synced(choice), Body::Vote { .. } | Body::Query) => {
+                Some(Body::Decision { choice })
+            }
+            _ => None,
+        }
+    }
 }
 
 #[derive(Default)]
@@ -61,8 +76,12 @@ struct Ballot {
     proposal: Option<Vec<BehaviorId>>,
     /// Leader only: votes received, including its own.
     votes: BTreeMap<RobotId, Option<BehaviorId>>,
+    /// Member only: the vote it sent.
+    voted: Option<Option<BehaviorId>>,
     /// The result, once known (answers retransmissions).
     result: Option<Option<BehaviorId>>,
+    /// Timer firings so far (for the exponential backoff).
+    resends: u32,
 }
 
 fn successors(cx: &Cx<'_>) -> Vec<BehaviorId> {
@@ -97,6 +116,12 @@ impl Ballot {
             self.finish(cx);
         }
     }
+
+    fn vote(&mut self, cx: &mut Cx<'_>, candidates: &[BehaviorId]) {
+        let choice = cx.preferred(candidates);
+        self.voted = Some(choice);
+        cx.send(cx.leader(), Body::Vote { choice });
+    }
 }
 
 impl Interaction for Ballot {
@@ -118,18 +143,20 @@ impl Interaction for Ballot {
         let leader = cx.leader();
         match body {
             Body::Propose { candidates } if from == leader && !cx.is_leader() => {
-                if let Some(choice) = self.result {
-                    // Already decided: the call is a retransmission.
-                    let _ = choice;
+                if self.result.is_some() || cx.is_aborted() {
                     return;
                 }
-                let choice = cx.preferred(candidates);
+                // A first call, or the leader calling again because our
+                // vote was lost: (re)send it.
                 self.proposal = Some(candidates.clone());
-                cx.send(leader, Body::Vote { choice });
+                self.vote(cx, candidates);
             }
             Body::Vote { choice } if cx.is_leader() => {
                 if let Some(result) = self.result {
                     cx.send(from, Body::Decision { choice: result });
+                    return;
+                }
+                if cx.is_aborted() {
                     return;
                 }
                 let proposal = self.proposal.as_deref().unwrap_or(&[]);
@@ -142,18 +169,20 @@ impl Interaction for Ballot {
             }
             Body::Query if cx.is_leader() => match (self.result, &self.proposal) {
                 (Some(choice), _) => cx.send(from, Body::Decision { choice }),
-                (None, Some(p)) => cx.send(
+                // Not voted yet (the call was lost): call it again.
+                (None, Some(p)) if !self.votes.contains_key(&from) && !cx.is_aborted() => cx.send(
                     from,
                     Body::Propose {
                         candidates: p.clone(),
                     },
                 ),
-                (None, None) => {}
+                _ => {}
             },
             Body::Decision { choice } if from == leader => {
                 self.result = Some(*choice);
                 cx.decide(Outcome::Sync(*choice));
             }
+            _ if cx.is_aborted() => {}
             other => cx.violation(format!(
                 "sync.vote: unexpected `{}` from {from}",
                 other.name()
@@ -162,7 +191,7 @@ impl Interaction for Ballot {
     }
 
     fn on_timer(&mut self, cx: &mut Cx<'_>) {
-        if self.result.is_some() || cx.is_decided() {
+        if self.result.is_some() || cx.is_decided() || cx.is_aborted() {
             return;
         }
         let leader = cx.leader();
@@ -182,15 +211,13 @@ impl Interaction for Ballot {
                 );
             }
         } else {
-            match &self.proposal {
-                None => cx.send(leader, Body::Query),
-                Some(p) => {
-                    let choice = cx.preferred(p);
-                    cx.send(leader, Body::Vote { choice });
-                }
-            }
+            // No result yet: ask (the leader calls again if our vote was
+            // lost, or answers with the result if it was the result that was).
+            cx.send(leader, Body::Query);
         }
-        cx.wake_after_retry();
+        self.resends += 1;
+        let t = cx.now() + cx.retry() * 2u32.pow(self.resends.min(6));
+        cx.wake_at(t);
     }
 
     fn on_deadline(&mut self, cx: &mut Cx<'_>) {
@@ -203,6 +230,21 @@ impl Interaction for Ballot {
             // reports the timeout).
             let choice = cx.preferred(&successors(cx));
             cx.decide(Outcome::Sync(choice));
+        }
+    }
+
+    fn on_abort(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_leader() {
+            // Leaving: let the others go on with the votes cast so far.
+            if self.result.is_none() {
+                let choice = self.tally();
+                self.result = Some(choice);
+                cx.broadcast(Body::Decision { choice });
+            }
+        } else if self.voted.is_none() {
+            // Leaving before voting: abstain, so the leader need not wait.
+            self.voted = Some(None);
+            cx.send(cx.leader(), Body::Vote { choice: None });
         }
     }
 }

@@ -17,7 +17,9 @@
 //! wait). Rounds: 2 after the last arrival.
 
 use bite_core::ids::RobotId;
-use bite_core::interaction::{Cx, Factory, Interaction, Outcome, Params, Protocol};
+use bite_core::interaction::{
+    Closed, Cx, Factory, Interaction, LocalEnd, Outcome, Params, Protocol,
+};
 use bite_core::msg::{Body, Kind};
 use bite_core::org::MemberSet;
 use std::sync::Arc;
@@ -52,6 +54,16 @@ impl Protocol for WaitAll {
             Box::new(Barrier::default()) as Box<dyn Interaction>
         }))
     }
+    fn late_reply(&self, closed: Closed, body: &Body) -> Option<Body> {
+        // Whoever arrives at a barrier that is over (released, or left by
+        // this robot) may go on.
+        match (closed, body) {
+            (Closed::Terminated(_) | Closed::Left, Body::Done) => {
+                Some(Body::Release { next: None })
+            }
+            _ => None,
+        }
+    }
 }
 
 #[derive(Default)]
@@ -60,8 +72,20 @@ struct Barrier {
     arrived: Option<MemberSet>,
     me_done: bool,
     acked: bool,
-    /// Queries sent since the leader acknowledged (for backoff).
-    queries: u32,
+    /// Resends so far (for the exponential backoff).
+    resends: u32,
+    /// Leader only, after a release at the deadline: members that had not
+    /// arrived and have not acknowledged the release yet.
+    stragglers: Vec<RobotId>,
+}
+
+/// How many times a leader repeats a deadline release to a straggler.
+const STRAGGLER_TRIES: u32 = 8;
+
+/// Wait before the next resend: the retry interval, doubling each time
+/// (capped at 64 intervals).
+fn backoff(cx: &Cx<'_>, resends: u32) -> std::time::Duration {
+    cx.retry() * 2u32.pow(resends.min(6))
 }
 
 impl Barrier {
@@ -89,7 +113,7 @@ impl Interaction for Barrier {
         }
     }
 
-    fn local_done(&mut self, cx: &mut Cx<'_>) {
+    fn local_done(&mut self, cx: &mut Cx<'_>, _why: LocalEnd) {
         self.me_done = true;
         if cx.is_leader() {
             let me = cx.me();
@@ -105,8 +129,9 @@ impl Interaction for Barrier {
         let leader = cx.leader();
         match body {
             Body::Done if cx.is_leader() => {
-                if cx.is_decided() {
-                    // A member missed the release: tell it again.
+                if cx.is_decided() || cx.is_aborted() {
+                    // A member missed the release, or this leader has left
+                    // the behavior: it may go on.
                     cx.send(from, Body::Release { next: None });
                     return;
                 }
@@ -114,10 +139,24 @@ impl Interaction for Barrier {
                 cx.send(from, Body::Ack);
                 self.try_release(cx);
             }
-            Body::Ack if from == leader => self.acked = true,
+            Body::Ack if cx.is_leader() => {
+                // A straggler confirms the release.
+                self.stragglers.retain(|r| *r != from);
+            }
+            Body::Ack if from == leader => {
+                self.acked = true;
+                // The leader is alive and knows we are here: keep waiting.
+                cx.postpone_deadline();
+            }
             Body::Release { next } if from == leader => {
+                if !self.me_done {
+                    // Released while still working (the leader's deadline):
+                    // confirm, or the leader keeps telling us.
+                    cx.send(leader, Body::Ack);
+                }
                 cx.decide(Outcome::Terminate(*next));
             }
+            _ if cx.is_aborted() || cx.is_decided() => {}
             other => cx.violation(format!(
                 "term.wait-all: unexpected `{}` from {from}",
                 other.name()
@@ -126,29 +165,70 @@ impl Interaction for Barrier {
     }
 
     fn on_timer(&mut self, cx: &mut Cx<'_>) {
-        if cx.is_decided() || cx.is_leader() || !self.me_done {
+        if cx.is_leader() && cx.is_decided() && !self.stragglers.is_empty() {
+            // Members released at the deadline while still working are not
+            // waiting for anything: tell them again until they confirm.
+            // At most STRAGGLER_TRIES times; after that a straggler learns
+            // it when it arrives, from this robot's late reply.
+            for r in self.stragglers.clone() {
+                cx.send(r, Body::Release { next: None });
+            }
+            self.resends += 1;
+            if self.resends < STRAGGLER_TRIES {
+                let t = cx.now() + backoff(cx, self.resends);
+                cx.wake_at(t);
+            } else {
+                self.stragglers.clear();
+            }
             return;
         }
-        // Until acknowledged, resend at the binding's interval. Once the
-        // leader knows we are here we only guard against a lost release:
-        // ask again after 4, 8, 16… intervals.
-        if !self.acked {
-            cx.send(cx.leader(), Body::Done);
-            cx.wake_after_retry();
+        if cx.is_decided() || cx.is_aborted() || cx.is_leader() || !self.me_done {
             return;
         }
-        if self.queries > 0 {
+        // Until acknowledged, resend with exponential backoff. Once the
+        // leader knows we are here we only guard against a lost release,
+        // asking again after 4, 8, 16... intervals.
+        if self.acked && self.resends == 0 {
+            self.resends = 2;
+        } else {
             cx.send(cx.leader(), Body::Done);
+            self.resends += 1;
         }
-        self.queries = self.queries.saturating_add(1);
-        let t = cx.now() + cx.retry() * 2u32.saturating_pow(self.queries.min(10) + 1);
+        let t = cx.now() + backoff(cx, self.resends);
         cx.wake_at(t);
     }
 
     fn on_deadline(&mut self, cx: &mut Cx<'_>) {
         if cx.is_leader() {
+            // Release everyone, stragglers included, and make sure the
+            // stragglers hear it (they are working, not waiting).
             cx.broadcast(Body::Release { next: None });
+            let arrived = self.arrived(cx).clone();
+            self.stragglers = cx.members().filter(|m| !arrived.contains(*m)).collect();
+            if !self.stragglers.is_empty() {
+                self.resends = 0;
+                cx.wake_after_retry();
+            }
         }
         cx.decide(Outcome::Terminate(None));
+    }
+
+    fn on_abort(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_leader() {
+            // Whoever already arrived waits only for this leader: release them.
+            let waiting: Vec<RobotId> = self
+                .arrived
+                .as_ref()
+                .map(|a| a.iter().filter(|r| *r != cx.me()).collect())
+                .unwrap_or_default();
+            for r in waiting {
+                cx.send(r, Body::Release { next: None });
+            }
+        } else if !self.me_done {
+            // This member leaves the behavior: it will not arrive later, so
+            // count it as arrived.
+            self.me_done = true;
+            cx.send(cx.leader(), Body::Done);
+        }
     }
 }

@@ -26,12 +26,12 @@
 
 use crate::belief::{BeliefEnv, BeliefStore, Source};
 use crate::cond::Expr;
-use crate::dedup::ReplayWindow;
 use crate::event::{DropReason, EndReason, Event, OutcomeLog, Via};
 use crate::graph::BehaviorGraph;
 use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
 use crate::interaction::{
-    Assignment, ChildSlot, Cx, CxParts, Effects, Interaction, Outcome, PointInput, Recipients, Rng,
+    Assignment, ChildSlot, Closed, Cx, CxParts, Effects, Interaction, LocalEnd, Outcome,
+    PointInput, Recipients, Rng,
 };
 use crate::mission::Mission;
 use crate::msg::{Body, Envelope, InstanceKey, Kind, encoded_len};
@@ -44,6 +44,15 @@ use serde::Serialize;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::Duration;
+
+/// How long accepted `(sender, seq)` pairs are remembered to drop
+/// duplicates (far longer than any network delay; a copy older than this
+/// belongs to an instance that is over and is dropped as stale anyway).
+const DEDUP_MEMORY: Duration = Duration::from_secs(120);
+/// Most `(sender, seq)` pairs remembered per sender.
+const DEDUP_PER_SENDER: usize = 4096;
+/// Finished instances whose outcome is remembered to answer late teammates.
+const TOMBSTONES: usize = 1024;
 
 /// Bounds on the work and memory of one kernel.
 #[derive(Clone, Debug)]
@@ -63,7 +72,7 @@ impl Limits {
         Limits {
             max_transitions: 512,
             max_pending: 4096.max(4 * n),
-            pending_ttl: Duration::from_secs(60),
+            pending_ttl: Duration::from_secs(600),
         }
     }
 }
@@ -88,7 +97,7 @@ pub struct Frame {
     /// Belief and stack versions at which `until` was last found false.
     #[serde(skip)]
     until_false_at: Option<(u64, u64)>,
-    /// The input during which it was pushed.
+    /// The control tick during whose period it was pushed.
     #[serde(skip)]
     born: u64,
     /// How many times each behavior has been started directly under this
@@ -106,6 +115,23 @@ impl Frame {
             epoch: self.epoch,
         }
     }
+}
+
+/// Sizes of a kernel's internal tables.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Footprint {
+    /// Frames on the stack.
+    pub stack: usize,
+    /// Protocol instances alive (running or lingering).
+    pub instances: usize,
+    /// Closed-instance records.
+    pub closed: usize,
+    /// Buffered early messages.
+    pub pending: usize,
+    /// Remembered `(sender, seq)` pairs.
+    pub seen: usize,
+    /// Live teams in the organization.
+    pub teams: usize,
 }
 
 /// A message to send.
@@ -169,10 +195,17 @@ enum State {
     Active,
     /// Decided; lingers to answer retransmissions.
     Decided,
+    /// Left before deciding (an ancestor ended); lingers to answer.
+    Aborted,
 }
 
 struct Instance {
     protocol: &'static str,
+    /// The team as it was when the instance started: the instance can
+    /// still answer teammates after this robot dissolved the team.
+    team: crate::org::Team,
+    /// What it ended with, once over (kept after the outcome is applied).
+    closed: Option<Closed>,
     imp: Box<dyn Interaction>,
     input: PointInput,
     retry: Duration,
@@ -186,7 +219,6 @@ struct Instance {
     sent: u32,
     bytes: u64,
     received: u32,
-    linger_until: Time,
 }
 
 #[derive(Debug)]
@@ -202,6 +234,13 @@ enum Phase {
     Allocating(InstanceKey),
     /// The leaf is atomic and runs.
     Run,
+    /// The top frame allocated its children and gave this robot none: it
+    /// idles under it until it ends (by its condition or by its team), or,
+    /// with a silent termination protocol, until its next tick.
+    Idle {
+        since: u64,
+        silent: bool,
+    },
     /// `frame` was popped; waiting for its termination protocol.
     Terminating {
         frame: Frame,
@@ -236,14 +275,21 @@ pub struct Kernel {
     /// Highest epoch known to be over, per (team, behavior, kind).
     closed: BTreeMap<(TeamId, BehaviorId, Kind), u32>,
     pending: BTreeMap<InstanceKey, Vec<Pending>>,
+    /// Outcomes of forgotten instances, to answer late teammates.
+    tombstones: BTreeMap<InstanceKey, Closed>,
+    tomb_order: VecDeque<InstanceKey>,
     pending_len: usize,
-    windows: BTreeMap<RobotId, ReplayWindow>,
+    /// Recently accepted `(sender, seq)` with when: a message is acted upon
+    /// at most once, whatever the order it arrives in.
+    seen: BTreeMap<RobotId, BTreeMap<u64, Time>>,
     next_seq: u64,
     out: VecDeque<Output>,
     now: Time,
     stack_version: u64,
-    /// Inputs handled so far.
-    inputs: u64,
+    /// Control ticks handled so far.
+    ticks: u64,
+    /// Whether the input being handled is a control tick.
+    in_tick: bool,
     /// Run counts of the top-level execution chain (behaviors with no parent frame).
     root_runs: BTreeMap<BehaviorId, u32>,
     next_due: Option<Time>,
@@ -275,13 +321,16 @@ impl Kernel {
             instances: BTreeMap::new(),
             closed: BTreeMap::new(),
             pending: BTreeMap::new(),
+            tombstones: BTreeMap::new(),
+            tomb_order: VecDeque::new(),
             pending_len: 0,
-            windows: BTreeMap::new(),
+            seen: BTreeMap::new(),
             next_seq: 1,
             out: VecDeque::new(),
             now: Time::ZERO,
             stack_version: 0,
-            inputs: 0,
+            ticks: 0,
+            in_tick: false,
             root_runs: BTreeMap::new(),
             next_due: None,
             gc_at: Time::ZERO,
@@ -313,7 +362,10 @@ impl Kernel {
         for (id, v) in percepts {
             self.beliefs.set(*id, v.clone(), self.now, Source::Percept);
         }
+        self.ticks += 1;
+        self.in_tick = true;
         self.step();
+        self.in_tick = false;
     }
 
     /// A teammate's message.
@@ -344,7 +396,6 @@ impl Kernel {
     }
 
     fn step(&mut self) {
-        self.inputs += 1;
         if self.next_due.is_some_and(|t| t <= self.now) {
             self.fire_timers();
         }
@@ -397,6 +448,7 @@ impl Kernel {
             Phase::WaitChild { .. } => "waiting-for-child",
             Phase::Allocating(_) => "allocating",
             Phase::Run => "running",
+            Phase::Idle { .. } => "idle",
             Phase::Terminating { .. } => "terminating",
             Phase::Selecting { .. } => "selecting",
             Phase::Finished => "finished",
@@ -417,6 +469,18 @@ impl Kernel {
     /// Its counters.
     pub fn stats(&self) -> &Stats {
         &self.stats
+    }
+    /// Sizes of its internal tables (to check that memory stays bounded
+    /// over long missions).
+    pub fn footprint(&self) -> Footprint {
+        Footprint {
+            stack: self.stack.len(),
+            instances: self.instances.len(),
+            closed: self.closed.len(),
+            pending: self.pending_len,
+            seen: self.seen.values().map(BTreeMap::len).sum(),
+            teams: self.org.teams().count(),
+        }
     }
     /// The mission.
     pub fn mission(&self) -> &Arc<Mission> {
@@ -466,9 +530,23 @@ impl Kernel {
                     true
                 }
                 Phase::Finished | Phase::Run => false,
+                Phase::Idle { since, silent } => {
+                    // With a silent termination protocol nobody will tell
+                    // this robot when the others are done: its empty part is
+                    // over, and it ends it at its next tick (never within the
+                    // same tick, so a cycle back here cannot spin).
+                    if *silent && self.in_tick && self.ticks > *since {
+                        let i = self.stack.len() - 1;
+                        self.phase = Phase::Run;
+                        self.end_frame(i, EndReason::ChainEnded);
+                        true
+                    } else {
+                        false
+                    }
+                }
                 Phase::Expand => self.expand(),
                 Phase::WaitChild { seen } => {
-                    if *seen == self.versions() {
+                    if *seen == self.versions() && !self.children_pre_timed() {
                         false
                     } else if self.enabled_children().is_empty() {
                         self.phase = Phase::WaitChild {
@@ -504,10 +582,12 @@ impl Kernel {
             if f.team_ended {
                 return Some((i, EndReason::Team));
             }
-            if f.born == self.inputs {
-                // A behavior runs for at least one input: its termination
-                // condition is first checked at the next input, after the
-                // runtime has started its skill and reported fresh percepts.
+            // Termination conditions are about the world: they are
+            // monitored on control ticks (Algorithm 1's execution loop), and
+            // a behavior's condition is first checked at the tick after it
+            // started, once the runtime has started its skill and reported
+            // fresh percepts. Team decisions (above) act on any input.
+            if !self.in_tick || f.born == self.ticks {
                 continue;
             }
             let Some(until) = &graph.behavior(f.behavior).until else {
@@ -566,8 +646,12 @@ impl Kernel {
         };
         self.retire(&frame, reason);
         let key = frame.term_key();
+        let why = match reason {
+            EndReason::Until => LocalEnd::Condition,
+            _ => LocalEnd::ChainEnded,
+        };
         let key = if self.instances.contains_key(&key) {
-            self.term_local_done(key);
+            self.term_local_done(key, why);
             Some(key)
         } else {
             None
@@ -581,10 +665,16 @@ impl Kernel {
         self.org.unlink(f.behavior, f.team);
         if f.allocated {
             let n = self.graph().behavior(f.behavior).children.len();
-            for idx in 0..n {
-                self.org
-                    .dissolve(TeamId::derive(f.team, f.behavior, f.epoch, idx as u32));
+            let gone: Vec<TeamId> = (0..n)
+                .map(|idx| TeamId::derive(f.team, f.behavior, f.epoch, idx as u32))
+                .collect();
+            for t in &gone {
+                self.org.dissolve(*t);
             }
+            // Late messages for dissolved teams are recognised by the
+            // organization's memory of dead teams; the per-instance records
+            // can go (a repeated allocation would otherwise grow them forever).
+            self.closed.retain(|(t, _, _), _| !gone.contains(t));
         }
         self.emit(Event::Terminated {
             behavior: f.behavior,
@@ -609,14 +699,27 @@ impl Kernel {
         let Some(inst) = self.instances.get_mut(&key) else {
             return;
         };
-        if inst.state == State::Decided {
-            // Keep it lingering to answer teammates, but let it be collected.
-            inst.outcome = None;
-            return;
+        match inst.state {
+            State::Decided => {
+                // Keep it lingering to answer teammates, but let it be collected.
+                inst.outcome = None;
+                return;
+            }
+            State::Aborted => return,
+            State::Armed | State::Active => {}
         }
         let protocol = inst.protocol;
         let announced = inst.state == State::Active;
-        self.instances.remove(&key);
+        // Let the protocol tell its teammates, then keep it lingering so
+        // that it can answer them (a barrier leader that leaves releases
+        // whoever arrives later).
+        self.call(key, |imp, cx| imp.on_abort(cx));
+        if let Some(inst) = self.instances.get_mut(&key) {
+            inst.state = State::Aborted;
+            inst.wake = None;
+            inst.outcome = None;
+            inst.closed = Some(Closed::Left);
+        }
         self.close(key);
         if announced {
             self.emit(Event::InteractionAborted {
@@ -654,7 +757,7 @@ impl Kernel {
             allocated: false,
             team_ended: false,
             until_false_at: None,
-            born: self.inputs,
+            born: self.ticks,
             runs: BTreeMap::new(),
         });
         self.stack_version += 1;
@@ -676,6 +779,22 @@ impl Kernel {
             self.start_instance(key, PointInput::Terminate);
         }
         self.phase = Phase::Expand;
+    }
+
+    /// True when a precondition of the top frame's children can change
+    /// with time alone (`elapsed`, `age`): re-check on every input.
+    fn children_pre_timed(&self) -> bool {
+        let Some(top) = self.stack.last() else {
+            return false;
+        };
+        let graph = self.mission.graph();
+        graph.behavior(top.behavior).children.iter().any(|c| {
+            graph
+                .behavior(*c)
+                .pre
+                .as_ref()
+                .is_some_and(Expr::depends_on_time)
+        })
     }
 
     fn enabled_children(&self) -> Vec<ChildSlot> {
@@ -771,13 +890,31 @@ impl Kernel {
         match mine {
             Some((child, tid)) => self.push(child, tid, Via::Allocation),
             None => {
-                // No place for this robot: its (empty) execution chain is
-                // over, so it terminates the allocating behavior (line 8b)
-                // and, under `term.wait-all`, waits for the others.
+                // No place for this robot: its part of the allocating
+                // behavior is empty. It idles under it until the behavior
+                // ends — by its own condition, or by its team (a
+                // communicating termination protocol is told at once that
+                // this robot's part is over, so barriers do not wait for
+                // it). With a silent protocol it ends its part at its next
+                // tick (see `Phase::Idle`).
                 self.emit(Event::Unassigned { behavior: b });
-                let i = self.stack.len() - 1;
-                self.phase = Phase::Run;
-                self.end_frame(i, EndReason::ChainEnded);
+                let key = InstanceKey {
+                    team,
+                    behavior: b,
+                    kind: Kind::Terminate,
+                    epoch,
+                };
+                let communicates = self
+                    .mission
+                    .bound(b, Kind::Terminate)
+                    .is_some_and(|x| x.protocol.communicates());
+                self.phase = Phase::Idle {
+                    since: self.ticks,
+                    silent: !communicates,
+                };
+                if communicates {
+                    self.term_local_done(key, LocalEnd::Idle);
+                }
             }
         }
         true
@@ -796,13 +933,32 @@ impl Kernel {
                 None => return false,
             },
         };
-        let Phase::Terminating { frame, .. } = std::mem::replace(&mut self.phase, Phase::Run)
+        let Phase::Terminating { frame, key } = std::mem::replace(&mut self.phase, Phase::Run)
         else {
             return false;
         };
+        // A replacement must be a child of the parent frame: anything else
+        // would let a message push an arbitrary behavior (even an ancestor).
+        let parent_children = self
+            .stack
+            .last()
+            .map(|p| self.graph().behavior(p.behavior).children.clone())
+            .unwrap_or_default();
         match outcome {
-            Outcome::Terminate(Some(next)) if self.graph().get(next).is_some() => {
+            Outcome::Terminate(Some(next)) if parent_children.contains(&next) => {
                 self.push(next, frame.team, Via::Replacement);
+            }
+            Outcome::Terminate(Some(next)) => {
+                if let Some(k) = key {
+                    self.emit(Event::ProtocolViolation {
+                        instance: k,
+                        what: format!(
+                            "replacement `{}` is not a child of the parent behavior; ignored",
+                            self.graph().name_of(next)
+                        ),
+                    });
+                }
+                self.phase = Phase::Selecting { frame, key: None };
             }
             _ => self.phase = Phase::Selecting { frame, key: None },
         }
@@ -900,8 +1056,13 @@ impl Kernel {
             return;
         };
         let armed = key.kind == Kind::Terminate;
+        let Some(team) = self.org.team(key.team).cloned() else {
+            return;
+        };
         let inst = Instance {
             protocol: bound.protocol.name(),
+            team,
+            closed: None,
             imp: (bound.factory)(),
             input,
             retry: bound.retry,
@@ -919,7 +1080,6 @@ impl Kernel {
             sent: 0,
             bytes: 0,
             received: 0,
-            linger_until: Time::MAX,
         };
         let protocol = inst.protocol;
         self.instances.insert(key, inst);
@@ -940,7 +1100,7 @@ impl Kernel {
     }
 
     /// This robot's own reason to end the behavior of `key` happened.
-    fn term_local_done(&mut self, key: InstanceKey) {
+    fn term_local_done(&mut self, key: InstanceKey, why: LocalEnd) {
         let now = self.now;
         let Some(inst) = self.instances.get_mut(&key) else {
             return;
@@ -956,7 +1116,7 @@ impl Kernel {
             instance: key,
             protocol,
         });
-        self.call(key, |imp, cx| imp.local_done(cx));
+        self.call(key, |imp, cx| imp.local_done(cx, why));
         self.refresh_due();
     }
 
@@ -969,18 +1129,13 @@ impl Kernel {
         let Some(mut inst) = self.instances.remove(&key) else {
             return;
         };
-        let Some(team) = self.org.team(key.team) else {
-            // The team dissolved under the instance: nothing to do.
-            self.instances.insert(key, inst);
-            return;
-        };
         let mut fx = Effects::default();
         {
             let mut cx = Cx::new(CxParts {
                 now: self.now,
                 me: self.me,
                 key,
-                team,
+                team: self.org.team(key.team).unwrap_or(&inst.team),
                 org: &self.org,
                 runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
                 graph: self.mission.graph(),
@@ -991,6 +1146,7 @@ impl Kernel {
                 retry: inst.retry,
                 deadline: inst.deadline,
                 decided: inst.state == State::Decided,
+                aborted: inst.state == State::Aborted,
                 fx: &mut fx,
             });
             f(&mut *inst.imp, &mut cx);
@@ -1019,9 +1175,14 @@ impl Kernel {
                 bytes,
             }));
         }
-        if let Some(w) = fx.wake {
+        if let Some(w) = fx.wake
+            && inst.state != State::Aborted
+        {
             inst.wake = Some(inst.wake.map_or(w, |x| x.min(w)));
             self.next_due = Some(self.next_due.map_or(w, |x| x.min(w)));
+        }
+        if fx.postpone && inst.state == State::Active {
+            inst.deadline = self.now + inst.deadline_len;
         }
         for what in fx.violations {
             self.emit(Event::ProtocolViolation {
@@ -1030,12 +1191,10 @@ impl Kernel {
             });
         }
         if let Some(outcome) = fx.outcome
-            && inst.state != State::Decided
+            && matches!(inst.state, State::Armed | State::Active)
         {
             let outcome = self.validate(key, inst, outcome);
-            let was_armed = inst.state == State::Armed;
             inst.state = State::Decided;
-            inst.linger_until = self.now + inst.deadline_len.max(Duration::from_secs(1)) * 2;
             let waited = inst.waiting_since.map_or(Duration::ZERO, |t| self.now - t);
             self.emit(Event::InteractionDecided {
                 instance: key,
@@ -1051,17 +1210,23 @@ impl Kernel {
                 received: inst.received,
                 timed_out: inst.timed_out,
             });
+            inst.closed = Some(match &outcome {
+                Outcome::Sync(c) => Closed::Synced(*c),
+                Outcome::Allocate(_) => Closed::Allocated,
+                Outcome::Terminate(n) => Closed::Terminated(*n),
+            });
             inst.outcome = Some(outcome);
             let e = self
                 .closed
                 .entry((key.team, key.behavior, key.kind))
                 .or_insert(0);
             *e = (*e).max(key.epoch);
-            if was_armed {
-                // The team ended a behavior this robot is still running.
-                if let Some(f) = self.stack.iter_mut().find(|f| f.term_key() == key) {
-                    f.team_ended = true;
-                }
+            // A termination decided while its behavior is still on the stack
+            // (the team ended it, or this robot idles under it) ends it here.
+            if key.kind == Kind::Terminate
+                && let Some(f) = self.stack.iter_mut().find(|f| f.term_key() == key)
+            {
+                f.team_ended = true;
             }
         }
     }
@@ -1209,8 +1374,27 @@ impl Kernel {
         if !well_formed {
             return self.drop_msg(from, DropReason::Malformed);
         }
-        if !self.windows.entry(from).or_default().accept(env.seq) {
+        let seen = self.seen.entry(from).or_default();
+        if env.seq == 0 || seen.contains_key(&env.seq) {
             return self.drop_msg(from, DropReason::Duplicate);
+        }
+        if seen.len() >= DEDUP_PER_SENDER
+            && let Some((&oldest, _)) = seen.iter().next()
+        {
+            seen.remove(&oldest);
+        }
+        seen.insert(env.seq, self.now);
+        if let Some(inst) = self.instances.get(&key) {
+            let team = self.org.team(key.team).unwrap_or(&inst.team);
+            if !team.contains(from) {
+                return self.drop_msg(from, DropReason::SenderNotMember);
+            }
+            self.stats.received += 1;
+            return self.deliver(key, from, env.body);
+        }
+        if let Some(closed) = self.tombstones.get(&key).copied() {
+            self.stats.received += 1;
+            return self.late_reply(key, closed, from, &env.body);
         }
         match self.org.team(key.team) {
             Some(t) if !t.contains(self.me) => return self.drop_msg(from, DropReason::NotMember),
@@ -1220,10 +1404,6 @@ impl Kernel {
             Some(_) => {}
             None if self.org.is_dead(key.team) => return self.drop_msg(from, DropReason::Stale),
             None => {}
-        }
-        if self.instances.contains_key(&key) {
-            self.stats.received += 1;
-            return self.deliver(key, from, env.body);
         }
         if self
             .closed
@@ -1235,14 +1415,57 @@ impl Kernel {
         if self.pending_len >= self.limits.max_pending {
             return self.drop_msg(from, DropReason::BufferOverflow);
         }
-        self.stats.received += 1;
-        self.stats.buffered += 1;
-        self.pending_len += 1;
-        self.pending.entry(key).or_default().push(Pending {
+        let queue = self.pending.entry(key).or_default();
+        if queue.iter().any(|p| p.from == from && p.body == env.body) {
+            // A retransmission of a message already waiting: one is enough.
+            return self.drop_msg(from, DropReason::Duplicate);
+        }
+        queue.push(Pending {
             at: self.now,
             from,
             body: env.body,
         });
+        self.stats.received += 1;
+        self.stats.buffered += 1;
+        self.pending_len += 1;
+    }
+
+    /// Answer a teammate's late message for a forgotten instance, as its
+    /// protocol says.
+    fn late_reply(&mut self, key: InstanceKey, closed: Closed, from: RobotId, body: &Body) {
+        let Some(reply) = self
+            .mission
+            .bound(key.behavior, key.kind)
+            .and_then(|b| b.protocol.late_reply(closed, body))
+        else {
+            return;
+        };
+        let envelope = Envelope {
+            instance: key,
+            sender: self.me,
+            seq: self.next_seq,
+            body: reply,
+        };
+        self.next_seq += 1;
+        let bytes = encoded_len(&envelope) as u32;
+        self.stats.sent += 1;
+        self.stats.bytes_sent += u64::from(bytes);
+        self.out.push_back(Output::Send(Outgoing {
+            to: Recipients::One(from),
+            envelope,
+            bytes,
+        }));
+    }
+
+    fn bury(&mut self, key: InstanceKey, closed: Closed) {
+        if self.tombstones.insert(key, closed).is_none() {
+            self.tomb_order.push_back(key);
+        }
+        while self.tomb_order.len() > TOMBSTONES {
+            if let Some(old) = self.tomb_order.pop_front() {
+                self.tombstones.remove(&old);
+            }
+        }
     }
 
     fn deliver(&mut self, key: InstanceKey, from: RobotId, body: Body) {
@@ -1263,9 +1486,27 @@ impl Kernel {
     /// can no longer be used.
     fn gc(&mut self) {
         let now = self.now;
-        self.instances.retain(|_, i| {
-            !(i.state == State::Decided && i.linger_until <= now && i.outcome.is_none())
-        });
+        // A finished instance (decided or left) stays while it still has
+        // work (a timer: e.g. telling stragglers of a release); then only
+        // its outcome is kept, to answer late teammates.
+        let done: Vec<(InstanceKey, Closed)> = self
+            .instances
+            .iter()
+            .filter(|(_, i)| {
+                matches!(i.state, State::Decided | State::Aborted)
+                    && i.outcome.is_none()
+                    && i.wake.is_none()
+            })
+            .filter_map(|(k, i)| i.closed.map(|c| (*k, c)))
+            .collect();
+        for (k, c) in done {
+            self.instances.remove(&k);
+            self.bury(k, c);
+        }
+        for senders in self.seen.values_mut() {
+            senders.retain(|_, t| now - *t < DEDUP_MEMORY);
+        }
+        self.seen.retain(|_, s| !s.is_empty());
         let ttl = self.limits.pending_ttl;
         let closed = &self.closed;
         let org = &self.org;
