@@ -50,7 +50,8 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
         BTreeMap::new();
     let mut ended: BTreeMap<InstanceKey, Time> = BTreeMap::new();
     let mut selected: BTreeMap<(TeamId, BehaviorId, u32), BTreeSet<RobotId>> = BTreeMap::new();
-    let mut terminated: BTreeSet<(TeamId, BehaviorId, u32, RobotId)> = BTreeSet::new();
+    let mut terminated: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
+    let mut started: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
     let mut last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32> = BTreeMap::new();
     for rec in &report.history {
         match &rec.event {
@@ -90,6 +91,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                     .entry((*team, *behavior, *epoch))
                     .or_default()
                     .insert(rec.robot);
+                started.insert((*team, *behavior, *epoch, rec.robot), rec.t);
                 let last = last_epoch.entry((rec.robot, *team, *behavior)).or_insert(0);
                 if *epoch != *last + 1 {
                     v.push(Violation {
@@ -122,7 +124,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                         ),
                     });
                 }
-                terminated.insert((*team, *behavior, *epoch, rec.robot));
+                terminated.insert((*team, *behavior, *epoch, rec.robot), rec.t);
             }
             _ => {}
         }
@@ -237,29 +239,42 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
         .filter(|(_, t)| *t <= report.end)
         .map(|(r, _)| *r)
         .collect();
+    // A member must end a behavior its team ended within a grace period:
+    // two deadlines of the termination binding (time to hear it, with
+    // retries) and a second.
     for (key, t) in &ended {
         let grace = mission
             .bound(key.behavior, Kind::Terminate)
             .map_or(Duration::from_secs(10), |b| {
                 b.deadline * 2 + Duration::from_secs(1)
             });
-        if report.end < *t + grace {
-            continue;
-        }
+        let limit = *t + grace;
         for r in selected
             .get(&(key.team, key.behavior, key.epoch))
             .into_iter()
             .flatten()
         {
-            if !crashed.contains(r)
-                && !terminated.contains(&(key.team, key.behavior, key.epoch, *r))
-            {
+            if crashed.contains(r) {
+                continue;
+            }
+            // A member that started this epoch after the team ended it gets
+            // the same grace from its own start.
+            let start = started
+                .get(&(key.team, key.behavior, key.epoch, *r))
+                .copied();
+            let limit = start.map_or(limit, |s| limit.max(s + grace));
+            let late = match terminated.get(&(key.team, key.behavior, key.epoch, *r)) {
+                Some(at) => *at > limit,
+                None => report.end > limit,
+            };
+            if late {
                 v.push(Violation {
                     invariant: "team-termination",
                     detail: format!(
-                        "{r} still runs `{}` #{} although its team ended it at {t}",
+                        "{r} ran `{}` #{} more than {:.1} s after its team ended it at {t}",
                         name(key.behavior),
-                        key.epoch
+                        key.epoch,
+                        grace.as_secs_f64()
                     ),
                 });
             }

@@ -231,7 +231,7 @@ impl Sim<'_, '_> {
         let k = &self.kernels[i];
         if k.stack_version() != self.versions[i] {
             self.versions[i] = k.stack_version();
-            let leaf = k.leaf().map(|f| f.behavior);
+            let leaf = k.leaf().map(|f| (f.behavior, f.team, f.epoch));
             let started = self.worlds[i].leaf_changed(&self.book, leaf, self.now);
             for (id, v) in started {
                 self.kernels[i].set_belief(*id, v.clone(), Source::Percept);

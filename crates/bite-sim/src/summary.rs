@@ -104,10 +104,13 @@ pub struct Summary {
     pub crashed_robots: usize,
     /// Task time: when the last live robot completed (or the time limit), seconds.
     pub task_time: f64,
-    /// Mean time per robot spent waiting in interactions, seconds.
+    /// Mean time per live robot spent waiting in interactions, seconds.
     pub interaction_time: PerKind<f64>,
-    /// Longest per-robot interaction time, seconds.
+    /// Longest time one robot spent in each kind of interaction, seconds
+    /// (per kind, possibly different robots).
     pub interaction_time_max: PerKind<f64>,
+    /// Longest total interaction time of one robot, seconds.
+    pub interaction_time_max_total: f64,
     /// Per-robot decisions.
     pub decisions: PerKind<u64>,
     /// Per-robot instances that hit their deadline.
@@ -247,12 +250,17 @@ impl Aggregator {
         };
         let mut mean = PerKind::<f64>::default();
         let mut max = PerKind::<f64>::default();
-        for w in &self.wait {
+        let mut max_total = 0.0f64;
+        for r in &live {
+            let Some(w) = self.wait.get(r.index()) else {
+                continue;
+            };
             for k in Kind::ALL {
-                *mean.get_mut(k) += w.get(k) / n.max(1) as f64;
+                *mean.get_mut(k) += w.get(k) / live.len().max(1) as f64;
                 let m = max.get_mut(k);
                 *m = m.max(w.get(k));
             }
+            max_total = max_total.max(w.total());
         }
         let points = self
             .points
@@ -290,6 +298,7 @@ impl Aggregator {
             task_time: task_time.as_secs_f64(),
             interaction_time: mean,
             interaction_time_max: max,
+            interaction_time_max_total: max_total,
             decisions: self.decisions,
             timeouts: self.timeouts,
             messages: self.messages,
@@ -305,28 +314,29 @@ impl Aggregator {
 
 impl fmt::Display for Summary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let plural = |n: usize, word: &str| format!("{n} {word}{}", if n == 1 { "" } else { "s" });
         writeln!(
             f,
-            "mission `{}`{} on scenario `{}`, {} robots, seed {}",
+            "mission `{}`{} on scenario `{}`, {}, seed {}",
             self.graph,
             self.config
                 .as_ref()
                 .map(|c| format!(" (config `{c}`)"))
                 .unwrap_or_default(),
             self.scenario,
-            self.robots,
+            plural(self.robots, "robot"),
             self.seed
         )?;
         writeln!(
             f,
-            "  outcome          {}  ({} of {} robots completed{})",
+            "  outcome          {}  ({} of {} completed{})",
             if self.completed {
                 "COMPLETED"
             } else {
                 "NOT COMPLETED (time limit)"
             },
             self.completed_robots,
-            self.robots - self.crashed_robots,
+            plural(self.robots - self.crashed_robots, "live robot"),
             if self.crashed_robots > 0 {
                 format!(", {} crashed", self.crashed_robots)
             } else {
@@ -336,12 +346,12 @@ impl fmt::Display for Summary {
         writeln!(f, "  task time        {:.2} s", self.task_time)?;
         writeln!(
             f,
-            "  interaction time {:.2} s per robot (sync {:.2}, allocation {:.2}, termination {:.2}; max {:.2})",
+            "  interaction time {:.2} s per robot (sync {:.2}, allocation {:.2}, termination {:.2}; most for one robot {:.2})",
             self.interaction_time.total(),
             self.interaction_time.sync,
             self.interaction_time.allocate,
             self.interaction_time.terminate,
-            self.interaction_time_max.total()
+            self.interaction_time_max_total
         )?;
         writeln!(
             f,
@@ -387,15 +397,29 @@ impl fmt::Display for Summary {
             )?;
         }
         if !self.points.is_empty() {
+            let w = self
+                .points
+                .iter()
+                .map(|p| p.point.len())
+                .max()
+                .unwrap_or(5)
+                .max(5);
+            let pw = self
+                .points
+                .iter()
+                .map(|p| p.protocol.len())
+                .max()
+                .unwrap_or(8)
+                .max(8);
             writeln!(
                 f,
-                "  {:<22} {:<10} {:<16} {:>9} {:>10} {:>9} {:>9}",
+                "  {:<w$} {:<10} {:<pw$} {:>9} {:>10} {:>9} {:>9}",
                 "point", "kind", "protocol", "instances", "mean wait", "messages", "timeouts"
             )?;
             for p in &self.points {
                 writeln!(
                     f,
-                    "  {:<22} {:<10} {:<16} {:>9} {:>9.3}s {:>9} {:>9}",
+                    "  {:<w$} {:<10} {:<pw$} {:>9} {:>9.3}s {:>9} {:>9}",
                     p.point, p.kind, p.protocol, p.instances, p.mean_wait, p.messages, p.timeouts
                 )?;
             }

@@ -90,9 +90,14 @@ impl SkillBook {
     }
 }
 
+/// Which execution of a behavior a skill belongs to: behavior, subteam and
+/// epoch (a behavior popped and pushed again is a new execution, whose
+/// skill starts afresh).
+pub type LeafId = (BehaviorId, bite_core::ids::TeamId, u32);
+
 #[derive(Debug)]
 struct Active {
-    behavior: BehaviorId,
+    leaf: LeafId,
     skill: Arc<Compiled>,
     done_at: Option<Time>,
     rates: Vec<f64>,
@@ -129,14 +134,15 @@ impl RobotWorld {
     pub fn leaf_changed(
         &mut self,
         book: &SkillBook,
-        leaf: Option<BehaviorId>,
+        leaf: Option<LeafId>,
         now: Time,
     ) -> &[(BeliefId, Value)] {
-        if self.active.as_ref().map(|a| a.behavior) == leaf {
+        if self.active.as_ref().map(|a| a.leaf) == leaf {
             return &[];
         }
         self.active = None;
-        let Some(b) = leaf else { return &[] };
+        let Some(leaf) = leaf else { return &[] };
+        let b = leaf.0;
         let Some(skill) = book.by_behavior.get(b.index()).cloned().flatten() else {
             return &[];
         };
@@ -161,7 +167,7 @@ impl RobotWorld {
             })
             .collect();
         self.active = Some(Active {
-            behavior: b,
+            leaf,
             skill,
             done_at,
             rates,
