@@ -75,10 +75,17 @@ impl fmt::Display for Time {
 }
 
 /// Parse a duration as users write it in files: a bare number is seconds,
-/// or a number with a unit: `250ms`, `2s`, `1.5min`, `100us`.
+/// or a number with a unit: `250ms`, `2s`, `1.5min`, `100us`, `1e3s`.
 pub fn parse_duration(text: &str) -> Result<Duration, String> {
     let t = text.trim();
-    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+    // The unit is the trailing run of letters; an exponent (`1e3s`,
+    // `2.5e-1`) always ends in a digit, which stops the scan.
+    let split = t
+        .char_indices()
+        .rev()
+        .take_while(|(_, c)| c.is_alphabetic())
+        .last()
+        .map_or(t.len(), |(i, _)| i);
     let (num, unit) = t.split_at(split);
     let value: f64 = num
         .trim()
@@ -119,6 +126,12 @@ mod tests {
         assert!(parse_duration("-1s").is_err());
         assert!(parse_duration("3 parsecs").is_err());
         assert!(parse_duration("fast").is_err());
+        assert_eq!(parse_duration("1e3s").unwrap(), Duration::from_secs(1000));
+        assert_eq!(
+            parse_duration("2.5e-1").unwrap(),
+            Duration::from_millis(250)
+        );
+        assert_eq!(parse_duration("1e3").unwrap(), Duration::from_secs(1000));
     }
 
     #[test]

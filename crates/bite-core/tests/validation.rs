@@ -1298,3 +1298,17 @@ fn every_diagnostic_prints_file_line_col_severity_and_code() {
         }
     }
 }
+
+#[test]
+fn runs_of_a_behavior_outside_the_parent_is_an_error() {
+    let text = "start: root\nbehaviors:\n  root: { team: true, children: [a], until: 'runs(work) >= 2' }\n  a: { team: true, children: [work], next: [a] }\n  work: { until: done }\n";
+    let e = graph_err("runs.yaml", text);
+    let d = one(&e.0, "runs-out-of-scope");
+    at(d, 3, 45);
+    says(d, &["`runs(work)` in the `until` of `root` is always 0"]);
+    // A sibling in the same chain, and the behavior itself, are fine.
+    graph_ok(
+        "runs-ok.yaml",
+        "start: root\nbehaviors:\n  root: { team: true, children: [a] }\n  a: { pre: 'runs < 3', next: [a, b] }\n  b: { pre: 'runs(a) >= 3' }\n",
+    );
+}

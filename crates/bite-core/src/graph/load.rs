@@ -34,6 +34,7 @@ pub fn load_str(file: &Arc<str>, text: &str) -> Result<BehaviorGraph, Diagnostic
         text,
         diags: Vec::new(),
         labels: BTreeMap::new(),
+        runs_refs: Vec::new(),
     }
     .build(spec)
 }
@@ -44,11 +45,15 @@ struct Builder<'a> {
     diags: Vec<Diagnostic>,
     /// Point labels seen so far: label → behavior.
     labels: BTreeMap<String, String>,
+    /// `runs(x)` in a condition of a behavior: (owner, x, field, where).
+    runs_refs: Vec<(BehaviorId, BehaviorId, &'static str, Loc)>,
 }
 
 struct NameResolver<'a> {
     symbols: &'a mut Symbols,
     by_name: &'a BTreeMap<String, BehaviorId>,
+    /// Behaviors named in `runs(...)` by the condition being parsed.
+    looked_up: std::cell::RefCell<Vec<BehaviorId>>,
 }
 
 impl Resolver for NameResolver<'_> {
@@ -56,7 +61,11 @@ impl Resolver for NameResolver<'_> {
         self.symbols.intern(name)
     }
     fn behavior(&self, name: &str) -> Option<BehaviorId> {
-        self.by_name.get(name).copied()
+        let id = self.by_name.get(name).copied();
+        if let Some(id) = id {
+            self.looked_up.borrow_mut().push(id);
+        }
+        id
     }
     fn behavior_names(&self) -> Vec<&str> {
         self.by_name.keys().map(String::as_str).collect()
@@ -151,10 +160,12 @@ impl Builder<'_> {
             let mut resolver = NameResolver {
                 symbols: &mut symbols,
                 by_name: &by_name,
+                looked_up: std::cell::RefCell::new(Vec::new()),
             };
-            let pre = self.condition(&spec.pre, &mut resolver, "pre", Some("bool"));
-            let until = self.condition(&spec.until, &mut resolver, "until", Some("bool"));
-            let utility = self.condition(&spec.utility, &mut resolver, "utility", Some("number"));
+            let pre = self.condition(id, &spec.pre, &mut resolver, "pre", Some("bool"));
+            let until = self.condition(id, &spec.until, &mut resolver, "until", Some("bool"));
+            let utility =
+                self.condition(id, &spec.utility, &mut resolver, "utility", Some("number"));
             let (bindings, labels) = self.bindings(&name.value, &spec);
             let members = spec
                 .members
@@ -225,6 +236,7 @@ impl Builder<'_> {
         self.check_members(&out, &member_locs);
         if let Some(start) = start {
             self.check_reachable(&out, start);
+            self.check_runs_scope(&out, start);
         }
         let defaults = self.defaults(&spec.defaults);
         let initial_beliefs = self.beliefs(&spec.beliefs);
@@ -356,14 +368,20 @@ impl Builder<'_> {
 
     fn condition(
         &mut self,
+        owner: BehaviorId,
         src: &Option<Spanned<String>>,
         resolver: &mut NameResolver<'_>,
-        field: &str,
+        field: &'static str,
         want: Option<&'static str>,
     ) -> Option<Expr> {
         let s = src.as_ref()?;
+        resolver.looked_up.borrow_mut().clear();
         match Expr::parse(&s.value, resolver) {
             Ok(e) => {
+                for x in resolver.looked_up.borrow().iter() {
+                    self.runs_refs
+                        .push((owner, *x, field, Loc::from(s.referenced)));
+                }
                 if let (Some(want), Some(got)) = (want, e.static_type())
                     && want != got
                 {
@@ -695,6 +713,45 @@ impl Builder<'_> {
                         b.name,
                         bs[start.index()].name
                     ),
+                );
+            }
+        }
+    }
+
+    /// `runs(x)` counts the starts of `x` in the current execution of the
+    /// parent of the behavior whose condition it is in; an `x` that never
+    /// runs under the same parent is always 0 — a mistake, not a loop count.
+    fn check_runs_scope(&mut self, bs: &[Behavior], start: BehaviorId) {
+        if self.runs_refs.is_empty() {
+            return;
+        }
+        // The parents each behavior can run under (None: the top-level chain).
+        let mut parents: Vec<BTreeSet<Option<BehaviorId>>> = vec![BTreeSet::new(); bs.len()];
+        for b in seq_reach(bs, start) {
+            parents[b.index()].insert(None);
+        }
+        for p in bs {
+            for c in &p.children {
+                for b in seq_reach(bs, *c) {
+                    parents[b.index()].insert(Some(p.id));
+                }
+            }
+        }
+        for (owner, x, field, loc) in std::mem::take(&mut self.runs_refs) {
+            if parents[owner.index()].is_disjoint(&parents[x.index()]) {
+                let d = self.err(
+                    loc,
+                    "runs-out-of-scope",
+                    format!(
+                        "`runs({})` in the `{field}` of `{}` is always 0: `{}` never runs under the same parent as `{}`",
+                        bs[x.index()].name,
+                        bs[owner.index()].name,
+                        bs[x.index()].name,
+                        bs[owner.index()].name
+                    ),
+                );
+                d.hint = Some(
+                    "`runs(x)` counts the starts of `x` during the current execution of the parent; name a behavior of the same execution chains".into(),
                 );
             }
         }
