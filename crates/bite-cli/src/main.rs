@@ -101,15 +101,15 @@ struct RunArgs {
     /// A configuration file binding protocols to points (e.g. a Table II row).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// The scenario (timed-skill world). Default: `scenarios/<graph name>.yaml`
-    /// next to the graph if it exists.
+    /// The scenario (timed-skill world). Default: `scenarios/<graph file
+    /// name without extension>.yaml` next to the graph, if it exists.
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Seed (default: the scenario's).
     #[arg(long)]
     seed: Option<u64>,
     /// Team size (default: the scenario's, else the graph's).
-    #[arg(long)]
+    #[arg(long, value_parser = parse_robots)]
     robots: Option<usize>,
     /// Stop after this much simulated time (e.g. `120s`).
     #[arg(long, value_parser = parse_dur)]
@@ -127,7 +127,7 @@ enum BenchCmd {
     /// A whole team in the timed-skill world: simulated seconds per wall second.
     Team {
         /// Team size.
-        #[arg(long, default_value_t = 1000)]
+        #[arg(long, default_value_t = 1000, value_parser = parse_robots)]
         robots: usize,
         /// The behavior graph (default: the built-in formation example).
         #[arg(long)]
@@ -149,6 +149,17 @@ enum BenchCmd {
 
 fn parse_dur(s: &str) -> Result<Duration, String> {
     bite_core::time::parse_duration(s)
+}
+
+fn parse_robots(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("a team needs at least one robot".into()),
+        Ok(n) if n > bite_core::graph::MAX_ROBOTS => {
+            Err(format!("at most {} robots", bite_core::graph::MAX_ROBOTS))
+        }
+        Ok(n) => Ok(n),
+        Err(_) => Err(format!("expected a number of robots, found `{s}`")),
+    }
 }
 
 /// A failure that has already been explained to the user.
@@ -285,8 +296,15 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         out!("{}", report.summary);
         outln!("  run log          {}", log_path.display());
         if !report.summary.completed {
+            let mut extra = String::new();
+            if let Some(c) = &a.config {
+                extra.push_str(&format!(" --config {}", c.display()));
+            }
+            if let Some(t) = a.time_limit {
+                extra.push_str(&format!(" --time-limit {}s", t.as_secs_f64()));
+            }
             outln!(
-                "  replay           bite run {} --seed {seed}",
+                "  replay           bite run {}{extra} --seed {seed}",
                 describe_inputs(&mission, &scenario)
             );
         }
@@ -521,7 +539,7 @@ fn main() -> ExitCode {
             Some(Reported(code)) => ExitCode::from(*code),
             None => {
                 eprintln!("error: {e:#}");
-                ExitCode::from(1)
+                ExitCode::from(3)
             }
         },
     }
