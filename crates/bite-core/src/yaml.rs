@@ -152,20 +152,6 @@ pub fn snippet(text: &str, loc: Loc) -> String {
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn lines_end_like_yaml_lines() {
-        let v: Vec<&str> = lines("a\nb\r\nc\rd").collect();
-        assert_eq!(v, ["a", "b", "c", "d"]);
-        assert_eq!(lines("x\n").collect::<Vec<_>>(), ["x"]);
-        assert_eq!(lines("").count(), 0);
-        assert_eq!(lines("\r\r").collect::<Vec<_>>(), ["", ""]);
-    }
-}
-
 /// Turn the YAML library's wording into the user's: what is wrong in
 /// their file, and how to fix it.
 fn explain(m: &str) -> (String, Option<String>) {
@@ -229,5 +215,19 @@ pub fn json_to_value(v: &serde_json::Value) -> Option<Value> {
             Some(Value::Vec2([a[0].as_f64()?, a[1].as_f64()?]))
         }
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_end_like_yaml_lines() {
+        let v: Vec<&str> = lines("a\nb\r\nc\rd").collect();
+        assert_eq!(v, ["a", "b", "c", "d"]);
+        assert_eq!(lines("x\n").collect::<Vec<_>>(), ["x"]);
+        assert_eq!(lines("").count(), 0);
+        assert_eq!(lines("\r\r").collect::<Vec<_>>(), ["", ""]);
     }
 }
