@@ -245,6 +245,16 @@ pub enum Event {
         /// What happened.
         what: String,
     },
+    /// A teammate is presumed lost (reported by the runtime).
+    MemberLost {
+        /// Who.
+        member: RobotId,
+    },
+    /// A teammate presumed lost is heard again.
+    MemberBack {
+        /// Who.
+        member: RobotId,
+    },
     /// The stack emptied: the mission is over for this robot.
     MissionCompleted,
     /// Too many transitions in one step (conditions that are immediately

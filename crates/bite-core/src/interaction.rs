@@ -102,6 +102,13 @@ pub trait Interaction: Send {
     /// The deadline passed without a decision: decide now from what is
     /// known. The kernel reports a timeout either way.
     fn on_deadline(&mut self, cx: &mut Cx<'_>);
+    /// A member of the team was presumed lost (or, for protocols that
+    /// count on it, left): [`Cx::members`], [`Cx::team_size`] and
+    /// [`Cx::leader`] no longer include it. Decide without it: re-check
+    /// whether everyone still needed has answered; if the leader changed,
+    /// send what the new leader needs (a member re-sends its vote or
+    /// arrival; a member that already knows the decision tells it).
+    fn on_members_changed(&mut self, _cx: &mut Cx<'_>) {}
     /// This robot leaves the instance before it decided (an ancestor
     /// behavior ended). Tell the teammates what they need to go on without
     /// it (a barrier member reports itself done, a coordinator releases who
@@ -204,6 +211,8 @@ pub struct Effects {
     /// Push the deadline back by a whole deadline from now (the coordinator
     /// was heard from, so waiting on is not waiting on a dead teammate).
     pub postpone: bool,
+    /// Teammates known to be done with the behavior (termination only).
+    pub departed: Vec<RobotId>,
 }
 
 /// The context of one call into an [`Interaction`].
@@ -212,6 +221,8 @@ pub struct Cx<'a> {
     me: RobotId,
     key: InstanceKey,
     team: &'a Team,
+    excluded: Option<&'a MemberSet>,
+    live: u32,
     org: &'a Organization,
     runs: &'a BTreeMap<BehaviorId, u32>,
     graph: &'a BehaviorGraph,
@@ -236,6 +247,8 @@ pub struct CxParts<'a> {
     pub key: InstanceKey,
     /// The team running it.
     pub team: &'a Team,
+    /// Members presumed lost (left out of [`Cx::members`]).
+    pub excluded: Option<&'a MemberSet>,
     /// This robot's organization hierarchy.
     pub org: &'a Organization,
     /// Run counts of the candidates' parent execution (what `runs` reads).
@@ -270,6 +283,11 @@ impl<'a> Cx<'a> {
             me: p.me,
             key: p.key,
             team: p.team,
+            excluded: p.excluded,
+            live: match p.excluded {
+                Some(x) => p.team.members.iter().filter(|r| !x.contains(*r)).count() as u32,
+                None => p.team.size,
+            },
             org: p.org,
             runs: p.runs,
             graph: p.graph,
@@ -300,17 +318,33 @@ impl<'a> Cx<'a> {
     pub fn team(&self) -> &Team {
         self.team
     }
-    /// Number of members.
+    /// Number of members not presumed lost.
     pub fn team_size(&self) -> usize {
-        self.team.size as usize
+        self.live as usize
     }
-    /// Members in id order.
+    /// Members not presumed lost, in id order.
     pub fn members(&self) -> impl Iterator<Item = RobotId> + '_ {
-        self.team.members.iter()
+        let excluded = self.excluded;
+        self.team
+            .members
+            .iter()
+            .filter(move |r| excluded.is_none_or(|x| !x.contains(*r)))
     }
-    /// The coordinator of the instance: the lowest-id member.
+    /// The members not presumed lost, as a set.
+    pub fn live_set(&self) -> MemberSet {
+        match self.excluded {
+            None => (*self.team.members).clone(),
+            Some(_) => MemberSet::from_iter(self.team.members.roster_len(), self.members()),
+        }
+    }
+    /// True when `r` is a member not presumed lost.
+    pub fn is_live(&self, r: RobotId) -> bool {
+        self.team.contains(r) && self.excluded.is_none_or(|x| !x.contains(r))
+    }
+    /// The coordinator of the instance: the lowest-id member not presumed
+    /// lost (this robot if it is the only one left).
     pub fn leader(&self) -> RobotId {
-        self.team.leader().unwrap_or(self.me)
+        self.members().next().unwrap_or(self.me)
     }
     /// True when this robot coordinates.
     pub fn is_leader(&self) -> bool {
@@ -437,6 +471,15 @@ impl<'a> Cx<'a> {
     /// alive, so waiting on is not waiting on a dead teammate.
     pub fn postpone_deadline(&mut self) {
         self.fx.postpone = true;
+    }
+    /// Termination only: teammate `r` is done with the behavior (it
+    /// arrived at the barrier, or left it). It will take no part in what
+    /// this robot still runs below the behavior, so the kernel leaves it out
+    /// of those instances, as it does a lost teammate.
+    pub fn member_done(&mut self, r: RobotId) {
+        if r != self.me && !self.fx.departed.contains(&r) {
+            self.fx.departed.push(r);
+        }
     }
     /// True once the instance has decided.
     pub fn is_decided(&self) -> bool {

@@ -7,6 +7,7 @@
 //! one, and a duplicated message changes nothing.
 
 use crate::ids::{BehaviorId, RobotId, TeamId};
+use crate::org::MemberSet;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -141,7 +142,54 @@ pub enum Body {
     /// An allocation decision: for each child, its members.
     Assignment {
         /// `(child, members)` pairs in child order.
-        assignment: Vec<(BehaviorId, Vec<RobotId>)>,
+        assignment: Vec<(BehaviorId, MemberSet)>,
+    },
+    /// A coordinator's call for bids or costs on these items (children).
+    Call {
+        /// The items.
+        items: Vec<BehaviorId>,
+        /// Auction round (each round awards one item).
+        round: u32,
+    },
+    /// A member's bid in an auction round: its best item and its value.
+    Bid {
+        /// The item bid on.
+        item: BehaviorId,
+        /// The bidder's utility for it (higher is better).
+        value: f64,
+        /// The round.
+        round: u32,
+    },
+    /// An auction round's award.
+    Award {
+        /// The item awarded.
+        item: BehaviorId,
+        /// The winner.
+        winner: RobotId,
+        /// The round.
+        round: u32,
+    },
+    /// A member's utilities for every item of a call, in call order
+    /// (`NaN`: cannot take it).
+    Costs {
+        /// Utilities.
+        values: Vec<f64>,
+    },
+    /// A token for one slot of a child, passed among members.
+    Token {
+        /// Slot number.
+        slot: u32,
+        /// The child the slot belongs to.
+        item: BehaviorId,
+        /// Members it has visited.
+        hops: u32,
+        /// Utility a member needs to keep it.
+        threshold: f64,
+    },
+    /// "I keep the token of this slot."
+    Claim {
+        /// Slot number.
+        slot: u32,
     },
     /// A number a member announces (a bid, a cost, a value read from beliefs).
     Value {
@@ -187,6 +235,12 @@ impl Body {
             Body::Ballot { .. } => "ballot",
             Body::Decision { .. } => "decision",
             Body::Assignment { .. } => "assignment",
+            Body::Call { .. } => "call",
+            Body::Bid { .. } => "bid",
+            Body::Award { .. } => "award",
+            Body::Costs { .. } => "costs",
+            Body::Token { .. } => "token",
+            Body::Claim { .. } => "claim",
             Body::Value { .. } => "value",
             Body::Attribute { .. } => "attribute",
             Body::Done => "done",

@@ -97,7 +97,7 @@ pub fn fallback(cx: &Cx<'_>) -> Outcome {
     match cx.input() {
         PointInput::Sync { candidates, .. } => Outcome::Sync(candidates.first().copied()),
         PointInput::Allocate { children } => {
-            Outcome::Allocate(assign_by_id(&cx.team().members, children))
+            Outcome::Allocate(assign_by_id(&cx.live_set(), children))
         }
         PointInput::Terminate => Outcome::Terminate(None),
     }

@@ -195,7 +195,43 @@ fn envelope() -> impl Strategy<Value = Envelope> {
             ),
             0..3
         )
-        .prop_map(|assignment| Body::Assignment { assignment }),
+        .prop_map(|assignment| Body::Assignment {
+            assignment: assignment
+                .into_iter()
+                .map(|(b, m)| (b, bite_core::org::MemberSet::from_iter(5, m)))
+                .collect()
+        }),
+        (
+            proptest::collection::vec((0u32..14).prop_map(BehaviorId), 0..4),
+            any::<u32>()
+        )
+            .prop_map(|(items, round)| Body::Call { items, round }),
+        ((0u32..14).prop_map(BehaviorId), any::<f64>(), any::<u32>())
+            .prop_map(|(item, value, round)| Body::Bid { item, value, round }),
+        (
+            (0u32..14).prop_map(BehaviorId),
+            (0u32..5).prop_map(RobotId),
+            any::<u32>()
+        )
+            .prop_map(|(item, winner, round)| Body::Award {
+                item,
+                winner,
+                round
+            }),
+        proptest::collection::vec(any::<f64>(), 0..5).prop_map(|values| Body::Costs { values }),
+        (
+            any::<u32>(),
+            (0u32..14).prop_map(BehaviorId),
+            any::<u32>(),
+            any::<f64>()
+        )
+            .prop_map(|(slot, item, hops, threshold)| Body::Token {
+                slot,
+                item,
+                hops,
+                threshold
+            }),
+        any::<u32>().prop_map(|slot| Body::Claim { slot }),
     ];
     (key, (0u32..5).prop_map(RobotId), 0u64..50, body).prop_map(|(instance, sender, seq, body)| {
         Envelope {

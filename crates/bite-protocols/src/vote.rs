@@ -82,6 +82,8 @@ struct Ballot {
     result: Option<Option<BehaviorId>>,
     /// Timer firings so far (for the exponential backoff).
     resends: u32,
+    /// The leader this robot last dealt with (to notice a new leader).
+    known_leader: Option<RobotId>,
 }
 
 fn successors(cx: &Cx<'_>) -> Vec<BehaviorId> {
@@ -112,7 +114,9 @@ impl Ballot {
     }
 
     fn maybe_tally(&mut self, cx: &mut Cx<'_>) {
-        if self.result.is_none() && self.votes.len() >= cx.team_size() {
+        // Votes of members presumed lost since are not waited for.
+        let live_votes = cx.members().filter(|m| self.votes.contains_key(m)).count();
+        if self.result.is_none() && live_votes >= cx.team_size() {
             self.finish(cx);
         }
     }
@@ -122,19 +126,25 @@ impl Ballot {
         self.voted = Some(choice);
         cx.send(cx.leader(), Body::Vote { choice });
     }
+
+    /// Lead the vote: call it, with this robot's own vote.
+    fn call(&mut self, cx: &mut Cx<'_>) {
+        let proposal = successors(cx);
+        let mine = cx.preferred(&proposal);
+        self.votes.insert(cx.me(), mine);
+        cx.broadcast(Body::Propose {
+            candidates: proposal.clone(),
+        });
+        self.proposal = Some(proposal);
+        self.maybe_tally(cx);
+    }
 }
 
 impl Interaction for Ballot {
     fn start(&mut self, cx: &mut Cx<'_>) {
+        self.known_leader = Some(cx.leader());
         if cx.is_leader() {
-            let proposal = successors(cx);
-            let mine = cx.preferred(&proposal);
-            self.votes.insert(cx.me(), mine);
-            cx.broadcast(Body::Propose {
-                candidates: proposal.clone(),
-            });
-            self.proposal = Some(proposal);
-            self.maybe_tally(cx);
+            self.call(cx);
         }
         cx.wake_after_retry();
     }
@@ -178,10 +188,21 @@ impl Interaction for Ballot {
                 ),
                 _ => {}
             },
+            Body::Decision { choice } if cx.is_leader() && self.result.is_none() => {
+                // A member heard the result from the previous leader, now
+                // lost: adopt it, so that all or none apply it.
+                self.result = Some(*choice);
+                cx.broadcast(Body::Decision { choice: *choice });
+                cx.decide(Outcome::Sync(*choice));
+            }
             Body::Decision { choice } if from == leader => {
                 self.result = Some(*choice);
                 cx.decide(Outcome::Sync(*choice));
             }
+            // Leadership changing under a lost leader: a message can reach a
+            // robot that does not know yet that it leads, or no longer does.
+            // The sender's retries recover it.
+            Body::Vote { .. } | Body::Query | Body::Propose { .. } | Body::Decision { .. } => {}
             _ if cx.is_aborted() => {}
             other => cx.violation(format!(
                 "sync.vote: unexpected `{}` from {from}",
@@ -230,6 +251,31 @@ impl Interaction for Ballot {
             // reports the timeout).
             let choice = cx.preferred(&successors(cx));
             cx.decide(Outcome::Sync(choice));
+        }
+    }
+
+    fn on_members_changed(&mut self, cx: &mut Cx<'_>) {
+        let leader = cx.leader();
+        let changed = self.known_leader != Some(leader);
+        self.known_leader = Some(leader);
+        if cx.is_leader() {
+            if self.result.is_some() || cx.is_aborted() {
+                return;
+            }
+            if changed && self.proposal.is_none() {
+                // Took over from a lost leader: call the vote again.
+                self.call(cx);
+            } else {
+                self.maybe_tally(cx);
+            }
+        } else if changed {
+            match (self.result, self.voted) {
+                // Tell the new leader the result we already applied.
+                (Some(choice), _) => cx.send(leader, Body::Decision { choice }),
+                // Or our vote again.
+                (None, Some(choice)) => cx.send(leader, Body::Vote { choice }),
+                (None, None) => {}
+            }
         }
     }
 

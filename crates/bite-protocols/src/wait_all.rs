@@ -77,6 +77,8 @@ struct Barrier {
     /// Leader only, after a release at the deadline: members that had not
     /// arrived and have not acknowledged the release yet.
     stragglers: Vec<RobotId>,
+    /// The leader this robot last reported to (to notice a new leader).
+    reported_to: Option<RobotId>,
 }
 
 /// How many times a leader repeats a deadline release to a straggler.
@@ -99,7 +101,10 @@ impl Barrier {
             return;
         }
         let size = cx.team_size();
-        if self.arrived(cx).len() >= size {
+        let arrived = self.arrived(cx).clone();
+        // Members presumed lost are not waited for.
+        let live_arrived = cx.members().filter(|m| arrived.contains(*m)).count();
+        if live_arrived >= size {
             cx.broadcast(Body::Release { next: None });
             cx.decide(Outcome::Terminate(None));
         }
@@ -120,7 +125,9 @@ impl Interaction for Barrier {
             self.arrived(cx).insert(me);
             self.try_release(cx);
         } else {
-            cx.send(cx.leader(), Body::Done);
+            let leader = cx.leader();
+            self.reported_to = Some(leader);
+            cx.send(leader, Body::Done);
             cx.wake_after_retry();
         }
     }
@@ -136,6 +143,9 @@ impl Interaction for Barrier {
                     return;
                 }
                 self.arrived(cx).insert(from);
+                // It is done here: whatever this robot still runs below
+                // this behavior will not wait for it.
+                cx.member_done(from);
                 cx.send(from, Body::Ack);
                 self.try_release(cx);
             }
@@ -148,6 +158,12 @@ impl Interaction for Barrier {
                 // The leader is alive and knows we are here: keep waiting.
                 cx.postpone_deadline();
             }
+            Body::Release { next } if cx.is_leader() && !cx.is_decided() => {
+                // A member heard the release from the previous leader, now
+                // lost: adopt it, so that all or none apply it.
+                cx.broadcast(Body::Release { next: *next });
+                cx.decide(Outcome::Terminate(*next));
+            }
             Body::Release { next } if from == leader => {
                 if !self.me_done {
                     // Released while still working (the leader's deadline):
@@ -157,6 +173,8 @@ impl Interaction for Barrier {
                 cx.decide(Outcome::Terminate(*next));
             }
             _ if cx.is_aborted() || cx.is_decided() => {}
+            // Leadership changing under a lost leader: see sync.vote.
+            Body::Done | Body::Ack | Body::Release { .. } => {}
             other => cx.violation(format!(
                 "term.wait-all: unexpected `{}` from {from}",
                 other.name()
@@ -211,6 +229,31 @@ impl Interaction for Barrier {
             }
         }
         cx.decide(Outcome::Terminate(None));
+    }
+
+    fn on_members_changed(&mut self, cx: &mut Cx<'_>) {
+        let leader = cx.leader();
+        if cx.is_leader() {
+            // Leading now (or still): count who is left.
+            if self.me_done {
+                let me = cx.me();
+                self.arrived(cx).insert(me);
+            }
+            self.try_release(cx);
+        } else if self.reported_to.is_some_and(|r| r != leader)
+            || (self.me_done && self.reported_to.is_none())
+        {
+            // A new leader: tell it what it needs.
+            self.reported_to = Some(leader);
+            if cx.is_decided() {
+                cx.send(leader, Body::Release { next: None });
+            } else if self.me_done {
+                self.acked = false;
+                self.resends = 0;
+                cx.send(leader, Body::Done);
+                cx.wake_after_retry();
+            }
+        }
     }
 
     fn on_abort(&mut self, cx: &mut Cx<'_>) {

@@ -49,11 +49,31 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
     let mut alloc: BTreeMap<InstanceKey, BTreeMap<RobotId, Vec<(BehaviorId, MembersLog)>>> =
         BTreeMap::new();
     let mut ended: BTreeMap<InstanceKey, Time> = BTreeMap::new();
+    // Who each robot presumes lost, as the run goes (for "could talk").
+    let mut lost_now: BTreeMap<RobotId, BTreeSet<RobotId>> = BTreeMap::new();
+    let mut view_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
     let mut selected: BTreeMap<(TeamId, BehaviorId, u32), BTreeSet<RobotId>> = BTreeMap::new();
     let mut terminated: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
     let mut started: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
     let mut last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32> = BTreeMap::new();
     for rec in &report.history {
+        match &rec.event {
+            Event::MemberLost { member } => {
+                lost_now.entry(rec.robot).or_default().insert(*member);
+            }
+            Event::MemberBack { member } => {
+                lost_now.entry(rec.robot).or_default().remove(member);
+            }
+            Event::InteractionDecided { instance, .. }
+                if matches!(instance.kind, Kind::Sync | Kind::Allocate) =>
+            {
+                view_at.insert(
+                    (*instance, rec.robot),
+                    lost_now.get(&rec.robot).cloned().unwrap_or_default(),
+                );
+            }
+            _ => {}
+        }
         match &rec.event {
             Event::InteractionDecided {
                 instance,
@@ -129,9 +149,22 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
             _ => {}
         }
     }
+    // Two robots that could talk (neither presumed the other lost when it
+    // decided) must agree; robots on two sides of a partition may not.
+    let could_talk = |key: &InstanceKey, a: RobotId, b: RobotId| {
+        let va = view_at.get(&(*key, a));
+        let vb = view_at.get(&(*key, b));
+        !va.is_some_and(|v| v.contains(&b)) && !vb.is_some_and(|v| v.contains(&a))
+    };
+    fn split<T: PartialEq>(
+        m: &BTreeMap<RobotId, T>,
+        talk: &dyn Fn(RobotId, RobotId) -> bool,
+    ) -> bool {
+        m.iter()
+            .any(|(a, x)| m.iter().any(|(b, y)| a < b && talk(*a, *b) && x != y))
+    }
     for (key, choices) in &sync {
-        let distinct: BTreeSet<_> = choices.values().collect();
-        if distinct.len() > 1 {
+        if split(choices, &|a, b| could_talk(key, a, b)) {
             v.push(Violation {
                 invariant: "agreement",
                 detail: format!(
@@ -147,8 +180,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
         }
     }
     for (key, views) in &alloc {
-        let distinct: BTreeSet<_> = views.values().collect();
-        if distinct.len() > 1 {
+        if split(views, &|a, b| could_talk(key, a, b)) {
             v.push(Violation {
                 invariant: "allocation",
                 detail: format!(
@@ -158,86 +190,111 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
             });
             continue;
         }
-        let Some(asg) = views.values().next() else {
-            continue;
-        };
+        // Each distinct assignment (one per view of the team) must be sound,
+        // and each robot must hold a child in its own view when one had room.
         let slots = mission.child_slots(key.behavior);
-        // Member lists are logged for subteams up to 64 robots; larger ones
-        // are compared by fingerprint above and counted here.
-        let mut seen = BTreeSet::new();
-        let mut listed = true;
-        for (_, members) in asg {
-            match members {
-                MembersLog::List(ms) => {
-                    for m in ms {
-                        if !seen.insert(*m) {
-                            v.push(Violation {
-                                invariant: "allocation",
-                                detail: format!(
-                                    "{m} got two children at `{}` ({key})",
-                                    name(key.behavior)
-                                ),
-                            });
+        let distinct: Vec<&Vec<(BehaviorId, MembersLog)>> = {
+            let mut d: Vec<&Vec<(BehaviorId, MembersLog)>> = Vec::new();
+            for a in views.values() {
+                if !d.contains(&a) {
+                    d.push(a);
+                }
+            }
+            d
+        };
+        for asg in distinct {
+            // Member lists are logged for subteams up to 64 robots; larger
+            // ones are compared by fingerprint above and counted here.
+            let mut seen = BTreeSet::new();
+            let mut listed = true;
+            for (_, members) in asg {
+                match members {
+                    MembersLog::List(ms) => {
+                        for m in ms {
+                            if !seen.insert(*m) {
+                                v.push(Violation {
+                                    invariant: "allocation",
+                                    detail: format!(
+                                        "{m} got two children at `{}` ({key})",
+                                        name(key.behavior)
+                                    ),
+                                });
+                            }
                         }
                     }
+                    MembersLog::Summary { .. } => listed = false,
                 }
-                MembersLog::Summary { .. } => listed = false,
             }
-        }
-        let assigned: usize = asg.iter().map(|(_, m)| m.len()).sum();
-        let count = |c: &BehaviorId| {
-            asg.iter()
-                .find(|(b, _)| b == c)
-                .map_or(0, |(_, m)| m.len() as u32)
-        };
-        let spare = asg.iter().any(|(b, m)| {
-            slots
-                .iter()
-                .any(|s| s.behavior == *b && m.len() as u32 > s.min)
-        });
-        for (b, members) in asg {
-            if members.is_empty() && spare {
-                v.push(Violation {
-                    invariant: "allocation",
-                    detail: format!(
-                        "child `{}` left without members at `{}` ({key}) while another child has more than it needs",
-                        name(*b),
-                        name(key.behavior)
-                    ),
-                });
-            }
-        }
-        let room = asg
-            .iter()
-            .any(|(b, _)| slots.iter().any(|s| s.behavior == *b && count(b) < s.max));
-        if !listed && assigned < views.len() && room {
-            v.push(Violation {
-                invariant: "allocation",
-                detail: format!(
-                    "{} of {} members got no child at `{}` ({key}) although a child had room",
-                    views.len() - assigned,
-                    views.len(),
-                    name(key.behavior)
-                ),
+            let count = |c: &BehaviorId| {
+                asg.iter()
+                    .find(|(b, _)| b == c)
+                    .map_or(0, |(_, m)| m.len() as u32)
+            };
+            let spare = asg.iter().any(|(b, m)| {
+                slots
+                    .iter()
+                    .any(|s| s.behavior == *b && m.len() as u32 > s.min)
             });
-        }
-        for r in views.keys().filter(|_| listed) {
-            if !seen.contains(r) && room {
-                v.push(Violation {
-                    invariant: "allocation",
-                    detail: format!(
-                        "{r} got no child at `{}` ({key}) although a child had room",
-                        name(key.behavior)
-                    ),
-                });
+            for (b, members) in asg {
+                if members.is_empty() && spare {
+                    v.push(Violation {
+                        invariant: "allocation",
+                        detail: format!(
+                            "child `{}` left without members at `{}` ({key}) while another child has more than it needs",
+                            name(*b),
+                            name(key.behavior)
+                        ),
+                    });
+                }
+            }
+            let room = asg
+                .iter()
+                .any(|(b, _)| slots.iter().any(|s| s.behavior == *b && count(b) < s.max));
+            let holders: Vec<RobotId> = views
+                .iter()
+                .filter(|(_, a)| *a == asg)
+                .map(|(r, _)| *r)
+                .collect();
+            if !listed {
+                let assigned: usize = asg.iter().map(|(_, m)| m.len()).sum();
+                if assigned < holders.len() && room {
+                    v.push(Violation {
+                        invariant: "allocation",
+                        detail: format!(
+                            "{} of {} members got no child at `{}` ({key}) although a child had room",
+                            holders.len() - assigned,
+                            holders.len(),
+                            name(key.behavior)
+                        ),
+                    });
+                }
+                continue;
+            }
+            for r in holders {
+                if !seen.contains(&r) && room {
+                    v.push(Violation {
+                        invariant: "allocation",
+                        detail: format!(
+                            "{r} got no child at `{}` ({key}) although a child had room",
+                            name(key.behavior)
+                        ),
+                    });
+                }
             }
         }
     }
+    // Robots that crashed for good are not held to anything after their
+    // crash; a paused robot is held to it from its resumption on.
     let crashed: BTreeSet<RobotId> = report
         .crashes
         .iter()
-        .filter(|(_, t)| *t <= report.end)
-        .map(|(r, _)| *r)
+        .filter(|(_, t, until)| *t <= report.end && until.is_none_or(|u| u > report.end))
+        .map(|(r, _, _)| *r)
+        .collect();
+    let resumed: BTreeMap<RobotId, Time> = report
+        .crashes
+        .iter()
+        .filter_map(|(r, _, until)| until.filter(|u| *u <= report.end).map(|u| (*r, u)))
         .collect();
     // A member must end a behavior its team ended within a grace period:
     // two deadlines of the termination binding (time to hear it, with
@@ -263,6 +320,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 .get(&(key.team, key.behavior, key.epoch, *r))
                 .copied();
             let limit = start.map_or(limit, |s| limit.max(s + grace));
+            let limit = resumed.get(r).map_or(limit, |u| limit.max(*u + grace));
             let late = match terminated.get(&(key.team, key.behavior, key.epoch, *r)) {
                 Some(at) => *at > limit,
                 None => report.end > limit,

@@ -52,7 +52,7 @@ impl<'g> Namer<'g> {
                     *v = self.team(TeamId(i));
                 }
             }
-            ("from", J::Number(n)) => {
+            ("from" | "member" | "winner", J::Number(n)) => {
                 if let Some(i) = n.as_u64() {
                     *v = self.robot(RobotId(i as u32));
                 }

@@ -66,7 +66,8 @@ pub enum Cut {
 }
 
 impl Cut {
-    fn blocks(&self, from: RobotId, to: RobotId) -> bool {
+    /// True when this cut drops messages from `from` to `to`.
+    pub fn blocks(&self, from: RobotId, to: RobotId) -> bool {
         match self {
             Cut::Groups(groups) => {
                 let g = |r: RobotId| groups.iter().position(|g| g.contains(&r));

@@ -123,18 +123,32 @@ pub struct RunReport {
     pub finals: Vec<FinalRobot>,
     /// Scenario warnings.
     pub warnings: Vec<Diagnostic>,
-    /// When each robot crashed.
-    pub crashes: Vec<(RobotId, Time)>,
+    /// When each robot crashed, and when it resumed (`None`: never).
+    pub crashes: Vec<(RobotId, Time, Option<Time>)>,
     /// When the run stopped.
     pub end: Time,
 }
 
 enum What {
     Control,
-    Deliver { to: RobotId, env: Arc<Envelope> },
+    Deliver {
+        to: RobotId,
+        env: Arc<Envelope>,
+    },
     Timer(RobotId),
     Fact(usize),
     Crash(RobotId),
+    Resume(RobotId),
+    /// `observer` has not heard from `subject` for `lost_after`.
+    Lost {
+        observer: RobotId,
+        subject: RobotId,
+    },
+    /// `observer` hears from `subject` again.
+    Back {
+        observer: RobotId,
+        subject: RobotId,
+    },
 }
 
 struct Scheduled {
@@ -181,6 +195,10 @@ struct Sim<'a, 'w> {
     times: Vec<Time>,
     graph: Arc<BehaviorGraph>,
     progress: Option<&'a mut dyn FnMut(Progress)>,
+    detector: Option<crate::scenario::FailureDetector>,
+    /// (observer, subject) pairs where the observer presumes the subject lost.
+    suspected: std::collections::BTreeSet<(RobotId, RobotId)>,
+    seed: u64,
 }
 
 impl Sim<'_, '_> {
@@ -261,6 +279,26 @@ impl Sim<'_, '_> {
         self.times = times;
     }
 
+    /// When `observer` notices a change about `subject`: detection happens
+    /// at a heartbeat, so it is spread over one heartbeat period.
+    fn detection_jitter(&self, observer: RobotId, subject: RobotId) -> Duration {
+        let period = self
+            .detector
+            .map_or(0, |d| d.heartbeat.as_micros() as u64)
+            .max(1);
+        let h = derive_seed(
+            self.seed,
+            "detector",
+            observer.0.wrapping_mul(1_000_003) ^ subject.0,
+        );
+        Duration::from_micros(h % period)
+    }
+
+    /// Can `observer` hear `subject` now (not crashed, no partition)?
+    fn hears(&self, observer: RobotId, subject: RobotId) -> bool {
+        !self.crashed[subject.index()] && !self.net.cut(self.now, subject, observer)
+    }
+
     fn live_all_finished(&self) -> bool {
         self.kernels
             .iter()
@@ -275,8 +313,44 @@ impl Sim<'_, '_> {
             self.schedule(at, What::Fact(i));
         }
         for i in 0..self.resolved.crashes.len() {
-            let (r, at) = self.resolved.crashes[i];
+            let (r, at, until) = self.resolved.crashes[i];
             self.schedule(at, What::Crash(r));
+            if let Some(u) = until {
+                self.schedule(u, What::Resume(r));
+            }
+        }
+        // Partitions that outlast the detector's bound make each side
+        // presume the other lost, and heal with it.
+        if let Some(det) = self.detector {
+            let n = self.kernels.len() as u32;
+            let parts = self.net.model().partitions.clone();
+            for p in parts {
+                if p.until - p.from <= det.lost_after {
+                    continue;
+                }
+                for x in 0..n {
+                    for r in 0..n {
+                        let (x, r) = (RobotId(x), RobotId(r));
+                        if x != r && p.cut.blocks(r, x) {
+                            let j = self.detection_jitter(x, r);
+                            self.schedule(
+                                p.from + det.lost_after + j,
+                                What::Lost {
+                                    observer: x,
+                                    subject: r,
+                                },
+                            );
+                            self.schedule(
+                                p.until + j,
+                                What::Back {
+                                    observer: x,
+                                    subject: r,
+                                },
+                            );
+                        }
+                    }
+                }
+            }
         }
         let n = self.kernels.len();
         let mut next_progress = Time::ZERO;
@@ -341,8 +415,63 @@ impl Sim<'_, '_> {
                         self.worlds[r.index()].inject(self.fact_ids[idx].iter().cloned());
                     }
                 }
+                What::Lost { observer, subject } => {
+                    let o = observer.index();
+                    if !self.crashed[o]
+                        && !self.hears(observer, subject)
+                        && self.suspected.insert((observer, subject))
+                    {
+                        self.kernels[o].member_lost(self.now, subject);
+                        self.drain(observer);
+                    }
+                }
+                What::Back { observer, subject } => {
+                    let o = observer.index();
+                    if !self.crashed[o]
+                        && self.hears(observer, subject)
+                        && self.suspected.remove(&(observer, subject))
+                    {
+                        self.kernels[o].member_back(self.now, subject);
+                        self.drain(observer);
+                    }
+                }
+                What::Resume(r) => {
+                    self.crashed[r.index()] = false;
+                    if self.log.is_writing() {
+                        let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "resumed"});
+                        self.log.write(&rec);
+                    }
+                    for x in 0..n as u32 {
+                        let x = RobotId(x);
+                        if x != r {
+                            let j = self.detection_jitter(x, r);
+                            self.schedule(
+                                self.now + j,
+                                What::Back {
+                                    observer: x,
+                                    subject: r,
+                                },
+                            );
+                        }
+                    }
+                }
                 What::Crash(r) => {
                     self.crashed[r.index()] = true;
+                    if let Some(det) = self.detector {
+                        for x in 0..n as u32 {
+                            let x = RobotId(x);
+                            if x != r {
+                                let j = self.detection_jitter(x, r);
+                                self.schedule(
+                                    self.now + det.lost_after + j,
+                                    What::Lost {
+                                        observer: x,
+                                        subject: r,
+                                    },
+                                );
+                            }
+                        }
+                    }
                     if self.log.is_writing() {
                         let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "crashed"});
                         self.log.write(&rec);
@@ -425,6 +554,9 @@ pub fn run(
         times: Vec::new(),
         graph: graph.clone(),
         progress: opts.progress,
+        detector: scenario.failure_detector,
+        suspected: std::collections::BTreeSet::new(),
+        seed,
     };
     let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);
     let period = Duration::from_secs_f64(1.0 / scenario.control_hz);

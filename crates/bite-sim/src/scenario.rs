@@ -150,6 +150,26 @@ struct ScenarioSpec {
     events: Vec<Spanned<EventSpec>>,
     #[serde(default)]
     crashes: Vec<Spanned<CrashSpec>>,
+    failure_detector: Option<Spanned<DetectorSpec>>,
+}
+
+/// How teammates find out that a robot is gone: heartbeats, and a robot
+/// silent for longer than `lost_after` is presumed lost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FailureDetector {
+    /// Silence after which a teammate is presumed lost.
+    pub lost_after: Duration,
+    /// Heartbeat period: detection times spread over one period.
+    pub heartbeat: Duration,
+}
+
+impl Default for FailureDetector {
+    fn default() -> Self {
+        FailureDetector {
+            lost_after: Duration::from_secs(2),
+            heartbeat: Duration::from_millis(250),
+        }
+    }
 }
 
 #[derive(Deserialize, Default)]
@@ -237,6 +257,20 @@ struct EventSpec {
 struct CrashSpec {
     robot: RobotRef,
     at: DurationText,
+    until: Option<DurationText>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DetectorSpec {
+    #[serde(default = "yes")]
+    enabled: bool,
+    lost_after: Option<DurationText>,
+    heartbeat: Option<DurationText>,
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// What a skill does in the timed world.
@@ -278,6 +312,8 @@ pub struct Crash {
     pub robot: RobotRef,
     /// When.
     pub at: Time,
+    /// When it resumes, with its state intact (`None`: never).
+    pub until: Option<Time>,
     /// Where it is written.
     pub loc: Loc,
 }
@@ -315,8 +351,8 @@ pub struct Resolved {
     pub network: NetModel,
     /// Timed facts.
     pub events: Vec<TimedFact>,
-    /// Crashes: who, when.
-    pub crashes: Vec<(RobotId, Time)>,
+    /// Crashes: who, when, and when it resumes (`None`: never).
+    pub crashes: Vec<(RobotId, Time, Option<Time>)>,
     /// Warnings (beliefs nobody reads, skills the scenario does not describe).
     pub warnings: Vec<Diagnostic>,
 }
@@ -348,6 +384,8 @@ pub struct Scenario {
     pub events: Vec<WorldEvent>,
     /// Robot crashes.
     pub crashes: Vec<Crash>,
+    /// Lost-teammate detection (`None`: off).
+    pub failure_detector: Option<FailureDetector>,
 }
 
 impl Default for Scenario {
@@ -365,6 +403,7 @@ impl Default for Scenario {
             skills: BTreeMap::new(),
             events: Vec::new(),
             crashes: Vec::new(),
+            failure_detector: Some(FailureDetector::default()),
         }
     }
 }
@@ -572,16 +611,52 @@ impl Scenario {
         let mut crashes = Vec::new();
         for c in &spec.crashes {
             let loc = Loc::from(c.referenced);
+            let at = Time::ZERO + dur(file, loc, &c.value.at, &mut d);
+            let until = c
+                .value
+                .until
+                .as_ref()
+                .map(|u| Time::ZERO + dur(file, loc, u, &mut d));
+            if until.is_some_and(|u| u <= at) {
+                d.push(Diagnostic::error(
+                    file,
+                    loc,
+                    "bad-value",
+                    "a crash must end (`until`) after it starts (`at`)",
+                ));
+            }
             crashes.push(Crash {
                 robot: c.value.robot.clone(),
-                at: Time::ZERO + dur(file, loc, &c.value.at, &mut d),
+                at,
+                until,
                 loc,
             });
         }
+        let failure_detector = match &spec.failure_detector {
+            None => Some(FailureDetector::default()),
+            Some(f) if !f.value.enabled => None,
+            Some(f) => {
+                let loc = Loc::from(f.referenced);
+                let base = FailureDetector::default();
+                Some(FailureDetector {
+                    lost_after: f
+                        .value
+                        .lost_after
+                        .as_ref()
+                        .map_or(base.lost_after, |t| dur(file, loc, t, &mut d)),
+                    heartbeat: f
+                        .value
+                        .heartbeat
+                        .as_ref()
+                        .map_or(base.heartbeat, |t| dur(file, loc, t, &mut d)),
+                })
+            }
+        };
         if d.iter().any(Diagnostic::is_error) {
             return Err(Diagnostics(d));
         }
         Ok(Scenario {
+            failure_detector,
             name: spec.scenario.unwrap_or_else(|| {
                 Path::new(&**file)
                     .file_stem()
@@ -658,7 +733,7 @@ impl Scenario {
         let mut crashes = Vec::new();
         for c in &self.crashes {
             if let Some(r) = one(&c.robot, c.loc) {
-                crashes.push((r, c.at));
+                crashes.push((r, c.at, c.until));
             }
         }
         if !errors.is_empty() {

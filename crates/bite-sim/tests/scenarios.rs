@@ -289,15 +289,84 @@ fn scenario_errors_name_the_file_and_place() {
 
 #[test]
 fn a_crashed_robot_does_not_hang_the_team() {
-    // Without failure detection (lost-teammate handling comes with the
-    // protocol library), the barrier's deadline turns the silence into a
-    // decision: the survivors time out and complete.
     let g = graph("formation.yaml", FORMATION);
+    // With failure detection (the default): the survivors presume it lost
+    // after `lost_after` and their protocols decide without it.
     let text = format!("{FORMATION_SC}\ncrashes:\n  - {{ robot: r2, at: 8s }}\n");
     let o = simulate(&g, &scenario("crash.yaml", &text), 1);
     let s = &o.report.summary;
     assert_eq!(s.crashed_robots, 1);
     assert!(s.completed, "{s}\n{}", replay(&o));
-    assert!(s.timeouts > 0, "the silence was a timeout and a decision");
+    assert_eq!(s.timeouts, 0, "nobody waited for a deadline: {s}");
+    let lost: Vec<_> = o
+        .report
+        .history
+        .iter()
+        .filter(|r| matches!(r.event, Event::MemberLost { member: RobotId(2) }))
+        .map(|r| (r.robot, r.t))
+        .collect();
+    assert_eq!(lost.len(), 2, "both survivors noticed: {lost:?}");
+    for (_, t) in &lost {
+        let after = t.as_secs_f64() - 8.0;
+        assert!(
+            (2.0..2.3).contains(&after),
+            "detected {after:.3} s after the crash"
+        );
+    }
     assert_clean(&o, "crash");
+
+    // Without it, the barrier's deadline turns the silence into a decision.
+    let text = format!(
+        "{FORMATION_SC}\nfailure_detector: {{ enabled: false }}\ncrashes:\n  - {{ robot: r2, at: 8s }}\n"
+    );
+    let o = simulate(&g, &scenario("crash.yaml", &text), 1);
+    let s = &o.report.summary;
+    assert!(s.completed, "{s}\n{}", replay(&o));
+    assert!(s.timeouts > 0, "the silence was a timeout and a decision");
+    assert!(s.task_time > 70.0, "and cost the deadline: {s}");
+    assert_clean(&o, "crash without detection");
+}
+
+#[test]
+fn the_team_carries_on_when_its_leader_crashes() {
+    // r0 leads every team protocol; it crashes during the first triangle
+    // leg. r1 takes over barriers and votes.
+    let g = graph("formation.yaml", FORMATION);
+    let cfg = Config::load_str(
+        &Arc::from("votes.yaml"),
+        "bindings: { A: sync.vote, B: sync.vote, D: sync.vote }",
+    )
+    .unwrap_or_else(|d| panic!("{d}"));
+    for g in [
+        g.clone(),
+        g.with_config(&cfg).unwrap_or_else(|d| panic!("{d}")),
+    ] {
+        for at in ["2.1s", "8s", "14.7s", "31s"] {
+            let text = format!("{FORMATION_SC}\ncrashes:\n  - {{ robot: r0, at: {at} }}\n");
+            let o = simulate(&g, &scenario("leader-crash.yaml", &text), 1);
+            let s = &o.report.summary;
+            assert!(s.completed, "leader crashed at {at}: {s}\n{}", replay(&o));
+            assert_eq!(s.timeouts, 0, "leader crashed at {at}: {s}");
+            assert_clean(&o, &format!("leader crash at {at}"));
+        }
+    }
+}
+
+#[test]
+fn a_paused_robot_rejoins() {
+    // r2 stops for 15 s, long enough to be presumed lost, then resumes with
+    // its state: the others went on without it; it catches up.
+    let g = graph("formation.yaml", FORMATION);
+    let text = format!("{FORMATION_SC}\ncrashes:\n  - {{ robot: r2, at: 5s, until: 20s }}\n");
+    let o = simulate(&g, &scenario("pause.yaml", &text), 1);
+    let s = &o.report.summary;
+    assert!(s.completed, "{s}\n{}", replay(&o));
+    let back = o
+        .report
+        .history
+        .iter()
+        .filter(|r| matches!(r.event, Event::MemberBack { member: RobotId(2) }))
+        .count();
+    assert_eq!(back, 2, "both teammates hear r2 again");
+    assert_clean(&o, "pause");
 }

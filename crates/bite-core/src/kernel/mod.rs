@@ -104,6 +104,10 @@ pub struct Frame {
     /// frame, during this execution of it (what `runs` reads in conditions).
     #[serde(skip)]
     runs: BTreeMap<BehaviorId, u32>,
+    /// Teammates known to be done with this behavior: left out of every
+    /// instance below it.
+    #[serde(skip)]
+    departed: Option<MemberSet>,
 }
 
 impl Frame {
@@ -166,6 +170,10 @@ pub enum Input<'a> {
     Message(Envelope),
     /// A timer fired (see [`Kernel::poll_timeout`]).
     Timer,
+    /// A teammate is presumed lost.
+    MemberLost(RobotId),
+    /// A teammate presumed lost is heard again.
+    MemberBack(RobotId),
 }
 
 /// Counters of one kernel.
@@ -201,6 +209,9 @@ enum State {
 
 struct Instance {
     protocol: &'static str,
+    /// Members presumed lost when it started or since (it decides without
+    /// them; a member that comes back joins at the next instance).
+    excluded: Option<MemberSet>,
     /// The team as it was when the instance started: the instance can
     /// still answer teammates after this robot dissolved the team.
     team: crate::org::Team,
@@ -275,6 +286,8 @@ pub struct Kernel {
     /// Highest epoch known to be over, per (team, behavior, kind).
     closed: BTreeMap<(TeamId, BehaviorId, Kind), u32>,
     pending: BTreeMap<InstanceKey, Vec<Pending>>,
+    /// Teammates presumed lost (reported by the runtime).
+    lost: MemberSet,
     /// Outcomes of forgotten instances, to answer late teammates.
     tombstones: BTreeMap<InstanceKey, Closed>,
     tomb_order: VecDeque<InstanceKey>,
@@ -321,6 +334,7 @@ impl Kernel {
             instances: BTreeMap::new(),
             closed: BTreeMap::new(),
             pending: BTreeMap::new(),
+            lost: MemberSet::empty(n),
             tombstones: BTreeMap::new(),
             tomb_order: VecDeque::new(),
             pending_len: 0,
@@ -352,6 +366,8 @@ impl Kernel {
             Input::Tick { percepts } => self.tick(now, percepts),
             Input::Message(env) => self.message(now, env),
             Input::Timer => self.timer(now),
+            Input::MemberLost(r) => self.member_lost(now, r),
+            Input::MemberBack(r) => self.member_back(now, r),
         }
     }
 
@@ -382,6 +398,52 @@ impl Kernel {
     pub fn timer(&mut self, now: Time) {
         self.set_now(now);
         self.step();
+    }
+
+    /// The runtime presumes teammate `r` lost (no heartbeat for longer than
+    /// its bound). Running protocol instances decide without it from now on.
+    pub fn member_lost(&mut self, now: Time, r: RobotId) {
+        self.set_now(now);
+        if r == self.me || !self.lost.insert(r) {
+            return;
+        }
+        self.emit(Event::MemberLost { member: r });
+        let affected: Vec<InstanceKey> = self
+            .instances
+            .iter()
+            .filter(|(_, i)| {
+                i.team.contains(r)
+                    && (matches!(i.state, State::Armed | State::Active) || i.wake.is_some())
+            })
+            .map(|(k, _)| *k)
+            .collect();
+        let n = self.org.roster_len();
+        for k in affected {
+            if let Some(i) = self.instances.get_mut(&k) {
+                i.excluded
+                    .get_or_insert_with(|| MemberSet::empty(n))
+                    .insert(r);
+            }
+            self.call(k, |imp, cx| imp.on_members_changed(cx));
+        }
+        self.refresh_due();
+        self.step();
+    }
+
+    /// The runtime hears teammate `r` again. It takes part again from the
+    /// next protocol instance on (running ones go on without it).
+    pub fn member_back(&mut self, now: Time, r: RobotId) {
+        self.set_now(now);
+        if self.lost.contains(r) {
+            self.lost.remove(r);
+            self.emit(Event::MemberBack { member: r });
+        }
+        self.step();
+    }
+
+    /// Teammates currently presumed lost.
+    pub fn lost(&self) -> &MemberSet {
+        &self.lost
     }
 
     /// Set a belief from outside the tick (e.g. the world model relaying a
@@ -759,6 +821,7 @@ impl Kernel {
             until_false_at: None,
             born: self.ticks,
             runs: BTreeMap::new(),
+            departed: None,
         });
         self.stack_version += 1;
         self.stats.selections += 1;
@@ -1059,7 +1122,22 @@ impl Kernel {
         let Some(team) = self.org.team(key.team).cloned() else {
             return;
         };
+        // Lost teammates are left out of every instance (every robot learns
+        // of them within a heartbeat). Teammates that left an ancestor are
+        // known to that barrier's leader only, so only protocols that wait
+        // on teammates leave them out: a silent rule must compute from what
+        // every member shares.
+        let mut gone = self.lost.clone();
+        if bound.protocol.communicates() {
+            for f in &self.stack {
+                if let Some(d) = &f.departed {
+                    gone.union_with(d);
+                }
+            }
+        }
+        let excluded = (!gone.is_empty() && !team.members.is_disjoint(&gone)).then_some(gone);
         let inst = Instance {
+            excluded,
             protocol: bound.protocol.name(),
             team,
             closed: None,
@@ -1136,6 +1214,7 @@ impl Kernel {
                 me: self.me,
                 key,
                 team: self.org.team(key.team).unwrap_or(&inst.team),
+                excluded: inst.excluded.as_ref(),
                 org: &self.org,
                 runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
                 graph: self.mission.graph(),
@@ -1151,8 +1230,53 @@ impl Kernel {
             });
             f(&mut *inst.imp, &mut cx);
         }
+        let departed = std::mem::take(&mut fx.departed);
         self.apply_effects(key, &mut inst, fx);
         self.instances.insert(key, inst);
+        if !departed.is_empty() {
+            self.departures(key, &departed);
+        }
+    }
+
+    /// Teammates done with the behavior of termination instance `key`:
+    /// leave them out of every instance below that behavior.
+    fn departures(&mut self, key: InstanceKey, who: &[RobotId]) {
+        let Some(i) = self.stack.iter().position(|f| f.term_key() == key) else {
+            return;
+        };
+        let n = self.org.roster_len();
+        let set = self.stack[i]
+            .departed
+            .get_or_insert_with(|| MemberSet::empty(n));
+        for r in who {
+            set.insert(*r);
+        }
+        // The termination instances of the frames down to this one are not
+        // below it; every other running instance is.
+        let above: Vec<InstanceKey> = self.stack[..=i].iter().map(Frame::term_key).collect();
+        let below: Vec<InstanceKey> = self
+            .instances
+            .iter()
+            .filter(|(k, inst)| {
+                !above.contains(k)
+                    && matches!(inst.state, State::Armed | State::Active)
+                    && who.iter().any(|r| inst.team.contains(*r))
+                    && self
+                        .mission
+                        .bound(k.behavior, k.kind)
+                        .is_some_and(|b| b.protocol.communicates())
+            })
+            .map(|(k, _)| *k)
+            .collect();
+        for k in below {
+            if let Some(inst) = self.instances.get_mut(&k) {
+                let ex = inst.excluded.get_or_insert_with(|| MemberSet::empty(n));
+                for r in who {
+                    ex.insert(*r);
+                }
+            }
+            self.call(k, |imp, cx| imp.on_members_changed(cx));
+        }
     }
 
     fn apply_effects(&mut self, key: InstanceKey, inst: &mut Instance, fx: Effects) {
