@@ -68,14 +68,29 @@ impl TeamId {
 
     /// The id of the subteam that executes child number `child` of allocation
     /// point `point`, allocated by `parent` during its `epoch`-th execution of
-    /// the point. Stable across processes, platforms and compiler versions
-    /// (FNV-1a over little-endian bytes).
-    pub fn derive(parent: TeamId, point: BehaviorId, epoch: u32, child: u32) -> TeamId {
+    /// the point, with members whose [`MemberSet::fingerprint`] is `members`.
+    /// Stable across processes, platforms and compiler versions (FNV-1a over
+    /// little-endian bytes).
+    ///
+    /// The members are part of the identity: robots whose views of an
+    /// allocation diverged (one timed out and applied its own) are in
+    /// *different* teams, and never mistake each other's messages for their
+    /// own team's.
+    ///
+    /// [`MemberSet::fingerprint`]: crate::org::MemberSet::fingerprint
+    pub fn derive(
+        parent: TeamId,
+        point: BehaviorId,
+        epoch: u32,
+        child: u32,
+        members: u64,
+    ) -> TeamId {
         let mut h = Fnv1a::new();
         h.write(&parent.0.to_le_bytes());
         h.write(&point.0.to_le_bytes());
         h.write(&epoch.to_le_bytes());
         h.write(&child.to_le_bytes());
+        h.write(&members.to_le_bytes());
         TeamId(h.finish())
     }
 }
@@ -123,16 +138,20 @@ impl Default for Fnv1a {
 mod tests {
     use super::*;
 
+    const PINNED: u64 = 0x877b_e91b_8276_c32a;
+
     #[test]
     fn derived_team_ids_are_stable_and_distinct() {
-        let a = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 0);
-        let b = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 1);
-        let c = TeamId::derive(TeamId::ROOT, BehaviorId(3), 2, 0);
+        let a = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 0, 7);
+        let b = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 1, 7);
+        let c = TeamId::derive(TeamId::ROOT, BehaviorId(3), 2, 0, 7);
+        let d = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 0, 8);
         assert_ne!(a, b);
         assert_ne!(a, c);
+        assert_ne!(a, d, "other members, another team");
         // Pinned value: a change here breaks interoperability between
         // robot processes built from different versions.
-        assert_eq!(a, TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 0));
+        assert_eq!(a, TeamId(PINNED));
         assert_eq!(Fnv1a::new().finish(), 0xcbf2_9ce4_8422_2325);
         let mut h = Fnv1a::new();
         h.write(b"a");

@@ -17,9 +17,10 @@
 //! (first candidate / allocation by id / local termination) and reports a
 //! timeout.
 
-use crate::belief::BeliefStore;
+use crate::belief::{BeliefStore, Symbols};
+use crate::cond::{Expr, Resolver};
 use crate::graph::BehaviorGraph;
-use crate::ids::{BehaviorId, RobotId};
+use crate::ids::{BehaviorId, BeliefId, RobotId};
 use crate::msg::{Body, InstanceKey, Kind};
 use crate::org::{MemberSet, Organization, Team};
 use crate::roster::Roster;
@@ -57,25 +58,129 @@ pub trait Protocol: Send + Sync {
         Duration::from_secs(5)
     }
     /// Validate `params` (JSON `null` when none are given) and return a
-    /// factory of instances configured with them.
-    fn configure(&self, params: &Params) -> Result<Factory, String>;
+    /// factory of instances configured with them. `setup` knows the point
+    /// being bound and compiles expressions written in parameters.
+    fn configure(&self, params: &Params, setup: &mut Setup<'_>) -> Result<Factory, String>;
     /// The answer to a teammate's late message for an instance this robot
     /// has finished and forgotten (only its outcome is remembered): a
     /// barrier answers a late arrival with its release, a vote answers a
     /// late vote with its result. `None`: no answer.
-    fn late_reply(&self, _closed: Closed, _body: &Body) -> Option<Body> {
+    fn late_reply(&self, _closed: &Closed, _body: &Body) -> Option<Body> {
         None
     }
 }
 
+/// What [`Protocol::configure`] may consult: the graph, the point being
+/// bound, and a compiler for expressions written in parameters (their
+/// belief names join the graph's symbol table).
+pub struct Setup<'a> {
+    graph: &'a BehaviorGraph,
+    symbols: &'a mut Symbols,
+    point: BehaviorId,
+    kind: Kind,
+}
+
+impl<'a> Setup<'a> {
+    /// A setup for binding a protocol at point (`point`, `kind`) of `graph`;
+    /// new belief names are interned into `symbols` (a copy of the graph's
+    /// table that the caller stores back).
+    pub fn new(
+        graph: &'a BehaviorGraph,
+        symbols: &'a mut Symbols,
+        point: BehaviorId,
+        kind: Kind,
+    ) -> Self {
+        Setup {
+            graph,
+            symbols,
+            point,
+            kind,
+        }
+    }
+    /// The graph.
+    pub fn graph(&self) -> &'a BehaviorGraph {
+        self.graph
+    }
+    /// The point behavior.
+    pub fn point(&self) -> BehaviorId {
+        self.point
+    }
+    /// The point's kind.
+    pub fn kind(&self) -> Kind {
+        self.kind
+    }
+    /// The behavior called `name` if it is a child of the point (for
+    /// parameters that talk about children, e.g. roles).
+    pub fn child(&self, name: &str) -> Result<BehaviorId, String> {
+        let children = &self.graph.behavior(self.point).children;
+        match self.graph.find(name) {
+            Some(b) if children.contains(&b) => Ok(b),
+            _ => {
+                let names: Vec<&str> = children.iter().map(|c| self.graph.name_of(*c)).collect();
+                Err(format!(
+                    "`{name}` is not a child of `{}` (its children: {})",
+                    self.graph.name_of(self.point),
+                    names.join(", ")
+                ))
+            }
+        }
+    }
+    /// Compile an expression written in a parameter; `want` is the type it
+    /// must have (`"number"` or `"bool"`), if any.
+    pub fn expr(&mut self, src: &str, want: Option<&str>) -> Result<Expr, String> {
+        struct R<'s> {
+            symbols: &'s mut Symbols,
+            graph: &'s BehaviorGraph,
+        }
+        impl Resolver for R<'_> {
+            fn belief(&mut self, name: &str) -> BeliefId {
+                self.symbols.intern(name)
+            }
+            fn behavior(&self, name: &str) -> Option<BehaviorId> {
+                self.graph.find(name)
+            }
+            fn behavior_names(&self) -> Vec<&str> {
+                self.graph
+                    .behaviors()
+                    .iter()
+                    .map(|b| b.name.as_str())
+                    .collect()
+            }
+        }
+        let mut r = R {
+            symbols: self.symbols,
+            graph: self.graph,
+        };
+        let e = Expr::parse(src, &mut r).map_err(|e| format!("in `{src}`: {e}"))?;
+        if let (Some(want), Some(ty)) = (want, e.static_type())
+            && want != ty
+        {
+            return Err(format!("`{src}` is a {ty}, a {want} is expected"));
+        }
+        Ok(e)
+    }
+}
+
+/// Decode typed parameters: `null` gives the defaults; unknown fields and
+/// wrong types are errors that say what was expected.
+pub fn parse_params<T: serde::de::DeserializeOwned + Default>(
+    name: &str,
+    params: &Params,
+) -> Result<T, String> {
+    if params.is_null() {
+        return Ok(T::default());
+    }
+    serde_json::from_value(params.clone()).map_err(|e| format!("`{name}`: {e}"))
+}
+
 /// How an instance this robot has forgotten ended (what
 /// [`Protocol::late_reply`] can rely on).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Closed {
     /// A synchronization that chose this successor (`None`: chain ended).
     Synced(Option<BehaviorId>),
-    /// An allocation.
-    Allocated,
+    /// An allocation, with the assignment it applied.
+    Allocated(Arc<Assignment>),
     /// A termination, with its replacement behavior if any.
     Terminated(Option<BehaviorId>),
     /// This robot left before the instance decided.
@@ -370,6 +475,18 @@ impl<'a> Cx<'a> {
             own: b,
         };
         u.eval_value(&env)?.as_num().filter(|x| x.is_finite())
+    }
+    /// Evaluate an expression (e.g. a protocol parameter) over this robot's
+    /// beliefs; `None` when a belief it needs is unknown.
+    pub fn eval(&self, e: &Expr) -> Option<crate::value::Value> {
+        let env = crate::belief::BeliefEnv {
+            beliefs: self.beliefs,
+            runs: self.runs,
+            now: self.now,
+            started: self.now,
+            own: self.key.behavior,
+        };
+        e.eval_value(&env)
     }
     /// This robot's preference among `options`, restricted to the
     /// candidates enabled for it: highest utility, ties and behaviors

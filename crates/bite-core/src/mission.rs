@@ -5,7 +5,7 @@
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
 use crate::graph::{BehaviorGraph, Binding};
 use crate::ids::BehaviorId;
-use crate::interaction::{ChildSlot, Factory, Params, Protocol, Registry};
+use crate::interaction::{ChildSlot, Factory, Params, Protocol, Registry, Setup};
 use crate::msg::Kind;
 use std::fmt;
 use std::sync::Arc;
@@ -53,14 +53,18 @@ pub struct Mission {
 impl Mission {
     /// Resolve every point's binding against `registry`: the protocol must
     /// exist, be of the point's kind, and accept its parameters.
-    pub fn new(graph: BehaviorGraph, registry: &Registry) -> Result<Mission, Diagnostics> {
+    pub fn new(mut graph: BehaviorGraph, registry: &Registry) -> Result<Mission, Diagnostics> {
         let mut diags = Vec::new();
+        // Expressions in protocol parameters may name beliefs no condition
+        // of the graph mentions: they join the symbol table.
+        let mut symbols = (**graph.symbols()).clone();
         let mut bound: Vec<[Option<Bound>; 3]> = Vec::with_capacity(graph.len());
         for b in graph.behaviors() {
             let mut row: [Option<Bound>; 3] = [None, None, None];
             for kind in Kind::ALL {
                 if graph.is_point(b.id, kind) {
-                    row[kind.index()] = resolve(&graph, registry, b.id, kind, &mut diags);
+                    let mut setup = Setup::new(&graph, &mut symbols, b.id, kind);
+                    row[kind.index()] = resolve(registry, &mut setup, &mut diags);
                 }
             }
             bound.push(row);
@@ -84,6 +88,7 @@ impl Mission {
         if !diags.is_empty() {
             return Err(Diagnostics(diags));
         }
+        graph.set_symbols(Arc::new(symbols));
         let slots = graph
             .behaviors()
             .iter()
@@ -184,12 +189,11 @@ fn check_protocol<'r>(
 }
 
 fn resolve(
-    graph: &BehaviorGraph,
     registry: &Registry,
-    b: BehaviorId,
-    kind: Kind,
+    setup: &mut Setup<'_>,
     diags: &mut Vec<Diagnostic>,
 ) -> Option<Bound> {
+    let (graph, b, kind) = (setup.graph(), setup.point(), setup.kind());
     let point = graph.point_name(b, kind);
     let own = graph.own_binding(b, kind);
     let def = graph.default_binding(kind);
@@ -218,12 +222,13 @@ fn resolve(
         Some(o) if o.protocol.is_some() => Params::Null,
         _ => def.map_or(Params::Null, |d| d.params.clone()),
     };
-    let factory = match protocol.configure(&params) {
+    let (file, loc) = (at.file.clone(), at.loc);
+    let factory = match protocol.configure(&params, setup) {
         Ok(f) => f,
         Err(e) => {
             diags.push(Diagnostic::error(
-                &at.file,
-                at.loc,
+                &file,
+                loc,
                 "bad-params",
                 format!("parameters of `{}` at {point}: {e}", protocol.name()),
             ));

@@ -139,17 +139,24 @@ pub enum Body {
         /// The selected successor.
         choice: Option<BehaviorId>,
     },
-    /// An allocation decision: for each child, its members.
+    /// An allocation decision, compact on the wire (a few bytes per
+    /// assigned member, whatever the roster size): the children in order,
+    /// and for each assigned member the index of its child.
     Assignment {
-        /// `(child, members)` pairs in child order.
-        assignment: Vec<(BehaviorId, MemberSet)>,
+        /// The children, in order.
+        children: Vec<BehaviorId>,
+        /// `(member, index into children)`, in member order.
+        members: Vec<(RobotId, u32)>,
     },
-    /// A coordinator's call for bids or costs on these items (children).
+    /// An auction round: the coordinator calls for bids on these items
+    /// (children with places left) and names the previous round's winner.
     Call {
         /// The items.
         items: Vec<BehaviorId>,
-        /// Auction round (each round awards one item).
+        /// Auction round, from 1 (each round awards one place).
         round: u32,
+        /// Who won the previous round (it bids no more).
+        winner: Option<RobotId>,
     },
     /// A member's bid in an auction round: its best item and its value.
     Bid {
@@ -160,20 +167,10 @@ pub enum Body {
         /// The round.
         round: u32,
     },
-    /// An auction round's award.
-    Award {
-        /// The item awarded.
-        item: BehaviorId,
-        /// The winner.
-        winner: RobotId,
-        /// The round.
-        round: u32,
-    },
-    /// A member's utilities for every item of a call, in call order
-    /// (`NaN`: cannot take it).
+    /// A member's utility for each child it can take.
     Costs {
-        /// Utilities.
-        values: Vec<f64>,
+        /// `(child, utility)` pairs; higher is better.
+        values: Vec<(BehaviorId, f64)>,
     },
     /// A token for one slot of a child, passed among members.
     Token {
@@ -227,6 +224,41 @@ pub enum Body {
 }
 
 impl Body {
+    /// The wire form of an allocation.
+    pub fn assignment(a: &crate::interaction::Assignment) -> Body {
+        let mut members: Vec<(RobotId, u32)> =
+            a.0.iter()
+                .enumerate()
+                .flat_map(|(i, (_, m))| m.iter().map(move |r| (r, i as u32)))
+                .collect();
+        members.sort_unstable();
+        Body::Assignment {
+            children: a.0.iter().map(|(c, _)| *c).collect(),
+            members,
+        }
+    }
+
+    /// The allocation an `Assignment` message carries, over a roster of
+    /// `roster_len`; `None` if it is not one or is malformed (a member
+    /// twice, a child index out of range, a robot outside the roster).
+    pub fn to_assignment(&self, roster_len: usize) -> Option<crate::interaction::Assignment> {
+        let Body::Assignment { children, members } = self else {
+            return None;
+        };
+        let mut sets: Vec<(BehaviorId, MemberSet)> = children
+            .iter()
+            .map(|c| (*c, MemberSet::empty(roster_len)))
+            .collect();
+        let mut seen = MemberSet::empty(roster_len);
+        for (r, i) in members {
+            if r.index() >= roster_len || !seen.insert(*r) {
+                return None;
+            }
+            sets.get_mut(*i as usize)?.1.insert(*r);
+        }
+        Some(crate::interaction::Assignment(sets))
+    }
+
     /// A short name for logs and counters.
     pub fn name(&self) -> &'static str {
         match self {
@@ -237,7 +269,6 @@ impl Body {
             Body::Assignment { .. } => "assignment",
             Body::Call { .. } => "call",
             Body::Bid { .. } => "bid",
-            Body::Award { .. } => "award",
             Body::Costs { .. } => "costs",
             Body::Token { .. } => "token",
             Body::Claim { .. } => "claim",
@@ -335,6 +366,32 @@ mod tests {
         let bytes = encode(&e);
         assert_eq!(bytes.len(), encoded_len(&e));
         assert_eq!(decode(&bytes).unwrap(), e);
+    }
+
+    #[test]
+    fn assignments_roundtrip_compactly() {
+        use crate::interaction::Assignment;
+        let n = 1000;
+        let a = Assignment(
+            (0..n as u32)
+                .map(|c| (BehaviorId(c), MemberSet::from_iter(n, [RobotId(c)])))
+                .collect(),
+        );
+        let body = Body::assignment(&a);
+        assert_eq!(body.to_assignment(n), Some(a));
+        let env = Envelope { body, ..sample() };
+        // A thousand children of a thousand robots: well under the limit.
+        assert!(encoded_len(&env) < 8 * 1024, "{}", encoded_len(&env));
+        let twice = Body::Assignment {
+            children: vec![BehaviorId(1), BehaviorId(2)],
+            members: vec![(RobotId(0), 0), (RobotId(0), 1)],
+        };
+        assert_eq!(twice.to_assignment(4), None);
+        let out_of_range = Body::Assignment {
+            children: vec![BehaviorId(1)],
+            members: vec![(RobotId(0), 3)],
+        };
+        assert_eq!(out_of_range.to_assignment(4), None);
     }
 
     #[test]

@@ -160,7 +160,11 @@ macro_rules! silent_protocol {
             fn summary(&self) -> &'static str {
                 $summary
             }
-            fn configure(&self, params: &Params) -> Result<Factory, String> {
+            fn configure(
+                &self,
+                params: &Params,
+                _: &mut crate::interaction::Setup<'_>,
+            ) -> Result<Factory, String> {
                 no_params($name, params)?;
                 Ok(Arc::new(|| {
                     Box::new(Silent { name: $name }) as Box<dyn Interaction>

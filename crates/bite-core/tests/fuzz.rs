@@ -188,37 +188,25 @@ fn envelope() -> impl Strategy<Value = Envelope> {
         ("[a-z]{0,6}", "[a-z]{0,6}").prop_map(|(name, value)| Body::Attribute { name, value }),
         (any::<u16>(), proptest::collection::vec(any::<u8>(), 0..16))
             .prop_map(|(tag, data)| Body::Custom { tag, data }),
-        proptest::collection::vec(
-            (
-                (0u32..14).prop_map(BehaviorId),
-                proptest::collection::vec((0u32..5).prop_map(RobotId), 0..4)
-            ),
-            0..3
+        (
+            proptest::collection::vec((0u32..14).prop_map(BehaviorId), 0..3),
+            proptest::collection::vec(((0u32..6).prop_map(RobotId), 0u32..4), 0..5)
         )
-        .prop_map(|assignment| Body::Assignment {
-            assignment: assignment
-                .into_iter()
-                .map(|(b, m)| (b, bite_core::org::MemberSet::from_iter(5, m)))
-                .collect()
-        }),
+            .prop_map(|(children, members)| Body::Assignment { children, members }),
         (
             proptest::collection::vec((0u32..14).prop_map(BehaviorId), 0..4),
-            any::<u32>()
+            any::<u32>(),
+            proptest::option::of((0u32..5).prop_map(RobotId))
         )
-            .prop_map(|(items, round)| Body::Call { items, round }),
+            .prop_map(|(items, round, winner)| Body::Call {
+                items,
+                round,
+                winner
+            }),
         ((0u32..14).prop_map(BehaviorId), any::<f64>(), any::<u32>())
             .prop_map(|(item, value, round)| Body::Bid { item, value, round }),
-        (
-            (0u32..14).prop_map(BehaviorId),
-            (0u32..5).prop_map(RobotId),
-            any::<u32>()
-        )
-            .prop_map(|(item, winner, round)| Body::Award {
-                item,
-                winner,
-                round
-            }),
-        proptest::collection::vec(any::<f64>(), 0..5).prop_map(|values| Body::Costs { values }),
+        proptest::collection::vec(((0u32..14).prop_map(BehaviorId), any::<f64>()), 0..5)
+            .prop_map(|values| Body::Costs { values }),
         (
             any::<u32>(),
             (0u32..14).prop_map(BehaviorId),

@@ -188,8 +188,12 @@ impl Protocol for WaitAllStandIn {
     fn summary(&self) -> &'static str {
         "test stand-in for term.wait-all"
     }
-    fn configure(&self, params: &Params) -> Result<Factory, String> {
-        bite_core::rules::TermLocal.configure(params)
+    fn configure(
+        &self,
+        params: &Params,
+        setup: &mut bite_core::interaction::Setup<'_>,
+    ) -> Result<Factory, String> {
+        bite_core::rules::TermLocal.configure(params, setup)
     }
 }
 

@@ -8,26 +8,46 @@
 //! | name | paper | kind | messages per decision (team of n ≥ 2, no faults) |
 //! |---|---|---|---|
 //! | `sync.by-rule` | SF1 | sync | 0 |
-//! | `sync.vote` | SF8 | sync | n + 1 (call, n−1 votes, result) |
+//! | `sync.leader` | SF4 | sync | 1 |
+//! | `sync.elected-leader` | SF5 | sync | n |
+//! | `sync.round-robin` | SF7 | sync | 0 |
+//! | `sync.vote` | SF8 | sync | n + 1 |
+//! | `sync.ranked-vote` | SF9 | sync | n + 1 |
 //! | `alloc.by-id` | SF2 | allocate | 0 |
+//! | `alloc.by-value` | SF3 | allocate | n |
+//! | `alloc.by-attribute` | SF6 | allocate | n |
+//! | `alloc.auction` | S2 | allocate | P calls + bids (≤ P(n−1)) + 1, P places |
+//! | `alloc.optimal` | — | allocate | n |
+//! | `alloc.token` | — | allocate | 2P + passes + 1 − (leader's own) |
 //! | `term.local` | — | terminate | 0 |
-//! | `term.wait-all` | S3 | terminate | 2n − 1 (n−1 arrivals, n−1 acks, release) |
+//! | `term.wait-all` | S3 | terminate | 2n − 1 |
+//! | `term.majority` | — | terminate | ≈ 2⌊n/2⌋ + ⌈n/2⌉ |
+//! | `term.first-wins` | — | terminate | n (goal seen) |
 //!
-//! The silent rules live in `bite-core` (they are also the kernel's
-//! fallbacks); this crate adds the communicating protocols. Every protocol
-//! here coordinates through the team leader (the lowest-id member), retries
-//! on its binding's `retry` interval until answered, answers retransmissions
-//! idempotently after deciding, and decides from what it knows when its
-//! deadline passes.
+//! The silent rules `sync.by-rule`, `alloc.by-id` and `term.local` live in
+//! `bite-core` (they are also the kernel's fallbacks); this crate adds the
+//! rest. Every communicating protocol here coordinates through the team
+//! leader (the lowest-id live member), retries on its binding's `retry`
+//! interval until answered, answers retransmissions idempotently after
+//! deciding, decides from what it knows when its deadline passes, and goes
+//! on without members presumed lost (a new leader takes over a lost one).
+//! `docs/protocols.md` is the user's reference, with measured counts.
 
 #![warn(missing_docs)]
 
+mod alloc;
+mod auction;
+mod barrier;
+mod gather;
 pub mod lap;
-mod vote;
-mod wait_all;
+mod sync;
+mod token;
 
-pub use vote::Vote;
-pub use wait_all::WaitAll;
+pub use alloc::{ByAttribute, ByValue, Optimal};
+pub use auction::Auction;
+pub use barrier::{FirstWins, Majority, WaitAll};
+pub use sync::{ElectedLeader, Leader, RankedVote, RoundRobin, Vote};
+pub use token::TokenPassing;
 
 use bite_core::interaction::Registry;
 use std::sync::Arc;
@@ -35,7 +55,18 @@ use std::sync::Arc;
 /// Every protocol of the library, with the kernel's silent rules.
 pub fn registry() -> Registry {
     let mut r = Registry::core();
-    r.register(Arc::new(WaitAll));
     r.register(Arc::new(Vote));
+    r.register(Arc::new(RankedVote));
+    r.register(Arc::new(Leader));
+    r.register(Arc::new(ElectedLeader));
+    r.register(Arc::new(RoundRobin));
+    r.register(Arc::new(ByValue));
+    r.register(Arc::new(ByAttribute));
+    r.register(Arc::new(Optimal));
+    r.register(Arc::new(Auction));
+    r.register(Arc::new(TokenPassing));
+    r.register(Arc::new(WaitAll));
+    r.register(Arc::new(Majority));
+    r.register(Arc::new(FirstWins));
     r
 }

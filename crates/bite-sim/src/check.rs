@@ -2,7 +2,8 @@
 //! robustness tests do). Every scenario and property test runs these.
 //!
 //! - **agreement**: all members that decided a synchronization instance
-//!   normally (not by timeout) chose the same successor;
+//!   normally (not by timeout) chose the same successor — members that could
+//!   talk (neither presumed the other lost);
 //! - **allocation**: all members that decided an allocation instance
 //!   normally hold the same assignment; no robot is given two children; no
 //!   child is left without members while another child has more than its
@@ -52,9 +53,11 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
     // Who each robot presumes lost, as the run goes (for "could talk").
     let mut lost_now: BTreeMap<RobotId, BTreeSet<RobotId>> = BTreeMap::new();
     let mut view_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
+
     let mut selected: BTreeMap<(TeamId, BehaviorId, u32), BTreeSet<RobotId>> = BTreeMap::new();
     let mut terminated: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
     let mut started: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
+
     let mut last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32> = BTreeMap::new();
     for rec in &report.history {
         match &rec.event {
@@ -112,6 +115,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                     .or_default()
                     .insert(rec.robot);
                 started.insert((*team, *behavior, *epoch, rec.robot), rec.t);
+
                 let last = last_epoch.entry((rec.robot, *team, *behavior)).or_insert(0);
                 if *epoch != *last + 1 {
                     v.push(Violation {
@@ -151,6 +155,8 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
     }
     // Two robots that could talk (neither presumed the other lost when it
     // decided) must agree; robots on two sides of a partition may not.
+    // (Robots whose views of an allocation diverged after a timeout are in
+    // different teams: a team id includes its members.)
     let could_talk = |key: &InstanceKey, a: RobotId, b: RobotId| {
         let va = view_at.get(&(*key, a));
         let vb = view_at.get(&(*key, b));
@@ -255,6 +261,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 .filter(|(_, a)| *a == asg)
                 .map(|(r, _)| *r)
                 .collect();
+
             if !listed {
                 let assigned: usize = asg.iter().map(|(_, m)| m.len()).sum();
                 if assigned < holders.len() && room {
@@ -314,6 +321,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
             if crashed.contains(r) {
                 continue;
             }
+
             // A member that started this epoch after the team ended it gets
             // the same grace from its own start.
             let start = started

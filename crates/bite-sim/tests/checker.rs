@@ -42,7 +42,11 @@ impl Protocol for Anarchy {
     fn summary(&self) -> &'static str {
         "broken on purpose"
     }
-    fn configure(&self, _: &Params) -> Result<Factory, String> {
+    fn configure(
+        &self,
+        _: &Params,
+        _: &mut bite_core::interaction::Setup<'_>,
+    ) -> Result<Factory, String> {
         Ok(Arc::new(|| Box::new(AnarchyInst) as Box<dyn Interaction>))
     }
 }
@@ -85,7 +89,11 @@ impl Protocol for Crowd {
     fn summary(&self) -> &'static str {
         "broken on purpose"
     }
-    fn configure(&self, _: &Params) -> Result<Factory, String> {
+    fn configure(
+        &self,
+        _: &Params,
+        _: &mut bite_core::interaction::Setup<'_>,
+    ) -> Result<Factory, String> {
         Ok(Arc::new(|| Box::new(CrowdInst) as Box<dyn Interaction>))
     }
 }

@@ -55,10 +55,36 @@ impl Gen {
         }
     }
     fn sync(&mut self) -> &'static str {
-        ["sync.by-rule", "sync.vote"][self.rng.random_range(0..2)]
+        const ALL: [&str; 6] = [
+            "sync.by-rule",
+            "sync.vote",
+            "sync.ranked-vote",
+            "sync.leader",
+            "sync.elected-leader",
+            "sync.round-robin",
+        ];
+        ALL[self.rng.random_range(0..ALL.len())]
     }
     fn term(&mut self) -> &'static str {
-        ["term.local", "term.wait-all", "term.wait-all"][self.rng.random_range(0..3)]
+        const ALL: [&str; 5] = [
+            "term.local",
+            "term.wait-all",
+            "term.wait-all",
+            "term.majority",
+            "term.first-wins",
+        ];
+        ALL[self.rng.random_range(0..ALL.len())]
+    }
+    fn alloc(&mut self) -> &'static str {
+        const ALL: [&str; 6] = [
+            "alloc.by-id",
+            "{ protocol: alloc.by-value, params: { value: heading } }",
+            "{ protocol: alloc.by-attribute, params: { attribute: colour } }",
+            "alloc.optimal",
+            "alloc.auction",
+            "alloc.token",
+        ];
+        ALL[self.rng.random_range(0..ALL.len())]
     }
 
     /// An atomic behavior that ends when its timed skill completes.
@@ -180,6 +206,10 @@ impl Gen {
             "  {name}:\n    team: {team}\n    children: [{}]\n",
             heads.join(", ")
         );
+        if k >= 2 && self.rng.random_bool(0.6) {
+            let a = self.alloc();
+            let _ = writeln!(b, "    allocate: {a}");
+        }
         if self.rng.random_bool(0.25) {
             // Sometimes the parent ends on a global fact, cutting its chains short.
             let g = self.events.len();

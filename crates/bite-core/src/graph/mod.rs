@@ -195,6 +195,12 @@ impl BehaviorGraph {
     pub fn symbols(&self) -> &Arc<Symbols> {
         &self.symbols
     }
+    /// Replace the symbol table by a superset of it (protocol parameters
+    /// add names when a mission is built).
+    pub(crate) fn set_symbols(&mut self, symbols: Arc<Symbols>) {
+        debug_assert!(symbols.len() >= self.symbols.len());
+        self.symbols = symbols;
+    }
     /// The team roster.
     pub fn roster(&self) -> &Arc<Roster> {
         &self.roster

@@ -88,9 +88,9 @@ pub struct Frame {
     pub epoch: u32,
     /// When this robot started it.
     pub started: Time,
-    /// Its allocation created subteams (dissolved when it ends).
+    /// The subteams its allocation created (dissolved when it ends).
     #[serde(skip)]
-    allocated: bool,
+    subteams: Vec<TeamId>,
     /// Its termination protocol decided while it was still running here.
     #[serde(skip)]
     team_ended: bool,
@@ -725,12 +725,9 @@ impl Kernel {
     fn retire(&mut self, f: &Frame, reason: EndReason) {
         self.stack_version += 1;
         self.org.unlink(f.behavior, f.team);
-        if f.allocated {
-            let n = self.graph().behavior(f.behavior).children.len();
-            let gone: Vec<TeamId> = (0..n)
-                .map(|idx| TeamId::derive(f.team, f.behavior, f.epoch, idx as u32))
-                .collect();
-            for t in &gone {
+        if !f.subteams.is_empty() {
+            let gone = &f.subteams;
+            for t in gone {
                 self.org.dissolve(*t);
             }
             // Late messages for dissolved teams are recognised by the
@@ -816,7 +813,7 @@ impl Kernel {
             team,
             epoch,
             started: self.now,
-            allocated: false,
+            subteams: Vec::new(),
             team_ended: false,
             until_false_at: None,
             born: self.ticks,
@@ -931,10 +928,8 @@ impl Kernel {
         };
         let (b, team, epoch) = (key.behavior, key.team, key.epoch);
         let children = self.graph().behavior(b).children.clone();
-        if let Some(top) = self.stack.last_mut() {
-            top.allocated = true;
-        }
         let mut mine = None;
+        let mut created = Vec::new();
         for (child, members) in &asg.0 {
             if members.is_empty() {
                 continue;
@@ -942,13 +937,17 @@ impl Kernel {
             let Some(idx) = children.iter().position(|c| c == child) else {
                 continue;
             };
-            let tid = TeamId::derive(team, b, epoch, idx as u32);
+            let tid = TeamId::derive(team, b, epoch, idx as u32, members.fingerprint());
             self.org
                 .add_subteam(team, tid, Arc::new(members.clone()), (b, epoch, idx as u32));
+            created.push(tid);
             self.org.link(*child, tid);
             if members.contains(self.me) {
                 mine = Some((*child, tid));
             }
+        }
+        if let Some(top) = self.stack.last_mut() {
+            top.subteams = created;
         }
         match mine {
             Some((child, tid)) => self.push(child, tid, Via::Allocation),
@@ -1336,7 +1335,7 @@ impl Kernel {
             });
             inst.closed = Some(match &outcome {
                 Outcome::Sync(c) => Closed::Synced(*c),
-                Outcome::Allocate(_) => Closed::Allocated,
+                Outcome::Allocate(a) => Closed::Allocated(Arc::new(a.clone())),
                 Outcome::Terminate(n) => Closed::Terminated(*n),
             });
             inst.outcome = Some(outcome);
@@ -1364,7 +1363,10 @@ impl Kernel {
             (Outcome::Sync(None), PointInput::Sync { .. }) => true,
             (Outcome::Sync(Some(s)), PointInput::Sync { successors, .. }) => successors.contains(s),
             (Outcome::Allocate(a), PointInput::Allocate { .. }) => {
-                self.allocation_valid(key, &graph, a)
+                match self.sanitize_allocation(key, &graph, a) {
+                    Some(clean) => return Outcome::Allocate(clean),
+                    None => false,
+                }
             }
             (Outcome::Terminate(n), PointInput::Terminate) => {
                 n.is_none_or(|n| graph.get(n).is_some())
@@ -1388,25 +1390,36 @@ impl Kernel {
         }
     }
 
-    /// Members are team members, each in at most one child, children are
-    /// children of the point.
-    fn allocation_valid(&self, key: InstanceKey, graph: &BehaviorGraph, a: &Assignment) -> bool {
-        let Some(team) = self.org.team(key.team) else {
-            return false;
-        };
+    /// An allocation as this robot can apply it: its children must be
+    /// children of the point; members this robot does not know in the team
+    /// are left out (a leader whose view of the team diverged after a
+    /// timeout decides for the members it knows; those both know agree), and
+    /// a member listed twice keeps its first child. `None` if a child is
+    /// not a child of the point.
+    fn sanitize_allocation(
+        &self,
+        key: InstanceKey,
+        graph: &BehaviorGraph,
+        a: &Assignment,
+    ) -> Option<Assignment> {
+        let team = self.org.team(key.team)?;
         let children = &graph.behavior(key.behavior).children;
-        let mut seen = MemberSet::empty(self.org.roster_len());
+        let n = self.org.roster_len();
+        let mut seen = MemberSet::empty(n);
+        let mut out = Vec::with_capacity(a.0.len());
         for (c, m) in &a.0 {
-            if !children.contains(c)
-                || m.roster_len() != seen.roster_len()
-                || !m.is_subset(&team.members)
-                || !m.is_disjoint(&seen)
-            {
-                return false;
+            if !children.contains(c) || m.roster_len() != n {
+                return None;
             }
-            seen.union_with(m);
+            let mut mine = MemberSet::empty(n);
+            for r in m.iter() {
+                if team.members.contains(r) && seen.insert(r) {
+                    mine.insert(r);
+                }
+            }
+            out.push((*c, mine));
         }
-        true
+        Some(Assignment(out))
     }
 
     fn fire_timers(&mut self) {
@@ -1516,7 +1529,7 @@ impl Kernel {
             self.stats.received += 1;
             return self.deliver(key, from, env.body);
         }
-        if let Some(closed) = self.tombstones.get(&key).copied() {
+        if let Some(closed) = self.tombstones.get(&key).cloned() {
             self.stats.received += 1;
             return self.late_reply(key, closed, from, &env.body);
         }
@@ -1560,7 +1573,7 @@ impl Kernel {
         let Some(reply) = self
             .mission
             .bound(key.behavior, key.kind)
-            .and_then(|b| b.protocol.late_reply(closed, body))
+            .and_then(|b| b.protocol.late_reply(&closed, body))
         else {
             return;
         };
@@ -1621,7 +1634,7 @@ impl Kernel {
                     && i.outcome.is_none()
                     && i.wake.is_none()
             })
-            .filter_map(|(k, i)| i.closed.map(|c| (*k, c)))
+            .filter_map(|(k, i)| i.closed.clone().map(|c| (*k, c)))
             .collect();
         for (k, c) in done {
             self.instances.remove(&k);

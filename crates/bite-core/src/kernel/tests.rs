@@ -43,7 +43,11 @@ impl Protocol for FirstWins {
     fn summary(&self) -> &'static str {
         "test"
     }
-    fn configure(&self, _p: &Params) -> Result<Factory, String> {
+    fn configure(
+        &self,
+        _p: &Params,
+        _: &mut crate::interaction::Setup<'_>,
+    ) -> Result<Factory, String> {
         Ok(Arc::new(|| Box::new(FirstWinsInst) as Box<dyn Interaction>))
     }
 }
@@ -69,7 +73,11 @@ impl Protocol for Silent {
     fn summary(&self) -> &'static str {
         "test"
     }
-    fn configure(&self, _p: &Params) -> Result<Factory, String> {
+    fn configure(
+        &self,
+        _p: &Params,
+        _: &mut crate::interaction::Setup<'_>,
+    ) -> Result<Factory, String> {
         Ok(Arc::new(|| Box::new(SilentInst) as Box<dyn Interaction>))
     }
 }
@@ -760,7 +768,13 @@ behaviors:
     let g = k.mission().graph().clone();
     let (split, y) = (g.find("split").unwrap(), g.find("y").unwrap());
     // Robot 0 runs x; robot 1 runs y in its own subteam.
-    let y_team = TeamId::derive(TeamId::ROOT, split, 1, 1);
+    let y_team = TeamId::derive(
+        TeamId::ROOT,
+        split,
+        1,
+        1,
+        crate::org::MemberSet::from_iter(2, [RobotId(1)]).fingerprint(),
+    );
     assert!(h.kernels[0].org().team(y_team).is_some());
     h.tick(100, &[("over", T)]);
     h.tick(200, &[]);

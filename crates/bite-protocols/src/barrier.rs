@@ -1,0 +1,370 @@
+//! Synchronized termination: the team ends a behavior together.
+//!
+//! - `term.wait-all` (the paper's S3): a robot that has finished its part
+//!   waits until every member of the subteam has finished too, then all go
+//!   on together.
+//! - `term.majority`: the behavior ends for everyone once more than half of
+//!   the members have finished (a majority that believes the goal reached,
+//!   or is done); the others are stopped.
+//! - `term.first-wins`: the first member whose termination condition holds
+//!   (it sees the goal: the target found, the box delivered) ends the
+//!   behavior for everyone at once. A member whose part merely ran out
+//!   waits, as at a barrier, so the behavior also ends when every member is
+//!   done without anyone seeing the goal.
+//!
+//! The leader (lowest-id live member) keeps the barrier. A member that
+//! finishes sends `Done` to the leader, which acknowledges it; once enough
+//! members have arrived (all, counting the leader, or a majority) the
+//! leader multicasts `Release`. A member resends `Done` every retry
+//! interval until acknowledged, then every 4, 8, 16… intervals until
+//! released (a lost `Release` is recovered because the leader answers a
+//! late `Done` with `Release`). Members released while still working
+//! (majority, first-wins, or the leader's deadline) are told until they
+//! acknowledge, at most 8 times with backoff. In first-wins the member
+//! that sees the goal multicasts `Release` itself, decides at once, and
+//! retransmits to those that have not acknowledged.
+//!
+//! At its deadline the leader releases whoever has arrived; a member whose
+//! deadline passes goes on alone (the kernel reports the timeout). A member
+//! presumed lost is not waited for; when the leader is lost the next live
+//! member takes over and members resend `Done` to it.
+//!
+//! Messages, no faults, team of n ≥ 2:
+//! - wait-all: `Done` and `Ack` from each of the n−1 members and one
+//!   `Release`: 2n − 1, plus, for a member that waits long for a slower
+//!   leader, one more `Done`/`Ack` pair per backoff period (logarithmic in
+//!   the wait). Rounds: 2 after the last arrival.
+//! - majority: `Done`/`Ack` from the members that arrive before the
+//!   release, the `Release`, and an `Ack` from each member stopped:
+//!   about 2⌊n/2⌋ + 1 + ⌈n/2⌉ − 1.
+//! - first-wins: one `Release` and n − 1 acknowledgements: n. Rounds: 1.
+
+use crate::gather::backoff;
+use crate::sync::no_params;
+use bite_core::ids::RobotId;
+use bite_core::interaction::{
+    Closed, Cx, Factory, Interaction, LocalEnd, Outcome, Params, Protocol, Setup,
+};
+use bite_core::msg::{Body, Kind};
+use bite_core::org::MemberSet;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// When the team's part is over.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    /// Every member has finished.
+    All,
+    /// More than half of the members have finished.
+    Majority,
+    /// Every member has finished, or one saw the goal.
+    FirstWins,
+}
+
+macro_rules! barrier_protocol {
+    ($ty:ident, $name:literal, $aliases:expr, $mode:expr, $summary:literal) => {
+        #[doc = $summary]
+        #[derive(Debug, Clone, Copy, Default)]
+        pub struct $ty;
+        impl Protocol for $ty {
+            fn name(&self) -> &'static str {
+                $name
+            }
+            fn aliases(&self) -> &'static [&'static str] {
+                $aliases
+            }
+            fn kind(&self) -> Kind {
+                Kind::Terminate
+            }
+            fn communicates(&self) -> bool {
+                true
+            }
+            fn summary(&self) -> &'static str {
+                $summary
+            }
+            fn default_deadline(&self) -> Duration {
+                Duration::from_secs(30)
+            }
+            fn configure(&self, params: &Params, _: &mut Setup<'_>) -> Result<Factory, String> {
+                no_params(self.name(), params)?;
+                Ok(Arc::new(|| {
+                    Box::new(Barrier::new($mode)) as Box<dyn Interaction>
+                }))
+            }
+            fn late_reply(&self, closed: &Closed, body: &Body) -> Option<Body> {
+                late_reply(closed, body)
+            }
+        }
+    };
+}
+
+barrier_protocol!(
+    WaitAll,
+    "term.wait-all",
+    &["S3"],
+    Mode::All,
+    "S3: the leader holds a barrier; everyone goes on when every member has finished."
+);
+barrier_protocol!(
+    Majority,
+    "term.majority",
+    &[],
+    Mode::Majority,
+    "The behavior ends for everyone once more than half of the members have finished."
+);
+barrier_protocol!(
+    FirstWins,
+    "term.first-wins",
+    &[],
+    Mode::FirstWins,
+    "The first member to see the goal ends the behavior for all; otherwise it ends when all are done."
+);
+
+fn late_reply(closed: &Closed, body: &Body) -> Option<Body> {
+    match (closed, body) {
+        // Whoever arrives at a barrier that is over (released, or left by
+        // this robot) may go on.
+        (Closed::Terminated(_) | Closed::Left, Body::Done) => Some(Body::Release { next: None }),
+        // A release repeated to a robot that already ended the behavior:
+        // confirm, so that its sender stops.
+        (Closed::Terminated(_), Body::Release { .. }) => Some(Body::Ack),
+        _ => None,
+    }
+}
+
+struct Barrier {
+    mode: Mode,
+    /// Leader only: members that arrived.
+    arrived: Option<MemberSet>,
+    me_done: bool,
+    acked: bool,
+    /// Resends so far (for the exponential backoff).
+    resends: u32,
+    /// After releasing members that had not arrived (the leader at a
+    /// majority or its deadline, a first-wins member that saw the goal):
+    /// those that have not acknowledged the release yet.
+    stragglers: Vec<RobotId>,
+    /// The leader this robot last reported to (to notice a new leader).
+    reported_to: Option<RobotId>,
+}
+
+/// How many times a release is repeated to a member still working.
+const STRAGGLER_TRIES: u32 = 8;
+
+impl Barrier {
+    fn new(mode: Mode) -> Self {
+        Barrier {
+            mode,
+            arrived: None,
+            me_done: false,
+            acked: false,
+            resends: 0,
+            stragglers: Vec::new(),
+            reported_to: None,
+        }
+    }
+
+    fn arrived(&mut self, cx: &Cx<'_>) -> &mut MemberSet {
+        self.arrived
+            .get_or_insert_with(|| MemberSet::empty(cx.team().members.roster_len()))
+    }
+
+    fn try_release(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_decided() || cx.is_aborted() {
+            return;
+        }
+        let size = cx.team_size();
+        let arrived = self.arrived(cx).clone();
+        // Members presumed lost are not waited for.
+        let live_arrived = cx.members().filter(|m| arrived.contains(*m)).count();
+        let release = match self.mode {
+            Mode::All | Mode::FirstWins => self.me_done && live_arrived >= size,
+            Mode::Majority => live_arrived > size / 2,
+        };
+        if release {
+            self.release(cx, &arrived);
+        }
+    }
+
+    /// Release everyone; tell those still working until they confirm.
+    fn release(&mut self, cx: &mut Cx<'_>, arrived: &MemberSet) {
+        cx.broadcast(Body::Release { next: None });
+        let me = cx.me();
+        self.stragglers = cx
+            .members()
+            .filter(|m| *m != me && !arrived.contains(*m))
+            .collect();
+        if !self.stragglers.is_empty() {
+            self.resends = 0;
+            cx.wake_after_retry();
+        }
+        cx.decide(Outcome::Terminate(None));
+    }
+}
+
+impl Interaction for Barrier {
+    fn start(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_leader() {
+            self.arrived(cx);
+        }
+    }
+
+    fn local_done(&mut self, cx: &mut Cx<'_>, why: LocalEnd) {
+        self.me_done = true;
+        if self.mode == Mode::FirstWins && why == LocalEnd::Condition {
+            // This robot sees the goal: it ends the behavior for everyone.
+            let nobody = MemberSet::empty(cx.team().members.roster_len());
+            self.release(cx, &nobody);
+            return;
+        }
+        if cx.is_leader() {
+            let me = cx.me();
+            self.arrived(cx).insert(me);
+            self.try_release(cx);
+        } else {
+            let leader = cx.leader();
+            self.reported_to = Some(leader);
+            cx.send(leader, Body::Done);
+            cx.wake_after_retry();
+        }
+    }
+
+    fn on_message(&mut self, cx: &mut Cx<'_>, from: RobotId, body: &Body) {
+        let leader = cx.leader();
+        match body {
+            Body::Done if cx.is_leader() => {
+                if cx.is_decided() || cx.is_aborted() {
+                    // A member missed the release, or this leader has left
+                    // the behavior: it may go on.
+                    cx.send(from, Body::Release { next: None });
+                    return;
+                }
+                self.arrived(cx).insert(from);
+                // It is done here: whatever this robot still runs below
+                // this behavior will not wait for it.
+                cx.member_done(from);
+                cx.send(from, Body::Ack);
+                self.try_release(cx);
+            }
+            Body::Ack if cx.is_decided() && self.stragglers.contains(&from) => {
+                // A member released while working confirms.
+                self.stragglers.retain(|r| *r != from);
+            }
+            Body::Ack if from == leader && !cx.is_leader() => {
+                self.acked = true;
+                // The leader is alive and knows we are here: keep waiting.
+                cx.postpone_deadline();
+            }
+            Body::Release { next } if self.mode == Mode::FirstWins || from == leader => {
+                if self.mode == Mode::FirstWins || !self.me_done {
+                    // Released while still working (first-wins, majority,
+                    // the leader's deadline): confirm, or the releaser
+                    // keeps telling us.
+                    cx.send(from, Body::Ack);
+                }
+                cx.decide(Outcome::Terminate(*next));
+            }
+            Body::Release { next } if cx.is_leader() && !cx.is_decided() && !cx.is_aborted() => {
+                // A member heard the release from the previous leader, now
+                // lost: adopt it, so that all or none apply it.
+                cx.broadcast(Body::Release { next: *next });
+                cx.decide(Outcome::Terminate(*next));
+            }
+            _ if cx.is_aborted() || cx.is_decided() => {}
+            // Leadership changing under a lost leader: see `crate::gather`.
+            Body::Done | Body::Ack | Body::Release { .. } => {}
+            other => cx.violation(format!(
+                "term barrier: unexpected `{}` from {from}",
+                other.name()
+            )),
+        }
+    }
+
+    fn on_timer(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_decided() && !self.stragglers.is_empty() {
+            // Members released while still working are not waiting for
+            // anything: tell them again until they confirm, at most
+            // STRAGGLER_TRIES times; after that a straggler learns it when
+            // it arrives, from the leader's late reply.
+            for r in self.stragglers.clone() {
+                cx.send(r, Body::Release { next: None });
+            }
+            self.resends += 1;
+            if self.resends < STRAGGLER_TRIES {
+                let t = cx.now() + backoff(cx, self.resends);
+                cx.wake_at(t);
+            } else {
+                self.stragglers.clear();
+            }
+            return;
+        }
+        if cx.is_decided() || cx.is_aborted() || cx.is_leader() || !self.me_done {
+            return;
+        }
+        // Until acknowledged, resend with exponential backoff. Once the
+        // leader knows we are here we only guard against a lost release,
+        // asking again after 4, 8, 16... intervals.
+        if self.acked && self.resends == 0 {
+            self.resends = 2;
+        } else {
+            cx.send(cx.leader(), Body::Done);
+            self.resends += 1;
+        }
+        let t = cx.now() + backoff(cx, self.resends);
+        cx.wake_at(t);
+    }
+
+    fn on_deadline(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_leader() {
+            // Release everyone, stragglers included, and make sure the
+            // stragglers hear it (they are working, not waiting).
+            let arrived = self.arrived(cx).clone();
+            self.release(cx, &arrived);
+        }
+        cx.decide(Outcome::Terminate(None));
+    }
+
+    fn on_members_changed(&mut self, cx: &mut Cx<'_>) {
+        let leader = cx.leader();
+        if cx.is_leader() {
+            // Leading now (or still): count who is left.
+            if self.me_done {
+                let me = cx.me();
+                self.arrived(cx).insert(me);
+            }
+            self.try_release(cx);
+        } else if self.reported_to.is_some_and(|r| r != leader)
+            || (self.me_done && self.reported_to.is_none())
+        {
+            // A new leader: tell it what it needs.
+            self.reported_to = Some(leader);
+            if cx.is_decided() {
+                cx.send(leader, Body::Release { next: None });
+            } else if self.me_done {
+                self.acked = false;
+                self.resends = 0;
+                cx.send(leader, Body::Done);
+                cx.wake_after_retry();
+            }
+        }
+    }
+
+    fn on_abort(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_leader() {
+            // Whoever already arrived waits only for this leader: release them.
+            let waiting: Vec<RobotId> = self
+                .arrived
+                .as_ref()
+                .map(|a| a.iter().filter(|r| *r != cx.me()).collect())
+                .unwrap_or_default();
+            for r in waiting {
+                cx.send(r, Body::Release { next: None });
+            }
+        } else if !self.me_done {
+            // This member leaves the behavior: it will not arrive later, so
+            // count it as arrived.
+            self.me_done = true;
+            cx.send(cx.leader(), Body::Done);
+        }
+    }
+}

@@ -1,0 +1,429 @@
+//! The shape most communicating protocols share: *gather, decide,
+//! announce*. Every member sends its contribution (a vote, a ranked ballot,
+//! a value read from its beliefs, an attribute, its utilities) to the team
+//! leader; the leader decides from what it gathered and multicasts the
+//! decision. What differs between protocols — what a member contributes and
+//! how the leader decides — is a [`Rule`]; everything about robustness is
+//! here, once:
+//!
+//! - members send their contribution when they reach the point (or, for a
+//!   rule that announces a call first, when the call arrives), and resend
+//!   it with exponential backoff (retry, 2, 4… intervals, capped at 64)
+//!   until they hear the decision; the leader answers any contribution
+//!   after deciding with the decision, so a lost decision costs one resend;
+//! - a rule with a call ([`Rule::call`]) has the leader call again, on its
+//!   own timer, the members it has not heard from;
+//! - the leader decides as soon as every live member has contributed, and
+//!   at its deadline from what it has; a member cut off from its leader
+//!   decides alone ([`Rule::alone`]) and the kernel reports the timeout;
+//! - members presumed lost are not waited for; when the leader is lost the
+//!   next lowest live member takes over: members resend their contribution
+//!   to it, and a member that already applied the old leader's decision
+//!   tells it, so that the survivors apply one decision;
+//! - a leader that leaves the point early decides from what it has (the
+//!   others go on with that); a member that leaves early sends its
+//!   abstention, if the rule has one.
+//!
+//! Messages per decision, no faults, team of n ≥ 2: n − 1 contributions and
+//! one decision (n), plus one call for rules that announce one (n + 1).
+//! Rounds: 2 (3 with a call).
+
+use bite_core::ids::RobotId;
+use bite_core::interaction::{Cx, Interaction, Outcome};
+use bite_core::msg::Body;
+use bite_core::rules;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// What a gather-decide-announce protocol plugs in.
+pub(crate) trait Rule: Send + Sync + 'static {
+    /// The protocol's name (for violations).
+    fn name(&self) -> &'static str;
+    /// The leader's call, multicast before members contribute (`None`:
+    /// members contribute as soon as they reach the point).
+    fn call(&self, _cx: &Cx<'_>) -> Option<Body> {
+        None
+    }
+    /// Whether the leader waits for contributions at all (`false`: it
+    /// decides alone at once and informs the members).
+    fn gathers(&self) -> bool {
+        true
+    }
+    /// This robot's contribution.
+    fn contribution(&self, cx: &mut Cx<'_>) -> Body;
+    /// `Ok` if `body` is a well-formed contribution from `from`; `Err`
+    /// says what is wrong (a protocol violation, ignored).
+    fn check(&self, cx: &Cx<'_>, from: RobotId, body: &Body) -> Result<(), String>;
+    /// True when `body` is the kind of message members contribute.
+    fn is_contribution(&self, body: &Body) -> bool;
+    /// The decision from the contributions gathered (the leader's own
+    /// included; members that did not answer are missing).
+    fn decide(&self, cx: &mut Cx<'_>, got: &BTreeMap<RobotId, Body>) -> Outcome;
+    /// What a member cut off from its leader decides at the deadline.
+    fn alone(&self, cx: &mut Cx<'_>) -> Outcome {
+        rules::fallback(cx)
+    }
+    /// What a member leaving before it contributed sends, if anything.
+    fn abstain(&self) -> Option<Body> {
+        None
+    }
+}
+
+/// The message that announces a decision.
+pub(crate) fn announcement(o: &Outcome) -> Body {
+    match o {
+        Outcome::Sync(choice) => Body::Decision { choice: *choice },
+        Outcome::Allocate(a) => Body::assignment(a),
+        Outcome::Terminate(next) => Body::Release { next: *next },
+    }
+}
+
+/// The decision an announcement carries, if it is one of the kind this
+/// instance decides (`None` otherwise, or if malformed).
+pub(crate) fn announced(cx: &Cx<'_>, body: &Body) -> Option<Outcome> {
+    use bite_core::interaction::PointInput;
+    match (cx.input(), body) {
+        (PointInput::Sync { .. }, Body::Decision { choice }) => Some(Outcome::Sync(*choice)),
+        (PointInput::Allocate { .. }, Body::Assignment { .. }) => body
+            .to_assignment(cx.team().members.roster_len())
+            .map(Outcome::Allocate),
+        (PointInput::Terminate, Body::Release { next }) => Some(Outcome::Terminate(*next)),
+        _ => None,
+    }
+}
+
+/// Wait before the next resend: the retry interval, doubling each time
+/// (capped at 64 intervals).
+pub(crate) fn backoff(cx: &Cx<'_>, resends: u32) -> std::time::Duration {
+    cx.retry() * 2u32.pow(resends.min(6))
+}
+
+/// What every leader-coordinated protocol keeps about its coordination:
+/// the decision, who leads, and the resend backoff.
+#[derive(Default)]
+pub(crate) struct Coord {
+    /// The decision, once known (answers retransmissions).
+    pub(crate) result: Option<Outcome>,
+    /// The leader this robot last dealt with (to notice a new leader).
+    known_leader: Option<RobotId>,
+    /// This robot became the leader after the instance started (its
+    /// leader was lost).
+    took_over: bool,
+    resends: u32,
+}
+
+impl Coord {
+    /// The instance starts: remember the leader.
+    pub(crate) fn start(&mut self, cx: &Cx<'_>) {
+        self.known_leader = Some(cx.leader());
+    }
+
+    /// Members changed: did the leader change? (Notes a takeover.)
+    pub(crate) fn leader_changed(&mut self, cx: &Cx<'_>) -> bool {
+        let leader = cx.leader();
+        let changed = self.known_leader != Some(leader);
+        self.known_leader = Some(leader);
+        if changed && cx.is_leader() {
+            self.took_over = true;
+        }
+        changed
+    }
+
+    /// Apply a decision; a leader also announces it.
+    pub(crate) fn adopt(&mut self, cx: &mut Cx<'_>, outcome: Outcome, announce: bool) {
+        if announce {
+            cx.broadcast(announcement(&outcome));
+        }
+        self.result = Some(outcome.clone());
+        cx.decide(outcome);
+    }
+
+    /// Handle `body` if it announces a decision (true if it was one): a
+    /// member applies its leader's; a leader that took over from a lost one
+    /// adopts the one a member heard from it, so that all or none apply
+    /// it. A decision sent to the original leader is a member's own
+    /// decision after its deadline, not the team's: ignored.
+    pub(crate) fn on_announcement(&mut self, cx: &mut Cx<'_>, from: RobotId, body: &Body) -> bool {
+        let Some(outcome) = announced(cx, body) else {
+            if matches!(
+                body,
+                Body::Decision { .. } | Body::Assignment { .. } | Body::Release { .. }
+            ) {
+                cx.violation(format!("malformed `{}` from {from}", body.name()));
+                return true;
+            }
+            return false;
+        };
+        if self.result.is_some() || cx.is_aborted() {
+            return true;
+        }
+        if cx.is_leader() {
+            if self.took_over {
+                self.adopt(cx, outcome, true);
+            }
+        } else if from == cx.leader() {
+            self.adopt(cx, outcome, false);
+        }
+        true
+    }
+
+    /// A leader answers a member with the decision, if there is one.
+    pub(crate) fn answer(&self, cx: &mut Cx<'_>, to: RobotId) -> bool {
+        match &self.result {
+            Some(o) => {
+                cx.send(to, announcement(o));
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// A member whose leader changed tells it the decision applied here
+    /// (true if it did).
+    pub(crate) fn tell_new_leader(&self, cx: &mut Cx<'_>) -> bool {
+        match &self.result {
+            Some(o) if !cx.is_leader() => {
+                cx.send(cx.leader(), announcement(o));
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// Nothing left to do on a timer: decided or left.
+    pub(crate) fn idle(&self, cx: &Cx<'_>) -> bool {
+        self.result.is_some() || cx.is_decided() || cx.is_aborted()
+    }
+
+    /// Schedule the next resend with exponential backoff.
+    pub(crate) fn next_resend(&mut self, cx: &mut Cx<'_>) {
+        self.resends += 1;
+        let t = cx.now() + backoff(cx, self.resends);
+        cx.wake_at(t);
+    }
+
+    /// Start the backoff over (a new leader to talk to).
+    pub(crate) fn reset_backoff(&mut self) {
+        self.resends = 0;
+    }
+}
+
+/// One instance of a gather-decide-announce protocol.
+pub(crate) struct Gather<R: Rule> {
+    rule: Arc<R>,
+    /// Leader only: contributions received, its own included.
+    got: BTreeMap<RobotId, Body>,
+    /// Leader only: whether the call went out.
+    called: bool,
+    /// Member only: the contribution it sent.
+    sent: Option<Body>,
+    coord: Coord,
+}
+
+impl<R: Rule> Gather<R> {
+    pub(crate) fn new(rule: Arc<R>) -> Self {
+        Gather {
+            rule,
+            got: BTreeMap::new(),
+            called: false,
+            sent: None,
+            coord: Coord::default(),
+        }
+    }
+
+    fn finish(&mut self, cx: &mut Cx<'_>) {
+        let outcome = self.rule.decide(cx, &self.got);
+        self.coord.adopt(cx, outcome, true);
+    }
+
+    fn maybe_finish(&mut self, cx: &mut Cx<'_>) {
+        if self.coord.result.is_some() || cx.is_aborted() {
+            return;
+        }
+        // Contributions of members presumed lost since are not waited for.
+        let heard = cx.members().filter(|m| self.got.contains_key(m)).count();
+        if !self.rule.gathers() || heard >= cx.team_size() {
+            self.finish(cx);
+        }
+    }
+
+    /// Lead: call (if the rule does), count this robot's own contribution.
+    fn lead(&mut self, cx: &mut Cx<'_>) {
+        if self.rule.gathers() {
+            if !self.called
+                && let Some(call) = self.rule.call(cx)
+            {
+                cx.broadcast(call);
+            }
+            self.called = true;
+            if !self.got.contains_key(&cx.me()) {
+                let mine = self.rule.contribution(cx);
+                self.got.insert(cx.me(), mine);
+            }
+        }
+        self.maybe_finish(cx);
+    }
+
+    fn contribute(&mut self, cx: &mut Cx<'_>) {
+        let body = match &self.sent {
+            Some(b) => b.clone(),
+            None => self.rule.contribution(cx),
+        };
+        cx.send(cx.leader(), body.clone());
+        self.sent = Some(body);
+    }
+}
+
+impl<R: Rule> Interaction for Gather<R> {
+    fn start(&mut self, cx: &mut Cx<'_>) {
+        self.coord.start(cx);
+        if cx.is_leader() {
+            self.lead(cx);
+        } else if self.rule.gathers() && self.rule.call(cx).is_none() {
+            self.contribute(cx);
+        }
+        if !cx.is_decided() {
+            cx.wake_after_retry();
+        }
+    }
+
+    fn on_message(&mut self, cx: &mut Cx<'_>, from: RobotId, body: &Body) {
+        let leader = cx.leader();
+        let name = self.rule.name();
+        if self.rule.is_contribution(body) {
+            if !cx.is_leader() {
+                // Sent to a robot that no longer leads, or does not know yet
+                // that it does: the sender's retries recover it.
+                return;
+            }
+            if self.coord.answer(cx, from) || cx.is_aborted() {
+                return;
+            }
+            match self.rule.check(cx, from, body) {
+                Ok(()) => {
+                    self.got.insert(from, body.clone());
+                    self.maybe_finish(cx);
+                }
+                Err(why) => cx.violation(format!("{name}: {from} {why}")),
+            }
+            return;
+        }
+        if self.coord.on_announcement(cx, from, body) {
+            return;
+        }
+        match body {
+            Body::Query if cx.is_leader() => {
+                if !self.coord.answer(cx, from)
+                    && !self.got.contains_key(&from)
+                    && !cx.is_aborted()
+                    && let Some(call) = self.rule.call(cx)
+                {
+                    cx.send(from, call);
+                }
+            }
+            Body::Query => {}
+            _ if self
+                .rule
+                .call(cx)
+                .as_ref()
+                .is_some_and(|c| same_kind(c, body)) =>
+            {
+                // The call: contribute (again, if ours was lost).
+                if from == leader
+                    && !cx.is_leader()
+                    && self.coord.result.is_none()
+                    && !cx.is_aborted()
+                {
+                    self.contribute(cx);
+                }
+            }
+            _ if cx.is_aborted() => {}
+            other => cx.violation(format!("{name}: unexpected `{}` from {from}", other.name())),
+        }
+    }
+
+    fn on_timer(&mut self, cx: &mut Cx<'_>) {
+        if self.coord.idle(cx) {
+            return;
+        }
+        if cx.is_leader() {
+            // Call again those not heard from (rules without a call wait
+            // for the members' own resends).
+            if let Some(call) = self.rule.call(cx) {
+                let missing: Vec<RobotId> =
+                    cx.members().filter(|m| !self.got.contains_key(m)).collect();
+                for m in missing {
+                    cx.send(m, call.clone());
+                }
+            }
+        } else if self.sent.is_some() {
+            self.contribute(cx);
+        } else {
+            // Waiting for a call or a decision that may have been lost.
+            cx.send(cx.leader(), Body::Query);
+        }
+        self.coord.next_resend(cx);
+    }
+
+    fn on_deadline(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_leader() {
+            if self.coord.result.is_none() {
+                self.finish(cx);
+            }
+        } else {
+            let o = self.rule.alone(cx);
+            cx.decide(o);
+        }
+    }
+
+    fn on_members_changed(&mut self, cx: &mut Cx<'_>) {
+        let changed = self.coord.leader_changed(cx);
+        if cx.is_leader() {
+            if self.coord.result.is_none() && !cx.is_aborted() {
+                // Leading now (or still): call if not done, count who is left.
+                self.lead(cx);
+            }
+        } else if changed && !self.coord.tell_new_leader(cx) && self.sent.is_some() {
+            // Our contribution again, to the new leader.
+            self.coord.reset_backoff();
+            self.contribute(cx);
+        }
+    }
+
+    fn on_abort(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_leader() {
+            // Leaving: the others go on with what was gathered so far.
+            if self.coord.result.is_none() {
+                self.finish(cx);
+            }
+        } else if self.sent.is_none()
+            && let Some(body) = self.rule.abstain()
+        {
+            self.sent = Some(body.clone());
+            cx.send(cx.leader(), body);
+        }
+    }
+}
+
+fn same_kind(a: &Body, b: &Body) -> bool {
+    std::mem::discriminant(a) == std::mem::discriminant(b)
+}
+
+/// The answer of a forgotten instance to a member's late message: the
+/// decision this robot applied (nothing if it left before deciding, or if
+/// the message is itself an announcement).
+pub(crate) fn late_reply(closed: &bite_core::interaction::Closed, body: &Body) -> Option<Body> {
+    use bite_core::interaction::Closed;
+    if matches!(
+        body,
+        Body::Decision { .. } | Body::Assignment { .. } | Body::Release { .. }
+    ) {
+        return None;
+    }
+    match closed {
+        Closed::Synced(choice) => Some(Body::Decision { choice: *choice }),
+        Closed::Allocated(a) => Some(Body::assignment(a)),
+        Closed::Terminated(next) => Some(Body::Release { next: *next }),
+        Closed::Left => None,
+    }
+}
