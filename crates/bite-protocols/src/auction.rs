@@ -201,6 +201,7 @@ impl Market {
                 self.order.push((winner, i));
                 self.places[i] -= 1;
                 self.last_winner = Some(winner);
+                self.coord.progress(cx);
                 self.next_round(cx);
             }
             None => self.finish(cx),
@@ -248,6 +249,7 @@ impl Interaction for Market {
                 winner,
             } if from == leader && !cx.is_leader() => {
                 self.seen_round = self.seen_round.max(*round);
+                self.coord.progress(cx);
                 if *winner == Some(cx.me()) {
                     self.won = true;
                 }
@@ -296,7 +298,7 @@ impl Interaction for Market {
     }
 
     fn on_timer(&mut self, cx: &mut Cx<'_>) {
-        if self.coord.idle(cx) {
+        if self.coord.idle(cx) || !self.coord.quiet(cx) {
             return;
         }
         if cx.is_leader() {

@@ -235,7 +235,9 @@ impl Interaction for Barrier {
             Body::Done if cx.is_leader() => {
                 if cx.is_decided() || cx.is_aborted() {
                     // A member missed the release, or this leader has left
-                    // the behavior: it may go on.
+                    // the behavior: it may go on (and, done, it needs no
+                    // more telling).
+                    self.stragglers.retain(|r| *r != from);
                     cx.send(from, Body::Release { next: None });
                     return;
                 }

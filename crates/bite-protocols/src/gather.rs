@@ -110,9 +110,34 @@ pub(crate) struct Coord {
     /// leader was lost).
     took_over: bool,
     resends: u32,
+    /// When the instance last made progress (see [`Coord::progress`]).
+    progress_at: Option<bite_core::time::Time>,
 }
 
 impl Coord {
+    /// The instance made progress (the leader heard a member, a member
+    /// heard its leader move on): the deadline, which bounds the time
+    /// without progress, starts over, and so does the resend backoff.
+    pub(crate) fn progress(&mut self, cx: &mut Cx<'_>) {
+        self.progress_at = Some(cx.now());
+        self.resends = 0;
+        cx.postpone_deadline();
+    }
+
+    /// On a timer: true when the instance has been quiet for a whole
+    /// backoff period since its last progress (time to resend); otherwise
+    /// the check is rescheduled for then.
+    pub(crate) fn quiet(&mut self, cx: &mut Cx<'_>) -> bool {
+        match self.progress_at {
+            Some(t) if cx.now() < t + backoff(cx, self.resends) => {
+                let at = t + backoff(cx, self.resends);
+                cx.wake_at(at);
+                false
+            }
+            _ => true,
+        }
+    }
+
     /// The instance starts: remember the leader.
     pub(crate) fn start(&mut self, cx: &Cx<'_>) {
         self.known_leader = Some(cx.leader());
@@ -301,6 +326,7 @@ impl<R: Rule> Interaction for Gather<R> {
             }
             match self.rule.check(cx, from, body) {
                 Ok(()) => {
+                    self.coord.progress(cx);
                     self.got.insert(from, body.clone());
                     self.maybe_finish(cx);
                 }
@@ -343,7 +369,7 @@ impl<R: Rule> Interaction for Gather<R> {
     }
 
     fn on_timer(&mut self, cx: &mut Cx<'_>) {
-        if self.coord.idle(cx) {
+        if self.coord.idle(cx) || !self.coord.quiet(cx) {
             return;
         }
         if cx.is_leader() {

@@ -202,6 +202,7 @@ impl Tokens {
         // First claim wins; one place per member.
         if !self.claims.contains_key(&slot) && !self.claims.values().any(|r| *r == from) {
             self.claims.insert(slot, from);
+            self.coord.progress(cx);
         }
         self.maybe_finish(cx);
     }
@@ -243,6 +244,12 @@ impl Interaction for Tokens {
                 if self.coord.idle(cx) {
                     return;
                 }
+                if !cx.is_leader() {
+                    // The allocation is alive (the leader counts only
+                    // claims as progress, or tokens nobody can take would
+                    // keep it from its deadline).
+                    self.coord.progress(cx);
+                }
                 if !cx.children().iter().any(|c| c.behavior == *item) {
                     cx.violation(format!(
                         "alloc.token: {from} passed a token for a non-child"
@@ -270,7 +277,7 @@ impl Interaction for Tokens {
     }
 
     fn on_timer(&mut self, cx: &mut Cx<'_>) {
-        if self.coord.idle(cx) {
+        if self.coord.idle(cx) || !self.coord.quiet(cx) {
             return;
         }
         if cx.is_leader() && self.leading {
@@ -311,8 +318,9 @@ impl Interaction for Tokens {
         }
         if cx.is_leader() {
             if changed || !self.leading {
-                // Took over from a lost leader: deal again. Members that
-                // claimed resend their claim to us on their timer.
+                // Took over from a lost leader: deal every place again
+                // (members forget their claims to the old leader).
+                self.mine = None;
                 self.lead(cx);
             } else {
                 // A lost member's place is free again: dealt by id at the
@@ -330,8 +338,10 @@ impl Interaction for Tokens {
                     self.deal(cx);
                 }
             }
-        } else if changed && let Some(slot) = self.mine {
-            cx.send(cx.leader(), Body::Claim { slot });
+        } else if changed {
+            // The new leader deals the places again: claims made to the
+            // old one are void.
+            self.mine = None;
         }
     }
 

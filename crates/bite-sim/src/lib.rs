@@ -13,13 +13,15 @@
 //! - [`world`]: the timed-skill world;
 //! - [`runner`]: the event loop, run logs and reports;
 //! - [`summary`]: what a run cost;
-//! - [`check`]: invariants checked over a recorded run.
+//! - [`check`]: invariants checked over a recorded run;
+//! - [`probe`]: one coordination point under one protocol, measured.
 
 #![warn(missing_docs)]
 
 pub mod check;
 pub mod log;
 pub mod net;
+pub mod probe;
 pub mod runner;
 pub mod scenario;
 pub mod summary;
