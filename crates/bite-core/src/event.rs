@@ -37,6 +37,8 @@ pub enum EndReason {
     Team,
     /// An ancestor ended; descendants are popped with it.
     Ancestor(BehaviorId),
+    /// The allocation of this ancestor is redone (teammates were lost).
+    Reallocation(BehaviorId),
 }
 
 /// Why an incoming message was dropped.
@@ -184,6 +186,10 @@ pub enum Event {
         instance: InstanceKey,
         /// Protocol name.
         protocol: &'static str,
+        /// Teammates left out from the start (presumed lost, or left out by
+        /// the teammate that started a re-allocation).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        excluded: Vec<RobotId>,
     },
     /// A protocol instance decided.
     InteractionDecided {
@@ -254,6 +260,18 @@ pub enum Event {
     MemberBack {
         /// Who.
         member: RobotId,
+    },
+    /// Teammates lost left a child of this allocation without enough live
+    /// members: the team allocates again, in a new round.
+    Reallocating {
+        /// The allocation point.
+        behavior: BehaviorId,
+        /// Its team.
+        team: TeamId,
+        /// Its epoch.
+        epoch: u32,
+        /// The new allocation round.
+        round: u32,
     },
     /// The stack emptied: the mission is over for this robot.
     MissionCompleted,

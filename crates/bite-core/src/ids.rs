@@ -68,7 +68,8 @@ impl TeamId {
 
     /// The id of the subteam that executes child number `child` of allocation
     /// point `point`, allocated by `parent` during its `epoch`-th execution of
-    /// the point, with members whose [`MemberSet::fingerprint`] is `members`.
+    /// the point (re-allocation `round`, 0 for the first), with members
+    /// whose [`MemberSet::fingerprint`] is `members`.
     /// Stable across processes, platforms and compiler versions (FNV-1a over
     /// little-endian bytes).
     ///
@@ -81,7 +82,7 @@ impl TeamId {
     pub fn derive(
         parent: TeamId,
         point: BehaviorId,
-        epoch: u32,
+        (epoch, round): (u32, u32),
         child: u32,
         members: u64,
     ) -> TeamId {
@@ -89,6 +90,7 @@ impl TeamId {
         h.write(&parent.0.to_le_bytes());
         h.write(&point.0.to_le_bytes());
         h.write(&epoch.to_le_bytes());
+        h.write(&round.to_le_bytes());
         h.write(&child.to_le_bytes());
         h.write(&members.to_le_bytes());
         TeamId(h.finish())
@@ -138,17 +140,19 @@ impl Default for Fnv1a {
 mod tests {
     use super::*;
 
-    const PINNED: u64 = 0x877b_e91b_8276_c32a;
+    const PINNED: u64 = 0x4b99_aba0_8fe6_2e7a;
 
     #[test]
     fn derived_team_ids_are_stable_and_distinct() {
-        let a = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 0, 7);
-        let b = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 1, 7);
-        let c = TeamId::derive(TeamId::ROOT, BehaviorId(3), 2, 0, 7);
-        let d = TeamId::derive(TeamId::ROOT, BehaviorId(3), 1, 0, 8);
+        let a = TeamId::derive(TeamId::ROOT, BehaviorId(3), (1, 0), 0, 7);
+        let b = TeamId::derive(TeamId::ROOT, BehaviorId(3), (1, 0), 1, 7);
+        let c = TeamId::derive(TeamId::ROOT, BehaviorId(3), (2, 0), 0, 7);
+        let d = TeamId::derive(TeamId::ROOT, BehaviorId(3), (1, 0), 0, 8);
+        let e = TeamId::derive(TeamId::ROOT, BehaviorId(3), (1, 1), 0, 7);
         assert_ne!(a, b);
         assert_ne!(a, c);
         assert_ne!(a, d, "other members, another team");
+        assert_ne!(a, e, "a re-allocation makes new teams");
         // Pinned value: a change here breaks interoperability between
         // robot processes built from different versions.
         assert_eq!(a, TeamId(PINNED));

@@ -90,6 +90,16 @@ pub struct InstanceKey {
     pub kind: Kind,
     /// The team's execution count of `behavior` when the instance started.
     pub epoch: u32,
+    /// Allocation only: 0 for the allocation made when the team reached
+    /// the point, 1, 2… for re-allocations after teammates were lost.
+    pub round: u32,
+}
+
+impl InstanceKey {
+    /// `(epoch, round)`: the order of instances at one point.
+    pub fn stamp(&self) -> (u32, u32) {
+        (self.epoch, self.round)
+    }
 }
 
 impl fmt::Display for InstanceKey {
@@ -98,7 +108,11 @@ impl fmt::Display for InstanceKey {
             f,
             "{}/b{}/{}#{}",
             self.team, self.behavior.0, self.kind, self.epoch
-        )
+        )?;
+        if self.round > 0 {
+            write!(f, ".{}", self.round)?;
+        }
+        Ok(())
     }
 }
 
@@ -214,6 +228,29 @@ pub enum Body {
     },
     /// "Is this decided?" — answered with the decision if there is one.
     Query,
+    /// Sent by the kernel, not by protocols: "teammates were lost, this
+    /// team re-allocates at this point" (the round is in the instance key).
+    /// Teammates still under the point join; those that left it answer
+    /// `Done`. `lost` are the teammates the sender re-allocates without:
+    /// every robot that joins leaves them out too, so that rules computed
+    /// alone (by-id) agree before each robot's own detector catches up.
+    Reallocate {
+        /// Members left out of this round.
+        lost: Vec<RobotId>,
+    },
+    /// Sent by the kernel, not by protocols, to a teammate it hears again
+    /// after presuming it lost: how an instance it missed was decided
+    /// without it. `choice` is the successor (sync) or the next behavior
+    /// (termination); `children` and `members` the allocation, in the form
+    /// of [`Body::Assignment`].
+    Missed {
+        /// Sync choice or termination's next behavior.
+        choice: Option<BehaviorId>,
+        /// Allocation: the children, in order.
+        children: Vec<BehaviorId>,
+        /// Allocation: `(member, index into children)`.
+        members: Vec<(RobotId, u32)>,
+    },
     /// A protocol-defined message for protocols outside the library.
     Custom {
         /// Protocol-chosen tag.
@@ -278,6 +315,8 @@ impl Body {
             Body::Ack => "ack",
             Body::Release { .. } => "release",
             Body::Query => "query",
+            Body::Reallocate { .. } => "reallocate",
+            Body::Missed { .. } => "missed",
             Body::Custom { .. } => "custom",
         }
     }
@@ -351,6 +390,7 @@ mod tests {
                 behavior: BehaviorId(4),
                 kind: Kind::Sync,
                 epoch: 2,
+                round: 0,
             },
             sender: RobotId(1),
             seq: 17,

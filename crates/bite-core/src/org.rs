@@ -428,8 +428,8 @@ mod tests {
         let lead = BehaviorId(2);
         let follow = BehaviorId(3);
         org.link(walk, TeamId::ROOT);
-        let t1 = TeamId::derive(TeamId::ROOT, walk, 1, 0, 1);
-        let t2 = TeamId::derive(TeamId::ROOT, walk, 1, 1, 2);
+        let t1 = TeamId::derive(TeamId::ROOT, walk, (1, 0), 0, 1);
+        let t2 = TeamId::derive(TeamId::ROOT, walk, (1, 0), 1, 2);
         org.add_subteam(
             TeamId::ROOT,
             t1,

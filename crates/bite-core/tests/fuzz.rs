@@ -165,6 +165,7 @@ fn envelope() -> impl Strategy<Value = Envelope> {
             behavior: BehaviorId(b),
             kind,
             epoch,
+            round: epoch % 3,
         });
     let ids = proptest::collection::vec((0u32..14).prop_map(BehaviorId), 0..4);
     let body = prop_oneof![
@@ -172,7 +173,7 @@ fn envelope() -> impl Strategy<Value = Envelope> {
             .prop_map(|candidates| Body::Propose { candidates }),
         proptest::option::of((0u32..14).prop_map(BehaviorId))
             .prop_map(|choice| Body::Vote { choice }),
-        ids.prop_map(|ranking| Body::Ballot { ranking }),
+        ids.clone().prop_map(|ranking| Body::Ballot { ranking }),
         proptest::option::of((0u32..14).prop_map(BehaviorId))
             .prop_map(|choice| Body::Decision { choice }),
         Just(Body::Done),
@@ -220,6 +221,18 @@ fn envelope() -> impl Strategy<Value = Envelope> {
                 threshold
             }),
         any::<u32>().prop_map(|slot| Body::Claim { slot }),
+        proptest::collection::vec((0u32..6).prop_map(RobotId), 0..3)
+            .prop_map(|lost| Body::Reallocate { lost }),
+        (
+            proptest::option::of((0u32..14).prop_map(BehaviorId)),
+            ids.clone(),
+            proptest::collection::vec(((0u32..6).prop_map(RobotId), 0u32..4), 0..4)
+        )
+            .prop_map(|(choice, children, members)| Body::Missed {
+                choice,
+                children,
+                members
+            }),
     ];
     (key, (0u32..5).prop_map(RobotId), 0u64..50, body).prop_map(|(instance, sender, seq, body)| {
         Envelope {

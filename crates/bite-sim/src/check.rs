@@ -3,7 +3,8 @@
 //!
 //! - **agreement**: all members that decided a synchronization instance
 //!   normally (not by timeout) chose the same successor — members that could
-//!   talk (neither presumed the other lost);
+//!   talk (neither presumed the other lost), and under a silent rule members
+//!   whose instances left out the same teammates;
 //! - **allocation**: all members that decided an allocation instance
 //!   normally hold the same assignment; no robot is given two children; no
 //!   child is left without members while another child has more than its
@@ -53,6 +54,12 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
     // Who each robot presumes lost, as the run goes (for "could talk").
     let mut lost_now: BTreeMap<RobotId, BTreeSet<RobotId>> = BTreeMap::new();
     let mut view_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
+    // Whom each robot's instance left out from its start, and whom it
+    // presumed lost while the instance ran.
+    let mut left_out_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
+    let mut lost_during: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
+    let mut open: BTreeMap<RobotId, BTreeSet<InstanceKey>> = BTreeMap::new();
+    let mut timed_out_at: BTreeSet<InstanceKey> = BTreeSet::new();
 
     let mut selected: BTreeMap<(TeamId, BehaviorId, u32), BTreeSet<RobotId>> = BTreeMap::new();
     let mut terminated: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
@@ -60,24 +67,62 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
 
     let mut last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32> = BTreeMap::new();
     for rec in &report.history {
+        if let Event::InteractionDecided { instance, .. }
+        | Event::InteractionAborted { instance, .. } = &rec.event
+            && let Some(o) = open.get_mut(&rec.robot)
+        {
+            o.remove(instance);
+        }
         match &rec.event {
             Event::MemberLost { member } => {
                 lost_now.entry(rec.robot).or_default().insert(*member);
+                // Running instances decide without it from now on.
+                for key in open.get(&rec.robot).into_iter().flatten() {
+                    lost_during
+                        .entry((*key, rec.robot))
+                        .or_default()
+                        .insert(*member);
+                }
             }
             Event::MemberBack { member } => {
                 lost_now.entry(rec.robot).or_default().remove(member);
             }
-            Event::InteractionDecided { instance, .. }
-                if matches!(instance.kind, Kind::Sync | Kind::Allocate) =>
-            {
-                view_at.insert(
-                    (*instance, rec.robot),
-                    lost_now.get(&rec.robot).cloned().unwrap_or_default(),
-                );
+            Event::InteractionStarted {
+                instance, excluded, ..
+            } => {
+                left_out_at.insert((*instance, rec.robot), excluded.iter().copied().collect());
+                open.entry(rec.robot).or_default().insert(*instance);
+            }
+            Event::InteractionDecided {
+                instance,
+                timed_out,
+                ..
+            } if matches!(instance.kind, Kind::Sync | Kind::Allocate) => {
+                if *timed_out {
+                    timed_out_at.insert(*instance);
+                }
+                let mut view = lost_now.get(&rec.robot).cloned().unwrap_or_default();
+                for x in [&left_out_at, &lost_during] {
+                    if let Some(x) = x.get(&(*instance, rec.robot)) {
+                        view.extend(x.iter().copied());
+                    }
+                }
+                view_at.insert((*instance, rec.robot), view);
             }
             _ => {}
         }
         match &rec.event {
+            // Decided while leaving (the protocol's last word to its
+            // teammates as an ancestor ended or a re-allocation began):
+            // this robot never applied it.
+            Event::InteractionAborted { instance, .. } => {
+                if let Some(m) = sync.get_mut(instance) {
+                    m.remove(&rec.robot);
+                }
+                if let Some(m) = alloc.get_mut(instance) {
+                    m.remove(&rec.robot);
+                }
+            }
             Event::InteractionDecided {
                 instance,
                 outcome,
@@ -157,10 +202,20 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
     // decided) must agree; robots on two sides of a partition may not.
     // (Robots whose views of an allocation diverged after a timeout are in
     // different teams: a team id includes its members.)
+    // A silent rule computes from what each robot knows alone, so two
+    // robots that presumed different teammates lost may differ; so may two
+    // robots with different views of who is alive after a teammate timed
+    // out (each learnt the outcome from a different side).
     let could_talk = |key: &InstanceKey, a: RobotId, b: RobotId| {
         let va = view_at.get(&(*key, a));
         let vb = view_at.get(&(*key, b));
-        !va.is_some_and(|v| v.contains(&b)) && !vb.is_some_and(|v| v.contains(&a))
+        let silent = mission
+            .bound(key.behavior, key.kind)
+            .is_some_and(|x| !x.protocol.communicates());
+        !va.is_some_and(|v| v.contains(&b))
+            && !vb.is_some_and(|v| v.contains(&a))
+            && (!silent || left_out_at.get(&(*key, a)) == left_out_at.get(&(*key, b)))
+            && (!timed_out_at.contains(key) || va == vb)
     };
     fn split<T: PartialEq>(
         m: &BTreeMap<RobotId, T>,
@@ -277,8 +332,16 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 }
                 continue;
             }
-            for r in holders {
-                if !seen.contains(&r) && room {
+            // A robot some teammate's instance left out (presumed lost at
+            // its start or before it decided) was left out on purpose, even
+            // if it came back meanwhile: it rejoins at the next point.
+            let left_out = |r: RobotId| {
+                view_at
+                    .range((*key, RobotId(0))..=(*key, RobotId(u32::MAX)))
+                    .any(|(_, v)| v.contains(&r))
+            };
+            for r in holders.iter().copied() {
+                if !seen.contains(&r) && room && !left_out(r) {
                     v.push(Violation {
                         invariant: "allocation",
                         detail: format!(

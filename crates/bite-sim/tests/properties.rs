@@ -1,6 +1,6 @@
 //! Property tests over random valid behavior graphs, team sizes 1-12,
-//! random protocol bindings and network faults (loss, duplication, jitter,
-//! reordering).
+//! random protocol bindings, network faults (loss, duplication, jitter,
+//! reordering) and robots that crash or pause.
 //!
 //! Properties, checked on every run (see `bite_sim::check`):
 //! - agreement: all members of a subteam select the same successor;
@@ -245,10 +245,26 @@ fn generate(seed: u64, robots: usize, loss: f64, dup: f64, jitter_ms: u64) -> Ge
         facts.join(", "),
         g.behaviors.join("")
     );
+    // Sometimes a robot crashes for good, or pauses for less than the
+    // failure detector's bound. (Long pauses, where a robot presumed lost
+    // comes back, are covered by the scenario tests: with random graphs
+    // they still have known failure modes, see docs/protocols.md.)
+    let crash = if robots >= 2 && g.rng.random_bool(0.3) {
+        let r = g.rng.random_range(0..robots);
+        let at = g.rng.random_range(0.5..60.0);
+        let until = if g.rng.random_bool(0.5) {
+            format!(", until: {:.2}s", at + g.rng.random_range(0.2..1.5))
+        } else {
+            String::new()
+        };
+        format!("crashes:\n  - {{ robot: r{r}, at: {at:.2}s{until} }}\n")
+    } else {
+        String::new()
+    };
     let scenario = format!(
         "scenario: random-{seed}\nseed: {seed}\ncontrol_hz: 10\ntime_limit: 1500s\n\
          network: {{ latency: 2ms, jitter: {jitter_ms}ms, loss: {loss}, duplicate: {dup} }}\n\
-         skills:\n{}\n{}",
+         skills:\n{}\n{}{crash}",
         g.skills.join("\n"),
         if g.events.is_empty() {
             String::new()
@@ -320,6 +336,16 @@ fn run_case(
     Ok(())
 }
 
+/// The same cases on every run (CI included), unless `PROPTEST_RNG_SEED`
+/// asks for others (`PROPTEST_RNG_SEED=$RANDOM PROPTEST_CASES=3000` to
+/// explore).
+fn rng_seed() -> proptest::test_runner::RngSeed {
+    match ProptestConfig::default().rng_seed {
+        proptest::test_runner::RngSeed::Random => proptest::test_runner::RngSeed::Fixed(0xB17E),
+        chosen => chosen,
+    }
+}
+
 fn cases() -> u32 {
     std::env::var("PROPTEST_CASES")
         .ok()
@@ -328,7 +354,7 @@ fn cases() -> u32 {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, rng_seed: rng_seed(), ..ProptestConfig::default() })]
 
     /// Fault-free network: every invariant holds and every run completes.
     #[test]

@@ -192,6 +192,16 @@ fn optimal_matches_brute_force_and_auction_keeps_its_bound() {
     assert_eq!(cases, 7 * 3 * 2 * 3);
 }
 
+/// The same cases on every run (CI included), unless `PROPTEST_RNG_SEED`
+/// asks for others (`PROPTEST_RNG_SEED=$RANDOM PROPTEST_CASES=3000` to
+/// explore).
+fn rng_seed() -> proptest::test_runner::RngSeed {
+    match ProptestConfig::default().rng_seed {
+        proptest::test_runner::RngSeed::Random => proptest::test_runner::RngSeed::Fixed(0xB17E),
+        chosen => chosen,
+    }
+}
+
 fn cases() -> u32 {
     std::env::var("PROPTEST_CASES")
         .ok()
@@ -200,7 +210,7 @@ fn cases() -> u32 {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, rng_seed: rng_seed(), ..ProptestConfig::default() })]
 
     /// Every protocol, teams of 1 to 20, 0-30% loss and duplication,
     /// reordering: the invariants hold and the mission completes.

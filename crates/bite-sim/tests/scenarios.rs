@@ -254,22 +254,59 @@ fn formation_under_vote_and_faults_still_agrees() {
     }
 }
 
+fn partitioned(from: &str, until: &str) -> Scenario {
+    let text = FORMATION_SC.replace(
+        "network:\n  latency: 5ms\n  jitter: 10ms",
+        &format!(
+            "network:\n  latency: 5ms\n  jitter: 10ms\n  partitions:\n    - {{ from: {from}, until: {until}, groups: [[r0, r1], [r2]] }}"
+        ),
+    );
+    scenario("partitioned.yaml", &text)
+}
+
 #[test]
 fn a_partition_delays_but_does_not_break_the_barrier() {
+    // Shorter than the failure detector's bound: messages are cut during
+    // the second leg's barriers, nobody is presumed lost, the retries
+    // carry the barrier through.
     let g = graph("formation.yaml", FORMATION);
-    let text = format!(
-        "{FORMATION_SC}\n# cut robot 2 off for a while\n"
-    )
-    .replace(
-        "network:\n  latency: 5ms\n  jitter: 10ms",
-        "network:\n  latency: 5ms\n  jitter: 10ms\n  partitions:\n    - { from: 10s, until: 18s, groups: [[r0, r1], [r2]] }",
-    );
-    let sc = scenario("partitioned.yaml", &text);
-    let o = simulate(&g, &sc, 1);
+    let o = simulate(&g, &partitioned("14s", "15.5s"), 1);
     let s = &o.report.summary;
     assert!(s.network.partitioned > 0, "{s}");
     assert!(s.completed, "{s}\n{}", replay(&o));
+    assert!(
+        !o.report
+            .history
+            .iter()
+            .any(|r| matches!(r.event, Event::MemberLost { .. })),
+        "nobody presumed lost"
+    );
     assert_clean(&o, "partition");
+}
+
+#[test]
+fn a_long_partition_splits_the_team_and_each_side_reallocates() {
+    // 8 s without hearing each other: each side presumes the other lost
+    // and re-allocates the triangle's roles among itself, then they meet
+    // again and finish the course.
+    let g = graph("formation.yaml", FORMATION);
+    let o = simulate(&g, &partitioned("10s", "18s"), 1);
+    let s = &o.report.summary;
+    assert!(s.completed, "{s}\n{}", replay(&o));
+    let realloc: BTreeMap<u32, u32> = o
+        .report
+        .history
+        .iter()
+        .filter_map(|r| match r.event {
+            Event::Reallocating { round, .. } => Some((r.robot.0, round)),
+            _ => None,
+        })
+        .collect();
+    // r0 and r1 lose r2 (round 1); r2 loses both, one after the other
+    // (rounds 1 and 2). When the partition heals, r2's round-2 messages
+    // reach r0 and r1, which join that round: one allocation again.
+    assert_eq!(realloc, BTreeMap::from([(0, 2), (1, 2), (2, 2)]));
+    assert_clean(&o, "long partition");
 }
 
 #[test]
@@ -369,4 +406,96 @@ fn a_paused_robot_rejoins() {
         .count();
     assert_eq!(back, 2, "both teammates hear r2 again");
     assert_clean(&o, "pause");
+}
+
+const TASKS: &str = r#"
+graph: tasks
+team: { robots: 4 }
+start: work
+defaults: { terminate: term.wait-all }
+behaviors:
+  work:
+    team: true
+    children: [a, b, c]
+    allocate: PROTOCOL
+  a: { team: true, skill: job, until: job_done, members: 1, utility: '10 - x' }
+  b: { team: true, skill: job, until: job_done, members: 1, utility: 'x' }
+  c: { team: true, skill: job, until: job_done, members: "1..", utility: '1' }
+"#;
+
+#[test]
+fn a_lost_members_child_is_reallocated_by_the_points_protocol() {
+    for protocol in [
+        "alloc.by-id",
+        "{ protocol: alloc.by-value, params: { value: x } }",
+        "{ protocol: alloc.by-attribute, params: { attribute: colour } }",
+        "alloc.optimal",
+        "alloc.auction",
+        "alloc.token",
+    ] {
+        let g = graph("tasks.yaml", &TASKS.replace("PROTOCOL", protocol));
+        // Robot i believes x = i; every job takes 20 s.
+        let mut sc = String::from(
+            "scenario: tasks\nseed: 3\nskills:\n  job: { duration: 20, start: { job_done: false }, done: { job_done: true } }\nevents:\n",
+        );
+        for i in 0..4 {
+            sc.push_str(&format!(
+                "  - {{ at: 0s, robots: [r{i}], set: {{ x: {i} }} }}\n"
+            ));
+        }
+        // First find who runs `b` (it takes one member), then crash it.
+        let o = simulate(&g, &scenario("tasks-sc.yaml", &sc), 3);
+        let b = g.find("b").unwrap_or_else(|| panic!("b"));
+        let holder = o
+            .report
+            .history
+            .iter()
+            .find_map(|r| match &r.event {
+                Event::Selected { behavior, .. } if *behavior == b => Some(r.robot),
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("{protocol}: nobody runs b"));
+        sc.push_str(&format!(
+            "crashes:\n  - {{ robot: r{}, at: 5s }}\n",
+            holder.0
+        ));
+        let o = simulate(&g, &scenario("tasks-crash.yaml", &sc), 3);
+        let s = &o.report.summary;
+        assert!(s.completed, "{protocol}: {s}\n{}", replay(&o));
+        assert_clean(&o, protocol);
+        // Every survivor re-allocated once, and someone else runs b to the end.
+        let rounds: Vec<(u32, u32)> = o
+            .report
+            .history
+            .iter()
+            .filter_map(|r| match r.event {
+                Event::Reallocating { round, .. } => Some((r.robot.0, round)),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(rounds.len(), 3, "{protocol}: {rounds:?}");
+        assert!(rounds.iter().all(|(r, k)| *r != holder.0 && *k == 1));
+        let finished_b: Vec<RobotId> = o
+            .report
+            .history
+            .iter()
+            .filter_map(|r| match r.event {
+                Event::Terminated {
+                    behavior,
+                    reason: bite_core::event::EndReason::Until,
+                    ..
+                } if behavior == b => Some(r.robot),
+                _ => None,
+            })
+            .collect();
+        assert_eq!(
+            finished_b.len(),
+            1,
+            "{protocol}: b finished by {finished_b:?}"
+        );
+        assert_ne!(finished_b[0], holder, "{protocol}");
+        // Re-allocating cost no deadline: survivors decided as soon as
+        // they knew.
+        assert_eq!(s.timeouts, 0, "{protocol}: {s}");
+    }
 }

@@ -53,6 +53,30 @@ const DEDUP_MEMORY: Duration = Duration::from_secs(120);
 const DEDUP_PER_SENDER: usize = 4096;
 /// Finished instances whose outcome is remembered to answer late teammates.
 const TOMBSTONES: usize = 1024;
+/// How many instances decided without a lost teammate are remembered per
+/// teammate, to tell it how they ended when it comes back.
+const MISSED_REMEMBERED: usize = 64;
+
+/// What tells a teammate back from being presumed lost how an instance it
+/// missed was decided.
+fn missed_body(closed: &Closed) -> Option<Body> {
+    match closed {
+        Closed::Synced(choice) | Closed::Terminated(choice) => Some(Body::Missed {
+            choice: *choice,
+            children: Vec::new(),
+            members: Vec::new(),
+        }),
+        Closed::Allocated(a) => match Body::assignment(a) {
+            Body::Assignment { children, members } => Some(Body::Missed {
+                choice: None,
+                children,
+                members,
+            }),
+            _ => None,
+        },
+        Closed::Left => None,
+    }
+}
 
 /// Bounds on the work and memory of one kernel.
 #[derive(Clone, Debug)]
@@ -91,6 +115,15 @@ pub struct Frame {
     /// The subteams its allocation created (dissolved when it ends).
     #[serde(skip)]
     subteams: Vec<TeamId>,
+    /// Its allocation round: 0, then one more for every re-allocation
+    /// after teammates were lost.
+    #[serde(skip)]
+    round: u32,
+    /// The children its allocation split the team among (a re-allocation
+    /// splits the survivors among the same ones, whatever each robot's
+    /// preconditions say by then).
+    #[serde(skip)]
+    allotted: Vec<ChildSlot>,
     /// Its termination protocol decided while it was still running here.
     #[serde(skip)]
     team_ended: bool,
@@ -117,6 +150,7 @@ impl Frame {
             behavior: self.behavior,
             kind: Kind::Terminate,
             epoch: self.epoch,
+            round: 0,
         }
     }
 }
@@ -232,6 +266,16 @@ struct Instance {
     received: u32,
 }
 
+impl Instance {
+    /// The team's members it decides without, in id order.
+    fn excluded_members(&self) -> Vec<RobotId> {
+        self.excluded
+            .as_ref()
+            .map(|x| x.iter().filter(|r| self.team.contains(*r)).collect())
+            .unwrap_or_default()
+    }
+}
+
 #[derive(Debug)]
 enum Phase {
     NotStarted,
@@ -284,10 +328,16 @@ pub struct Kernel {
     phase: Phase,
     instances: BTreeMap<InstanceKey, Instance>,
     /// Highest epoch known to be over, per (team, behavior, kind).
-    closed: BTreeMap<(TeamId, BehaviorId, Kind), u32>,
+    closed: BTreeMap<(TeamId, BehaviorId, Kind), (u32, u32)>,
     pending: BTreeMap<InstanceKey, Vec<Pending>>,
     /// Teammates presumed lost (reported by the runtime).
     lost: MemberSet,
+    /// Instances decided without a teammate presumed lost, per teammate:
+    /// when it comes back it is told how they ended (it may be waiting in
+    /// one, or running below a behavior its team ended meanwhile).
+    missed: BTreeMap<RobotId, VecDeque<InstanceKey>>,
+    /// Teammates presumed lost at some point of the mission.
+    ever_lost: MemberSet,
     /// Outcomes of forgotten instances, to answer late teammates.
     tombstones: BTreeMap<InstanceKey, Closed>,
     tomb_order: VecDeque<InstanceKey>,
@@ -335,6 +385,8 @@ impl Kernel {
             closed: BTreeMap::new(),
             pending: BTreeMap::new(),
             lost: MemberSet::empty(n),
+            missed: BTreeMap::new(),
+            ever_lost: MemberSet::empty(n),
             tombstones: BTreeMap::new(),
             tomb_order: VecDeque::new(),
             pending_len: 0,
@@ -407,6 +459,7 @@ impl Kernel {
         if r == self.me || !self.lost.insert(r) {
             return;
         }
+        self.ever_lost.insert(r);
         self.emit(Event::MemberLost { member: r });
         let affected: Vec<InstanceKey> = self
             .instances
@@ -426,6 +479,13 @@ impl Kernel {
             }
             self.call(k, |imp, cx| imp.on_members_changed(cx));
         }
+        // Children left without enough live members are re-allocated.
+        if !matches!(self.phase, Phase::NotStarted | Phase::Finished)
+            && let Some(i) = self.orphaned_frame()
+        {
+            let round = self.stack[i].round + 1;
+            self.reallocate(i, round, &[]);
+        }
         self.refresh_due();
         self.step();
     }
@@ -437,6 +497,34 @@ impl Kernel {
         if self.lost.contains(r) {
             self.lost.remove(r);
             self.emit(Event::MemberBack { member: r });
+            // Tell it how what it missed was decided: it may be waiting in
+            // one of those instances, or running below a behavior its team
+            // ended meanwhile, or lead a protocol its team has moved past.
+            for key in self.missed.remove(&r).unwrap_or_default() {
+                let closed = self
+                    .instances
+                    .get(&key)
+                    .and_then(|i| i.closed.clone())
+                    .or_else(|| self.tombstones.get(&key).cloned());
+                if let Some(body) = closed.as_ref().and_then(missed_body) {
+                    self.reply(key, r, body);
+                }
+            }
+            // Barriers armed but not started take part it again (a member
+            // lost once is not left out of its ancestors' terminations for
+            // the rest of the mission).
+            let departed = self
+                .stack
+                .iter()
+                .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(r)));
+            for inst in self.instances.values_mut() {
+                if inst.state == State::Armed
+                    && !departed
+                    && let Some(x) = &mut inst.excluded
+                {
+                    x.remove(r);
+                }
+            }
         }
         self.step();
     }
@@ -725,22 +813,109 @@ impl Kernel {
     fn retire(&mut self, f: &Frame, reason: EndReason) {
         self.stack_version += 1;
         self.org.unlink(f.behavior, f.team);
-        if !f.subteams.is_empty() {
-            let gone = &f.subteams;
-            for t in gone {
-                self.org.dissolve(*t);
-            }
-            // Late messages for dissolved teams are recognised by the
-            // organization's memory of dead teams; the per-instance records
-            // can go (a repeated allocation would otherwise grow them forever).
-            self.closed.retain(|(t, _, _), _| !gone.contains(t));
-        }
+        self.dissolve(&f.subteams);
         self.emit(Event::Terminated {
             behavior: f.behavior,
             team: f.team,
             epoch: f.epoch,
             reason,
         });
+    }
+
+    /// Dissolve subteams an allocation created.
+    fn dissolve(&mut self, gone: &[TeamId]) {
+        if gone.is_empty() {
+            return;
+        }
+        for t in gone {
+            self.org.dissolve(*t);
+        }
+        // Late messages for dissolved teams are recognised by the
+        // organization's memory of dead teams; the per-instance records can
+        // go (a repeated allocation would otherwise grow them forever).
+        self.closed.retain(|(t, _, _), _| !gone.contains(t));
+    }
+
+    /// A child of the allocation at a frame on the stack that lost
+    /// teammates and has fewer live members than it needs: the frame.
+    fn orphaned_frame(&self) -> Option<usize> {
+        let graph = self.mission.graph();
+        // A lost teammate that had already finished the behavior (arrived at
+        // its barrier or an ancestor's) leaves nothing to re-allocate.
+        let mut done: Option<MemberSet> = None;
+        self.stack.iter().position(|f| {
+            if let Some(d) = &f.departed {
+                done.get_or_insert_with(|| MemberSet::empty(d.roster_len()))
+                    .union_with(d);
+            }
+            let done = done.as_ref();
+            let children = &graph.behavior(f.behavior).children;
+            f.subteams.iter().any(|t| {
+                let Some(team) = self.org.team(*t) else {
+                    return false;
+                };
+                let Some(child) = team
+                    .origin
+                    .and_then(|(_, _, idx)| children.get(idx as usize))
+                else {
+                    return false;
+                };
+                let live = team
+                    .members
+                    .iter()
+                    .filter(|r| !self.lost.contains(*r) || done.is_some_and(|d| d.contains(*r)))
+                    .count();
+                let min = graph.behavior(*child).members.0.max(1) as usize;
+                live < team.size as usize && live < min
+            })
+        })
+    }
+
+    /// Re-allocate the children of frame `i` among the teammates still
+    /// under it (its allocation protocol decides, in a new round): what
+    /// runs below it ends, its subteams dissolve, and it expands again.
+    /// `told` are the teammates the robot that started the round left out
+    /// (this robot leaves them out too, presumed lost or not).
+    fn reallocate(&mut self, i: usize, round: u32, told: &[RobotId]) {
+        self.abort_phase();
+        let b = self.stack[i].behavior;
+        while self.stack.len() > i + 1 {
+            if let Some(f) = self.stack.pop() {
+                self.abort(f.term_key());
+                self.retire(&f, EndReason::Reallocation(b));
+            }
+        }
+        let gone = std::mem::take(&mut self.stack[i].subteams);
+        self.dissolve(&gone);
+        let f = &mut self.stack[i];
+        f.round = round;
+        let (team, epoch) = (f.team, f.epoch);
+        let children = f.allotted.clone();
+        self.stack_version += 1;
+        self.emit(Event::Reallocating {
+            behavior: b,
+            team,
+            epoch,
+            round,
+        });
+        let key = InstanceKey {
+            team,
+            behavior: b,
+            kind: Kind::Allocate,
+            epoch,
+            round,
+        };
+        self.phase = Phase::Allocating(key);
+        self.start_instance(key, PointInput::Allocate { children }, told);
+        // Tell the team, so that teammates that have not noticed the loss
+        // join, and those that left the point say so at once.
+        if let Some(inst) = self.instances.get(&key)
+            && inst.team.size > 1
+        {
+            let lost = inst.excluded_members();
+            let to = Recipients::Team(inst.team.members.clone());
+            self.send_outside(key, to, Body::Reallocate { lost });
+        }
     }
 
     /// An ancestor ended while an interaction was in flight: abandon it.
@@ -792,8 +967,8 @@ impl Kernel {
         let e = self
             .closed
             .entry((key.team, key.behavior, key.kind))
-            .or_insert(0);
-        *e = (*e).max(key.epoch);
+            .or_insert((0, 0));
+        *e = (*e).max(key.stamp());
         self.drop_pending(key);
     }
 
@@ -814,6 +989,8 @@ impl Kernel {
             epoch,
             started: self.now,
             subteams: Vec::new(),
+            round: 0,
+            allotted: Vec::new(),
             team_ended: false,
             until_false_at: None,
             born: self.ticks,
@@ -835,8 +1012,9 @@ impl Kernel {
                 behavior: b,
                 kind: Kind::Terminate,
                 epoch,
+                round: 0,
             };
-            self.start_instance(key, PointInput::Terminate);
+            self.start_instance(key, PointInput::Terminate, &[]);
         }
         self.phase = Phase::Expand;
     }
@@ -890,7 +1068,7 @@ impl Kernel {
             self.phase = Phase::Finished;
             return false;
         };
-        let (b, team, epoch) = (top.behavior, top.team, top.epoch);
+        let (b, team, epoch, round) = (top.behavior, top.team, top.epoch, top.round);
         if self.graph().behavior(b).is_atomic() {
             self.phase = Phase::Run;
             return false;
@@ -909,9 +1087,13 @@ impl Kernel {
                 behavior: b,
                 kind: Kind::Allocate,
                 epoch,
+                round,
             };
             self.phase = Phase::Allocating(key);
-            self.start_instance(key, PointInput::Allocate { children: enabled });
+            if let Some(top) = self.stack.last_mut() {
+                top.allotted = enabled.clone();
+            }
+            self.start_instance(key, PointInput::Allocate { children: enabled }, &[]);
             return true;
         }
         self.push(enabled[0].behavior, team, Via::Expansion);
@@ -937,7 +1119,7 @@ impl Kernel {
             let Some(idx) = children.iter().position(|c| c == child) else {
                 continue;
             };
-            let tid = TeamId::derive(team, b, epoch, idx as u32, members.fingerprint());
+            let tid = TeamId::derive(team, b, key.stamp(), idx as u32, members.fingerprint());
             self.org
                 .add_subteam(team, tid, Arc::new(members.clone()), (b, epoch, idx as u32));
             created.push(tid);
@@ -965,6 +1147,7 @@ impl Kernel {
                     behavior: b,
                     kind: Kind::Terminate,
                     epoch,
+                    round: 0,
                 };
                 let communicates = self
                     .mission
@@ -1055,6 +1238,7 @@ impl Kernel {
                         behavior: b,
                         kind: Kind::Sync,
                         epoch,
+                        round: 0,
                     };
                     if let Phase::Selecting { key: k, .. } = &mut self.phase {
                         *k = Some(key);
@@ -1065,6 +1249,7 @@ impl Kernel {
                             candidates: enabled,
                             successors: beh.next.clone(),
                         },
+                        &[],
                     );
                     return true;
                 }
@@ -1113,7 +1298,7 @@ impl Kernel {
 
     // ----- protocol instances -------------------------------------------
 
-    fn start_instance(&mut self, key: InstanceKey, input: PointInput) {
+    fn start_instance(&mut self, key: InstanceKey, input: PointInput, told: &[RobotId]) {
         let Some(bound) = self.mission.bound(key.behavior, key.kind) else {
             return;
         };
@@ -1127,8 +1312,18 @@ impl Kernel {
         // on teammates leave them out: a silent rule must compute from what
         // every member shares.
         let mut gone = self.lost.clone();
+        for r in told {
+            gone.insert(*r);
+        }
         if bound.protocol.communicates() {
-            for f in &self.stack {
+            // An allocation at the top frame is not below it: teammates
+            // idle under it take part in a re-allocation (those that left
+            // it answer `Done`).
+            let below = match key.kind {
+                Kind::Allocate => self.stack.len().saturating_sub(1),
+                _ => self.stack.len(),
+            };
+            for f in &self.stack[..below] {
                 if let Some(d) = &f.departed {
                     gone.union_with(d);
                 }
@@ -1161,9 +1356,11 @@ impl Kernel {
         let protocol = inst.protocol;
         self.instances.insert(key, inst);
         if !armed {
+            let excluded = self.instances[&key].excluded_members();
             self.emit(Event::InteractionStarted {
                 instance: key,
                 protocol,
+                excluded,
             });
         }
         self.call(key, |imp, cx| imp.start(cx));
@@ -1189,9 +1386,11 @@ impl Kernel {
         inst.waiting_since = Some(now);
         inst.deadline = now + inst.deadline_len;
         let protocol = inst.protocol;
+        let excluded = inst.excluded_members();
         self.emit(Event::InteractionStarted {
             instance: key,
             protocol,
+            excluded,
         });
         self.call(key, |imp, cx| imp.local_done(cx, why));
         self.refresh_due();
@@ -1251,8 +1450,20 @@ impl Kernel {
             set.insert(*r);
         }
         // The termination instances of the frames down to this one are not
-        // below it; every other running instance is.
-        let above: Vec<InstanceKey> = self.stack[..=i].iter().map(Frame::term_key).collect();
+        // below it, nor is a re-allocation at it (teammates idle under it
+        // take part); every other running instance is.
+        let here = &self.stack[i];
+        let (team, behavior, epoch) = (here.team, here.behavior, here.epoch);
+        let mut above: Vec<InstanceKey> = self.stack[..=i].iter().map(Frame::term_key).collect();
+        above.extend(
+            self.instances
+                .keys()
+                .filter(|k| {
+                    k.kind == Kind::Allocate
+                        && (k.team, k.behavior, k.epoch) == (team, behavior, epoch)
+                })
+                .copied(),
+        );
         let below: Vec<InstanceKey> = self
             .instances
             .iter()
@@ -1313,6 +1524,7 @@ impl Kernel {
                 what,
             });
         }
+        let mut tell = Vec::new();
         if let Some(outcome) = fx.outcome
             && matches!(inst.state, State::Armed | State::Active)
         {
@@ -1339,11 +1551,29 @@ impl Kernel {
                 Outcome::Terminate(n) => Closed::Terminated(*n),
             });
             inst.outcome = Some(outcome);
+            // Teammates presumed lost that this decision left out: told
+            // now if they are back, else when they are.
+            if let Some(ex) = &inst.excluded {
+                for r in ex
+                    .iter()
+                    .filter(|r| inst.team.contains(*r) && self.ever_lost.contains(*r))
+                {
+                    if self.lost.contains(r) {
+                        let missed = self.missed.entry(r).or_default();
+                        if missed.len() >= MISSED_REMEMBERED {
+                            missed.pop_front();
+                        }
+                        missed.push_back(key);
+                    } else if let Some(body) = inst.closed.as_ref().and_then(missed_body) {
+                        tell.push((r, body));
+                    }
+                }
+            }
             let e = self
                 .closed
                 .entry((key.team, key.behavior, key.kind))
-                .or_insert(0);
-            *e = (*e).max(key.epoch);
+                .or_insert((0, 0));
+            *e = (*e).max(key.stamp());
             // A termination decided while its behavior is still on the stack
             // (the team ended it, or this robot idles under it) ends it here.
             if key.kind == Kind::Terminate
@@ -1351,6 +1581,9 @@ impl Kernel {
             {
                 f.team_ended = true;
             }
+        }
+        for (r, body) in tell {
+            self.reply(key, r, body);
         }
     }
 
@@ -1521,6 +1754,40 @@ impl Kernel {
             seen.remove(&oldest);
         }
         seen.insert(env.seq, self.now);
+        if key.kind == Kind::Allocate && key.round > 0 && !self.instances.contains_key(&key) {
+            let frame = self
+                .stack
+                .iter()
+                .position(|f| (f.team, f.behavior, f.epoch) == (key.team, key.behavior, key.epoch));
+            let told: &[RobotId] = match &env.body {
+                Body::Reallocate { lost } => lost,
+                _ => &[],
+            };
+            match frame {
+                // A teammate re-allocates what this robot runs under: join
+                // it (this robot may not have noticed the loss yet) — unless
+                // that teammate left this robot out.
+                Some(i) if self.stack[i].round < key.round && !told.contains(&self.me) => {
+                    let told = told.to_vec();
+                    self.reallocate(i, key.round, &told);
+                }
+                Some(_) => {}
+                // This robot has left that behavior: it takes no part.
+                None if self.org.runs(key.team, key.behavior) >= key.epoch
+                    && self.org.team(key.team).is_some_and(|t| t.contains(from)) =>
+                {
+                    self.stats.received += 1;
+                    self.reply(key, from, Body::Done);
+                    return;
+                }
+                None => {}
+            }
+        }
+        if matches!(env.body, Body::Reallocate { .. }) {
+            // The kernel's own notice, handled above.
+            self.stats.received += 1;
+            return;
+        }
         if let Some(inst) = self.instances.get(&key) {
             let team = self.org.team(key.team).unwrap_or(&inst.team);
             if !team.contains(from) {
@@ -1531,6 +1798,10 @@ impl Kernel {
         }
         if let Some(closed) = self.tombstones.get(&key).cloned() {
             self.stats.received += 1;
+            if matches!(env.body, Body::Missed { .. }) {
+                // Decided here already: nothing to apply, nothing to answer.
+                return;
+            }
             return self.late_reply(key, closed, from, &env.body);
         }
         match self.org.team(key.team) {
@@ -1545,7 +1816,7 @@ impl Kernel {
         if self
             .closed
             .get(&(key.team, key.behavior, key.kind))
-            .is_some_and(|e| key.epoch <= *e)
+            .is_some_and(|e| key.stamp() <= *e)
         {
             return self.drop_msg(from, DropReason::Stale);
         }
@@ -1570,25 +1841,34 @@ impl Kernel {
     /// Answer a teammate's late message for a forgotten instance, as its
     /// protocol says.
     fn late_reply(&mut self, key: InstanceKey, closed: Closed, from: RobotId, body: &Body) {
-        let Some(reply) = self
+        if let Some(reply) = self
             .mission
             .bound(key.behavior, key.kind)
             .and_then(|b| b.protocol.late_reply(&closed, body))
-        else {
-            return;
-        };
+        {
+            self.reply(key, from, reply);
+        }
+    }
+
+    /// Send `body` to `to` for instance `key`, outside any live instance.
+    fn reply(&mut self, key: InstanceKey, to: RobotId, body: Body) {
+        self.send_outside(key, Recipients::One(to), body);
+    }
+
+    /// Send a message of the kernel's own (not of a protocol instance).
+    fn send_outside(&mut self, key: InstanceKey, to: Recipients, body: Body) {
         let envelope = Envelope {
             instance: key,
             sender: self.me,
             seq: self.next_seq,
-            body: reply,
+            body,
         };
         self.next_seq += 1;
         let bytes = encoded_len(&envelope) as u32;
         self.stats.sent += 1;
         self.stats.bytes_sent += u64::from(bytes);
         self.out.push_back(Output::Send(Outgoing {
-            to: Recipients::One(from),
+            to,
             envelope,
             bytes,
         }));
@@ -1609,7 +1889,56 @@ impl Kernel {
         if let Some(i) = self.instances.get_mut(&key) {
             i.received += 1;
         }
+        if key.kind != Kind::Terminate && body == Body::Done {
+            // "I have left this behavior" (a re-allocation reached a
+            // teammate that is done with it): decide without it.
+            let n = self.org.roster_len();
+            if let Some(i) = self.instances.get_mut(&key) {
+                i.excluded
+                    .get_or_insert_with(|| MemberSet::empty(n))
+                    .insert(from);
+            }
+            self.call(key, |imp, cx| imp.on_members_changed(cx));
+            self.refresh_due();
+            return;
+        }
+        if let Body::Missed {
+            choice,
+            children,
+            members,
+        } = body
+        {
+            // The team decided without this robot while it was presumed
+            // lost: apply the team's decision, whatever this robot's own
+            // protocol instance (it may believe itself the coordinator).
+            let outcome = match key.kind {
+                Kind::Sync => Some(Outcome::Sync(choice)),
+                Kind::Terminate => Some(Outcome::Terminate(choice)),
+                Kind::Allocate => Body::Assignment { children, members }
+                    .to_assignment(self.org.roster_len())
+                    .map(Outcome::Allocate),
+            };
+            match outcome {
+                Some(o) => self.force(key, o),
+                None => self.drop_msg(from, DropReason::Malformed),
+            }
+            return;
+        }
         self.call(key, |imp, cx| imp.on_message(cx, from, &body));
+        self.refresh_due();
+    }
+
+    /// Decide instance `key` with `outcome`, outside its protocol.
+    fn force(&mut self, key: InstanceKey, outcome: Outcome) {
+        let Some(mut inst) = self.instances.remove(&key) else {
+            return;
+        };
+        let fx = Effects {
+            outcome: Some(outcome),
+            ..Effects::default()
+        };
+        self.apply_effects(key, &mut inst, fx);
+        self.instances.insert(key, inst);
         self.refresh_due();
     }
 
@@ -1651,7 +1980,7 @@ impl Kernel {
         self.pending.retain(|k, v| {
             let stale = closed
                 .get(&(k.team, k.behavior, k.kind))
-                .is_some_and(|e| k.epoch <= *e)
+                .is_some_and(|e| k.stamp() <= *e)
                 || org.is_dead(k.team);
             let before = v.len();
             if stale {

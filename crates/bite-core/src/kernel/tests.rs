@@ -583,6 +583,7 @@ behaviors:
             behavior,
             kind,
             epoch,
+            round: 0,
         },
         sender: RobotId(1),
         seq,
@@ -693,6 +694,7 @@ behaviors:
                     behavior: work,
                     kind: Kind::Terminate,
                     epoch: 1,
+                    round: 0,
                 },
                 sender: RobotId(0),
                 seq,
@@ -771,7 +773,7 @@ behaviors:
     let y_team = TeamId::derive(
         TeamId::ROOT,
         split,
-        1,
+        (1, 0),
         1,
         crate::org::MemberSet::from_iter(2, [RobotId(1)]).fingerprint(),
     );
@@ -789,6 +791,7 @@ behaviors:
                 behavior: y,
                 kind: Kind::Terminate,
                 epoch: 1,
+                round: 0,
             },
             sender: RobotId(1),
             seq: 99,
