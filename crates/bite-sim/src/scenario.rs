@@ -151,6 +151,8 @@ struct ScenarioSpec {
     #[serde(default)]
     crashes: Vec<Spanned<CrashSpec>>,
     failure_detector: Option<Spanned<DetectorSpec>>,
+    #[serde(default)]
+    sensed: Vec<String>,
 }
 
 /// How teammates find out that a robot is gone: heartbeats, and a robot
@@ -386,6 +388,9 @@ pub struct Scenario {
     pub crashes: Vec<Crash>,
     /// Lost-teammate detection (`None`: off).
     pub failure_detector: Option<FailureDetector>,
+    /// Beliefs the world provides whether or not the graph reads them
+    /// (protocol parameters of some configurations may): not warned about.
+    pub sensed: Vec<String>,
 }
 
 impl Default for Scenario {
@@ -404,6 +409,7 @@ impl Default for Scenario {
             events: Vec::new(),
             crashes: Vec::new(),
             failure_detector: Some(FailureDetector::default()),
+            sensed: Vec::new(),
         }
     }
 }
@@ -657,6 +663,7 @@ impl Scenario {
         }
         Ok(Scenario {
             failure_detector,
+            sensed: spec.sensed,
             name: spec.scenario.unwrap_or_else(|| {
                 Path::new(&**file)
                     .file_stem()
@@ -755,7 +762,7 @@ impl Scenario {
             .iter()
             .flat_map(|e| e.set.iter().map(move |(n, _)| (n, e.loc)));
         for (n, loc) in set_by_skills.chain(set_by_events) {
-            if symbols.get(n).is_none() && warned.insert(n.clone()) {
+            if symbols.get(n).is_none() && !self.sensed.contains(n) && warned.insert(n.clone()) {
                 warnings.push(Diagnostic::warning(
                     &self.file,
                     loc,
