@@ -31,6 +31,9 @@ pub enum Via {
 pub enum EndReason {
     /// Its termination condition held on this robot.
     Until,
+    /// Its `urgent` condition held on this robot: it left at once, without
+    /// waiting for its team's termination protocol.
+    Urgent,
     /// Its execution chain ran out of successors.
     ChainEnded,
     /// The team ended it (a termination protocol decided it).
@@ -190,6 +193,17 @@ pub enum Event {
         /// the teammate that started a re-allocation).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         excluded: Vec<RobotId>,
+    },
+    /// This robot stopped waiting for the termination protocol of a
+    /// behavior it had finished, because the behavior's `urgent` condition
+    /// held (the protocol goes on without it).
+    Preempted {
+        /// The behavior.
+        behavior: BehaviorId,
+        /// Its team.
+        team: TeamId,
+        /// Its execution count.
+        epoch: u32,
     },
     /// A protocol instance decided.
     InteractionDecided {

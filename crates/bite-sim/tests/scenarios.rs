@@ -515,13 +515,55 @@ const TABLE2: [&str; 7] = [
 fn the_seven_table2_configurations_complete_the_formation() {
     // Row → the protocol each of points A-E must run.
     let rows = [
-        ["sync.by-rule", "sync.by-rule", "alloc.by-id", "sync.by-rule", "alloc.by-id"],
-        ["sync.by-rule", "sync.ranked-vote", "alloc.by-id", "sync.by-rule", "alloc.by-id"],
-        ["sync.by-rule", "sync.ranked-vote", "alloc.by-id", "sync.by-rule", "alloc.by-id"],
-        ["sync.elected-leader", "sync.by-rule", "alloc.by-id", "sync.by-rule", "alloc.by-id"],
-        ["sync.vote", "sync.ranked-vote", "alloc.by-value", "sync.by-rule", "alloc.by-id"],
-        ["sync.by-rule", "sync.round-robin", "alloc.by-value", "sync.leader", "alloc.by-attribute"],
-        ["sync.elected-leader", "sync.by-rule", "alloc.by-id", "sync.elected-leader", "alloc.by-id"],
+        [
+            "sync.by-rule",
+            "sync.by-rule",
+            "alloc.by-id",
+            "sync.by-rule",
+            "alloc.by-id",
+        ],
+        [
+            "sync.by-rule",
+            "sync.ranked-vote",
+            "alloc.by-id",
+            "sync.by-rule",
+            "alloc.by-id",
+        ],
+        [
+            "sync.by-rule",
+            "sync.ranked-vote",
+            "alloc.by-id",
+            "sync.by-rule",
+            "alloc.by-id",
+        ],
+        [
+            "sync.elected-leader",
+            "sync.by-rule",
+            "alloc.by-id",
+            "sync.by-rule",
+            "alloc.by-id",
+        ],
+        [
+            "sync.vote",
+            "sync.ranked-vote",
+            "alloc.by-value",
+            "sync.by-rule",
+            "alloc.by-id",
+        ],
+        [
+            "sync.by-rule",
+            "sync.round-robin",
+            "alloc.by-value",
+            "sync.leader",
+            "alloc.by-attribute",
+        ],
+        [
+            "sync.elected-leader",
+            "sync.by-rule",
+            "alloc.by-id",
+            "sync.elected-leader",
+            "alloc.by-id",
+        ],
     ];
     let sc = scenario("formation-sc.yaml", FORMATION_SC);
     for (i, text) in TABLE2.iter().enumerate() {
@@ -552,4 +594,95 @@ fn the_seven_table2_configurations_complete_the_formation() {
         let talk = s.interaction_time.sync + s.interaction_time.allocate;
         assert_eq!(talk > 0.0, row != 1, "row {row}: {s}");
     }
+}
+
+const PREEMPT: &str = r#"
+graph: preempt
+team: { robots: 2 }
+start: mission
+defaults: { terminate: term.wait-all }
+behaviors:
+  mission:
+    team: true
+    children: [work]
+  work:
+    team: true
+    skill: job
+    until: job_done
+    URGENT
+    next: [flee, rest]
+    sync: sync.vote
+  flee: { team: true, skill: run, until: safe, pre: alarm }
+  rest: { team: true, skill: nap, until: rested, pre: not alarm }
+"#;
+
+const PREEMPT_SC: &str = r#"
+scenario: preempt
+seed: 1
+time_limit: 300s
+skills:
+  job: { duration: [60, 60], start: { job_done: false }, done: { job_done: true } }
+  run: { duration: [2, 2], start: { safe: false }, done: { safe: true } }
+  nap: { duration: [1, 1], start: { rested: false }, done: { rested: true } }
+events:
+  # r1 works 60 s; r0 is done at 10 s, and sees an alarm at 12 s.
+  - { at: 10s, robots: [r0], set: { job_done: true } }
+  - { at: 12s, robots: [r0], set: { alarm: true } }
+"#;
+
+#[test]
+fn an_urgent_condition_preempts_a_slow_termination() {
+    let sc = scenario("preempt-sc.yaml", PREEMPT_SC);
+    let flee_at = |text: &str| {
+        let g = graph("preempt.yaml", text);
+        let o = simulate(&g, &sc, 1);
+        assert!(o.report.summary.completed, "{}", o.report.summary);
+        assert_clean(&o, "preemption");
+        let flee = g.find("flee").unwrap_or_else(|| panic!("flee"));
+        let work = g.find("work").unwrap_or_else(|| panic!("work"));
+        let h = &o.report.history;
+        let started = h
+            .iter()
+            .find(|r| {
+                r.robot == RobotId(0)
+                    && matches!(r.event, Event::Selected { behavior, .. } if behavior == flee)
+            })
+            .map(|r| r.t.as_secs_f64());
+        // r0 finished `work` at 10 s and waits at its barrier when the
+        // alarm goes off: the wait is preempted.
+        let urgent = h.iter().any(|r| {
+            r.robot == RobotId(0)
+                && matches!(r.event, Event::Preempted { behavior, .. } if behavior == work)
+        });
+        (started, urgent, o.report.summary.task_time)
+    };
+    // Without `urgent`, r0 is held at the barrier although the alarm went
+    // off at 12 s: until r1's 60 s job ends, or here until the barrier's
+    // 30 s deadline (from 10 s) lets it go on alone.
+    let (slow, urgent, _) = flee_at(&PREEMPT.replace("URGENT", ""));
+    assert!(!urgent);
+    let slow = slow.unwrap_or(f64::INFINITY);
+    assert!(slow >= 40.0, "r0 fled at {slow}");
+    // With it, r0 leaves `work` at the next control tick after the alarm and
+    // chooses its successor alone; the barrier is told, and r1 finishes.
+    let (fast, urgent, _) = flee_at(&PREEMPT.replace("URGENT", "urgent: alarm"));
+    assert!(urgent);
+    let fast = fast.unwrap_or(f64::INFINITY);
+    assert!((12.0..12.5).contains(&fast), "r0 fled at {fast}");
+    // An alarm while still working ends the behavior at once, too.
+    let g = graph("preempt.yaml", &PREEMPT.replace("URGENT", "urgent: alarm"));
+    let early = scenario("early.yaml", &PREEMPT_SC.replace("at: 12s", "at: 5s"));
+    let o = simulate(&g, &early, 1);
+    assert!(o.report.summary.completed, "{}", o.report.summary);
+    assert_clean(&o, "early alarm");
+    let work = g.find("work").unwrap_or_else(|| panic!("work"));
+    let ended = o.report.history.iter().find_map(|r| match r.event {
+        Event::Terminated {
+            behavior,
+            reason: bite_core::event::EndReason::Urgent,
+            ..
+        } if behavior == work && r.robot == RobotId(0) => Some(r.t.as_secs_f64()),
+        _ => None,
+    });
+    assert!(ended.is_some_and(|t| (5.0..5.5).contains(&t)), "{ended:?}");
 }

@@ -47,6 +47,9 @@ pub fn to_dot_with(g: &BehaviorGraph, protocol: &dyn Fn(BehaviorId, Kind) -> Str
         if let Some(u) = &b.until {
             let _ = write!(label, "\\nuntil: {}", esc(u.source()));
         }
+        if let Some(u) = &b.urgent {
+            let _ = write!(label, "\\nurgent: {}", esc(u.source()));
+        }
         let mut fill = "#ffffff";
         for kind in Kind::ALL {
             if g.is_point(b.id, kind) {

@@ -164,6 +164,7 @@ impl Builder<'_> {
             };
             let pre = self.condition(id, &spec.pre, &mut resolver, "pre", Some("bool"));
             let until = self.condition(id, &spec.until, &mut resolver, "until", Some("bool"));
+            let urgent = self.condition(id, &spec.urgent, &mut resolver, "urgent", Some("bool"));
             let utility =
                 self.condition(id, &spec.utility, &mut resolver, "utility", Some("number"));
             let (bindings, labels) = self.bindings(&name.value, &spec);
@@ -186,6 +187,7 @@ impl Builder<'_> {
                 next,
                 pre,
                 until,
+                urgent,
                 utility,
                 skill,
                 members,

@@ -90,6 +90,10 @@ pub struct Behavior {
     pub pre: Option<Expr>,
     /// Termination condition: the behavior ends when it holds.
     pub until: Option<Expr>,
+    /// Emergency termination: when it holds the behavior ends on this robot
+    /// at once (its termination protocol is told, not awaited) and the
+    /// robot picks the successor alone.
+    pub urgent: Option<Expr>,
     /// Preference among alternatives for deciding protocols (higher wins).
     pub utility: Option<Expr>,
     /// Skill (atomic behaviors).

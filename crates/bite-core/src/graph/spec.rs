@@ -148,6 +148,9 @@ pub struct BehaviorSpec {
     pub pre: Option<Spanned<String>>,
     /// Termination condition.
     pub until: Option<Spanned<String>>,
+    /// Emergency termination condition: ends the behavior on this robot at
+    /// once, without waiting for its termination protocol.
+    pub urgent: Option<Spanned<String>>,
     /// Preference used by deciding protocols (a number; higher is better).
     pub utility: Option<Spanned<String>>,
     /// Skill of an atomic behavior.

@@ -127,6 +127,10 @@ pub struct Frame {
     /// Its termination protocol decided while it was still running here.
     #[serde(skip)]
     team_ended: bool,
+    /// It ended by its `urgent` condition: the successor is chosen here,
+    /// without the team.
+    #[serde(skip)]
+    urgent: bool,
     /// Belief and stack versions at which `until` was last found false.
     #[serde(skip)]
     until_false_at: Option<(u64, u64)>,
@@ -740,10 +744,16 @@ impl Kernel {
             if !self.in_tick || f.born == self.ticks {
                 continue;
             }
-            let Some(until) = &graph.behavior(f.behavior).until else {
+            let beh = graph.behavior(f.behavior);
+            if beh.until.is_none() && beh.urgent.is_none() {
                 continue;
-            };
-            if !until.depends_on_time() && f.until_false_at == Some(vers) {
+            }
+            let timed = beh
+                .until
+                .iter()
+                .chain(&beh.urgent)
+                .any(|e| e.depends_on_time());
+            if !timed && f.until_false_at == Some(vers) {
                 continue;
             }
             let runs = match i {
@@ -757,7 +767,16 @@ impl Kernel {
                 started: f.started,
                 own: f.behavior,
             };
-            if until.eval(&env) {
+            if let Some(urgent) = &beh.urgent
+                && urgent.eval(&env)
+            {
+                let e = self.condition_event(f.behavior, "urgent", urgent);
+                self.out.push_back(Output::Event(e));
+                return Some((i, EndReason::Urgent));
+            }
+            if let Some(until) = &beh.until
+                && until.eval(&env)
+            {
                 let e = self.condition_event(f.behavior, "until", until);
                 self.out.push_back(Output::Event(e));
                 return Some((i, EndReason::Until));
@@ -797,7 +816,7 @@ impl Kernel {
         self.retire(&frame, reason);
         let key = frame.term_key();
         let why = match reason {
-            EndReason::Until => LocalEnd::Condition,
+            EndReason::Until | EndReason::Urgent => LocalEnd::Condition,
             _ => LocalEnd::ChainEnded,
         };
         let key = if self.instances.contains_key(&key) {
@@ -806,6 +825,15 @@ impl Kernel {
         } else {
             None
         };
+        if reason == EndReason::Urgent {
+            // Preemption: the termination protocol has been told (it goes on
+            // answering teammates), but this robot does not wait for it,
+            // nor for its team to choose the successor.
+            let mut frame = frame;
+            frame.urgent = true;
+            self.phase = Phase::Selecting { frame, key: None };
+            return;
+        }
         self.phase = Phase::Terminating { frame, key };
     }
 
@@ -992,6 +1020,7 @@ impl Kernel {
             round: 0,
             allotted: Vec::new(),
             team_ended: false,
+            urgent: false,
             until_false_at: None,
             born: self.ticks,
             runs: BTreeMap::new(),
@@ -1175,7 +1204,7 @@ impl Kernel {
             None => Outcome::Terminate(None),
             Some(k) => match self.take_outcome(k) {
                 Some(o) => o,
-                None => return false,
+                None => return self.preempt_termination(),
             },
         };
         let Phase::Terminating { frame, key } = std::mem::replace(&mut self.phase, Phase::Run)
@@ -1210,6 +1239,46 @@ impl Kernel {
         true
     }
 
+    /// Waiting for a termination protocol: if the behavior's `urgent`
+    /// condition holds (checked on control ticks), stop waiting. The
+    /// protocol, already told that this robot is done, goes on without it.
+    fn preempt_termination(&mut self) -> bool {
+        let Phase::Terminating { frame, .. } = &self.phase else {
+            return false;
+        };
+        if !self.in_tick {
+            return false;
+        }
+        let graph = self.mission.graph().clone();
+        let Some(urgent) = &graph.behavior(frame.behavior).urgent else {
+            return false;
+        };
+        let env = BeliefEnv {
+            beliefs: &self.beliefs,
+            runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
+            now: self.now,
+            started: frame.started,
+            own: frame.behavior,
+        };
+        if !urgent.eval(&env) {
+            return false;
+        }
+        let e = self.condition_event(frame.behavior, "urgent", urgent);
+        self.out.push_back(Output::Event(e));
+        let Phase::Terminating { mut frame, .. } = std::mem::replace(&mut self.phase, Phase::Run)
+        else {
+            return false;
+        };
+        frame.urgent = true;
+        self.emit(Event::Preempted {
+            behavior: frame.behavior,
+            team: frame.team,
+            epoch: frame.epoch,
+        });
+        self.phase = Phase::Selecting { frame, key: None };
+        true
+    }
+
     /// Line 8: choose the next behavior of the execution chain.
     fn select(&mut self) -> bool {
         let Phase::Selecting { frame, key } = &self.phase else {
@@ -1229,7 +1298,7 @@ impl Kernel {
                     .copied()
                     .filter(|s| self.pre_holds(&graph, *s))
                     .collect();
-                if graph.is_sync_point(b) {
+                if graph.is_sync_point(b) && !frame.urgent {
                     // The team decides jointly even when this robot sees
                     // fewer than two enabled successors: its teammates may
                     // see more. Silent rules reduce to lines 8b–8d exactly.
