@@ -124,6 +124,20 @@ struct RunArgs {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// Every protocol of the library, one decision each in the
+    /// discrete-event runner: messages and rounds per decision by team size;
+    /// then the auction and token passing at scale (robots × tasks).
+    Protocols {
+        /// Team sizes.
+        #[arg(long, value_delimiter = ',', default_values_t = [3usize, 10, 100])]
+        robots: Vec<usize>,
+        /// Robots and tasks of the large auction / token-passing runs (0: skip).
+        #[arg(long, default_value_t = 1000)]
+        large: usize,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// A whole team in the timed-skill world: simulated seconds per wall second.
     Team {
         /// Team size.
@@ -502,6 +516,76 @@ fn cmd_bench_team(
     Ok(ExitCode::SUCCESS)
 }
 
+#[allow(clippy::disallowed_methods)] // a benchmark measures wall time
+fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitCode> {
+    use bite_sim::probe::{LIBRARY, ProbeSpec, probe};
+    let reg = registry();
+    let bar = ProgressBar::new((LIBRARY.len() * sizes.len()) as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {pos}/{len} [{bar:30}] {msg} ({elapsed})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let mut rows = Vec::new();
+    for (kind, protocol, params) in LIBRARY {
+        for &n in sizes {
+            bar.set_message(format!("{protocol}, {n} robots"));
+            let mut spec = ProbeSpec::new(*kind, protocol, n);
+            spec.params = params.map(str::to_string);
+            // First-wins is about one robot seeing the goal before the others.
+            spec.staggered = *protocol == "term.first-wins";
+            spec.seed = seed;
+            let start = std::time::Instant::now();
+            let r = probe(&spec, &reg).map_err(bad_input)?;
+            let wall = start.elapsed().as_secs_f64();
+            rows.push((protocol, n, r, wall));
+            bar.inc(1);
+        }
+    }
+    bar.finish_and_clear();
+    outln!("One decision per protocol, fault-free, 3 children / successors, 10 ms latency.");
+    outln!("| protocol | n | messages | rounds | decided | wall |");
+    outln!("| --- | ---: | ---: | ---: | --- | ---: |");
+    for (protocol, n, r, wall) in &rows {
+        let ok = r.completed && r.violations.is_empty() && r.timeouts == 0;
+        outln!(
+            "| `{protocol}` | {n} | {} | {:.0} | {} | {:.1} ms |",
+            r.messages,
+            r.rounds,
+            if ok { "yes" } else { "NO" },
+            wall * 1e3
+        );
+    }
+    if large > 0 {
+        outln!("");
+        outln!(
+            "{large} robots, {large} tasks (one robot each, utilities from positions), one allocation:"
+        );
+        outln!("| protocol | messages | messages / task | rounds | total utility | wall |");
+        outln!("| --- | ---: | ---: | ---: | ---: | ---: |");
+        for protocol in ["alloc.auction", "alloc.token", "alloc.optimal"] {
+            eprintln!("{protocol}: {large} robots x {large} tasks ...");
+            let mut spec = ProbeSpec::new(bite_core::msg::Kind::Allocate, protocol, large);
+            spec.items = large;
+            spec.one_each = true;
+            spec.utilities = true;
+            spec.seed = seed;
+            spec.deadline = Some(Duration::from_secs(24 * 3600));
+            let start = std::time::Instant::now();
+            let r = probe(&spec, &reg).map_err(bad_input)?;
+            let wall = start.elapsed().as_secs_f64();
+            outln!(
+                "| `{protocol}` | {} | {:.2} | {:.0} | {:.0} | {:.2} s |",
+                r.messages,
+                r.messages as f64 / large as f64,
+                r.rounds,
+                r.utility.unwrap_or(f64::NAN),
+                wall
+            );
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.cmd {
@@ -532,6 +616,14 @@ fn main() -> ExitCode {
             sim_time,
             seed,
         ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Protocols {
+                    robots,
+                    large,
+                    seed,
+                },
+        } => cmd_bench_protocols(&robots, large, seed),
     };
     match result {
         Ok(code) => code,

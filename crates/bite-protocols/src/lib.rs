@@ -18,7 +18,7 @@
 //! | `alloc.by-attribute` | SF6 | allocate | n |
 //! | `alloc.auction` | S2 | allocate | P calls + bids (≤ P(n−1)) + 1, P places |
 //! | `alloc.optimal` | — | allocate | n |
-//! | `alloc.token` | — | allocate | 2P + passes + 1 − (leader's own) |
+//! | `alloc.token` | — | allocate | 2P + passes + 1 − (leader's own); 2n − 1 with n places and no passes |
 //! | `term.local` | — | terminate | 0 |
 //! | `term.wait-all` | S3 | terminate | 2n − 1 |
 //! | `term.majority` | — | terminate | ≈ 2⌊n/2⌋ + ⌈n/2⌉ |

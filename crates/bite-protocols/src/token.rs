@@ -19,9 +19,11 @@
 //! 2n per token; rounds: 3 + the longest chain of passes. The leader deals
 //! unclaimed places again on its timer (a token lost on the way); a place
 //! claimed twice goes to the first claim; a member waiting for the
-//! assignment asks for it with exponential backoff. At its deadline, or
-//! when a member is presumed lost, the leader deals the unclaimed places
-//! (and a lost member's) by id among the members without one.
+//! assignment asks for it with exponential backoff. When a member is
+//! presumed lost, its place (claimed or not) is dealt again as a token; a
+//! member that becomes leader because the leader was lost deals all places
+//! anew. At its deadline the leader deals the unclaimed places by id among
+//! the members without one.
 
 use crate::alloc::settle;
 use crate::gather::{self, Coord};

@@ -38,6 +38,31 @@ use std::fmt::Write as _;
 use std::sync::Arc;
 use std::time::Duration;
 
+/// Every protocol of the library with the parameters a probe gives it, in
+/// the order `bite bench protocols` reports them.
+pub const LIBRARY: &[(Kind, &str, Option<&str>)] = &[
+    (Kind::Sync, "sync.by-rule", None),
+    (Kind::Sync, "sync.round-robin", None),
+    (Kind::Sync, "sync.leader", None),
+    (Kind::Sync, "sync.elected-leader", None),
+    (Kind::Sync, "sync.vote", None),
+    (Kind::Sync, "sync.ranked-vote", None),
+    (Kind::Allocate, "alloc.by-id", None),
+    (Kind::Allocate, "alloc.by-value", Some("{ value: x }")),
+    (
+        Kind::Allocate,
+        "alloc.by-attribute",
+        Some("{ attribute: colour }"),
+    ),
+    (Kind::Allocate, "alloc.optimal", None),
+    (Kind::Allocate, "alloc.auction", None),
+    (Kind::Allocate, "alloc.token", None),
+    (Kind::Terminate, "term.local", None),
+    (Kind::Terminate, "term.wait-all", None),
+    (Kind::Terminate, "term.majority", None),
+    (Kind::Terminate, "term.first-wins", None),
+];
+
 /// What to measure.
 #[derive(Clone, Debug)]
 pub struct ProbeSpec {
