@@ -529,10 +529,7 @@ fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitC
     for (kind, protocol, params) in LIBRARY {
         for &n in sizes {
             bar.set_message(format!("{protocol}, {n} robots"));
-            let mut spec = ProbeSpec::new(*kind, protocol, n);
-            spec.params = params.map(str::to_string);
-            // First-wins is about one robot seeing the goal before the others.
-            spec.staggered = *protocol == "term.first-wins";
+            let mut spec = ProbeSpec::library(*kind, protocol, *params, n);
             spec.seed = seed;
             let start = std::time::Instant::now();
             let r = probe(&spec, &reg).map_err(bad_input)?;

@@ -319,27 +319,15 @@ impl Interaction for Market {
     }
 
     fn on_deadline(&mut self, cx: &mut Cx<'_>) {
-        if cx.is_leader() && self.leading {
-            if self.coord.result.is_none() {
-                self.finish(cx);
-            }
-        } else {
-            let o = bite_core::rules::fallback(cx);
-            cx.decide(o);
+        if self.coord.deadline_passed(cx, self.leading) {
+            self.finish(cx);
         }
     }
 
     fn on_members_changed(&mut self, cx: &mut Cx<'_>) {
-        let changed = self.coord.leader_changed(cx);
-        if self.coord.result.is_some() {
-            if changed {
-                self.coord.tell_new_leader(cx);
-            }
+        let Some(changed) = self.coord.members_changed(cx) else {
             return;
-        }
-        if cx.is_aborted() {
-            return;
-        }
+        };
         if cx.is_leader() {
             if changed || !self.leading {
                 // Took over: run the auction again among the survivors.

@@ -154,6 +154,33 @@ impl Coord {
         changed
     }
 
+    /// A teammate was lost or left: the bookkeeping every leader-based
+    /// protocol shares. `None` when nothing is left to do here (decided —
+    /// a new leader is told the decision — or aborted); otherwise whether
+    /// the leader changed.
+    pub(crate) fn members_changed(&mut self, cx: &mut Cx<'_>) -> Option<bool> {
+        let changed = self.leader_changed(cx);
+        if self.result.is_some() {
+            if changed {
+                self.tell_new_leader(cx);
+            }
+            return None;
+        }
+        (!cx.is_aborted()).then_some(changed)
+    }
+
+    /// The deadline passed: true when this robot leads (`leading`) and has
+    /// not decided — it decides from what it has; a member cut off from
+    /// its leader decides alone by the silent rule.
+    pub(crate) fn deadline_passed(&self, cx: &mut Cx<'_>, leading: bool) -> bool {
+        if cx.is_leader() && leading {
+            return self.result.is_none();
+        }
+        let o = rules::fallback(cx);
+        cx.decide(o);
+        false
+    }
+
     /// Apply a decision; a leader also announces it.
     pub(crate) fn adopt(&mut self, cx: &mut Cx<'_>, outcome: Outcome, announce: bool) {
         if announce {

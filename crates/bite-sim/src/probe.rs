@@ -103,6 +103,17 @@ pub struct ProbeSpec {
 }
 
 impl ProbeSpec {
+    /// The probe `bite bench protocols` runs for an entry of [`LIBRARY`]:
+    /// [`ProbeSpec::new`] with the parameters, and first-wins with members
+    /// finishing one after the other (it is about one robot seeing the goal
+    /// before the others).
+    pub fn library(kind: Kind, protocol: &str, params: Option<&str>, robots: usize) -> Self {
+        let mut s = Self::new(kind, protocol, robots);
+        s.params = params.map(str::to_string);
+        s.staggered = protocol == "term.first-wins";
+        s
+    }
+
     /// A fault-free probe of `protocol` at a point of `kind` with `robots`
     /// robots and 3 items; 10 ms latency.
     pub fn new(kind: Kind, protocol: &str, robots: usize) -> Self {

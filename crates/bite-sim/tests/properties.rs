@@ -23,6 +23,8 @@ use bite_sim::{Scenario, prepare, run};
 use proptest::prelude::*;
 use rand::{RngExt, SeedableRng};
 use std::fmt::Write as _;
+
+mod common;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -336,25 +338,8 @@ fn run_case(
     Ok(())
 }
 
-/// The same cases on every run (CI included), unless `PROPTEST_RNG_SEED`
-/// asks for others (`PROPTEST_RNG_SEED=$RANDOM PROPTEST_CASES=3000` to
-/// explore).
-fn rng_seed() -> proptest::test_runner::RngSeed {
-    match ProptestConfig::default().rng_seed {
-        proptest::test_runner::RngSeed::Random => proptest::test_runner::RngSeed::Fixed(0xB17E),
-        chosen => chosen,
-    }
-}
-
-fn cases() -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(64)
-}
-
 proptest! {
-    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, rng_seed: rng_seed(), ..ProptestConfig::default() })]
+    #![proptest_config(common::config(64))]
 
     /// Fault-free network: every invariant holds and every run completes.
     #[test]

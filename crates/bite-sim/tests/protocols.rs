@@ -12,37 +12,28 @@
 
 use bite_core::msg::Kind;
 use bite_core::rules::member_counts;
-use bite_sim::probe::{ProbeSpec, positions, probe, utility};
+use bite_sim::probe::{LIBRARY, ProbeSpec, positions, probe, utility};
+
+mod common;
 use proptest::prelude::*;
 use std::time::Duration;
 
 /// Every protocol, with the parameters it needs.
-const ALL: &[(Kind, &str, Option<&str>)] = &[
-    (Kind::Sync, "sync.by-rule", None),
-    (Kind::Sync, "sync.leader", None),
-    (Kind::Sync, "sync.elected-leader", None),
-    (Kind::Sync, "sync.round-robin", None),
-    (Kind::Sync, "sync.vote", None),
-    (Kind::Sync, "sync.ranked-vote", None),
-    (Kind::Allocate, "alloc.by-id", None),
-    (
-        Kind::Allocate,
-        "alloc.by-value",
-        Some("{ value: 'dist(pos, [0, 0])' }"),
-    ),
-    (
-        Kind::Allocate,
-        "alloc.by-attribute",
-        Some("{ attribute: colour, wants: { c0: red } }"),
-    ),
-    (Kind::Allocate, "alloc.optimal", None),
-    (Kind::Allocate, "alloc.auction", None),
-    (Kind::Allocate, "alloc.token", None),
-    (Kind::Terminate, "term.local", None),
-    (Kind::Terminate, "term.wait-all", None),
-    (Kind::Terminate, "term.majority", None),
-    (Kind::Terminate, "term.first-wins", None),
-];
+/// Every protocol of the library, with parameters that give the allocators
+/// something to sort or match on.
+fn all() -> Vec<(Kind, &'static str, Option<&'static str>)> {
+    LIBRARY
+        .iter()
+        .map(|&(kind, protocol, params)| {
+            let params = match protocol {
+                "alloc.by-value" => Some("{ value: 'dist(pos, [0, 0])' }"),
+                "alloc.by-attribute" => Some("{ attribute: colour, wants: { c0: red } }"),
+                _ => params,
+            };
+            (kind, protocol, params)
+        })
+        .collect()
+}
 
 /// Messages and rounds per decision, fault-free, team of `n`, as
 /// documented in `docs/protocols.md` (allocation: 3 children that take any
@@ -67,9 +58,7 @@ fn documented(protocol: &str, n: u64) -> (u64, u64) {
 }
 
 fn spec(kind: Kind, protocol: &str, params: Option<&str>, n: usize) -> ProbeSpec {
-    let mut s = ProbeSpec::new(kind, protocol, n);
-    s.params = params.map(str::to_string);
-    s.staggered = protocol == "term.first-wins";
+    let mut s = ProbeSpec::library(kind, protocol, params, n);
     s.utilities = kind == Kind::Allocate;
     s
 }
@@ -85,7 +74,7 @@ fn counted(kind: Kind, protocol: &str, params: Option<&str>, n: usize) -> ProbeS
 #[test]
 fn message_and_round_counts_match_the_documented_formulas() {
     let registry = bite_protocols::registry();
-    for (kind, protocol, params) in ALL {
+    for (kind, protocol, params) in &all() {
         for n in 1..=10usize {
             let r = probe(&counted(*kind, protocol, *params, n), &registry)
                 .unwrap_or_else(|d| panic!("{protocol}: {d}"));
@@ -192,38 +181,21 @@ fn optimal_matches_brute_force_and_auction_keeps_its_bound() {
     assert_eq!(cases, 7 * 3 * 2 * 3);
 }
 
-/// The same cases on every run (CI included), unless `PROPTEST_RNG_SEED`
-/// asks for others (`PROPTEST_RNG_SEED=$RANDOM PROPTEST_CASES=3000` to
-/// explore).
-fn rng_seed() -> proptest::test_runner::RngSeed {
-    match ProptestConfig::default().rng_seed {
-        proptest::test_runner::RngSeed::Random => proptest::test_runner::RngSeed::Fixed(0xB17E),
-        chosen => chosen,
-    }
-}
-
-fn cases() -> u32 {
-    std::env::var("PROPTEST_CASES")
-        .ok()
-        .and_then(|c| c.parse().ok())
-        .unwrap_or(48)
-}
-
 proptest! {
-    #![proptest_config(ProptestConfig { cases: cases(), failure_persistence: None, rng_seed: rng_seed(), ..ProptestConfig::default() })]
+    #![proptest_config(common::config(48))]
 
     /// Every protocol, teams of 1 to 20, 0-30% loss and duplication,
     /// reordering: the invariants hold and the mission completes.
     #[test]
     fn every_protocol_survives_network_faults(
-        which in 0..ALL.len(),
+        which in 0..LIBRARY.len(),
         n in 1usize..=20,
         loss in prop_oneof![Just(0.0), 0.0f64..0.3],
         dup in prop_oneof![Just(0.0), 0.0f64..0.3],
         jitter_ms in 0u64..100,
         seed in any::<u64>(),
     ) {
-        let (kind, protocol, params) = ALL[which];
+        let (kind, protocol, params) = all()[which];
         let mut s = spec(kind, protocol, params, n);
         s.loss = loss;
         s.duplicate = dup;
@@ -248,7 +220,7 @@ fn a_lost_teammate_at_any_moment_is_decided_without() {
     let registry = bite_protocols::registry();
     // Latency 10 ms; the point starts at 0.5 s (allocation) or 1 s (sync,
     // termination) and lasts a few rounds. Crash before, at and during it.
-    for (kind, protocol, params) in ALL {
+    for (kind, protocol, params) in &all() {
         if !registry.get(protocol).is_some_and(|p| p.communicates()) {
             continue;
         }

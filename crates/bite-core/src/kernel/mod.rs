@@ -474,14 +474,8 @@ impl Kernel {
             })
             .map(|(k, _)| *k)
             .collect();
-        let n = self.org.roster_len();
         for k in affected {
-            if let Some(i) = self.instances.get_mut(&k) {
-                i.excluded
-                    .get_or_insert_with(|| MemberSet::empty(n))
-                    .insert(r);
-            }
-            self.call(k, |imp, cx| imp.on_members_changed(cx));
+            self.exclude(k, &[r]);
         }
         // Children left without enough live members are re-allocated.
         if !matches!(self.phase, Phase::NotStarted | Phase::Finished)
@@ -926,15 +920,7 @@ impl Kernel {
             epoch,
             round,
         });
-        let key = InstanceKey {
-            team,
-            behavior: b,
-            kind: Kind::Allocate,
-            epoch,
-            round,
-        };
-        self.phase = Phase::Allocating(key);
-        self.start_instance(key, PointInput::Allocate { children }, told);
+        let key = self.start_allocation((team, b, epoch, round), children, told);
         // Tell the team, so that teammates that have not noticed the loss
         // join, and those that left the point say so at once.
         if let Some(inst) = self.instances.get(&key)
@@ -992,12 +978,17 @@ impl Kernel {
     }
 
     fn close(&mut self, key: InstanceKey) {
+        self.mark_closed(key);
+        self.drop_pending(key);
+    }
+
+    /// Remember that `key` and every earlier instance at its point are over.
+    fn mark_closed(&mut self, key: InstanceKey) {
         let e = self
             .closed
             .entry((key.team, key.behavior, key.kind))
             .or_insert((0, 0));
         *e = (*e).max(key.stamp());
-        self.drop_pending(key);
     }
 
     /// Push `b` for `team`, arming its termination protocol if it is a team
@@ -1111,22 +1102,34 @@ impl Kernel {
             return false;
         }
         if self.graph().is_alloc_point(b) {
-            let key = InstanceKey {
-                team,
-                behavior: b,
-                kind: Kind::Allocate,
-                epoch,
-                round,
-            };
-            self.phase = Phase::Allocating(key);
             if let Some(top) = self.stack.last_mut() {
                 top.allotted = enabled.clone();
             }
-            self.start_instance(key, PointInput::Allocate { children: enabled }, &[]);
+            self.start_allocation((team, b, epoch, round), enabled, &[]);
             return true;
         }
         self.push(enabled[0].behavior, team, Via::Expansion);
         true
+    }
+
+    /// Line 3c: allocate the children of the top frame (`team`, `b`,
+    /// `epoch`), in allocation round `round`, leaving `told` out.
+    fn start_allocation(
+        &mut self,
+        (team, b, epoch, round): (TeamId, BehaviorId, u32, u32),
+        children: Vec<ChildSlot>,
+        told: &[RobotId],
+    ) -> InstanceKey {
+        let key = InstanceKey {
+            team,
+            behavior: b,
+            kind: Kind::Allocate,
+            epoch,
+            round,
+        };
+        self.phase = Phase::Allocating(key);
+        self.start_instance(key, PointInput::Allocate { children }, told);
+        key
     }
 
     /// Line 3c continued: apply the allocation once decided.
@@ -1505,6 +1508,18 @@ impl Kernel {
         }
     }
 
+    /// Instance `k` decides without `who` from now on.
+    fn exclude(&mut self, k: InstanceKey, who: &[RobotId]) {
+        let n = self.org.roster_len();
+        if let Some(inst) = self.instances.get_mut(&k) {
+            let ex = inst.excluded.get_or_insert_with(|| MemberSet::empty(n));
+            for r in who {
+                ex.insert(*r);
+            }
+        }
+        self.call(k, |imp, cx| imp.on_members_changed(cx));
+    }
+
     /// Teammates done with the behavior of termination instance `key`:
     /// leave them out of every instance below that behavior.
     fn departures(&mut self, key: InstanceKey, who: &[RobotId]) {
@@ -1548,13 +1563,7 @@ impl Kernel {
             .map(|(k, _)| *k)
             .collect();
         for k in below {
-            if let Some(inst) = self.instances.get_mut(&k) {
-                let ex = inst.excluded.get_or_insert_with(|| MemberSet::empty(n));
-                for r in who {
-                    ex.insert(*r);
-                }
-            }
-            self.call(k, |imp, cx| imp.on_members_changed(cx));
+            self.exclude(k, who);
         }
     }
 
@@ -1638,11 +1647,7 @@ impl Kernel {
                     }
                 }
             }
-            let e = self
-                .closed
-                .entry((key.team, key.behavior, key.kind))
-                .or_insert((0, 0));
-            *e = (*e).max(key.stamp());
+            self.mark_closed(key);
             // A termination decided while its behavior is still on the stack
             // (the team ended it, or this robot idles under it) ends it here.
             if key.kind == Kind::Terminate
@@ -1961,13 +1966,7 @@ impl Kernel {
         if key.kind != Kind::Terminate && body == Body::Done {
             // "I have left this behavior" (a re-allocation reached a
             // teammate that is done with it): decide without it.
-            let n = self.org.roster_len();
-            if let Some(i) = self.instances.get_mut(&key) {
-                i.excluded
-                    .get_or_insert_with(|| MemberSet::empty(n))
-                    .insert(from);
-            }
-            self.call(key, |imp, cx| imp.on_members_changed(cx));
+            self.exclude(key, &[from]);
             self.refresh_due();
             return;
         }
