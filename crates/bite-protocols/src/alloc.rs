@@ -40,7 +40,7 @@ use bite_core::org::MemberSet;
 use bite_core::rules::{assign_in_order, member_counts};
 use bite_core::value::Value;
 use serde::Deserialize;
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 
 /// The live members of the instance, in id order.
 fn live(cx: &Cx<'_>) -> Vec<RobotId> {
@@ -81,18 +81,15 @@ pub(crate) fn settle(
     let members = live(cx);
     let mut open = member_counts(members.len(), children);
     let mut pairs: Vec<(RobotId, usize)> = Vec::new();
+    let mut placed = BTreeSet::new();
     for (r, i) in awards {
-        if cx.is_live(r)
-            && open.get(i).is_some_and(|n| *n > 0)
-            && !pairs.iter().any(|(p, _)| *p == r)
-        {
+        if cx.is_live(r) && open.get(i).is_some_and(|n| *n > 0) && !placed.contains(&r) {
             open[i] -= 1;
             pairs.push((r, i));
+            placed.insert(r);
         }
     }
-    let mut free = members
-        .into_iter()
-        .filter(|m| !pairs.iter().any(|(p, _)| p == m));
+    let mut free = members.into_iter().filter(|m| !placed.contains(m));
     let mut fill = Vec::new();
     for (i, left) in open.iter().enumerate() {
         for _ in 0..*left {
@@ -372,10 +369,16 @@ impl Rule for Exact {
             .collect();
         let mut cost = vec![0.0; members.len() * cols.len()];
         for (row, r) in members.iter().enumerate() {
-            let values: &[(BehaviorId, f64)] = match got.get(r) {
-                Some(Body::Costs { values }) => values,
+            let values: BTreeMap<BehaviorId, f64> = match got.get(r) {
+                Some(Body::Costs { values }) => {
+                    let mut m = BTreeMap::new();
+                    for (c, u) in values {
+                        m.entry(*c).or_insert(*u); // the first one counts
+                    }
+                    m
+                }
                 // Not heard from: indifferent.
-                _ => &[],
+                _ => BTreeMap::new(),
             };
             for (k, i) in cols.iter().enumerate() {
                 let b = children[*i].behavior;
@@ -384,10 +387,7 @@ impl Rule for Exact {
                 } else {
                     // Maximize utility; a child the member cannot take
                     // only as a last resort.
-                    values
-                        .iter()
-                        .find(|(c, _)| *c == b)
-                        .map_or(f64::INFINITY, |(_, u)| -u)
+                    values.get(&b).map_or(f64::INFINITY, |u| -u)
                 };
             }
         }

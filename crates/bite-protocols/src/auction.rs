@@ -7,7 +7,8 @@
 //! leader calls for bids on the children that still have places, naming
 //! the previous round's winner; every member without a place bids on the
 //! child it values most — its `utility` for the child, read from its
-//! beliefs (0 without one; a cost is a negative utility) — and the leader
+//! beliefs when it first bids (0 without one; a cost is a negative
+//! utility; the valuation holds for the whole auction) — and the leader
 //! awards one place to the highest bid (ties to the lower id, then the
 //! earlier child). Rounds go on until every place is awarded or nobody is
 //! left; the leader then multicasts the assignment.
@@ -75,12 +76,17 @@ struct Market {
     // Leader.
     /// The leader's children (what is for sale).
     children: Vec<ChildSlot>,
+    /// Child → its index in `children`.
+    index: BTreeMap<BehaviorId, usize>,
     /// Places left per child.
     places: Vec<u32>,
     /// Members without a place (live, leader's view).
     awarded: BTreeMap<RobotId, usize>,
     /// Bids of the current round: member → (child index, value).
     bids: BTreeMap<RobotId, (usize, f64)>,
+    /// Members without a place when the round was called (or the team
+    /// last changed): no award is looked for before this many bids.
+    free_count: usize,
     round: u32,
     /// Awards in the order they were made.
     order: Vec<(RobotId, usize)>,
@@ -90,6 +96,10 @@ struct Market {
     /// The last call heard.
     call: Option<(Vec<BehaviorId>, u32)>,
     won: bool,
+    /// This robot's utility per child, valued when it first bids (a
+    /// member's valuation holds for the whole auction, as in TraderBot).
+    /// Indexed by behavior id (dense); NaN for a child it cannot take.
+    values: Option<Vec<f64>>,
     // Both.
     coord: Coord,
     /// Highest round number seen (a new leader starts above it).
@@ -114,15 +124,28 @@ impl Market {
 
     /// This robot's best bid among `items`: highest utility, ties to the
     /// earlier item.
-    fn best(cx: &Cx<'_>, items: &[BehaviorId]) -> Option<(BehaviorId, f64)> {
-        let mine = utilities(cx);
+    fn best(
+        values: &mut Option<Vec<f64>>,
+        cx: &Cx<'_>,
+        items: &[BehaviorId],
+    ) -> Option<(BehaviorId, f64)> {
+        let mine = values.get_or_insert_with(|| {
+            let u = utilities(cx);
+            let len = u.iter().map(|(b, _)| b.index() + 1).max().unwrap_or(0);
+            let mut v = vec![f64::NAN; len];
+            for (b, x) in u {
+                v[b.index()] = x;
+            }
+            v
+        });
         let mut best: Option<(BehaviorId, f64)> = None;
         for it in items {
             // A child not enabled for this robot: the lowest possible bid.
             let u = mine
-                .iter()
-                .find(|(c, _)| c == it)
-                .map_or(f64::MIN, |(_, u)| *u);
+                .get(it.index())
+                .copied()
+                .filter(|x| !x.is_nan())
+                .unwrap_or(f64::MIN);
             if best.is_none_or(|(_, b)| u > b) {
                 best = Some((*it, u));
             }
@@ -134,6 +157,9 @@ impl Market {
     fn lead(&mut self, cx: &mut Cx<'_>) {
         self.leading = true;
         self.children = cx.children().to_vec();
+        self.index = (self.children.iter().enumerate())
+            .map(|(i, c)| (c.behavior, i))
+            .collect();
         let n = cx.team_size();
         self.places = member_counts(n, &self.children);
         self.awarded.clear();
@@ -151,13 +177,14 @@ impl Market {
         self.round += 1;
         self.seen_round = self.round;
         self.bids.clear();
+        self.free_count = self.free(cx).len();
         cx.broadcast(Body::Call {
             items: items.clone(),
             round: self.round,
             winner: self.last_winner,
         });
         if !self.awarded.contains_key(&cx.me())
-            && let Some((item, value)) = Self::best(cx, &items)
+            && let Some((item, value)) = Self::best(&mut self.values, cx, &items)
             && let Some(i) = self.index_of(item)
         {
             self.bids.insert(cx.me(), (i, value));
@@ -174,12 +201,15 @@ impl Market {
     }
 
     fn index_of(&self, item: BehaviorId) -> Option<usize> {
-        self.children.iter().position(|c| c.behavior == item)
+        self.index.get(&item).copied()
     }
 
     fn maybe_award(&mut self, cx: &mut Cx<'_>) {
         if self.coord.result.is_some() || cx.is_aborted() {
             return;
+        }
+        if self.bids.len() < self.free_count {
+            return; // bids still to come (checked in O(1) per bid)
         }
         let free = self.free(cx);
         if !free.iter().all(|m| self.bids.contains_key(m)) {
@@ -221,7 +251,7 @@ impl Market {
             return;
         }
         if let Some((items, round)) = &self.call
-            && let Some((item, value)) = Self::best(cx, items)
+            && let Some((item, value)) = Self::best(&mut self.values, cx, items)
         {
             let round = *round;
             cx.send(cx.leader(), Body::Bid { item, value, round });
@@ -347,6 +377,7 @@ impl Interaction for Market {
                         self.order.retain(|(w, _)| *w != r);
                     }
                 }
+                self.free_count = self.free(cx).len();
                 self.maybe_award(cx);
             }
         } else if changed {

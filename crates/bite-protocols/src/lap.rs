@@ -67,6 +67,9 @@ pub fn solve(rows: usize, cols: usize, cost: &[f64]) -> Solution {
 
 const NONE: usize = usize::MAX;
 
+/// Bound on the augmenting row reduction's steps, per row of the problem.
+const ARR_STEPS_PER_ROW: usize = 4;
+
 /// Square LAPJV on an `n × n` row-major matrix; returns the column of each row.
 fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
     let cost = |i: usize, j: usize| c[i * n + j];
@@ -124,7 +127,18 @@ fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
         let mut k = 0;
         let prv: Vec<usize> = std::mem::take(&mut free);
         let mut current = prv;
+        // On costs with many near-ties (distances between random points)
+        // rows can evict each other for a very long time, lowering a dual
+        // by a hair each time. Every step keeps each assigned row on its
+        // cheapest column, so stopping early is safe: the rows left go to
+        // the exact shortest-path phase.
+        let mut steps = 0usize;
         while k < current.len() {
+            steps += 1;
+            if steps > ARR_STEPS_PER_ROW * n {
+                free.extend(current[k..].iter().copied().filter(|i| x[*i] == NONE));
+                break;
+            }
             let i = current[k];
             k += 1;
             let (mut umin, mut j1) = (cost(i, 0) - v[0], 0);

@@ -221,8 +221,14 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
         m: &BTreeMap<RobotId, T>,
         talk: &dyn Fn(RobotId, RobotId) -> bool,
     ) -> bool {
+        // Usually everyone agrees: one linear pass settles it.
+        let mut values = m.values();
+        let first = values.next();
+        if values.all(|x| Some(x) == first) {
+            return false;
+        }
         m.iter()
-            .any(|(a, x)| m.iter().any(|(b, y)| a < b && talk(*a, *b) && x != y))
+            .any(|(a, x)| m.iter().any(|(b, y)| a < b && x != y && talk(*a, *b)))
     }
     for (key, choices) in &sync {
         if split(choices, &|a, b| could_talk(key, a, b)) {
