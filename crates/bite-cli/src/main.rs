@@ -44,6 +44,7 @@ macro_rules! out {
 /// The formation example, built in so that `bite run` works anywhere.
 const FORMATION_GRAPH: &str = include_str!("../../../examples/formation.yaml");
 const FORMATION_SCENARIO: &str = include_str!("../../../examples/scenarios/formation.yaml");
+const FORMATION_PHYSICS: &str = include_str!("../../../examples/scenarios/formation-physics.yaml");
 
 #[derive(Parser)]
 #[command(
@@ -120,6 +121,21 @@ struct RunArgs {
     /// Print the summary as JSON instead of text.
     #[arg(long)]
     json: bool,
+    /// Use the timed-skill world (discrete events only, no physics) when
+    /// picking the default scenario: `scenarios/<graph>.yaml` instead of
+    /// `scenarios/<graph>-physics.yaml`.
+    #[arg(long)]
+    timed: bool,
+    /// Draw the run (arena, objects, trajectories coloured by behavior,
+    /// formation links) to this SVG file. Physical world only.
+    #[arg(long)]
+    svg: Option<PathBuf>,
+    /// Write an animation as numbered SVG frames into this directory.
+    #[arg(long)]
+    frames: Option<PathBuf>,
+    /// Seconds of simulated time between frames.
+    #[arg(long, default_value_t = 1.0)]
+    every: f64,
 }
 
 #[derive(Subcommand)]
@@ -223,14 +239,20 @@ fn load_scenario(
     graph_path: Option<&Path>,
     scenario: Option<&Path>,
     graph: &BehaviorGraph,
+    timed: bool,
 ) -> Result<Scenario> {
     if let Some(s) = scenario {
         return Scenario::load(s).map_err(bad_input);
     }
     match graph_path {
-        None => Scenario::load_str(
+        None if timed => Scenario::load_str(
             &Arc::from("examples/scenarios/formation.yaml (built in)"),
             FORMATION_SCENARIO,
+        )
+        .map_err(bad_input),
+        None => Scenario::load_str(
+            &Arc::from("examples/scenarios/formation-physics.yaml (built in)"),
+            FORMATION_PHYSICS,
         )
         .map_err(bad_input),
         Some(p) => {
@@ -239,7 +261,13 @@ fn load_scenario(
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_default();
             let dir = p.parent().unwrap_or(Path::new("."));
-            let guess = dir.join("scenarios").join(format!("{stem}.yaml"));
+            let physical = dir.join("scenarios").join(format!("{stem}-physics.yaml"));
+            let timed_guess = dir.join("scenarios").join(format!("{stem}.yaml"));
+            let guess = if !timed && physical.exists() {
+                physical
+            } else {
+                timed_guess
+            };
             if guess.exists() {
                 eprintln!("scenario: {}", guess.display());
                 Scenario::load(&guess).map_err(bad_input)
@@ -262,7 +290,18 @@ fn registry() -> bite_core::interaction::Registry {
 
 fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     let graph = load_graph(a.graph.as_deref(), a.config.as_deref())?;
-    let scenario = load_scenario(a.graph.as_deref(), a.scenario.as_deref(), &graph)?;
+    let scenario = load_scenario(a.graph.as_deref(), a.scenario.as_deref(), &graph, a.timed)?;
+    if (a.svg.is_some() || a.frames.is_some()) && scenario.physics.is_none() {
+        eprintln!(
+            "error: --svg and --frames draw the physical world, and scenario `{}` is a timed world",
+            scenario.name
+        );
+        eprintln!("  = hint: give a scenario with `world: physics`, or leave out --timed");
+        return Ok(ExitCode::from(2));
+    }
+    if !(a.every.is_finite() && a.every > 0.0) {
+        anyhow::bail!("--every must be a positive number of seconds");
+    }
     let mission = prepare(&graph, &scenario, a.robots, &registry()).map_err(bad_input)?;
     let seed = a.seed.unwrap_or(scenario.seed);
     let log_path = a.log.unwrap_or_else(|| {
@@ -304,11 +343,15 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     bar.finish_and_clear();
     drop(writer);
     print_diags(&report.warnings);
+    let pictures = draw_pictures(&report, &mission, &a.svg, &a.frames, a.every)?;
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&report.summary)?);
     } else {
         out!("{}", report.summary);
         outln!("  run log          {}", log_path.display());
+        for p in &pictures {
+            outln!("  picture          {p}");
+        }
         if !report.summary.completed {
             let mut extra = String::new();
             if let Some(c) = &a.config {
@@ -328,6 +371,80 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     } else {
         ExitCode::from(1)
     })
+}
+
+/// Write the run's pictures; returns what was written.
+fn draw_pictures(
+    report: &bite_sim::runner::RunReport,
+    mission: &Mission,
+    svg: &Option<PathBuf>,
+    frames: &Option<PathBuf>,
+    every: f64,
+) -> Result<Vec<String>> {
+    let Some(world) = &report.world else {
+        return Ok(Vec::new());
+    };
+    let g = mission.graph();
+    let robots: Vec<String> = (0..g.roster().len() as u32)
+        .map(|r| g.roster().name(bite_core::ids::RobotId(r)).to_string())
+        .collect();
+    let behaviors = |b: bite_core::ids::BehaviorId| g.name_of(b).to_string();
+    let s = &report.summary;
+    let title = |t: f64| {
+        format!(
+            "{}{} on {} — seed {}, t = {t:.1} s{}",
+            s.graph,
+            s.config
+                .as_ref()
+                .map(|c| format!(" ({c})"))
+                .unwrap_or_default(),
+            s.scenario,
+            s.seed,
+            s.world
+                .as_ref()
+                .and_then(|w| w.goal.as_ref().map(|g| (g, w.goal_met_at)))
+                .map(|(g, at)| match at {
+                    Some(at) if at <= t => format!(", {g} at {at:.1} s"),
+                    _ => format!(", {g}: not yet"),
+                })
+                .unwrap_or_default()
+        )
+    };
+    let mut written = Vec::new();
+    let end = report.end.as_secs_f64();
+    if let Some(p) = svg {
+        let doc = bite_sim::physics::svg::draw(
+            world,
+            &bite_sim::physics::svg::Labels {
+                title: title(end),
+                robots: &robots,
+                behaviors: &behaviors,
+                at: None,
+            },
+        );
+        std::fs::write(p, doc).with_context(|| format!("writing {}", p.display()))?;
+        written.push(p.display().to_string());
+    }
+    if let Some(dir) = frames {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+        let count = (end / every).floor() as usize + 1;
+        for k in 0..count {
+            let t = (k as f64 * every).min(end);
+            let doc = bite_sim::physics::svg::draw(
+                world,
+                &bite_sim::physics::svg::Labels {
+                    title: title(t),
+                    robots: &robots,
+                    behaviors: &behaviors,
+                    at: Some(t),
+                },
+            );
+            let p = dir.join(format!("frame-{k:05}.svg"));
+            std::fs::write(&p, doc).with_context(|| format!("writing {}", p.display()))?;
+        }
+        written.push(format!("{} ({count} frames)", dir.display()));
+    }
+    Ok(written)
 }
 
 /// The arguments that reproduce a run, for the replay hint.
@@ -451,8 +568,8 @@ fn cmd_bench_team(
     let g = load_graph(graph, config)?;
     let sc = match (graph, scenario) {
         (_, Some(s)) => Scenario::load(s).map_err(bad_input)?,
-        (None, None) => load_scenario(None, None, &g)?,
-        (Some(p), None) => load_scenario(Some(p), None, &g)?,
+        (None, None) => load_scenario(None, None, &g, true)?,
+        (Some(p), None) => load_scenario(Some(p), None, &g, true)?,
     };
     let mission = prepare(&g, &sc, Some(robots), &registry()).map_err(bad_input)?;
     eprintln!(

@@ -21,6 +21,7 @@
 pub mod check;
 pub mod log;
 pub mod net;
+pub mod physics;
 pub mod probe;
 pub mod runner;
 pub mod scenario;

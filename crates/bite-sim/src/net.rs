@@ -91,6 +91,8 @@ pub struct NetStats {
     pub duplicated: u64,
     /// Copies dropped by a partition.
     pub partitioned: u64,
+    /// Copies dropped because the robots were out of radio range.
+    pub out_of_range: u64,
 }
 
 /// The network of one simulated run.
@@ -117,6 +119,12 @@ impl SimNet {
     /// The counters.
     pub fn stats(&self) -> &NetStats {
         &self.stats
+    }
+    /// Count a copy that could not be sent: the robots are out of radio
+    /// range of each other.
+    pub fn out_of_range(&mut self) {
+        self.stats.attempts += 1;
+        self.stats.out_of_range += 1;
     }
     /// True if a partition cuts `from → to` at `now`.
     pub fn cut(&self, now: Time, from: RobotId, to: RobotId) -> bool {

@@ -127,6 +127,8 @@ pub struct RunReport {
     pub crashes: Vec<(RobotId, Time, Option<Time>)>,
     /// When the run stopped.
     pub end: Time,
+    /// The physical world at the end (`world: physics`), for pictures.
+    pub world: Option<crate::physics::World>,
 }
 
 enum What {
@@ -199,6 +201,38 @@ struct Sim<'a, 'w> {
     /// (observer, subject) pairs where the observer presumes the subject lost.
     suspected: std::collections::BTreeSet<(RobotId, RobotId)>,
     seed: u64,
+    /// The physical world, if the scenario has one.
+    physics: Option<crate::physics::World>,
+    /// Each behavior's motor schemas (empty: none).
+    motor: Vec<Arc<[crate::physics::schema::Weighted]>>,
+    next_poses: Time,
+}
+
+/// Who holds each sibling role of robot `k`'s leaf behavior: the leader of
+/// each subteam its parent's allocation made, by the child's name.
+fn roles_of(k: &Kernel, graph: &BehaviorGraph) -> BTreeMap<String, u32> {
+    let mut roles: BTreeMap<String, (u32, u32)> = BTreeMap::new();
+    let org = k.org();
+    if let Some(leaf) = k.leaf()
+        && let Some(team) = org.team(leaf.team)
+        && let Some(parent) = team.parent.and_then(|p| org.team(p))
+    {
+        for c in &parent.children {
+            if let Some(t) = org.team(*c)
+                && let Some((point, epoch, idx)) = t.origin
+                && let Some(b) = graph.get(point).and_then(|p| p.children.get(idx as usize))
+                && let Some(l) = t.leader()
+            {
+                let e = roles
+                    .entry(graph.name_of(*b).to_string())
+                    .or_insert((epoch, l.0));
+                if epoch >= e.0 {
+                    *e = (epoch, l.0);
+                }
+            }
+        }
+    }
+    roles.into_iter().map(|(k, (_, r))| (k, r)).collect()
 }
 
 impl Sim<'_, '_> {
@@ -254,6 +288,13 @@ impl Sim<'_, '_> {
             for (id, v) in started {
                 self.kernels[i].set_belief(*id, v.clone(), Source::Percept);
             }
+            if let Some(w) = self.physics.as_mut() {
+                let leaf = leaf.map(|l| l.0);
+                let skill = leaf
+                    .and_then(|b| self.motor.get(b.index()).cloned())
+                    .unwrap_or_else(|| Arc::from(Vec::new()));
+                w.leaf_changed(i, leaf, skill);
+            }
         }
         if let Some(t) = self.kernels[i].poll_timeout()
             && self.timers[i].is_none_or(|s| t < s || s < self.now)
@@ -265,6 +306,12 @@ impl Sim<'_, '_> {
     }
 
     fn transmit(&mut self, from: RobotId, to: RobotId, env: &Arc<Envelope>) {
+        if let Some(w) = &self.physics
+            && !w.in_radio_range(from.index(), to.index())
+        {
+            self.net.out_of_range();
+            return;
+        }
         let mut times = std::mem::take(&mut self.times);
         self.net.transmit(self.now, from, to, &mut times);
         for t in &times {
@@ -361,15 +408,55 @@ impl Sim<'_, '_> {
             self.now = s.at;
             match s.what {
                 What::Control => {
+                    if let Some(w) = self.physics.as_mut() {
+                        w.advance(self.now, &self.crashed);
+                        w.record();
+                    }
                     for i in 0..n {
                         if self.crashed[i] {
                             continue;
                         }
                         let mut percepts = std::mem::take(&mut self.percepts);
                         self.worlds[i].tick(self.now, &mut percepts);
+                        if let Some(w) = self.physics.as_mut() {
+                            w.sense(i, &mut percepts);
+                        }
                         self.kernels[i].tick(self.now, &percepts);
                         self.percepts = percepts;
                         self.drain(RobotId(i as u32));
+                        if self.physics.is_some() {
+                            let roles = roles_of(&self.kernels[i], &self.graph);
+                            if let Some(w) = self.physics.as_mut() {
+                                w.set_roles(i, roles);
+                                w.control(i);
+                            }
+                        }
+                    }
+                    if self.now >= self.next_poses
+                        && let Some(w) = &self.physics
+                    {
+                        self.next_poses = self.now + Duration::from_secs(1);
+                        if self.log.is_writing() {
+                            let robots: Vec<[f64; 3]> = (0..n)
+                                .map(|i| {
+                                    let p = w.pose(i);
+                                    [
+                                        round3(p.pos.x),
+                                        round3(p.pos.y),
+                                        round3(p.heading.to_degrees()),
+                                    ]
+                                })
+                                .collect();
+                            let objects: BTreeMap<String, [f64; 2]> = (w.spec().objects.iter())
+                                .enumerate()
+                                .filter_map(|(k, o)| {
+                                    let p = w.object_pos(k);
+                                    o.name.clone().map(|n| (n, [round3(p.x), round3(p.y)]))
+                                })
+                                .collect();
+                            let rec = json!({"t": self.now.as_secs_f64(), "event": "poses", "robots": robots, "objects": objects});
+                            self.log.write(&rec);
+                        }
                     }
                     if self.live_all_finished() {
                         return self.now;
@@ -486,7 +573,12 @@ impl Sim<'_, '_> {
     }
 }
 
-/// Run a mission in the timed-skill world.
+fn round3(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
+
+/// Run a mission: in the timed-skill world, or in the physical world when
+/// the scenario has one.
 pub fn run(
     mission: Arc<Mission>,
     scenario: &Scenario,
@@ -533,6 +625,41 @@ pub fn run(
         "robots": n,
         "engine": concat!("bite ", env!("CARGO_PKG_VERSION")),
     }));
+    let physics = match &scenario.physics {
+        None => None,
+        Some(spec) => {
+            let names: Vec<String> = (0..n as u32)
+                .map(|r| graph.roster().name(RobotId(r)).to_string())
+                .collect();
+            Some(crate::physics::World::new(
+                spec.clone(),
+                &names,
+                &sym,
+                &scenario.file,
+                seed,
+            )?)
+        }
+    };
+    let motor = graph
+        .behaviors()
+        .iter()
+        .map(|b| {
+            let max_speed = scenario.physics.as_ref().map_or(0.3, |p| p.robot.max_speed);
+            let v: Vec<crate::physics::schema::Weighted> = b
+                .skill
+                .as_ref()
+                .filter(|_| b.is_atomic())
+                .and_then(|sk| scenario.skills.get(&sk.name).map(|m| (sk, m)))
+                .map(|(sk, m)| {
+                    m.schemas
+                        .iter()
+                        .filter_map(|sc| sc.build(&sk.params, max_speed, false).ok())
+                        .collect()
+                })
+                .unwrap_or_default();
+            Arc::from(v)
+        })
+        .collect();
     let mut sim = Sim {
         book: SkillBook::new(scenario, &graph),
         kernels,
@@ -557,6 +684,9 @@ pub fn run(
         detector: scenario.failure_detector,
         suspected: std::collections::BTreeSet::new(),
         seed,
+        physics,
+        motor,
+        next_poses: Time::ZERO,
     };
     let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);
     let period = Duration::from_secs_f64(1.0 / scenario.control_hz);
@@ -583,7 +713,7 @@ pub fn run(
         .collect();
     let crashes = sim.resolved.crashes.clone();
     let fingerprint = sim.log.fingerprint();
-    let summary = std::mem::take(&mut sim.agg).finish(
+    let mut summary = std::mem::take(&mut sim.agg).finish(
         &mission,
         &scenario.name,
         seed,
@@ -593,6 +723,7 @@ pub fn run(
         dropped,
         fingerprint,
     );
+    summary.world = sim.physics.as_ref().map(crate::physics::summary);
     sim.log.write(&json!({
         "t": end.as_secs_f64(),
         "event": "run_finished",
@@ -613,5 +744,6 @@ pub fn run(
         warnings,
         crashes,
         end,
+        world: sim.physics.take(),
     })
 }

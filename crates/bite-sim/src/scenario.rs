@@ -153,6 +153,7 @@ struct ScenarioSpec {
     failure_detector: Option<Spanned<DetectorSpec>>,
     #[serde(default)]
     sensed: Vec<String>,
+    physics: Option<Spanned<crate::physics::spec::PhysicsRaw>>,
 }
 
 /// How teammates find out that a robot is gone: heartbeats, and a robot
@@ -244,6 +245,8 @@ struct SkillSpec {
     start: Ordered<serde_json::Value>,
     #[serde(default)]
     done: Ordered<serde_json::Value>,
+    #[serde(default)]
+    schemas: Vec<Spanned<serde_json::Value>>,
 }
 
 #[derive(Deserialize)]
@@ -292,6 +295,8 @@ pub struct SkillModel {
     pub on_start: Vec<(String, Value)>,
     /// Beliefs set when it completes.
     pub on_done: Vec<(String, Value)>,
+    /// Motor schemas that drive the robot in the physical world.
+    pub schemas: Vec<crate::physics::SchemaSpec>,
 }
 
 /// Facts that change at a time.
@@ -391,6 +396,8 @@ pub struct Scenario {
     /// Beliefs the world provides whether or not the graph reads them
     /// (protocol parameters of some configurations may): not warned about.
     pub sensed: Vec<String>,
+    /// The physical world (`world: physics`), if any.
+    pub physics: Option<Arc<crate::physics::PhysicsSpec>>,
 }
 
 impl Default for Scenario {
@@ -410,6 +417,7 @@ impl Default for Scenario {
             crashes: Vec::new(),
             failure_detector: Some(FailureDetector::default()),
             sensed: Vec::new(),
+            physics: None,
         }
     }
 }
@@ -455,8 +463,10 @@ impl Scenario {
     pub fn load_str(file: &Arc<str>, text: &str) -> Result<Scenario, Diagnostics> {
         let spec: ScenarioSpec = bite_core::yaml::parse(file, text)?;
         let mut d = Vec::new();
+        let physical = spec.world.as_ref().is_some_and(|w| w.value == "physics");
         if let Some(w) = &spec.world
             && w.value != "timed"
+            && w.value != "physics"
         {
             d.push(
                 Diagnostic::error(
@@ -465,9 +475,39 @@ impl Scenario {
                     "unknown-world",
                     format!("unknown world `{}`", w.value),
                 )
-                .with_hint("the discrete-event runner simulates `world: timed`"),
+                .with_hint("`timed` (skills take a drawn time) or `physics` (rapier2d arena)"),
             );
         }
+        let physics = match spec.physics {
+            Some(p) if physical => {
+                let loc = Loc::from(p.referenced);
+                let ps = crate::physics::PhysicsSpec::from_raw(file, loc, p.value, &mut d);
+                d.extend(crate::physics::check_beliefs(&ps, file));
+                Some(Arc::new(ps))
+            }
+            Some(p) => {
+                d.push(
+                    Diagnostic::error(
+                        file,
+                        Loc::from(p.referenced),
+                        "unknown-world",
+                        "a `physics:` section needs `world: physics`",
+                    )
+                    .with_hint("add `world: physics` at the top of the scenario"),
+                );
+                None
+            }
+            None if physical => {
+                d.push(Diagnostic::error(
+                    file,
+                    spec.world.as_ref().map_or(Loc::UNKNOWN, |w| Loc::from(w.referenced)),
+                    "missing-physics",
+                    "`world: physics` needs a `physics:` section (at least `arena: [width, height]`)",
+                ));
+                None
+            }
+            None => None,
+        };
         let control_hz = match &spec.control_hz {
             Some(h) if !(h.value.is_finite() && h.value > 0.0 && h.value <= 1000.0) => {
                 d.push(Diagnostic::error(
@@ -600,6 +640,24 @@ impl Scenario {
                     drives: s.drives.clone(),
                     on_start: values(file, &s.start, &mut d),
                     on_done: values(file, &s.done, &mut d),
+                    schemas: s
+                        .schemas
+                        .iter()
+                        .filter_map(|x| {
+                            let loc = Loc::from(x.referenced);
+                            match crate::physics::SchemaSpec::from_json(&x.value, loc) {
+                                Ok(sc) => Some(sc),
+                                Err((e, hint)) => {
+                                    let mut diag = Diagnostic::error(file, loc, "bad-schema", e);
+                                    if let Some(h) = hint {
+                                        diag = diag.with_hint(h);
+                                    }
+                                    d.push(diag);
+                                    None
+                                }
+                            }
+                        })
+                        .collect(),
                 },
             );
         }
@@ -664,6 +722,7 @@ impl Scenario {
         Ok(Scenario {
             failure_detector,
             sensed: spec.sensed,
+            physics,
             name: spec.scenario.unwrap_or_else(|| {
                 Path::new(&**file)
                     .file_stem()
@@ -772,6 +831,44 @@ impl Scenario {
                         graph.name()
                     ),
                 ));
+            }
+        }
+        if let Some(ps) = &self.physics {
+            let mut bad = Vec::new();
+            for b in graph.behaviors() {
+                let Some(sk) = b.skill.as_ref().filter(|_| b.is_atomic()) else {
+                    continue;
+                };
+                let Some(model) = self.skills.get(&sk.name) else {
+                    continue;
+                };
+                for sc in &model.schemas {
+                    if let Err(e) = sc.build(&sk.params, ps.robot.max_speed, false) {
+                        bad.push(Diagnostic::error(
+                            &self.file,
+                            sc.loc,
+                            "bad-schema",
+                            format!("behavior `{}`, skill `{}`: {e}", b.name, sk.name),
+                        ));
+                    }
+                }
+            }
+            if !bad.is_empty() {
+                return Err(Diagnostics(bad));
+            }
+            for (n, _, loc) in &ps.beliefs {
+                if symbols.get(n).is_none() && !self.sensed.contains(n) && warned.insert(n.clone())
+                {
+                    warnings.push(Diagnostic::warning(
+                        &self.file,
+                        *loc,
+                        "unused-belief",
+                        format!(
+                            "the scenario computes `{n}`, but no condition of graph `{}` reads it",
+                            graph.name()
+                        ),
+                    ));
+                }
             }
         }
         let mut missing = std::collections::BTreeSet::new();

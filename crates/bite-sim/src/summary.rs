@@ -129,6 +129,22 @@ pub struct Summary {
     pub points: Vec<PointSummary>,
     /// Fingerprint of the run log (equal logs have equal fingerprints).
     pub log_fingerprint: String,
+    /// The physical world's results (`world: physics`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub world: Option<WorldSummary>,
+}
+
+/// What happened in the physical world.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct WorldSummary {
+    /// The scenario's goal (object in zone), if it has one, and when it was met.
+    pub goal: Option<String>,
+    /// When the goal was met, seconds.
+    pub goal_met_at: Option<f64>,
+    /// Distance each robot travelled, m.
+    pub distance: Vec<f64>,
+    /// Share of the arena within camera range of some robot's path (0-1).
+    pub coverage: f64,
 }
 
 /// Collects a summary from the event stream.
@@ -308,6 +324,7 @@ impl Aggregator {
             violations: self.violations,
             points,
             log_fingerprint: format!("{log_fingerprint:016x}"),
+            world: None,
         }
     }
 }
@@ -344,6 +361,23 @@ impl fmt::Display for Summary {
             }
         )?;
         writeln!(f, "  task time        {:.2} s", self.task_time)?;
+        if let Some(w) = &self.world {
+            let goal = match (&w.goal, w.goal_met_at) {
+                (Some(g), Some(t)) => format!("{g}: met at {t:.1} s; "),
+                (Some(g), None) => format!("{g}: NOT met; "),
+                _ => String::new(),
+            };
+            writeln!(
+                f,
+                "  world            {goal}travelled {} m; arena covered {:.0} %",
+                w.distance
+                    .iter()
+                    .map(|d| format!("{d:.1}"))
+                    .collect::<Vec<_>>()
+                    .join(" / "),
+                w.coverage * 100.0
+            )?;
+        }
         writeln!(
             f,
             "  interaction time {:.2} s per robot (sync {:.2}, allocation {:.2}, termination {:.2}; most for one robot {:.2})",

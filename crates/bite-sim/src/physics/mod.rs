@@ -1,0 +1,900 @@
+//! The physical world: a 2-D top-down arena on rapier2d, robots with
+//! differential or holonomic drives, sensors with noise, and the
+//! behavior-selection module that turns each robot's current behavior into
+//! the motor schemas that drive it.
+//!
+//! The runner owns the clock: [`World::advance`] steps the physics at its
+//! fixed rate up to a control tick, [`World::sense`] turns what each robot's
+//! sensors report into percepts (and, through the scenario's `beliefs:`
+//! expressions, into the beliefs its graph reads), and [`World::control`]
+//! fuses the schemas of the robot's current skill into a velocity command.
+//! Everything is seeded: a run is a pure function of its inputs.
+
+pub mod schema;
+pub mod spec;
+pub mod svg;
+
+use crate::runner::derive_seed;
+use bite_core::cond::{Env, Expr, Resolver};
+use bite_core::diag::{Diagnostic, Diagnostics};
+use bite_core::ids::{BehaviorId, BeliefId};
+use bite_core::interaction::Rng;
+use bite_core::time::Time;
+use bite_core::value::Value;
+use glam::DVec2;
+use rand::SeedableRng;
+use rapier2d::prelude as rp;
+use schema::{Command, Mate, Pose, State, View, Weighted};
+pub use spec::{Drive, PhysicsSpec, SchemaSpec, Shape};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// What a collider is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    Wall,
+    Obstacle,
+    Object(usize),
+    Robot(usize),
+}
+
+/// One robot's sample of the trajectory.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sample {
+    /// When.
+    pub t: f64,
+    /// True position.
+    pub pos: DVec2,
+    /// True heading, radians.
+    pub heading: f64,
+    /// The leaf behavior it was running (`None`: idle).
+    pub behavior: Option<BehaviorId>,
+    /// The robot whose slot it keeps or whom it follows, if any.
+    pub link: Option<u32>,
+}
+
+/// What robot `i` knows and drives.
+#[derive(Debug)]
+struct Robot {
+    body: rp::RigidBodyHandle,
+    collider: rp::ColliderHandle,
+    rng: Rng,
+    /// Current forward speed and turn rate (differential) or velocity.
+    vel: DVec2,
+    turn: f64,
+    /// Commanded.
+    cmd: Command,
+    odometer: f64,
+    last_pos: DVec2,
+    /// Skill of the current leaf.
+    skill: Arc<[Weighted]>,
+    states: Vec<State>,
+    skill_started: f64,
+    skill_odometer: f64,
+    leaf: Option<BehaviorId>,
+    /// Last seen positions of objects, by name and by colour.
+    seen_objects: BTreeMap<String, DVec2>,
+    /// Last seen teammates.
+    mates: BTreeMap<u32, (Mate, f64)>,
+    /// Robots holding each sibling role (set by the runner).
+    roles: BTreeMap<String, u32>,
+    /// The robot this one's schemas refer to, for the pictures.
+    link: Option<u32>,
+    /// The last robot it kept a slot on or followed (its reference in the
+    /// formation, kept while it searches).
+    anchor: Option<u32>,
+    trail: Vec<Sample>,
+    contact: bool,
+    /// What it sensed last.
+    view: View,
+}
+
+/// The percepts every robot computes, by name.
+#[derive(Clone, Debug, Default)]
+struct Percepts {
+    names: Vec<String>,
+    index: BTreeMap<String, BeliefId>,
+}
+
+impl Percepts {
+    fn add(&mut self, name: String) {
+        if !self.index.contains_key(&name) {
+            self.index
+                .insert(name.clone(), BeliefId(self.names.len() as u32));
+            self.names.push(name);
+        }
+    }
+    fn id(&self, name: &str) -> Option<BeliefId> {
+        self.index.get(name).copied()
+    }
+}
+
+struct PerceptResolver<'a> {
+    known: &'a Percepts,
+    unknown: Vec<String>,
+}
+
+impl Resolver for PerceptResolver<'_> {
+    fn belief(&mut self, name: &str) -> BeliefId {
+        match self.known.id(name) {
+            Some(id) => id,
+            None => {
+                self.unknown.push(name.to_string());
+                BeliefId(u32::MAX)
+            }
+        }
+    }
+    fn behavior(&self, _: &str) -> Option<BehaviorId> {
+        None
+    }
+}
+
+struct PerceptEnv<'a>(&'a [Option<Value>]);
+
+impl Env for PerceptEnv<'_> {
+    fn belief(&self, id: BeliefId) -> Option<&Value> {
+        self.0.get(id.index())?.as_ref()
+    }
+    fn belief_age(&self, _: BeliefId) -> Option<f64> {
+        None
+    }
+    fn elapsed(&self) -> f64 {
+        0.0
+    }
+    fn runs(&self, _: Option<BehaviorId>) -> u32 {
+        1
+    }
+}
+
+/// The names of the percepts a scenario's robots have (fixed ones, and
+/// per object, colour and zone).
+fn percept_names(spec: &PhysicsSpec) -> Percepts {
+    let mut p = Percepts::default();
+    for n in [
+        "x",
+        "y",
+        "pos",
+        "heading",
+        "odometer",
+        "skill_distance",
+        "skill_time",
+        "skill_done",
+        "range_min",
+        "obstacle_near",
+        "contact",
+        "teammates_seen",
+        "teammates_known",
+        "reference_pos",
+    ] {
+        p.add(n.to_string());
+    }
+    for key in object_keys(spec) {
+        for suffix in ["seen", "pos", "distance", "bearing"] {
+            p.add(format!("{key}_{suffix}"));
+        }
+    }
+    for z in spec.zones.keys() {
+        p.add(format!("in_{z}"));
+    }
+    p
+}
+
+/// Objects are seen by name and by colour.
+fn object_keys(spec: &PhysicsSpec) -> Vec<String> {
+    let mut keys: Vec<String> = Vec::new();
+    for o in &spec.objects {
+        for k in o.name.iter().chain(o.colour.iter()) {
+            if !keys.contains(k) {
+                keys.push(k.clone());
+            }
+        }
+    }
+    keys
+}
+
+/// A compiled `beliefs:` entry.
+#[derive(Debug)]
+struct Mapped {
+    belief: BeliefId,
+    expr: Expr,
+}
+
+/// The physical world of a run.
+pub struct World {
+    spec: Arc<PhysicsSpec>,
+    rw: rp::PhysicsWorld,
+    kinds: BTreeMap<(u32, u32), Kind>,
+    robots: Vec<Robot>,
+    objects: Vec<rp::RigidBodyHandle>,
+    object_trails: Vec<Vec<(f64, DVec2)>>,
+    dt: f64,
+    t: f64,
+    percepts: Percepts,
+    /// Graph beliefs the percepts set directly (same name): percept → graph id.
+    direct: Vec<(BeliefId, BeliefId)>,
+    mapped: Vec<Mapped>,
+    values: Vec<Option<Value>>,
+    goal_met: Option<f64>,
+}
+
+impl std::fmt::Debug for World {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("World")
+            .field("t", &self.t)
+            .field("robots", &self.robots.len())
+            .finish()
+    }
+}
+
+fn v32(v: DVec2) -> rp::Vector {
+    rp::Vector::new(v.x as f32, v.y as f32)
+}
+
+fn v64(v: rp::Vector) -> DVec2 {
+    DVec2::new(v.x as f64, v.y as f64)
+}
+
+/// A standard normal draw.
+fn gauss(rng: &mut Rng) -> f64 {
+    use rand_distr::Distribution;
+    rand_distr::StandardNormal.sample(rng)
+}
+
+fn collider_of(shape: &Shape) -> rp::ColliderBuilder {
+    match shape {
+        Shape::Box(s) => rp::ColliderBuilder::cuboid(s.x as f32 / 2.0, s.y as f32 / 2.0),
+        Shape::Disc(r) => rp::ColliderBuilder::ball(*r as f32),
+    }
+}
+
+/// Check a scenario's `beliefs:` against the percepts its world has.
+pub fn check_beliefs(spec: &PhysicsSpec, file: &Arc<str>) -> Vec<Diagnostic> {
+    let percepts = percept_names(spec);
+    let mut d = Vec::new();
+    for (name, text, loc) in &spec.beliefs {
+        let mut r = PerceptResolver {
+            known: &percepts,
+            unknown: Vec::new(),
+        };
+        match Expr::parse(text, &mut r) {
+            Err(e) => d.push(Diagnostic::error(
+                file,
+                *loc,
+                "bad-belief",
+                format!("belief `{name}`: {e}"),
+            )),
+            Ok(_) if !r.unknown.is_empty() => d.push(
+                Diagnostic::error(
+                    file,
+                    *loc,
+                    "unknown-percept",
+                    format!(
+                        "belief `{name}` reads `{}`, which no sensor provides",
+                        r.unknown[0]
+                    ),
+                )
+                .with_hint(
+                    bite_core::diag::did_you_mean(
+                        &r.unknown[0],
+                        percepts.names.iter().map(String::as_str),
+                    )
+                    .unwrap_or_else(|| format!("the percepts are: {}", percepts.names.join(", "))),
+                ),
+            ),
+            Ok(_) => {}
+        }
+    }
+    d
+}
+
+impl World {
+    /// Build the world for a team of `n` robots named `names`; `graph` is
+    /// the symbol table of the beliefs the graph reads.
+    pub fn new(
+        spec: Arc<PhysicsSpec>,
+        names: &[String],
+        symbols: &bite_core::belief::Symbols,
+        file: &Arc<str>,
+        seed: u64,
+    ) -> Result<World, Diagnostics> {
+        let mut rw = rp::PhysicsWorld::new();
+        rw.gravity = rp::Vector::ZERO;
+        rw.integration_parameters.dt = (1.0 / spec.hz) as f32;
+        let mut kinds = BTreeMap::new();
+        // Walls: four thin boxes round the arena.
+        let (w, h) = (spec.arena.x as f32, spec.arena.y as f32);
+        let t = 0.1f32;
+        for (at, half) in [
+            (
+                rp::Vector::new(w / 2.0, -t),
+                rp::Vector::new(w / 2.0 + t, t),
+            ),
+            (
+                rp::Vector::new(w / 2.0, h + t),
+                rp::Vector::new(w / 2.0 + t, t),
+            ),
+            (
+                rp::Vector::new(-t, h / 2.0),
+                rp::Vector::new(t, h / 2.0 + t),
+            ),
+            (
+                rp::Vector::new(w + t, h / 2.0),
+                rp::Vector::new(t, h / 2.0 + t),
+            ),
+        ] {
+            let (_, c) = rw.insert(
+                rp::RigidBodyBuilder::fixed().translation(at),
+                rp::ColliderBuilder::cuboid(half.x, half.y),
+            );
+            kinds.insert(c.into_raw_parts(), Kind::Wall);
+        }
+        for o in &spec.obstacles {
+            let (_, c) = rw.insert(
+                rp::RigidBodyBuilder::fixed()
+                    .translation(v32(o.at))
+                    .rotation(o.angle as f32),
+                collider_of(&o.shape),
+            );
+            kinds.insert(c.into_raw_parts(), Kind::Obstacle);
+        }
+        let mut objects = Vec::new();
+        for (i, o) in spec.objects.iter().enumerate() {
+            let (b, c) = rw.insert(
+                rp::RigidBodyBuilder::dynamic()
+                    .translation(v32(o.at))
+                    .rotation(o.angle as f32)
+                    .linear_damping(o.damping as f32)
+                    .angular_damping(o.damping as f32 * 2.0),
+                collider_of(&o.shape).mass(o.mass as f32).friction(0.3),
+            );
+            kinds.insert(c.into_raw_parts(), Kind::Object(i));
+            objects.push(b);
+        }
+        let mut robots = Vec::new();
+        let mut errors = Vec::new();
+        for (name, (_, _, loc)) in &spec.start {
+            if !names.contains(name) {
+                errors.push(Diagnostic::error(
+                    file,
+                    *loc,
+                    "unknown-robot",
+                    format!("`start` places robot `{name}`, which is not in the team"),
+                ));
+            }
+        }
+        for (i, name) in names.iter().enumerate() {
+            // Robots the scenario does not place stand in a column at the
+            // left, facing +x.
+            let (at, heading) = spec.start.get(name).map_or_else(
+                || {
+                    let gap = spec.robot.radius * 3.0;
+                    let rows = ((spec.arena.y - gap) / gap).floor().max(1.0) as usize;
+                    (
+                        DVec2::new(
+                            gap * (1.0 + (i / rows) as f64),
+                            gap * (1.0 + (i % rows) as f64),
+                        ),
+                        0.0,
+                    )
+                },
+                |(p, h, _)| (*p, *h),
+            );
+            let (b, c) = rw.insert(
+                rp::RigidBodyBuilder::dynamic()
+                    .translation(v32(at))
+                    .rotation(heading as f32)
+                    .ccd_enabled(true),
+                rp::ColliderBuilder::ball(spec.robot.radius as f32)
+                    .mass(spec.robot.mass as f32)
+                    .friction(0.2),
+            );
+            kinds.insert(c.into_raw_parts(), Kind::Robot(i));
+            robots.push(Robot {
+                body: b,
+                collider: c,
+                rng: Rng::seed_from_u64(derive_seed(seed, "sensors", i as u32)),
+                vel: DVec2::ZERO,
+                turn: 0.0,
+                cmd: Command::default(),
+                odometer: 0.0,
+                last_pos: at,
+                skill: Arc::from(Vec::new()),
+                states: Vec::new(),
+                skill_started: 0.0,
+                skill_odometer: 0.0,
+                leaf: None,
+                seen_objects: BTreeMap::new(),
+                mates: BTreeMap::new(),
+                roles: BTreeMap::new(),
+                link: None,
+                anchor: None,
+                trail: Vec::new(),
+                contact: false,
+                view: View::default(),
+            });
+        }
+        let percepts = percept_names(&spec);
+        let mut mapped = Vec::new();
+        for (name, text, loc) in &spec.beliefs {
+            let Some(belief) = symbols.get(name) else {
+                continue; // nobody reads it (the scenario check warns)
+            };
+            let mut r = PerceptResolver {
+                known: &percepts,
+                unknown: Vec::new(),
+            };
+            match Expr::parse(text, &mut r) {
+                Ok(expr) if r.unknown.is_empty() => mapped.push(Mapped { belief, expr }),
+                _ => errors.push(Diagnostic::error(
+                    file,
+                    *loc,
+                    "bad-belief",
+                    format!("belief `{name}` cannot be computed from the percepts"),
+                )),
+            }
+        }
+        if !errors.is_empty() {
+            return Err(Diagnostics(errors));
+        }
+        let direct = percepts
+            .names
+            .iter()
+            .enumerate()
+            .filter(|(_, n)| !spec.beliefs.iter().any(|(b, _, _)| b == *n))
+            .filter_map(|(i, n)| symbols.get(n).map(|g| (BeliefId(i as u32), g)))
+            .collect();
+        let values = vec![None; percepts.names.len()];
+        let n_objects = objects.len();
+        Ok(World {
+            dt: 1.0 / spec.hz,
+            spec,
+            rw,
+            kinds,
+            robots,
+            objects,
+            object_trails: vec![Vec::new(); n_objects],
+            t: 0.0,
+            percepts,
+            direct,
+            mapped,
+            values,
+            goal_met: None,
+        })
+    }
+
+    /// The scenario's world.
+    pub fn spec(&self) -> &PhysicsSpec {
+        &self.spec
+    }
+
+    /// True pose of robot `i`.
+    pub fn pose(&self, i: usize) -> Pose {
+        let b = &self.rw.bodies[self.robots[i].body];
+        Pose {
+            pos: v64(b.translation()),
+            heading: b.rotation().angle() as f64,
+        }
+    }
+
+    /// True position of object `i`.
+    pub fn object_pos(&self, i: usize) -> DVec2 {
+        v64(self.rw.bodies[self.objects[i]].translation())
+    }
+
+    /// When the scenario's goal (object in zone) was first met.
+    pub fn goal_met(&self) -> Option<f64> {
+        self.goal_met
+    }
+
+    /// Distance each robot travelled.
+    pub fn odometers(&self) -> Vec<f64> {
+        self.robots.iter().map(|r| r.odometer).collect()
+    }
+
+    /// Trajectories, for the pictures.
+    pub fn trails(&self) -> impl Iterator<Item = &[Sample]> {
+        self.robots.iter().map(|r| r.trail.as_slice())
+    }
+
+    /// Object trajectories (time, position).
+    pub fn object_trails(&self) -> &[Vec<(f64, DVec2)>] {
+        &self.object_trails
+    }
+
+    /// Step the physics up to `now`, driving each robot by its command
+    /// (robots in `stopped` stand still).
+    pub fn advance(&mut self, now: Time, stopped: &[bool]) {
+        let until = now.as_secs_f64();
+        while self.t + self.dt <= until + 1e-9 {
+            for i in 0..self.robots.len() {
+                self.drive(i, stopped.get(i).copied().unwrap_or(false));
+            }
+            self.rw.step();
+            self.t += self.dt;
+            for i in 0..self.robots.len() {
+                let p = self.pose(i).pos;
+                let r = &mut self.robots[i];
+                r.odometer += p.distance(r.last_pos);
+                r.last_pos = p;
+            }
+        }
+        // Contacts and the goal, as of now.
+        for i in 0..self.robots.len() {
+            let c = self.robots[i].collider;
+            let touching = self
+                .rw
+                .contact_pairs_with(c)
+                .any(|p| p.has_any_active_contact());
+            self.robots[i].contact = touching;
+        }
+        if self.goal_met.is_none()
+            && let Some((obj, zone)) = &self.spec.goal
+            && let Some(i) = self
+                .spec
+                .objects
+                .iter()
+                .position(|o| o.name.as_ref() == Some(obj))
+            && let Some(z) = self.spec.zones.get(zone)
+            && in_rect(self.object_pos(i), z)
+        {
+            self.goal_met = Some(self.t);
+        }
+    }
+
+    /// Apply robot `i`'s command for one physics step, within its limits.
+    fn drive(&mut self, i: usize, stopped: bool) {
+        let m = self.spec.robot;
+        let dt = self.dt;
+        let heading = self.pose(i).heading;
+        let r = &mut self.robots[i];
+        let cmd = if stopped { Command::default() } else { r.cmd };
+        let step = m.max_accel * dt;
+        let (linvel, angvel) = match m.drive {
+            Drive::Differential => {
+                let (f, turn) = schema::differential(&cmd, heading, m.max_speed, m.max_turn);
+                let cur = r.vel.x;
+                let f = cur + (f - cur).clamp(-step, step);
+                r.vel = DVec2::new(f, 0.0);
+                r.turn = turn;
+                (DVec2::from_angle(heading) * f, turn)
+            }
+            Drive::Holonomic => {
+                let want = {
+                    let l = cmd.v.length();
+                    if l > m.max_speed {
+                        cmd.v * (m.max_speed / l)
+                    } else {
+                        cmd.v
+                    }
+                };
+                let dv = want - r.vel;
+                let dv = if dv.length() > step {
+                    dv * (step / dv.length())
+                } else {
+                    dv
+                };
+                r.vel += dv;
+                let turn = cmd.face.map_or(0.0, |h| {
+                    (schema::wrap(h - heading) * 3.0).clamp(-m.max_turn, m.max_turn)
+                });
+                r.turn = turn;
+                (r.vel, turn)
+            }
+        };
+        let b = &mut self.rw.bodies[r.body];
+        b.set_linvel(v32(linvel), true);
+        b.set_angvel(angvel as f32, true);
+    }
+
+    /// Record one sample of every trajectory (called at control ticks).
+    pub fn record(&mut self) {
+        for i in 0..self.robots.len() {
+            let p = self.pose(i);
+            let r = &mut self.robots[i];
+            r.trail.push(Sample {
+                t: self.t,
+                pos: p.pos,
+                heading: p.heading,
+                behavior: r.leaf,
+                link: r.link,
+            });
+        }
+        for i in 0..self.objects.len() {
+            let p = self.object_pos(i);
+            self.object_trails[i].push((self.t, p));
+        }
+    }
+
+    /// Robot `i` starts the skill of a new leaf behavior (or none).
+    pub fn leaf_changed(&mut self, i: usize, leaf: Option<BehaviorId>, skill: Arc<[Weighted]>) {
+        let t = self.t;
+        let r = &mut self.robots[i];
+        r.leaf = leaf;
+        r.skill = skill;
+        r.states.clear();
+        r.skill_started = t;
+        r.skill_odometer = r.odometer;
+    }
+
+    /// Who holds each sibling role for robot `i` (behavior name → robot).
+    pub fn set_roles(&mut self, i: usize, roles: BTreeMap<String, u32>) {
+        self.robots[i].roles = roles;
+    }
+
+    /// Can `a` reach `b` by radio?
+    pub fn in_radio_range(&self, a: usize, b: usize) -> bool {
+        self.spec
+            .sensors
+            .radio_range
+            .is_none_or(|r| self.pose(a).pos.distance(self.pose(b).pos) <= r)
+    }
+
+    fn line_of_sight(&self, from: DVec2, to: DVec2, me: usize, target: Option<Kind>) -> bool {
+        let d = to - from;
+        let len = d.length();
+        if len < 1e-9 {
+            return true;
+        }
+        let ray = rp::Ray::new(v32(from), v32(d / len));
+        let filter = rp::QueryFilter::default().exclude_rigid_body(self.robots[me].body);
+        match self.rw.cast_ray(&ray, len as f32, true, filter) {
+            None => true,
+            Some((c, _)) => Some(self.kinds.get(&c.into_raw_parts()).copied()) == Some(target),
+        }
+    }
+
+    /// Robot `i`'s sensors now: updates what it remembers of objects and
+    /// teammates, and writes the graph beliefs its percepts give into `out`.
+    pub fn sense(&mut self, i: usize, out: &mut Vec<(BeliefId, Value)>) {
+        let s = self.spec.sensors;
+        let truth = self.pose(i);
+        let n = self.robots.len();
+        // Pose estimate.
+        let (nx, ny, nh) = {
+            let rng = &mut self.robots[i].rng;
+            (gauss(rng), gauss(rng), gauss(rng))
+        };
+        let pose = Pose {
+            pos: truth.pos + DVec2::new(nx, ny) * s.pose_noise,
+            heading: truth.heading + nh * s.pose_noise,
+        };
+        // Range rays, all round.
+        let mut rays = Vec::new();
+        let radius = self.spec.robot.radius;
+        for k in 0..s.rays {
+            let a = std::f64::consts::TAU * k as f64 / s.rays.max(1) as f64;
+            let dir = DVec2::from_angle(truth.heading + a);
+            let ray = rp::Ray::new(v32(truth.pos), v32(dir));
+            let filter = rp::QueryFilter::default().exclude_rigid_body(self.robots[i].body);
+            if let Some((_, toi)) =
+                self.rw
+                    .cast_ray(&ray, (s.ray_range + radius) as f32, true, filter)
+            {
+                let noise = gauss(&mut self.robots[i].rng) * s.ray_noise;
+                rays.push((a, (toi as f64 - radius + noise).max(0.0)));
+            }
+        }
+        // Camera: teammates and objects in the field of view, in sight.
+        let visible = |target: DVec2| -> bool {
+            let off = target - truth.pos;
+            let bearing = schema::wrap(off.y.atan2(off.x) - truth.heading);
+            off.length() <= s.camera_range && bearing.abs() <= s.fov / 2.0
+        };
+        let mut seen_now: Vec<String> = Vec::new();
+        let mut mates_seen = 0;
+        for j in 0..n {
+            if j == i {
+                continue;
+            }
+            let p = self.pose(j).pos;
+            if visible(p) && self.line_of_sight(truth.pos, p, i, Some(Kind::Robot(j))) {
+                mates_seen += 1;
+                let d = p.distance(truth.pos);
+                let rng = &mut self.robots[i].rng;
+                let est = p + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * d;
+                let t = self.t;
+                let r = &mut self.robots[i];
+                let heading = r.mates.get(&(j as u32)).and_then(|(m, at)| {
+                    let moved = est - m.pos;
+                    if moved.length() > 0.03 && t - at < 2.0 {
+                        Some(moved.y.atan2(moved.x))
+                    } else {
+                        m.heading
+                    }
+                });
+                // Keep the old sighting as the reference for the heading
+                // until the mate has moved enough to tell.
+                let keep_old = r
+                    .mates
+                    .get(&(j as u32))
+                    .is_some_and(|(m, at)| est.distance(m.pos) <= 0.03 && t - at < 2.0);
+                if !keep_old {
+                    r.mates.insert(j as u32, (Mate { pos: est, heading }, t));
+                }
+            }
+        }
+        for (k, o) in self.spec.objects.clone().iter().enumerate() {
+            let p = self.object_pos(k);
+            if visible(p) && self.line_of_sight(truth.pos, p, i, Some(Kind::Object(k))) {
+                let d = p.distance(truth.pos);
+                let rng = &mut self.robots[i].rng;
+                let est = p + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * d;
+                for key in o.name.iter().chain(o.colour.iter()) {
+                    self.robots[i].seen_objects.insert(key.clone(), est);
+                    seen_now.push(key.clone());
+                }
+            }
+        }
+        // Percepts.
+        let r = &self.robots[i];
+        let skill_done = r.states.iter().any(|s| s.finished);
+        let range_min = rays.iter().map(|(_, d)| *d).fold(s.ray_range, f64::min);
+        let mut set = |name: &str, v: Option<Value>| {
+            if let Some(id) = self.percepts.id(name) {
+                self.values[id.index()] = v;
+            }
+        };
+        set("x", Some(Value::Num(pose.pos.x)));
+        set("y", Some(Value::Num(pose.pos.y)));
+        set("pos", Some(Value::Vec2([pose.pos.x, pose.pos.y])));
+        set("heading", Some(Value::Num(pose.heading.to_degrees())));
+        set("odometer", Some(Value::Num(r.odometer)));
+        set(
+            "skill_distance",
+            Some(Value::Num(r.odometer - r.skill_odometer)),
+        );
+        set("skill_time", Some(Value::Num(self.t - r.skill_started)));
+        set("skill_done", Some(Value::Bool(skill_done)));
+        set("range_min", Some(Value::Num(range_min)));
+        set("obstacle_near", Some(Value::Bool(range_min < 0.3)));
+        set("contact", Some(Value::Bool(r.contact)));
+        set("teammates_seen", Some(Value::Num(mates_seen as f64)));
+        let known = r
+            .mates
+            .values()
+            .filter(|(_, at)| self.t - at <= 3.0)
+            .count();
+        set("teammates_known", Some(Value::Num(known as f64)));
+        let reference = r
+            .anchor
+            .and_then(|a| r.mates.get(&a))
+            .map_or(pose.pos, |(m, _)| m.pos);
+        set(
+            "reference_pos",
+            Some(Value::Vec2([reference.x, reference.y])),
+        );
+        for key in object_keys(&self.spec) {
+            let seen = seen_now.contains(&key);
+            let est = r.seen_objects.get(&key).copied();
+            set(&format!("{key}_seen"), Some(Value::Bool(seen)));
+            set(&format!("{key}_pos"), est.map(|p| Value::Vec2([p.x, p.y])));
+            set(
+                &format!("{key}_distance"),
+                est.map(|p| Value::Num(p.distance(pose.pos))),
+            );
+            set(
+                &format!("{key}_bearing"),
+                est.map(|p| {
+                    let off = p - pose.pos;
+                    Value::Num(schema::wrap(off.y.atan2(off.x) - pose.heading).to_degrees())
+                }),
+            );
+        }
+        for (z, rect) in &self.spec.zones {
+            set(
+                &format!("in_{z}"),
+                Some(Value::Bool(in_rect(pose.pos, rect))),
+            );
+        }
+        for (p, g) in &self.direct {
+            if let Some(v) = &self.values[p.index()] {
+                out.push((*g, v.clone()));
+            }
+        }
+        let env = PerceptEnv(&self.values);
+        for m in &self.mapped {
+            if let Some(v) = m.expr.eval_value(&env) {
+                out.push((m.belief, v));
+            }
+        }
+        // What the schemas read when the robot is next controlled.
+        let r = &mut self.robots[i];
+        r.view = View {
+            pose,
+            rays,
+            objects: r.seen_objects.clone(),
+            mates: r.mates.iter().map(|(k, (m, _))| (*k, *m)).collect(),
+            roles: BTreeMap::new(),
+            skill_time: 0.0,
+            max_speed: self.spec.robot.max_speed,
+        };
+    }
+
+    /// The behavior-selection module: fuse the schemas of robot `i`'s
+    /// current skill over what it sensed last into its velocity command.
+    pub fn control(&mut self, i: usize) {
+        let t = self.t;
+        let r = &mut self.robots[i];
+        r.view.roles = r.roles.clone();
+        r.view.skill_time = t - r.skill_started;
+        let rng = &mut r.rng;
+        let mut draw = || {
+            use rand::RngExt;
+            rng.random_range(0.0..1.0)
+        };
+        r.cmd = schema::command(&r.skill, &r.view, &mut r.states, &mut draw);
+        r.link = r.skill.iter().find_map(|w| match &w.schema {
+            schema::Schema::KeepSlot { of, .. } | schema::Schema::Follow { of, .. } => {
+                r.roles.get(of).copied()
+            }
+            _ => None,
+        });
+        // A robot that leads (moves to a goal on its own) is its own
+        // reference; one that keeps station keeps its reference while it
+        // searches.
+        if r.link.is_some() {
+            r.anchor = r.link;
+        } else if r
+            .skill
+            .iter()
+            .any(|w| matches!(w.schema, schema::Schema::MoveToGoal { .. }))
+        {
+            r.anchor = None;
+        }
+    }
+}
+
+fn in_rect(p: DVec2, r: &[f64; 4]) -> bool {
+    let [x0, y0, x1, y1] = *r;
+    p.x >= x0.min(x1) && p.x <= x0.max(x1) && p.y >= y0.min(y1) && p.y <= y0.max(y1)
+}
+
+/// Radius around a robot's path counted as covered, m.
+pub const COVER_RADIUS: f64 = 0.5;
+
+/// Share of the arena (cells of 0.1 m) within `COVER_RADIUS` of some
+/// robot's recorded path.
+pub fn coverage(world: &World) -> f64 {
+    let cell = 0.1;
+    let a = world.spec.arena;
+    let (nx, ny) = ((a.x / cell).ceil() as usize, (a.y / cell).ceil() as usize);
+    if nx == 0 || ny == 0 {
+        return 0.0;
+    }
+    let mut covered = vec![false; nx * ny];
+    let reach = (COVER_RADIUS / cell).ceil() as i64;
+    for t in world.trails() {
+        let mut last: Option<DVec2> = None;
+        for s in t {
+            // Samples closer than a cell to the last one add nothing.
+            if last.is_some_and(|l| l.distance(s.pos) < cell) {
+                continue;
+            }
+            last = Some(s.pos);
+            let (cx, cy) = ((s.pos.x / cell) as i64, (s.pos.y / cell) as i64);
+            for gx in (cx - reach).max(0)..=(cx + reach).min(nx as i64 - 1) {
+                for gy in (cy - reach).max(0)..=(cy + reach).min(ny as i64 - 1) {
+                    let c = DVec2::new((gx as f64 + 0.5) * cell, (gy as f64 + 0.5) * cell);
+                    if c.distance(s.pos) <= COVER_RADIUS {
+                        covered[gy as usize * nx + gx as usize] = true;
+                    }
+                }
+            }
+        }
+    }
+    covered.iter().filter(|c| **c).count() as f64 / covered.len() as f64
+}
+
+/// The world's part of the run summary.
+pub fn summary(world: &World) -> crate::summary::WorldSummary {
+    crate::summary::WorldSummary {
+        goal: world.spec.goal.as_ref().map(|(o, z)| format!("{o} in {z}")),
+        goal_met_at: world.goal_met,
+        distance: world
+            .odometers()
+            .iter()
+            .map(|d| (d * 100.0).round() / 100.0)
+            .collect(),
+        coverage: (coverage(world) * 1000.0).round() / 1000.0,
+    }
+}

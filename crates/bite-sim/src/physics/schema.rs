@@ -1,0 +1,680 @@
+//! Motor schemas and command fusion (the second paper's behavior-selection
+//! and command-fusion modules; Arkin's motor schemas).
+//!
+//! A schema reads what the robot believes about the world (its pose, range
+//! readings, where it last saw objects and teammates) and outputs a desired
+//! velocity in the world frame, or nothing when it has nothing to say (an
+//! obstacle-avoidance schema with no obstacle in range). A skill is a set of
+//! schemas, each with a gain and a priority layer 0-3.
+//!
+//! Fusion: within a layer the outputs are superposed linearly (weighted by
+//! the gains); the highest layer in which some schema is active overrides
+//! all the layers below it. So obstacle avoidance at layer 3 overrides a
+//! search at layer 1 while an obstacle is near, and the search drives the
+//! robot again once it is clear. Which layer a schema sits in is part of the
+//! skill, not of the schema: `find` puts avoidance at 3, `push` below the
+//! push itself (the box is an obstacle the robot must touch).
+//!
+//! Everything here is a pure function of its inputs (and, for `wander`, of
+//! a seeded random stream), so it is unit-testable without physics.
+
+use glam::DVec2;
+use std::collections::BTreeMap;
+
+/// Where a robot is and which way it faces (radians, counter-clockwise
+/// from +x).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Pose {
+    /// Position, metres.
+    pub pos: DVec2,
+    /// Heading, radians.
+    pub heading: f64,
+}
+
+impl Pose {
+    /// Unit vector along the heading.
+    pub fn dir(&self) -> DVec2 {
+        DVec2::from_angle(self.heading)
+    }
+}
+
+/// Something a schema steers relative to.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Target {
+    /// A fixed point of the arena.
+    Point(DVec2),
+    /// A direction to keep going in.
+    Direction(DVec2),
+    /// An object by name or colour, where the robot last saw it.
+    Object(String),
+}
+
+/// Which side of its reference a formation slot is on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    /// Behind and to the left.
+    Left,
+    /// Behind and to the right.
+    Right,
+    /// Straight behind.
+    Behind,
+}
+
+/// A motor schema (what it does, with its own parameters).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Schema {
+    /// Go to a point / object, or along a direction; slows down within
+    /// `slow` metres of a point.
+    MoveToGoal {
+        /// Where.
+        goal: Target,
+        /// Cruise speed, m/s.
+        speed: f64,
+    },
+    /// Repulsion from range readings closer than `range`.
+    AvoidObstacle {
+        /// Distance at which obstacles start to push, m.
+        range: f64,
+    },
+    /// Repulsion from teammates closer than `range`.
+    AvoidTeammate {
+        /// Distance at which teammates start to push, m.
+        range: f64,
+    },
+    /// Keep a formation slot relative to the robot that holds role `of`.
+    KeepSlot {
+        /// The sibling behavior whose member is the reference.
+        of: String,
+        /// Which slot.
+        side: Side,
+        /// Distance to the reference, m.
+        distance: f64,
+        /// Top speed, m/s.
+        speed: f64,
+    },
+    /// Follow the robot that holds role `of` at `distance`.
+    Follow {
+        /// The sibling behavior whose member is followed.
+        of: String,
+        /// Distance kept, m.
+        distance: f64,
+        /// Top speed, m/s.
+        speed: f64,
+    },
+    /// Wander: a new random heading every `period` seconds.
+    Wander {
+        /// Speed, m/s.
+        speed: f64,
+        /// Seconds between heading changes.
+        period: f64,
+    },
+    /// Sweep a rectangle in lanes `spacing` apart (boustrophedon).
+    Scan {
+        /// `[x0, y0, x1, y1]`.
+        region: [f64; 4],
+        /// Distance between lanes, m.
+        spacing: f64,
+        /// Speed, m/s.
+        speed: f64,
+    },
+    /// Turn to face a target (no translation).
+    Face {
+        /// What to face.
+        target: Target,
+    },
+    /// Turn in place to look all round with the camera (the AIBO panning
+    /// its head to find its peers).
+    LookAround,
+    /// Push an object toward a goal point: get behind it, then drive
+    /// through it.
+    Push {
+        /// The object (name or colour).
+        object: String,
+        /// Where it must go.
+        goal: DVec2,
+        /// Distance from the object's centre to stand behind it, m.
+        offset: f64,
+        /// Speed, m/s.
+        speed: f64,
+    },
+    /// Stand still.
+    Stop,
+}
+
+impl Schema {
+    /// The schema's name in scenario files.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Schema::MoveToGoal { .. } => "move-to-goal",
+            Schema::AvoidObstacle { .. } => "avoid-obstacle",
+            Schema::AvoidTeammate { .. } => "avoid-teammate",
+            Schema::KeepSlot { .. } => "keep-slot",
+            Schema::Follow { .. } => "follow",
+            Schema::Wander { .. } => "wander",
+            Schema::Scan { .. } => "scan",
+            Schema::Face { .. } => "face",
+            Schema::LookAround => "look-around",
+            Schema::Push { .. } => "push",
+            Schema::Stop => "stop",
+        }
+    }
+}
+
+/// A schema in a skill: gain and priority layer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Weighted {
+    /// The schema.
+    pub schema: Schema,
+    /// Its weight within its layer.
+    pub gain: f64,
+    /// Priority layer, 0 (lowest) to 3.
+    pub layer: u8,
+}
+
+/// A teammate as this robot knows it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Mate {
+    /// Where it was last seen.
+    pub pos: DVec2,
+    /// Its heading, estimated from how it moved (`None`: unknown).
+    pub heading: Option<f64>,
+}
+
+/// What the schemas of one robot read at a control step.
+#[derive(Clone, Debug, Default)]
+pub struct View {
+    /// Estimated pose.
+    pub pose: Pose,
+    /// Range readings: (angle relative to the heading, distance), only
+    /// those that hit something within the sensor's range.
+    pub rays: Vec<(f64, f64)>,
+    /// Objects by name and by colour: last seen position.
+    pub objects: BTreeMap<String, DVec2>,
+    /// Teammates' last seen positions, by robot index.
+    pub mates: BTreeMap<u32, Mate>,
+    /// The robot holding each sibling role (behavior name → robot index).
+    pub roles: BTreeMap<String, u32>,
+    /// Seconds since the skill started.
+    pub skill_time: f64,
+    /// Top speed of this robot, m/s.
+    pub max_speed: f64,
+}
+
+/// A fused command: a desired velocity in the world frame, and a heading
+/// to turn to when standing (from `face`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Command {
+    /// Desired velocity, m/s, world frame.
+    pub v: DVec2,
+    /// Heading to face (radians) when `v` is (nearly) zero.
+    pub face: Option<f64>,
+    /// The layer that produced it (`None`: no schema active).
+    pub layer: Option<u8>,
+}
+
+/// State a schema keeps across steps during one execution of its skill.
+#[derive(Clone, Debug, Default)]
+pub struct State {
+    /// Wander: current heading and when it was drawn.
+    wander: Option<(f64, f64)>,
+    /// Scan: index of the next waypoint.
+    waypoint: usize,
+    /// Scan: all waypoints visited.
+    pub finished: bool,
+}
+
+/// One schema's output, before fusion.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Output {
+    /// Desired velocity.
+    pub v: DVec2,
+    /// Heading to face.
+    pub face: Option<f64>,
+}
+
+fn clamp_len(v: DVec2, max: f64) -> DVec2 {
+    let l = v.length();
+    if l > max && l > 0.0 { v * (max / l) } else { v }
+}
+
+fn target_point(view: &View, t: &Target) -> Option<DVec2> {
+    match t {
+        Target::Point(p) => Some(*p),
+        Target::Direction(d) => Some(view.pose.pos + d.normalize_or_zero()),
+        Target::Object(name) => view.objects.get(name).copied(),
+    }
+}
+
+/// Waypoints of a boustrophedon sweep of `region`, lanes along x.
+pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
+    let [x0, y0, x1, y1] = region;
+    let (xa, xb) = (x0.min(x1), x0.max(x1));
+    let (ya, yb) = (y0.min(y1), y0.max(y1));
+    let spacing = spacing.max(0.05);
+    // Lanes end half a lane inside the region, so a waypoint by a wall can
+    // be reached.
+    let inset = (spacing / 2.0).min((xb - xa) / 2.0);
+    let (xa, xb) = (xa + inset, xb - inset);
+    let mut pts = Vec::new();
+    let mut y = ya + spacing / 2.0;
+    let mut forward = true;
+    while y <= yb + 1e-9 {
+        let (a, b) = if forward { (xa, xb) } else { (xb, xa) };
+        pts.push(DVec2::new(a, y.min(yb)));
+        pts.push(DVec2::new(b, y.min(yb)));
+        forward = !forward;
+        y += spacing;
+    }
+    pts
+}
+
+/// The output of one schema, or `None` when it is not active.
+pub fn evaluate(
+    schema: &Schema,
+    view: &View,
+    state: &mut State,
+    rng: &mut impl FnMut() -> f64,
+) -> Option<Output> {
+    let pose = view.pose;
+    let out = |v: DVec2| Some(Output { v, face: None });
+    match schema {
+        Schema::MoveToGoal { goal, speed } => match goal {
+            Target::Direction(d) => out(d.normalize_or_zero() * *speed),
+            _ => {
+                let p = target_point(view, goal)?;
+                let to = p - pose.pos;
+                // Arrive: slow down over the last 0.3 m.
+                let s = speed * (to.length() / 0.3).min(1.0);
+                out(to.normalize_or_zero() * s)
+            }
+        },
+        Schema::AvoidObstacle { range } => {
+            let mut v = DVec2::ZERO;
+            for (angle, d) in &view.rays {
+                if *d < *range {
+                    let away = -DVec2::from_angle(pose.heading + angle);
+                    v += away * ((range - d) / range) * view.max_speed;
+                }
+            }
+            (v != DVec2::ZERO).then_some(Output { v, face: None })
+        }
+        Schema::AvoidTeammate { range } => {
+            let mut v = DVec2::ZERO;
+            for m in view.mates.values() {
+                let off = pose.pos - m.pos;
+                let d = off.length();
+                if d < *range && d > 1e-6 {
+                    v += off / d * ((range - d) / range) * view.max_speed;
+                }
+            }
+            (v != DVec2::ZERO).then_some(Output { v, face: None })
+        }
+        Schema::KeepSlot {
+            of,
+            side,
+            distance,
+            speed,
+        } => {
+            let r = view.roles.get(of)?;
+            let m = view.mates.get(r)?;
+            let h = m.heading.unwrap_or(pose.heading);
+            let (back, lateral) = match side {
+                Side::Left => (-0.707, 0.707),
+                Side::Right => (-0.707, -0.707),
+                Side::Behind => (-1.0, 0.0),
+            };
+            let fwd = DVec2::from_angle(h);
+            let left = fwd.perp();
+            let slot = m.pos + (fwd * back + left * lateral) * *distance;
+            // Proportional to the slot error, plus the reference's pace.
+            let v = (slot - pose.pos) * 1.5 + fwd * speed * 0.8;
+            out(clamp_len(v, speed * 1.5))
+        }
+        Schema::Follow {
+            of,
+            distance,
+            speed,
+        } => {
+            let r = view.roles.get(of)?;
+            let m = view.mates.get(r)?;
+            let to = m.pos - pose.pos;
+            let gap = to.length() - distance;
+            let v = to.normalize_or_zero() * (gap * 1.5).clamp(-*speed, *speed * 1.5);
+            out(v)
+        }
+        Schema::Wander { speed, period } => {
+            let fresh = state
+                .wander
+                .is_none_or(|(_, at)| view.skill_time - at >= *period || view.skill_time < at);
+            if fresh {
+                let turn = (rng() - 0.5) * std::f64::consts::PI;
+                state.wander = Some((pose.heading + turn, view.skill_time));
+            }
+            let h = state.wander.map_or(pose.heading, |(h, _)| h);
+            out(DVec2::from_angle(h) * *speed)
+        }
+        Schema::Scan {
+            region,
+            spacing,
+            speed,
+        } => {
+            let pts = scan_waypoints(*region, *spacing);
+            while let Some(p) = pts.get(state.waypoint) {
+                if p.distance(pose.pos) < 0.2 {
+                    state.waypoint += 1;
+                } else {
+                    break;
+                }
+            }
+            match pts.get(state.waypoint) {
+                Some(p) => out((*p - pose.pos).normalize_or_zero() * *speed),
+                None => {
+                    state.finished = true;
+                    Some(Output {
+                        v: DVec2::ZERO,
+                        face: None,
+                    })
+                }
+            }
+        }
+        Schema::Face { target } => {
+            let p = target_point(view, target)?;
+            let to = p - pose.pos;
+            (to.length() > 1e-6).then(|| Output {
+                v: DVec2::ZERO,
+                face: Some(to.y.atan2(to.x)),
+            })
+        }
+        Schema::Push {
+            object,
+            goal,
+            offset,
+            speed,
+        } => {
+            let o = *view.objects.get(object)?;
+            let dir = (*goal - o).normalize_or_zero();
+            if dir == DVec2::ZERO || goal.distance(o) < 0.05 {
+                return Some(Output {
+                    v: DVec2::ZERO,
+                    face: None,
+                });
+            }
+            let behind = o - dir * *offset;
+            let rel = pose.pos - o;
+            let along = rel.dot(dir); // < 0: behind the object
+            let lateral = rel.dot(dir.perp());
+            if along < -offset * 0.6 && lateral.abs() < offset * 0.35 {
+                // In position: drive through the object toward the goal,
+                // steering back onto the line through it.
+                let v = dir * *speed - dir.perp() * lateral * 2.0;
+                return out(clamp_len(v, *speed));
+            }
+            // Get behind it, going round it rather than into it.
+            let mut v = (behind - pose.pos).normalize_or_zero() * *speed;
+            if along > -offset * 0.6 && rel.length() < offset * 1.6 {
+                let around = if lateral >= 0.0 {
+                    dir.perp()
+                } else {
+                    -dir.perp()
+                };
+                v = (around - dir * 0.5).normalize_or_zero() * *speed;
+            }
+            out(v)
+        }
+        Schema::LookAround => Some(Output {
+            v: DVec2::ZERO,
+            face: Some(pose.heading + std::f64::consts::FRAC_PI_2),
+        }),
+        Schema::Stop => out(DVec2::ZERO),
+    }
+}
+
+/// Command fusion: superpose the active schemas of the highest active
+/// layer, weighted by their gains; a `face` request comes from the active
+/// face schema of that layer with the largest gain.
+pub fn fuse(outputs: &[(u8, f64, Option<Output>)]) -> Command {
+    let Some(top) = outputs
+        .iter()
+        .filter(|(_, _, o)| o.is_some())
+        .map(|(l, _, _)| *l)
+        .max()
+    else {
+        return Command::default();
+    };
+    let mut v = DVec2::ZERO;
+    let mut face: Option<(f64, f64)> = None;
+    for (layer, gain, o) in outputs {
+        if *layer != top {
+            continue;
+        }
+        if let Some(o) = o {
+            v += o.v * *gain;
+            if let Some(h) = o.face
+                && face.is_none_or(|(g, _)| *gain > g)
+            {
+                face = Some((*gain, h));
+            }
+        }
+    }
+    Command {
+        v,
+        face: face.map(|(_, h)| h),
+        layer: Some(top),
+    }
+}
+
+/// Run a skill's schemas and fuse them.
+pub fn command(
+    skill: &[Weighted],
+    view: &View,
+    states: &mut Vec<State>,
+    rng: &mut impl FnMut() -> f64,
+) -> Command {
+    states.resize_with(skill.len(), State::default);
+    let outputs: Vec<(u8, f64, Option<Output>)> = skill
+        .iter()
+        .zip(states.iter_mut())
+        .map(|(w, s)| (w.layer, w.gain, evaluate(&w.schema, view, s, rng)))
+        .collect();
+    fuse(&outputs)
+}
+
+/// Wheel commands for a differential-drive robot: forward speed and turn
+/// rate that steer the heading onto the command.
+pub fn differential(cmd: &Command, heading: f64, max_speed: f64, max_turn: f64) -> (f64, f64) {
+    let speed = cmd.v.length();
+    let want = if speed > 1e-3 {
+        Some(cmd.v.y.atan2(cmd.v.x))
+    } else {
+        cmd.face
+    };
+    let Some(want) = want else {
+        return (0.0, 0.0);
+    };
+    let err = wrap(want - heading);
+    let turn = (err * 3.0).clamp(-max_turn, max_turn);
+    // Drive forward only when roughly facing the way to go.
+    let forward = (speed * err.cos()).clamp(0.0, max_speed);
+    (forward, turn)
+}
+
+/// An angle brought into (-π, π].
+pub fn wrap(a: f64) -> f64 {
+    let t = std::f64::consts::TAU;
+    let mut a = a % t;
+    if a > std::f64::consts::PI {
+        a -= t;
+    } else if a <= -std::f64::consts::PI {
+        a += t;
+    }
+    a
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn o(x: f64, y: f64) -> Option<Output> {
+        Some(Output {
+            v: DVec2::new(x, y),
+            face: None,
+        })
+    }
+
+    #[test]
+    fn schemas_in_a_layer_superpose_linearly() {
+        let c = fuse(&[(1, 1.0, o(1.0, 0.0)), (1, 0.5, o(0.0, 2.0))]);
+        assert_eq!(c.v, DVec2::new(1.0, 1.0));
+        assert_eq!(c.layer, Some(1));
+    }
+
+    #[test]
+    fn an_active_higher_layer_overrides_the_lower_ones() {
+        let c = fuse(&[(1, 1.0, o(1.0, 0.0)), (3, 1.0, o(0.0, -1.0))]);
+        assert_eq!(c.v, DVec2::new(0.0, -1.0));
+        assert_eq!(c.layer, Some(3));
+        // An inactive higher layer does not.
+        let c = fuse(&[(1, 1.0, o(1.0, 0.0)), (3, 1.0, None)]);
+        assert_eq!(c.v, DVec2::new(1.0, 0.0));
+        assert_eq!(c.layer, Some(1));
+        // Stop is active: it holds the robot whatever lies below.
+        let c = fuse(&[(1, 1.0, o(1.0, 0.0)), (2, 1.0, o(0.0, 0.0))]);
+        assert_eq!(c.v, DVec2::ZERO);
+        assert_eq!(fuse(&[]), Command::default());
+    }
+
+    fn view_with_wall_ahead() -> View {
+        View {
+            pose: Pose::default(),
+            rays: vec![(0.0, 0.2)],
+            max_speed: 0.3,
+            ..View::default()
+        }
+    }
+
+    /// The second paper: obstacle avoidance has priority 3 while finding,
+    /// and a lower one than the push while moving the box.
+    #[test]
+    fn the_priority_of_avoidance_changes_between_commands() {
+        let view = view_with_wall_ahead();
+        let mut rng = || 0.5;
+        let find = [
+            Weighted {
+                schema: Schema::MoveToGoal {
+                    goal: Target::Direction(DVec2::X),
+                    speed: 0.3,
+                },
+                gain: 1.0,
+                layer: 1,
+            },
+            Weighted {
+                schema: Schema::AvoidObstacle { range: 0.4 },
+                gain: 1.0,
+                layer: 3,
+            },
+        ];
+        let c = command(&find, &view, &mut Vec::new(), &mut rng);
+        assert!(c.v.x < 0.0, "finding: the wall pushes back, {c:?}");
+        assert_eq!(c.layer, Some(3));
+        let mut push = find.clone();
+        push[0].layer = 2;
+        push[1].layer = 0;
+        let c = command(&push, &view, &mut Vec::new(), &mut rng);
+        assert!(c.v.x > 0.0, "pushing: the robot keeps going, {c:?}");
+        assert_eq!(c.layer, Some(2));
+    }
+
+    #[test]
+    fn keep_slot_heads_for_the_slot_behind_the_reference() {
+        let mut view = View {
+            max_speed: 0.3,
+            ..View::default()
+        };
+        view.roles.insert("lead".into(), 0);
+        view.mates.insert(
+            0,
+            Mate {
+                pos: DVec2::new(2.0, 0.0),
+                heading: Some(0.0),
+            },
+        );
+        let s = Schema::KeepSlot {
+            of: "lead".into(),
+            side: Side::Left,
+            distance: 1.0,
+            speed: 0.2,
+        };
+        let mut rng = || 0.5;
+        let out = evaluate(&s, &view, &mut State::default(), &mut rng).unwrap();
+        // Slot at (1.29, 0.71): forward and to the left.
+        assert!(out.v.x > 0.0 && out.v.y > 0.0, "{out:?}");
+        // Without knowing who leads, the schema is silent.
+        view.roles.clear();
+        assert!(evaluate(&s, &view, &mut State::default(), &mut rng).is_none());
+    }
+
+    #[test]
+    fn push_goes_behind_the_object_then_through_it() {
+        let mut view = View {
+            max_speed: 0.3,
+            ..View::default()
+        };
+        view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
+        let s = Schema::Push {
+            object: "box".into(),
+            goal: DVec2::new(3.0, 0.0),
+            offset: 0.4,
+            speed: 0.2,
+        };
+        let mut rng = || 0.5;
+        // Behind it, on the line: straight at the goal.
+        view.pose.pos = DVec2::new(0.5, 0.0);
+        let out = evaluate(&s, &view, &mut State::default(), &mut rng).unwrap();
+        assert!(out.v.x > 0.19 && out.v.y.abs() < 1e-9, "{out:?}");
+        // In front of it: around it, not through it.
+        view.pose.pos = DVec2::new(1.4, 0.1);
+        let out = evaluate(&s, &view, &mut State::default(), &mut rng).unwrap();
+        assert!(out.v.y > 0.0 && out.v.x < 0.0, "{out:?}");
+    }
+
+    #[test]
+    fn scan_visits_its_lanes_and_finishes() {
+        let pts = scan_waypoints([0.0, 0.0, 2.0, 1.0], 0.5);
+        assert_eq!(
+            pts,
+            vec![
+                DVec2::new(0.25, 0.25),
+                DVec2::new(1.75, 0.25),
+                DVec2::new(1.75, 0.75),
+                DVec2::new(0.25, 0.75)
+            ]
+        );
+        let s = Schema::Scan {
+            region: [0.0, 0.0, 2.0, 1.0],
+            spacing: 0.5,
+            speed: 0.3,
+        };
+        let mut st = State::default();
+        let mut rng = || 0.5;
+        let mut view = View::default();
+        for p in &pts {
+            view.pose.pos = *p;
+            evaluate(&s, &view, &mut st, &mut rng);
+        }
+        assert!(st.finished);
+    }
+
+    #[test]
+    fn differential_turns_before_driving() {
+        let c = Command {
+            v: DVec2::new(0.0, 0.3),
+            face: None,
+            layer: Some(1),
+        };
+        let (f, t) = differential(&c, 0.0, 0.3, 2.0);
+        assert!(f.abs() < 1e-9 && t > 0.0);
+        let (f, t) = differential(&c, std::f64::consts::FRAC_PI_2, 0.3, 2.0);
+        assert!((f - 0.3).abs() < 1e-9 && t.abs() < 1e-9);
+        assert_eq!(wrap(3.0 * std::f64::consts::PI), std::f64::consts::PI);
+    }
+}

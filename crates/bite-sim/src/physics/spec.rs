@@ -1,0 +1,647 @@
+//! The `physics:` section of a scenario and the `schemas:` of its skills
+//! (see `docs/scenario-format.md`).
+
+use super::schema::{Schema, Side, Target, Weighted};
+use bite_core::diag::{Diagnostic, Loc};
+use glam::DVec2;
+use serde::Deserialize;
+use serde_saphyr::Spanned;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct PhysicsRaw {
+    hz: Option<f64>,
+    arena: [f64; 2],
+    #[serde(default)]
+    robot: RobotRaw,
+    #[serde(default)]
+    start: BTreeMap<String, Spanned<StartRaw>>,
+    #[serde(default)]
+    obstacles: Vec<Spanned<ShapeRaw>>,
+    #[serde(default)]
+    objects: Vec<Spanned<ShapeRaw>>,
+    #[serde(default)]
+    zones: BTreeMap<String, [f64; 4]>,
+    #[serde(default)]
+    sensors: SensorsRaw,
+    #[serde(default)]
+    beliefs: BTreeMap<String, Spanned<String>>,
+    goal: Option<GoalRaw>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RobotRaw {
+    radius: Option<f64>,
+    drive: Option<String>,
+    max_speed: Option<f64>,
+    max_turn: Option<f64>,
+    max_accel: Option<f64>,
+    mass: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StartRaw {
+    at: [f64; 2],
+    #[serde(default)]
+    heading: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShapeRaw {
+    name: Option<String>,
+    at: [f64; 2],
+    /// Full width and height of a box.
+    #[serde(rename = "box")]
+    rect: Option<[f64; 2]>,
+    /// Radius of a disc.
+    disc: Option<f64>,
+    colour: Option<String>,
+    mass: Option<f64>,
+    damping: Option<f64>,
+    #[serde(default)]
+    angle: f64,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct SensorsRaw {
+    pose_noise: Option<f64>,
+    rays: Option<RaysRaw>,
+    camera: Option<CameraRaw>,
+    radio_range: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RaysRaw {
+    count: Option<u32>,
+    range: Option<f64>,
+    noise: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraRaw {
+    fov: Option<f64>,
+    range: Option<f64>,
+    noise: Option<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GoalRaw {
+    object: String,
+    zone: String,
+}
+
+/// How robots move.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Drive {
+    /// Two wheels: forward speed and turn rate.
+    Differential,
+    /// Any direction at once.
+    Holonomic,
+}
+
+/// The robots' body and limits.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RobotModel {
+    /// Disc radius, m.
+    pub radius: f64,
+    /// Kinematics.
+    pub drive: Drive,
+    /// Top speed, m/s.
+    pub max_speed: f64,
+    /// Top turn rate, rad/s.
+    pub max_turn: f64,
+    /// Top acceleration, m/s².
+    pub max_accel: f64,
+    /// Mass, kg.
+    pub mass: f64,
+}
+
+/// A shape in the arena.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Shape {
+    /// Full width and height.
+    Box(DVec2),
+    /// Radius.
+    Disc(f64),
+}
+
+impl Shape {
+    /// Radius of the enclosing disc.
+    pub fn reach(&self) -> f64 {
+        match self {
+            Shape::Box(s) => s.length() / 2.0,
+            Shape::Disc(r) => *r,
+        }
+    }
+}
+
+/// An obstacle (static) or an object (movable).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Body {
+    /// Name (objects are seen by name and by colour).
+    pub name: Option<String>,
+    /// Centre.
+    pub at: DVec2,
+    /// Rotation, radians.
+    pub angle: f64,
+    /// Shape.
+    pub shape: Shape,
+    /// Colour, as the camera reports it.
+    pub colour: Option<String>,
+    /// Mass, kg (objects).
+    pub mass: f64,
+    /// Linear damping: how fast it stops when no longer pushed (ground friction).
+    pub damping: f64,
+}
+
+/// Noise and ranges of the sensors.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sensors {
+    /// Standard deviation of the pose estimate, m (heading: this many radians).
+    pub pose_noise: f64,
+    /// Number of range rays around the robot.
+    pub rays: u32,
+    /// Their range, m.
+    pub ray_range: f64,
+    /// Standard deviation of a range reading, m.
+    pub ray_noise: f64,
+    /// Camera field of view, radians.
+    pub fov: f64,
+    /// Camera range, m.
+    pub camera_range: f64,
+    /// Standard deviation of a detection's position, per metre of distance.
+    pub camera_noise: f64,
+    /// Radio range, m (`None`: unlimited).
+    pub radio_range: Option<f64>,
+}
+
+/// The physical world of a scenario.
+#[derive(Clone, Debug)]
+pub struct PhysicsSpec {
+    /// Physics steps per second.
+    pub hz: f64,
+    /// Arena size (walls round `[0, w] × [0, h]`).
+    pub arena: DVec2,
+    /// Robots' body and limits.
+    pub robot: RobotModel,
+    /// Start poses by robot name: position, heading (radians).
+    pub start: BTreeMap<String, (DVec2, f64, Loc)>,
+    /// Static obstacles.
+    pub obstacles: Vec<Body>,
+    /// Movable objects.
+    pub objects: Vec<Body>,
+    /// Named rectangles `[x0, y0, x1, y1]`.
+    pub zones: BTreeMap<String, [f64; 4]>,
+    /// Sensors.
+    pub sensors: Sensors,
+    /// Graph beliefs computed from percepts: name → (expression, where).
+    pub beliefs: Vec<(String, String, Loc)>,
+    /// Success condition: this object inside this zone.
+    pub goal: Option<(String, String)>,
+}
+
+fn positive(file: &Arc<str>, loc: Loc, what: &str, v: f64, d: &mut Vec<Diagnostic>) -> f64 {
+    if !(v.is_finite() && v > 0.0) {
+        d.push(Diagnostic::error(
+            file,
+            loc,
+            "bad-value",
+            format!("`{what}` must be a positive number, found {v}"),
+        ));
+    }
+    v
+}
+
+impl PhysicsSpec {
+    pub(crate) fn from_raw(
+        file: &Arc<str>,
+        loc: Loc,
+        raw: PhysicsRaw,
+        d: &mut Vec<Diagnostic>,
+    ) -> PhysicsSpec {
+        let hz = positive(file, loc, "hz", raw.hz.unwrap_or(50.0), d);
+        let arena = DVec2::new(
+            positive(file, loc, "arena width", raw.arena[0], d),
+            positive(file, loc, "arena height", raw.arena[1], d),
+        );
+        let r = &raw.robot;
+        let drive = match r.drive.as_deref() {
+            None | Some("differential") => Drive::Differential,
+            Some("holonomic") => Drive::Holonomic,
+            Some(other) => {
+                d.push(
+                    Diagnostic::error(file, loc, "bad-value", format!("unknown drive `{other}`"))
+                        .with_hint("`differential` or `holonomic`"),
+                );
+                Drive::Differential
+            }
+        };
+        let robot = RobotModel {
+            radius: positive(file, loc, "robot.radius", r.radius.unwrap_or(0.15), d),
+            drive,
+            max_speed: positive(file, loc, "robot.max_speed", r.max_speed.unwrap_or(0.3), d),
+            max_turn: positive(file, loc, "robot.max_turn", r.max_turn.unwrap_or(3.0), d),
+            max_accel: positive(file, loc, "robot.max_accel", r.max_accel.unwrap_or(1.0), d),
+            mass: positive(file, loc, "robot.mass", r.mass.unwrap_or(10.0), d),
+        };
+        let start = raw
+            .start
+            .into_iter()
+            .map(|(name, s)| {
+                (
+                    name,
+                    (
+                        DVec2::from(s.value.at),
+                        s.value.heading.to_radians(),
+                        Loc::from(s.referenced),
+                    ),
+                )
+            })
+            .collect();
+        let mut bodies = |list: Vec<Spanned<ShapeRaw>>, movable: bool| -> Vec<Body> {
+            let mut out = Vec::new();
+            for s in list {
+                let loc = Loc::from(s.referenced);
+                let s = s.value;
+                let shape = match (s.rect, s.disc) {
+                    (Some(b), None) => Shape::Box(DVec2::new(
+                        positive(file, loc, "box width", b[0], d),
+                        positive(file, loc, "box height", b[1], d),
+                    )),
+                    (None, Some(r)) => Shape::Disc(positive(file, loc, "disc", r, d)),
+                    _ => {
+                        d.push(Diagnostic::error(
+                            file,
+                            loc,
+                            "bad-shape",
+                            "give exactly one of `box: [width, height]` or `disc: radius`",
+                        ));
+                        continue;
+                    }
+                };
+                if movable && s.name.is_none() {
+                    d.push(Diagnostic::error(
+                        file,
+                        loc,
+                        "bad-shape",
+                        "a movable object needs a `name` (robots see it by name)",
+                    ));
+                }
+                out.push(Body {
+                    name: s.name,
+                    at: DVec2::from(s.at),
+                    angle: s.angle.to_radians(),
+                    shape,
+                    colour: s.colour,
+                    mass: positive(file, loc, "mass", s.mass.unwrap_or(1.0), d),
+                    damping: s.damping.unwrap_or(4.0).max(0.0),
+                });
+            }
+            out
+        };
+        let obstacles = bodies(raw.obstacles, false);
+        let objects = bodies(raw.objects, true);
+        let s = &raw.sensors;
+        let sensors = Sensors {
+            pose_noise: s.pose_noise.unwrap_or(0.0).max(0.0),
+            rays: s.rays.as_ref().and_then(|r| r.count).unwrap_or(8),
+            ray_range: s.rays.as_ref().and_then(|r| r.range).unwrap_or(1.5),
+            ray_noise: s
+                .rays
+                .as_ref()
+                .and_then(|r| r.noise)
+                .unwrap_or(0.0)
+                .max(0.0),
+            fov: s
+                .camera
+                .as_ref()
+                .and_then(|c| c.fov)
+                .unwrap_or(120.0)
+                .to_radians(),
+            camera_range: s.camera.as_ref().and_then(|c| c.range).unwrap_or(4.0),
+            camera_noise: s
+                .camera
+                .as_ref()
+                .and_then(|c| c.noise)
+                .unwrap_or(0.0)
+                .max(0.0),
+            radio_range: s.radio_range,
+        };
+        let goal = raw.goal.map(|g| {
+            if !objects.iter().any(|o| o.name.as_deref() == Some(&g.object)) {
+                d.push(Diagnostic::error(
+                    file,
+                    loc,
+                    "bad-goal",
+                    format!(
+                        "the goal names object `{}`, which the scenario does not have",
+                        g.object
+                    ),
+                ));
+            }
+            if !raw.zones.contains_key(&g.zone) {
+                d.push(Diagnostic::error(
+                    file,
+                    loc,
+                    "bad-goal",
+                    format!(
+                        "the goal names zone `{}`, which the scenario does not have",
+                        g.zone
+                    ),
+                ));
+            }
+            (g.object, g.zone)
+        });
+        PhysicsSpec {
+            hz,
+            arena,
+            robot,
+            start,
+            obstacles,
+            objects,
+            zones: raw.zones,
+            sensors,
+            beliefs: raw
+                .beliefs
+                .into_iter()
+                .map(|(k, v)| (k, v.value, Loc::from(v.referenced)))
+                .collect(),
+            goal,
+        }
+    }
+}
+
+/// A schema as written in a skill: its name, layer, gain and parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SchemaSpec {
+    /// Schema name.
+    pub schema: String,
+    /// Priority layer 0-3.
+    pub layer: u8,
+    /// Gain.
+    pub gain: f64,
+    /// Parameters (a behavior's skill parameters are laid over them).
+    pub params: BTreeMap<String, serde_json::Value>,
+    /// Where it is written.
+    pub loc: Loc,
+}
+
+/// The schema names, for hints.
+pub const SCHEMAS: &[&str] = &[
+    "move-to-goal",
+    "avoid-obstacle",
+    "avoid-teammate",
+    "keep-slot",
+    "follow",
+    "wander",
+    "scan",
+    "face",
+    "look-around",
+    "push",
+    "stop",
+];
+
+fn params_of(schema: &str) -> &'static [&'static str] {
+    match schema {
+        "move-to-goal" => &["goal", "direction", "speed"],
+        "avoid-obstacle" | "avoid-teammate" => &["range"],
+        "keep-slot" => &["of", "side", "distance", "speed"],
+        "follow" => &["of", "distance", "speed"],
+        "wander" => &["speed", "period"],
+        "scan" => &["region", "spacing", "speed"],
+        "face" => &["target"],
+        "push" => &["object", "goal", "offset", "speed"],
+        _ => &[],
+    }
+}
+
+impl SchemaSpec {
+    pub(crate) fn from_json(
+        v: &serde_json::Value,
+        loc: Loc,
+    ) -> Result<SchemaSpec, (String, Option<String>)> {
+        let serde_json::Value::Object(m) = v else {
+            return Err((
+                "a schema is a mapping: `{ schema: move-to-goal, layer: 1, gain: 1, ... }`".into(),
+                None,
+            ));
+        };
+        let name = m
+            .get("schema")
+            .and_then(|s| s.as_str())
+            .ok_or_else(|| ("a schema needs `schema: <name>`".to_string(), None))?;
+        if !SCHEMAS.contains(&name) {
+            return Err((
+                format!("unknown schema `{name}`"),
+                bite_core::diag::did_you_mean(name, SCHEMAS.iter().copied())
+                    .or_else(|| Some(format!("the schemas are: {}", SCHEMAS.join(", ")))),
+            ));
+        }
+        let layer = match m.get("layer") {
+            None => 1,
+            Some(l) => match l.as_u64() {
+                Some(l) if l <= 3 => l as u8,
+                _ => return Err(("`layer` is a priority from 0 to 3".into(), None)),
+            },
+        };
+        let gain = match m.get("gain") {
+            None => 1.0,
+            Some(g) => g
+                .as_f64()
+                .filter(|g| g.is_finite())
+                .ok_or_else(|| ("`gain` must be a number".to_string(), None))?,
+        };
+        let known = params_of(name);
+        let mut params = BTreeMap::new();
+        for (k, v) in m {
+            if matches!(k.as_str(), "schema" | "layer" | "gain") {
+                continue;
+            }
+            if !known.contains(&k.as_str()) {
+                return Err((
+                    format!("schema `{name}` has no parameter `{k}`"),
+                    Some(if known.is_empty() {
+                        "it takes none".to_string()
+                    } else {
+                        format!("its parameters are: {}", known.join(", "))
+                    }),
+                ));
+            }
+            params.insert(k.clone(), v.clone());
+        }
+        let spec = SchemaSpec {
+            schema: name.to_string(),
+            layer,
+            gain,
+            params,
+            loc,
+        };
+        // Check what can be checked without a behavior's parameters.
+        spec.build(&BTreeMap::new(), 1.0, true)
+            .map_err(|e| (e, None))?;
+        Ok(spec)
+    }
+
+    /// The schema with a behavior's skill parameters laid over the
+    /// scenario's. `lenient`: parameters still missing are not errors (a
+    /// behavior may give them).
+    pub fn build(
+        &self,
+        over: &BTreeMap<String, serde_json::Value>,
+        max_speed: f64,
+        lenient: bool,
+    ) -> Result<Weighted, String> {
+        let known = params_of(&self.schema);
+        let get = |k: &str| {
+            over.get(k)
+                .filter(|_| known.contains(&k))
+                .or_else(|| self.params.get(k))
+        };
+        let name = &self.schema;
+        let num = |k: &str, default: Option<f64>| -> Result<f64, String> {
+            match get(k) {
+                Some(v) => v
+                    .as_f64()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| format!("schema `{name}`: `{k}` must be a number")),
+                None => default.ok_or_else(|| format!("schema `{name}` needs `{k}`")),
+            }
+        };
+        let text = |k: &str| -> Result<String, String> {
+            match get(k) {
+                Some(serde_json::Value::String(s)) => Ok(s.clone()),
+                Some(_) => Err(format!("schema `{name}`: `{k}` must be a name")),
+                None => Err(format!("schema `{name}` needs `{k}`")),
+            }
+        };
+        let point = |v: &serde_json::Value| -> Option<DVec2> {
+            let a = v.as_array()?;
+            (a.len() == 2).then_some(DVec2::new(a[0].as_f64()?, a[1].as_f64()?))
+        };
+        let target = |k: &str| -> Result<Target, String> {
+            match get(k) {
+                Some(serde_json::Value::String(s)) => Ok(Target::Object(s.clone())),
+                Some(v) => point(v)
+                    .map(Target::Point)
+                    .ok_or_else(|| format!("schema `{name}`: `{k}` is `[x, y]` or an object name")),
+                None => Err(format!("schema `{name}` needs `{k}`")),
+            }
+        };
+        let speed = num("speed", Some(max_speed));
+        let placeholder = || "?".to_string();
+        let or_lenient = |r: Result<String, String>| match r {
+            Err(_) if lenient => Ok(placeholder()),
+            r => r,
+        };
+        let schema = match name.as_str() {
+            "move-to-goal" => {
+                let goal = match (get("goal"), get("direction")) {
+                    (Some(_), None) => target("goal")?,
+                    (None, Some(v)) => Target::Direction(
+                        point(v)
+                            .ok_or_else(|| format!("schema `{name}`: `direction` is `[x, y]`"))?,
+                    ),
+                    (Some(_), Some(_)) => {
+                        return Err(format!(
+                            "schema `{name}`: give `goal` or `direction`, not both"
+                        ));
+                    }
+                    (None, None) if lenient => Target::Direction(DVec2::X),
+                    (None, None) => {
+                        return Err(format!("schema `{name}` needs `goal` or `direction`"));
+                    }
+                };
+                Schema::MoveToGoal {
+                    goal,
+                    speed: speed?,
+                }
+            }
+            "avoid-obstacle" => Schema::AvoidObstacle {
+                range: num("range", Some(0.4))?,
+            },
+            "avoid-teammate" => Schema::AvoidTeammate {
+                range: num("range", Some(0.5))?,
+            },
+            "keep-slot" => Schema::KeepSlot {
+                of: or_lenient(text("of"))?,
+                side: match get("side").and_then(|s| s.as_str()) {
+                    None | Some("behind") => Side::Behind,
+                    Some("left") => Side::Left,
+                    Some("right") => Side::Right,
+                    Some(o) => {
+                        return Err(format!(
+                            "schema `{name}`: `side` is left, right or behind, not `{o}`"
+                        ));
+                    }
+                },
+                distance: num("distance", Some(0.6))?,
+                speed: speed?,
+            },
+            "follow" => Schema::Follow {
+                of: or_lenient(text("of"))?,
+                distance: num("distance", Some(0.5))?,
+                speed: speed?,
+            },
+            "wander" => Schema::Wander {
+                speed: speed?,
+                period: num("period", Some(3.0))?,
+            },
+            "scan" => {
+                let region = match get("region") {
+                    Some(v) => {
+                        let a: Option<Vec<f64>> = v
+                            .as_array()
+                            .map(|a| a.iter().filter_map(|x| x.as_f64()).collect());
+                        match a {
+                            Some(a) if a.len() == 4 => [a[0], a[1], a[2], a[3]],
+                            _ => {
+                                return Err(format!(
+                                    "schema `{name}`: `region` is `[x0, y0, x1, y1]`"
+                                ));
+                            }
+                        }
+                    }
+                    None if lenient => [0.0; 4],
+                    None => return Err(format!("schema `{name}` needs `region`")),
+                };
+                Schema::Scan {
+                    region,
+                    spacing: num("spacing", Some(1.0))?,
+                    speed: speed?,
+                }
+            }
+            "look-around" => Schema::LookAround,
+            "face" => Schema::Face {
+                target: match target("target") {
+                    Err(_) if lenient => Target::Direction(DVec2::X),
+                    r => r?,
+                },
+            },
+            "push" => Schema::Push {
+                object: or_lenient(text("object"))?,
+                goal: match get("goal").and_then(point) {
+                    Some(p) => p,
+                    None if lenient && get("goal").is_none() => DVec2::ZERO,
+                    None => return Err(format!("schema `{name}`: `goal` is `[x, y]`")),
+                },
+                offset: num("offset", Some(0.45))?,
+                speed: speed?,
+            },
+            _ => Schema::Stop,
+        };
+        Ok(Weighted {
+            schema,
+            gain: self.gain,
+            layer: self.layer,
+        })
+    }
+}

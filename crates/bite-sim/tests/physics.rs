@@ -1,0 +1,289 @@
+//! Whole missions in the physical world (rapier2d), with fixed seeds: the
+//! formation under the seven Table II configurations, the relay box push,
+//! coverage; reproducibility; and the errors a scenario author sees.
+
+use bite_core::event::Event;
+use bite_core::graph::{BehaviorGraph, Config, load_str};
+use bite_core::mission::Mission;
+use bite_sim::check::check;
+use bite_sim::runner::{RunOptions, RunReport};
+use bite_sim::{Scenario, prepare, run};
+use std::sync::Arc;
+
+const FORMATION: &str = include_str!("../../../examples/formation.yaml");
+const FORMATION_SC: &str = include_str!("../../../examples/scenarios/formation-physics.yaml");
+const BOX_PUSH: &str = include_str!("../../../examples/box-push.yaml");
+const BOX_PUSH_SC: &str = include_str!("../../../examples/scenarios/box-push-physics.yaml");
+const COVERAGE: &str = include_str!("../../../examples/coverage.yaml");
+const COVERAGE_SC: &str = include_str!("../../../examples/scenarios/coverage-physics.yaml");
+const TABLE2: [&str; 7] = [
+    include_str!("../../../examples/configs/1.yaml"),
+    include_str!("../../../examples/configs/2.yaml"),
+    include_str!("../../../examples/configs/3.yaml"),
+    include_str!("../../../examples/configs/4.yaml"),
+    include_str!("../../../examples/configs/5.yaml"),
+    include_str!("../../../examples/configs/6.yaml"),
+    include_str!("../../../examples/configs/7.yaml"),
+];
+
+fn graph(name: &str, text: &str) -> BehaviorGraph {
+    load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
+}
+
+fn scenario(name: &str, text: &str) -> Scenario {
+    Scenario::load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
+}
+
+fn simulate(g: &BehaviorGraph, sc: &Scenario, seed: u64) -> (Arc<Mission>, RunReport, Vec<u8>) {
+    let mission =
+        prepare(g, sc, None, &bite_protocols::registry()).unwrap_or_else(|d| panic!("{d}"));
+    let mut log = Vec::new();
+    let report = run(
+        mission.clone(),
+        sc,
+        RunOptions {
+            seed: Some(seed),
+            log: Some(&mut log),
+            record: true,
+            ..RunOptions::default()
+        },
+    )
+    .unwrap_or_else(|d| panic!("{d}"));
+    (mission, report, log)
+}
+
+fn assert_clean(mission: &Mission, report: &RunReport, what: &str) {
+    let v = check(report, mission);
+    assert!(
+        v.is_empty(),
+        "{what}: invariants broken:\n{}",
+        v.iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    assert_eq!(report.summary.violations, 0, "{what}: protocol violations");
+}
+
+#[test]
+fn the_formation_walks_six_metres_under_all_seven_configurations() {
+    let sc = scenario("formation-physics.yaml", FORMATION_SC);
+    for (i, text) in TABLE2.iter().enumerate() {
+        let row = i + 1;
+        let cfg = Config::load_str(&Arc::from(format!("{row}.yaml")), text)
+            .unwrap_or_else(|d| panic!("{d}"));
+        let g = graph("formation.yaml", FORMATION)
+            .with_config(&cfg)
+            .unwrap_or_else(|d| panic!("{d}"));
+        let (mission, report, _) = simulate(&g, &sc, 1);
+        let s = &report.summary;
+        assert!(s.completed, "row {row}: {s}");
+        assert_clean(&mission, &report, &format!("row {row}"));
+        let world = report.world.as_ref().expect("a physical world");
+        // The robots really walked the course: the front robot is past
+        // 6.6 m (start 0.6 m + 6 m), everyone went through the narrowing
+        // into the corridor, and nobody left the arena.
+        let xs: Vec<f64> = (0..3).map(|r| world.pose(r).pos.x).collect();
+        let front = xs.iter().copied().fold(0.0, f64::max);
+        assert!(front >= 6.55, "row {row}: front robot at x = {front:.2}");
+        for (r, x) in xs.iter().enumerate() {
+            assert!(*x > 4.5 && *x < 8.0, "row {row}: r{r} ended at x = {x:.2}");
+            let y = world.pose(r).pos.y;
+            assert!(
+                (1.1..=1.9).contains(&y) || *x < 5.0,
+                "row {row}: r{r} in a wall"
+            );
+        }
+        // Triangle first, then line: the followers held a slot on the leader
+        // and then followed in a column.
+        let names: Vec<String> = report
+            .history
+            .iter()
+            .filter_map(|r| match &r.event {
+                Event::Selected { behavior, .. } => Some(g.name_of(*behavior).to_string()),
+                _ => None,
+            })
+            .collect();
+        let first = |n: &str| names.iter().position(|x| x == n);
+        let (Some(tri), Some(line)) = (first("follow_left"), first("follow_line")) else {
+            panic!("row {row}: both formations must run: {names:?}");
+        };
+        assert!(tri < line, "row {row}: triangle before line");
+    }
+}
+
+#[test]
+fn the_relay_pushes_the_yellow_box_between_the_chairs() {
+    let g = graph("box-push.yaml", BOX_PUSH);
+    let sc = scenario("box-push-physics.yaml", BOX_PUSH_SC);
+    for seed in [1, 2, 3] {
+        let (mission, report, _) = simulate(&g, &sc, seed);
+        let s = &report.summary;
+        assert!(s.completed, "seed {seed}: {s}");
+        assert_clean(&mission, &report, &format!("box push, seed {seed}"));
+        let w = s.world.as_ref().expect("world summary");
+        let met = w.goal_met_at.expect("the box reached the goal");
+        assert!(met <= s.task_time + 1e-9, "{w:?}");
+        // The relay: r0 pushes first while r1 watches; then r0 steps aside
+        // and r1 finishes. Check it from the recorded events.
+        let who_ran = |name: &str| -> Vec<u32> {
+            let b = g.find(name).unwrap_or_else(|| panic!("no {name}"));
+            let mut v: Vec<u32> = report
+                .history
+                .iter()
+                .filter(|r| matches!(&r.event, Event::Selected { behavior, .. } if *behavior == b))
+                .map(|r| r.robot.0)
+                .collect();
+            v.dedup();
+            v
+        };
+        assert_eq!(who_ran("push"), vec![0], "seed {seed}");
+        assert_eq!(who_ran("watch"), vec![1], "seed {seed}");
+        assert_eq!(who_ran("step_aside"), vec![0], "seed {seed}");
+        assert_eq!(who_ran("finish_push"), vec![1], "seed {seed}");
+        let at = |name: &str| {
+            let b = g.find(name).unwrap_or_else(|| panic!("no {name}"));
+            report
+                .history
+                .iter()
+                .find(|r| matches!(&r.event, Event::Selected { behavior, .. } if *behavior == b))
+                .map(|r| r.t)
+        };
+        assert!(at("search") < at("push") && at("push") < at("finish_push"));
+        // The red crate is not the box: it stayed where it was.
+        let crate_at = report.world.as_ref().map(|w| w.object_pos(1));
+        let moved = crate_at.map(|p| p.distance(glam::DVec2::new(4.6, 0.7)));
+        assert!(moved.is_some_and(|d| d < 0.05), "crate moved {moved:?}");
+    }
+}
+
+#[test]
+fn five_robots_cover_the_hall() {
+    let g = graph("coverage.yaml", COVERAGE);
+    let sc = scenario("coverage-physics.yaml", COVERAGE_SC);
+    let (mission, report, _) = simulate(&g, &sc, 1);
+    let s = &report.summary;
+    assert!(s.completed, "{s}");
+    assert_clean(&mission, &report, "coverage");
+    let w = s.world.as_ref().expect("world summary");
+    assert!(w.coverage >= 0.9, "covered {:.0} %", w.coverage * 100.0);
+    assert_eq!(w.distance.len(), 5);
+    assert!(w.distance.iter().all(|d| *d > 5.0), "{:?}", w.distance);
+}
+
+#[test]
+fn a_physical_run_is_reproducible_from_its_seed() {
+    let g = graph("box-push.yaml", BOX_PUSH);
+    let sc = scenario("box-push-physics.yaml", BOX_PUSH_SC);
+    let (_, a, log_a) = simulate(&g, &sc, 7);
+    let (_, b, log_b) = simulate(&g, &sc, 7);
+    assert_eq!(log_a, log_b, "same seed, same run log");
+    assert_eq!(a.summary.log_fingerprint, b.summary.log_fingerprint);
+    let (_, c, _) = simulate(&g, &sc, 8);
+    assert_ne!(a.summary.log_fingerprint, c.summary.log_fingerprint);
+    // The log carries the robots' poses for replay and analysis.
+    let text = String::from_utf8(log_a).expect("utf-8");
+    assert!(text.lines().any(|l| l.contains(r#""event":"poses""#)));
+}
+
+#[test]
+fn pictures_show_every_robot_and_behavior() {
+    let g = graph("box-push.yaml", BOX_PUSH);
+    let sc = scenario("box-push-physics.yaml", BOX_PUSH_SC);
+    let (mission, report, _) = simulate(&g, &sc, 1);
+    let world = report.world.as_ref().expect("world");
+    let robots = vec!["r0".to_string(), "r1".to_string()];
+    let names = |b| mission.graph().name_of(b).to_string();
+    let svg = bite_sim::physics::svg::draw(
+        world,
+        &bite_sim::physics::svg::Labels {
+            title: "box push".into(),
+            robots: &robots,
+            behaviors: &names,
+            at: None,
+        },
+    );
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    for label in [
+        "r0",
+        "r1",
+        "push",
+        "finish_push",
+        "step_aside",
+        "box",
+        "goal",
+    ] {
+        assert!(svg.contains(&format!(">{label}<")), "no label {label}");
+    }
+}
+
+fn load_err(text: &str) -> String {
+    match Scenario::load_str(&Arc::from("bad.yaml"), text) {
+        Ok(_) => panic!("accepted:\n{text}"),
+        Err(d) => d.to_string(),
+    }
+}
+
+const MINIMAL: &str = "
+scenario: bad
+world: physics
+physics:
+  arena: [4, 3]
+  BELIEFS
+skills:
+  go:
+    schemas:
+      - SCHEMA
+";
+
+fn with(beliefs: &str, schema: &str) -> String {
+    MINIMAL
+        .replace("BELIEFS", beliefs)
+        .replace("SCHEMA", schema)
+}
+
+#[test]
+fn scenario_mistakes_are_reported_where_they_are() {
+    let e = load_err(&with(
+        "beliefs: {}",
+        "{ schema: move-to-gaol, goal: [1, 1] }",
+    ));
+    assert!(
+        e.contains("bad.yaml:10:") && e.contains("unknown schema `move-to-gaol`"),
+        "{e}"
+    );
+    assert!(e.contains("move-to-goal"), "did-you-mean hint: {e}");
+    let e = load_err(&with(
+        "beliefs: {}",
+        "{ schema: push, object: box, speeed: 1 }",
+    ));
+    assert!(e.contains("no parameter `speeed`"), "{e}");
+    let e = load_err(&with("beliefs: {}", "{ schema: wander, layer: 7 }"));
+    assert!(e.contains("from 0 to 3"), "{e}");
+    let e = load_err(&with("beliefs: { seen: boxx_seen }", "{ schema: stop }"));
+    assert!(
+        e.contains("bad.yaml:6:") && e.contains("`boxx_seen`"),
+        "{e}"
+    );
+    let e = load_err("scenario: bad\nworld: physics\n");
+    assert!(e.contains("needs a `physics:` section"), "{e}");
+    let e = load_err("scenario: bad\nphysics:\n  arena: [1, 1]\n");
+    assert!(e.contains("needs `world: physics`"), "{e}");
+    let e = load_err("scenario: bad\nworld: physics\nphysics:\n  arena: [4, -1]\n");
+    assert!(e.contains("arena height"), "{e}");
+}
+
+#[test]
+fn a_behavior_parameter_a_schema_cannot_use_is_an_error_at_resolve() {
+    // `keep-slot` needs `of`: neither the scenario nor the behavior gives it.
+    let g = graph(
+        "g.yaml",
+        "graph: g\nteam: { robots: 1 }\nstart: a\nbehaviors:\n  a: { skill: { name: go, params: { side: up } } }\n",
+    );
+    let sc = scenario(
+        "s.yaml",
+        "scenario: s\nworld: physics\nphysics: { arena: [3, 3] }\nskills:\n  go:\n    schemas:\n      - { schema: keep-slot, of: lead }\n",
+    );
+    let e = sc.resolve(&g).map(|_| ()).unwrap_err().to_string();
+    assert!(e.contains("`side` is left, right or behind"), "{e}");
+}
