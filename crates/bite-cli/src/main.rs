@@ -140,6 +140,20 @@ struct RunArgs {
 
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// The physical world: the shipped scenarios (formation, box push,
+    /// coverage), then teams of N robots roaming an arena for a simulated
+    /// minute: wall time, physics steps per second, real-time factor.
+    Sim {
+        /// Team sizes of the roaming runs.
+        #[arg(long, value_delimiter = ',', default_values_t = [10usize, 50, 200])]
+        robots: Vec<usize>,
+        /// Simulated seconds of each roaming run.
+        #[arg(long, default_value_t = 60.0)]
+        seconds: f64,
+        /// Seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// Every protocol of the library, one decision each in the
     /// discrete-event runner: messages and rounds per decision by team size;
     /// then the auction and token passing at scale (robots × tasks).
@@ -556,6 +570,93 @@ fn cmd_protocols() -> ExitCode {
     ExitCode::SUCCESS
 }
 
+const BOX_PUSH_GRAPH: &str = include_str!("../../../examples/box-push.yaml");
+const BOX_PUSH_PHYSICS: &str = include_str!("../../../examples/scenarios/box-push-physics.yaml");
+const COVERAGE_GRAPH: &str = include_str!("../../../examples/coverage.yaml");
+const COVERAGE_PHYSICS: &str = include_str!("../../../examples/scenarios/coverage-physics.yaml");
+
+/// A team of `n` robots roaming a square arena for `seconds`.
+fn roam_mission(n: usize, seconds: f64) -> (String, String) {
+    let side = ((n as f64).sqrt() * 1.5).max(3.0);
+    let graph = format!(
+        "graph: roam\nteam: {{ robots: {n} }}\nstart: roam\ndefaults: {{ terminate: term.wait-all }}\n\
+         behaviors:\n  roam: {{ team: true, skill: roam, until: done }}\n"
+    );
+    let scenario = format!(
+        "scenario: roam\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: {limit}s\n\
+         physics:\n  arena: [{side:.1}, {side:.1}]\n  robot: {{ radius: 0.12, max_speed: 0.3 }}\n\
+         \x20 obstacles:\n    - {{ disc: 0.3, at: [{c:.1}, {c:.1}] }}\n\
+         \x20 sensors: {{ pose_noise: 0.005, rays: {{ count: 8, range: 1.0 }}, camera: {{ fov: 120, range: 3 }} }}\n\
+         \x20 beliefs: {{ done: skill_time >= {seconds} }}\n\
+         skills:\n  roam:\n    schemas:\n      - {{ schema: wander, speed: 0.25, layer: 1 }}\n\
+         \x20     - {{ schema: avoid-teammate, range: 0.4, layer: 2 }}\n\
+         \x20     - {{ schema: avoid-obstacle, range: 0.3, layer: 3 }}\n",
+        limit = seconds + 30.0,
+        c = side / 2.0,
+    );
+    (graph, scenario)
+}
+
+#[allow(clippy::disallowed_methods)] // a benchmark measures wall time
+fn cmd_bench_sim(robots: &[usize], seconds: f64, seed: u64) -> Result<ExitCode> {
+    let mut cases: Vec<(String, String, String)> = vec![
+        (
+            "formation".into(),
+            FORMATION_GRAPH.into(),
+            FORMATION_PHYSICS.into(),
+        ),
+        (
+            "box-push".into(),
+            BOX_PUSH_GRAPH.into(),
+            BOX_PUSH_PHYSICS.into(),
+        ),
+        (
+            "coverage".into(),
+            COVERAGE_GRAPH.into(),
+            COVERAGE_PHYSICS.into(),
+        ),
+    ];
+    for n in robots {
+        let (g, s) = roam_mission(*n, seconds);
+        cases.push((format!("roam {n}"), g, s));
+    }
+    outln!("| run | robots | simulated | wall | real-time factor | physics steps/s | completed |");
+    outln!("| --- | ---: | ---: | ---: | ---: | ---: | --- |");
+    for (name, g, s) in cases {
+        let graph = bite_core::graph::load_str(&Arc::from(format!("{name} (built in)")), &g)
+            .map_err(bad_input)?;
+        let sc = Scenario::load_str(&Arc::from(format!("{name} scenario (built in)")), &s)
+            .map_err(bad_input)?;
+        let mission = prepare(&graph, &sc, None, &registry()).map_err(bad_input)?;
+        eprintln!("{name} ...");
+        let start = std::time::Instant::now();
+        let report = run(
+            mission.clone(),
+            &sc,
+            RunOptions {
+                seed: Some(seed),
+                ..RunOptions::default()
+            },
+        )
+        .map_err(bad_input)?;
+        let wall = start.elapsed().as_secs_f64();
+        let sim = report.end.as_secs_f64();
+        let hz = sc.physics.as_ref().map_or(0.0, |p| p.hz);
+        outln!(
+            "| {name} | {} | {sim:.1} s | {wall:.2} s | {:.0}× | {:.0} | {} |",
+            mission.graph().roster().len(),
+            sim / wall.max(1e-9),
+            sim * hz / wall.max(1e-9),
+            if report.summary.completed {
+                "yes"
+            } else {
+                "no"
+            }
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
 #[allow(clippy::disallowed_methods)] // a benchmark measures wall time
 fn cmd_bench_team(
     robots: usize,
@@ -730,6 +831,14 @@ fn main() -> ExitCode {
             sim_time,
             seed,
         ),
+        Cmd::Bench {
+            which:
+                BenchCmd::Sim {
+                    robots,
+                    seconds,
+                    seed,
+                },
+        } => cmd_bench_sim(&robots, seconds, seed),
         Cmd::Bench {
             which:
                 BenchCmd::Protocols {
