@@ -143,8 +143,11 @@ pub struct WorldSummary {
     pub goal_met_at: Option<f64>,
     /// Distance each robot travelled, m.
     pub distance: Vec<f64>,
-    /// Share of the arena within camera range of some robot's path (0-1).
+    /// Share of the arena within 0.5 m of some robot's path (0-1).
     pub coverage: f64,
+    /// Formation error, m: mean and largest distance of a slot keeper from
+    /// its slot (true poses), if any robot kept a slot.
+    pub formation_error: Option<[f64; 2]>,
 }
 
 /// Collects a summary from the event stream.
@@ -369,13 +372,16 @@ impl fmt::Display for Summary {
             };
             writeln!(
                 f,
-                "  world            {goal}travelled {} m; arena covered {:.0} %",
+                "  world            {goal}travelled {} m; arena covered {:.0} %{}",
                 w.distance
                     .iter()
                     .map(|d| format!("{d:.1}"))
                     .collect::<Vec<_>>()
                     .join(" / "),
-                w.coverage * 100.0
+                w.coverage * 100.0,
+                w.formation_error
+                    .map(|[m, x]| format!("; formation error {m:.2} m mean, {x:.2} m max"))
+                    .unwrap_or_default()
             )?;
         }
         writeln!(

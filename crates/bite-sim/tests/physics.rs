@@ -94,6 +94,15 @@ fn the_formation_walks_six_metres_under_all_seven_configurations() {
                 "row {row}: r{r} in a wall"
             );
         }
+        // The formation held: followers kept within 0.25 m of their slot on
+        // average (true poses, from a second after each leg began; the
+        // largest error is when roles change hands and a follower crosses
+        // over to its new slot).
+        let err = s.world.as_ref().and_then(|w| w.formation_error);
+        assert!(
+            err.is_some_and(|[mean, _]| mean < 0.25),
+            "row {row}: formation error {err:?}"
+        );
         // Triangle first, then line: the followers held a slot on the leader
         // and then followed in a column.
         let names: Vec<String> = report

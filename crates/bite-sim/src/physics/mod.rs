@@ -215,6 +215,9 @@ pub struct World {
     mapped: Vec<Mapped>,
     values: Vec<Option<Value>>,
     goal_met: Option<f64>,
+    /// Formation error samples: distance from a slot keeper's true position
+    /// to its true slot (sum, count, max).
+    slot_error: (f64, u64, f64),
 }
 
 impl std::fmt::Debug for World {
@@ -459,6 +462,7 @@ impl World {
             mapped,
             values,
             goal_met: None,
+            slot_error: (0.0, 0, 0.0),
         })
     }
 
@@ -586,8 +590,39 @@ impl World {
         b.set_angvel(angvel as f32, true);
     }
 
+    /// Mean and largest formation error seen (m): how far robots keeping a
+    /// slot were from it, measured on true poses at every control tick
+    /// after their first second in the slot.
+    pub fn formation_error(&self) -> Option<(f64, f64)> {
+        let (sum, n, max) = self.slot_error;
+        (n > 0).then(|| (sum / n as f64, max))
+    }
+
     /// Record one sample of every trajectory (called at control ticks).
     pub fn record(&mut self) {
+        for i in 0..self.robots.len() {
+            let r = &self.robots[i];
+            if self.t - r.skill_started < 1.0 {
+                continue; // still getting into its slot
+            }
+            let slot = r.skill.iter().find_map(|w| match &w.schema {
+                schema::Schema::KeepSlot {
+                    of, side, distance, ..
+                } => r.roles.get(of).map(|l| (*l as usize, *side, *distance)),
+                _ => None,
+            });
+            if let Some((l, side, d)) = slot
+                && l < self.robots.len()
+                && l != i
+            {
+                let lead = self.pose(l);
+                let at = schema::slot_position(lead.pos, lead.heading, side, d);
+                let e = at.distance(self.pose(i).pos);
+                self.slot_error.0 += e;
+                self.slot_error.1 += 1;
+                self.slot_error.2 = self.slot_error.2.max(e);
+            }
+        }
         for i in 0..self.robots.len() {
             let p = self.pose(i);
             let r = &mut self.robots[i];
@@ -896,5 +931,8 @@ pub fn summary(world: &World) -> crate::summary::WorldSummary {
             .map(|d| (d * 100.0).round() / 100.0)
             .collect(),
         coverage: (coverage(world) * 1000.0).round() / 1000.0,
+        formation_error: world
+            .formation_error()
+            .map(|(m, x)| [(m * 1000.0).round() / 1000.0, (x * 1000.0).round() / 1000.0]),
     }
 }

@@ -245,6 +245,17 @@ fn target_point(view: &View, t: &Target) -> Option<DVec2> {
     }
 }
 
+/// Where a formation slot is, behind a reference at `pos` heading `heading`.
+pub fn slot_position(pos: DVec2, heading: f64, side: Side, distance: f64) -> DVec2 {
+    let (back, lateral) = match side {
+        Side::Left => (-0.707, 0.707),
+        Side::Right => (-0.707, -0.707),
+        Side::Behind => (-1.0, 0.0),
+    };
+    let fwd = DVec2::from_angle(heading);
+    pos + (fwd * back + fwd.perp() * lateral) * distance
+}
+
 /// Waypoints of a boustrophedon sweep of `region`, lanes along x.
 pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
     let [x0, y0, x1, y1] = region;
@@ -318,14 +329,8 @@ pub fn evaluate(
             let r = view.roles.get(of)?;
             let m = view.mates.get(r)?;
             let h = m.heading.unwrap_or(pose.heading);
-            let (back, lateral) = match side {
-                Side::Left => (-0.707, 0.707),
-                Side::Right => (-0.707, -0.707),
-                Side::Behind => (-1.0, 0.0),
-            };
             let fwd = DVec2::from_angle(h);
-            let left = fwd.perp();
-            let slot = m.pos + (fwd * back + left * lateral) * *distance;
+            let slot = slot_position(m.pos, h, *side, *distance);
             // Proportional to the slot error, plus the reference's pace.
             let v = (slot - pose.pos) * 1.5 + fwd * speed * 0.8;
             out(clamp_len(v, speed * 1.5))
