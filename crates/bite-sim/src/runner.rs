@@ -640,26 +640,7 @@ pub fn run(
             )?)
         }
     };
-    let motor = graph
-        .behaviors()
-        .iter()
-        .map(|b| {
-            let max_speed = scenario.physics.as_ref().map_or(0.3, |p| p.robot.max_speed);
-            let v: Vec<crate::physics::schema::Weighted> = b
-                .skill
-                .as_ref()
-                .filter(|_| b.is_atomic())
-                .and_then(|sk| scenario.skills.get(&sk.name).map(|m| (sk, m)))
-                .map(|(sk, m)| {
-                    m.schemas
-                        .iter()
-                        .filter_map(|sc| sc.build(&sk.params, max_speed, false).ok())
-                        .collect()
-                })
-                .unwrap_or_default();
-            Arc::from(v)
-        })
-        .collect();
+    let motor = resolved.motor.clone();
     let mut sim = Sim {
         book: SkillBook::new(scenario, &graph),
         kernels,

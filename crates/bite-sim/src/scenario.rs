@@ -362,6 +362,9 @@ pub struct Resolved {
     pub crashes: Vec<(RobotId, Time, Option<Time>)>,
     /// Warnings (beliefs nobody reads, skills the scenario does not describe).
     pub warnings: Vec<Diagnostic>,
+    /// In the physical world: each behavior's motor schemas, with its skill
+    /// parameters laid over the scenario's (empty: none; no world: empty).
+    pub motor: Vec<Arc<[crate::physics::schema::Weighted]>>,
 }
 
 /// A scenario of the timed-skill world.
@@ -833,25 +836,27 @@ impl Scenario {
                 ));
             }
         }
+        let mut motor = Vec::new();
         if let Some(ps) = &self.physics {
             let mut bad = Vec::new();
             for b in graph.behaviors() {
-                let Some(sk) = b.skill.as_ref().filter(|_| b.is_atomic()) else {
-                    continue;
-                };
-                let Some(model) = self.skills.get(&sk.name) else {
-                    continue;
-                };
-                for sc in &model.schemas {
-                    if let Err(e) = sc.build(&sk.params, ps.robot.max_speed, false) {
-                        bad.push(Diagnostic::error(
-                            &self.file,
-                            sc.loc,
-                            "bad-schema",
-                            format!("behavior `{}`, skill `{}`: {e}", b.name, sk.name),
-                        ));
+                let mut schemas = Vec::new();
+                if let Some(sk) = b.skill.as_ref().filter(|_| b.is_atomic())
+                    && let Some(model) = self.skills.get(&sk.name)
+                {
+                    for sc in &model.schemas {
+                        match sc.build(&sk.params, ps.robot.max_speed, false) {
+                            Ok(w) => schemas.push(w),
+                            Err(e) => bad.push(Diagnostic::error(
+                                &self.file,
+                                sc.loc,
+                                "bad-schema",
+                                format!("behavior `{}`, skill `{}`: {e}", b.name, sk.name),
+                            )),
+                        }
                     }
                 }
+                motor.push(Arc::from(schemas));
             }
             if !bad.is_empty() {
                 return Err(Diagnostics(bad));
@@ -894,6 +899,7 @@ impl Scenario {
             events,
             crashes,
             warnings,
+            motor,
         })
     }
 }

@@ -3,67 +3,18 @@
 //! coverage; reproducibility; and the errors a scenario author sees.
 
 use bite_core::event::Event;
-use bite_core::graph::{BehaviorGraph, Config, load_str};
-use bite_core::mission::Mission;
-use bite_sim::check::check;
-use bite_sim::runner::{RunOptions, RunReport};
-use bite_sim::{Scenario, prepare, run};
+use bite_core::graph::Config;
+use bite_sim::Scenario;
 use std::sync::Arc;
 
-const FORMATION: &str = include_str!("../../../examples/formation.yaml");
+mod missions;
+use missions::{FORMATION, TABLE2, assert_clean, graph, scenario, simulate};
+
 const FORMATION_SC: &str = include_str!("../../../examples/scenarios/formation-physics.yaml");
 const BOX_PUSH: &str = include_str!("../../../examples/box-push.yaml");
 const BOX_PUSH_SC: &str = include_str!("../../../examples/scenarios/box-push-physics.yaml");
 const COVERAGE: &str = include_str!("../../../examples/coverage.yaml");
 const COVERAGE_SC: &str = include_str!("../../../examples/scenarios/coverage-physics.yaml");
-const TABLE2: [&str; 7] = [
-    include_str!("../../../examples/configs/1.yaml"),
-    include_str!("../../../examples/configs/2.yaml"),
-    include_str!("../../../examples/configs/3.yaml"),
-    include_str!("../../../examples/configs/4.yaml"),
-    include_str!("../../../examples/configs/5.yaml"),
-    include_str!("../../../examples/configs/6.yaml"),
-    include_str!("../../../examples/configs/7.yaml"),
-];
-
-fn graph(name: &str, text: &str) -> BehaviorGraph {
-    load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
-}
-
-fn scenario(name: &str, text: &str) -> Scenario {
-    Scenario::load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
-}
-
-fn simulate(g: &BehaviorGraph, sc: &Scenario, seed: u64) -> (Arc<Mission>, RunReport, Vec<u8>) {
-    let mission =
-        prepare(g, sc, None, &bite_protocols::registry()).unwrap_or_else(|d| panic!("{d}"));
-    let mut log = Vec::new();
-    let report = run(
-        mission.clone(),
-        sc,
-        RunOptions {
-            seed: Some(seed),
-            log: Some(&mut log),
-            record: true,
-            ..RunOptions::default()
-        },
-    )
-    .unwrap_or_else(|d| panic!("{d}"));
-    (mission, report, log)
-}
-
-fn assert_clean(mission: &Mission, report: &RunReport, what: &str) {
-    let v = check(report, mission);
-    assert!(
-        v.is_empty(),
-        "{what}: invariants broken:\n{}",
-        v.iter()
-            .map(|x| x.to_string())
-            .collect::<Vec<_>>()
-            .join("\n")
-    );
-    assert_eq!(report.summary.violations, 0, "{what}: protocol violations");
-}
 
 #[test]
 fn the_formation_walks_six_metres_under_all_seven_configurations() {
@@ -75,10 +26,11 @@ fn the_formation_walks_six_metres_under_all_seven_configurations() {
         let g = graph("formation.yaml", FORMATION)
             .with_config(&cfg)
             .unwrap_or_else(|d| panic!("{d}"));
-        let (mission, report, _) = simulate(&g, &sc, 1);
+        let o = simulate(&g, &sc, 1);
+        let report = &o.report;
         let s = &report.summary;
         assert!(s.completed, "row {row}: {s}");
-        assert_clean(&mission, &report, &format!("row {row}"));
+        assert_clean(&o, &format!("row {row}"));
         let world = report.world.as_ref().expect("a physical world");
         // The robots really walked the course: the front robot is past
         // 6.6 m (start 0.6 m + 6 m), everyone went through the narrowing
@@ -126,10 +78,11 @@ fn the_relay_pushes_the_yellow_box_between_the_chairs() {
     let g = graph("box-push.yaml", BOX_PUSH);
     let sc = scenario("box-push-physics.yaml", BOX_PUSH_SC);
     for seed in [1, 2, 3] {
-        let (mission, report, _) = simulate(&g, &sc, seed);
+        let o = simulate(&g, &sc, seed);
+        let report = &o.report;
         let s = &report.summary;
         assert!(s.completed, "seed {seed}: {s}");
-        assert_clean(&mission, &report, &format!("box push, seed {seed}"));
+        assert_clean(&o, &format!("box push, seed {seed}"));
         let w = s.world.as_ref().expect("world summary");
         let met = w.goal_met_at.expect("the box reached the goal");
         assert!(met <= s.task_time + 1e-9, "{w:?}");
@@ -170,10 +123,10 @@ fn the_relay_pushes_the_yellow_box_between_the_chairs() {
 fn five_robots_cover_the_hall() {
     let g = graph("coverage.yaml", COVERAGE);
     let sc = scenario("coverage-physics.yaml", COVERAGE_SC);
-    let (mission, report, _) = simulate(&g, &sc, 1);
-    let s = &report.summary;
+    let o = simulate(&g, &sc, 1);
+    let s = &o.report.summary;
     assert!(s.completed, "{s}");
-    assert_clean(&mission, &report, "coverage");
+    assert_clean(&o, "coverage");
     let w = s.world.as_ref().expect("world summary");
     assert!(w.coverage >= 0.9, "covered {:.0} %", w.coverage * 100.0);
     assert_eq!(w.distance.len(), 5);
@@ -184,14 +137,20 @@ fn five_robots_cover_the_hall() {
 fn a_physical_run_is_reproducible_from_its_seed() {
     let g = graph("box-push.yaml", BOX_PUSH);
     let sc = scenario("box-push-physics.yaml", BOX_PUSH_SC);
-    let (_, a, log_a) = simulate(&g, &sc, 7);
-    let (_, b, log_b) = simulate(&g, &sc, 7);
-    assert_eq!(log_a, log_b, "same seed, same run log");
-    assert_eq!(a.summary.log_fingerprint, b.summary.log_fingerprint);
-    let (_, c, _) = simulate(&g, &sc, 8);
-    assert_ne!(a.summary.log_fingerprint, c.summary.log_fingerprint);
+    let a = simulate(&g, &sc, 7);
+    let b = simulate(&g, &sc, 7);
+    assert_eq!(a.log, b.log, "same seed, same run log");
+    assert_eq!(
+        a.report.summary.log_fingerprint,
+        b.report.summary.log_fingerprint
+    );
+    let c = simulate(&g, &sc, 8);
+    assert_ne!(
+        a.report.summary.log_fingerprint,
+        c.report.summary.log_fingerprint
+    );
     // The log carries the robots' poses for replay and analysis.
-    let text = String::from_utf8(log_a).expect("utf-8");
+    let text = String::from_utf8(a.log).expect("utf-8");
     assert!(text.lines().any(|l| l.contains(r#""event":"poses""#)));
 }
 
@@ -199,10 +158,10 @@ fn a_physical_run_is_reproducible_from_its_seed() {
 fn pictures_show_every_robot_and_behavior() {
     let g = graph("box-push.yaml", BOX_PUSH);
     let sc = scenario("box-push-physics.yaml", BOX_PUSH_SC);
-    let (mission, report, _) = simulate(&g, &sc, 1);
-    let world = report.world.as_ref().expect("world");
+    let o = simulate(&g, &sc, 1);
+    let world = o.report.world.as_ref().expect("world");
     let robots = vec!["r0".to_string(), "r1".to_string()];
-    let names = |b| mission.graph().name_of(b).to_string();
+    let names = |b| o.mission.graph().name_of(b).to_string();
     let svg = bite_sim::physics::svg::draw(
         world,
         &bite_sim::physics::svg::Labels {

@@ -3,94 +3,21 @@
 //! reproducible byte for byte.
 
 use bite_core::event::{Event, Via};
-use bite_core::graph::{BehaviorGraph, Config, load_str};
+use bite_core::graph::Config;
 use bite_core::ids::{RobotId, TeamId};
-use bite_core::mission::Mission;
 use bite_core::msg::{InstanceKey, Kind};
-use bite_sim::check::check;
-use bite_sim::runner::{RunOptions, RunReport};
-use bite_sim::{Scenario, prepare, run};
+use bite_sim::Scenario;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-const FORMATION: &str = include_str!("../../../examples/formation.yaml");
+mod missions;
+use missions::{FORMATION, Outcome, TABLE2, assert_clean, graph, replay, scenario, simulate};
+
 const FORMATION_SC: &str = include_str!("../../../examples/scenarios/formation.yaml");
 const PATROL: &str = include_str!("../../../examples/patrol.yaml");
 const PATROL_SC: &str = include_str!("../../../examples/scenarios/patrol.yaml");
 const SQUADS: &str = include_str!("../../../examples/squads.yaml");
 const SQUADS_SC: &str = include_str!("../../../examples/scenarios/squads.yaml");
-
-fn graph(name: &str, text: &str) -> BehaviorGraph {
-    load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
-}
-
-fn scenario(name: &str, text: &str) -> Scenario {
-    Scenario::load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
-}
-
-struct Outcome {
-    mission: Arc<Mission>,
-    report: RunReport,
-    log: Vec<u8>,
-}
-
-fn simulate(g: &BehaviorGraph, sc: &Scenario, seed: u64) -> Outcome {
-    let mission =
-        prepare(g, sc, None, &bite_protocols::registry()).unwrap_or_else(|d| panic!("{d}"));
-    let mut log = Vec::new();
-    let report = run(
-        mission.clone(),
-        sc,
-        RunOptions {
-            seed: Some(seed),
-            log: Some(&mut log),
-            record: true,
-            ..RunOptions::default()
-        },
-    )
-    .unwrap_or_else(|d| panic!("{d}"));
-    Outcome {
-        mission,
-        report,
-        log,
-    }
-}
-
-/// The command that replays a run (for failure messages).
-fn replay(o: &Outcome) -> String {
-    let s = &o.report.summary;
-    format!(
-        "replay: bite run examples/{}.yaml --scenario examples/scenarios/{}.yaml --seed {}{}",
-        s.graph,
-        s.graph,
-        s.seed,
-        s.config
-            .as_ref()
-            .map(|c| format!(" (configuration {c})"))
-            .unwrap_or_default()
-    )
-}
-
-/// Fail with the seed and the command that replays the run.
-fn assert_clean(o: &Outcome, what: &str) {
-    let v = check(&o.report, &o.mission);
-    let s = &o.report.summary;
-    assert!(
-        v.is_empty(),
-        "{what}: invariants broken ({}):\n{}",
-        replay(o),
-        v.iter()
-            .map(|x| x.to_string())
-            .collect::<Vec<_>>()
-            .join("\n")
-    );
-    assert_eq!(
-        s.violations,
-        0,
-        "{what}: protocol violations ({})",
-        replay(o)
-    );
-}
 
 /// The behaviors robot `r` selected, in order.
 fn selections(o: &Outcome, r: u32) -> Vec<String> {
@@ -501,15 +428,6 @@ fn a_lost_members_child_is_reallocated_by_the_points_protocol() {
 }
 
 /// The seven configurations of the paper's Table II, as shipped.
-const TABLE2: [&str; 7] = [
-    include_str!("../../../examples/configs/1.yaml"),
-    include_str!("../../../examples/configs/2.yaml"),
-    include_str!("../../../examples/configs/3.yaml"),
-    include_str!("../../../examples/configs/4.yaml"),
-    include_str!("../../../examples/configs/5.yaml"),
-    include_str!("../../../examples/configs/6.yaml"),
-    include_str!("../../../examples/configs/7.yaml"),
-];
 
 #[test]
 fn the_seven_table2_configurations_complete_the_formation() {

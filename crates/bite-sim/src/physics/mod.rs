@@ -89,6 +89,21 @@ struct Robot {
     view: View,
 }
 
+impl Robot {
+    /// The teammate its skill keeps a slot on or follows (the holder of
+    /// the role the schema names), with the slot's side and distance for
+    /// `keep-slot`.
+    fn reference(&self) -> Option<(u32, Option<(schema::Side, f64)>)> {
+        self.skill.iter().find_map(|w| match &w.schema {
+            schema::Schema::KeepSlot {
+                of, side, distance, ..
+            } => self.roles.get(of).map(|l| (*l, Some((*side, *distance)))),
+            schema::Schema::Follow { of, .. } => self.roles.get(of).map(|l| (*l, None)),
+            _ => None,
+        })
+    }
+}
+
 /// The percepts every robot computes, by name.
 #[derive(Clone, Debug, Default)]
 struct Percepts {
@@ -168,8 +183,8 @@ fn percept_names(spec: &PhysicsSpec) -> Percepts {
     ] {
         p.add(n.to_string());
     }
-    for key in object_keys(spec) {
-        for suffix in ["seen", "pos", "distance", "bearing"] {
+    for (key, _) in object_keys(spec) {
+        for suffix in KEY_SUFFIXES {
             p.add(format!("{key}_{suffix}"));
         }
     }
@@ -179,18 +194,31 @@ fn percept_names(spec: &PhysicsSpec) -> Percepts {
     p
 }
 
-/// Objects are seen by name and by colour.
-fn object_keys(spec: &PhysicsSpec) -> Vec<String> {
-    let mut keys: Vec<String> = Vec::new();
-    for o in &spec.objects {
+/// Objects are seen by name and by colour: each key, and the objects
+/// that answer to it.
+fn object_keys(spec: &PhysicsSpec) -> Vec<(String, Vec<usize>)> {
+    let mut keys: Vec<(String, Vec<usize>)> = Vec::new();
+    for (i, o) in spec.objects.iter().enumerate() {
         for k in o.name.iter().chain(o.colour.iter()) {
-            if !keys.contains(k) {
-                keys.push(k.clone());
+            match keys.iter_mut().find(|(x, _)| x == k) {
+                Some((_, objects)) => objects.push(i),
+                None => keys.push((k.clone(), vec![i])),
             }
         }
     }
     keys
 }
+
+/// An object key with the ids of its percepts.
+#[derive(Debug)]
+struct KeyPercepts {
+    key: String,
+    objects: Vec<usize>,
+    /// `<key>_seen`, `_pos`, `_distance`, `_bearing`.
+    ids: [BeliefId; 4],
+}
+
+const KEY_SUFFIXES: [&str; 4] = ["seen", "pos", "distance", "bearing"];
 
 /// A compiled `beliefs:` entry.
 #[derive(Debug)]
@@ -210,6 +238,9 @@ pub struct World {
     dt: f64,
     t: f64,
     percepts: Percepts,
+    /// Percept ids by object key, and of each zone's `in_<zone>`.
+    object_keys: Vec<KeyPercepts>,
+    zone_ids: Vec<([f64; 4], BeliefId)>,
     /// Graph beliefs the percepts set directly (same name): percept → graph id.
     direct: Vec<(BeliefId, BeliefId)>,
     mapped: Vec<Mapped>,
@@ -447,6 +478,18 @@ impl World {
             .filter_map(|(i, n)| symbols.get(n).map(|g| (BeliefId(i as u32), g)))
             .collect();
         let values = vec![None; percepts.names.len()];
+        let id = |n: String| percepts.id(&n).unwrap_or(BeliefId(u32::MAX));
+        let object_keys = object_keys(&spec)
+            .into_iter()
+            .map(|(key, objects)| KeyPercepts {
+                ids: KEY_SUFFIXES.map(|x| id(format!("{key}_{x}"))),
+                key,
+                objects,
+            })
+            .collect();
+        let zone_ids = (spec.zones.iter())
+            .map(|(z, r)| (*r, id(format!("in_{z}"))))
+            .collect();
         let n_objects = objects.len();
         Ok(World {
             dt: 1.0 / spec.hz,
@@ -458,6 +501,8 @@ impl World {
             object_trails: vec![Vec::new(); n_objects],
             t: 0.0,
             percepts,
+            object_keys,
+            zone_ids,
             direct,
             mapped,
             values,
@@ -605,17 +650,11 @@ impl World {
             if self.t - r.skill_started < 1.0 {
                 continue; // still getting into its slot
             }
-            let slot = r.skill.iter().find_map(|w| match &w.schema {
-                schema::Schema::KeepSlot {
-                    of, side, distance, ..
-                } => r.roles.get(of).map(|l| (*l as usize, *side, *distance)),
-                _ => None,
-            });
-            if let Some((l, side, d)) = slot
-                && l < self.robots.len()
-                && l != i
+            if let Some((l, Some((side, d)))) = r.reference()
+                && (l as usize) < self.robots.len()
+                && l as usize != i
             {
-                let lead = self.pose(l);
+                let lead = self.pose(l as usize);
                 let at = schema::slot_position(lead.pos, lead.heading, side, d);
                 let e = at.distance(self.pose(i).pos);
                 self.slot_error.0 += e;
@@ -664,18 +703,28 @@ impl World {
             .is_none_or(|r| self.pose(a).pos.distance(self.pose(b).pos) <= r)
     }
 
-    fn line_of_sight(&self, from: DVec2, to: DVec2, me: usize, target: Option<Kind>) -> bool {
-        let d = to - from;
-        let len = d.length();
-        if len < 1e-9 {
-            return true;
+    /// Robot `i`'s camera on a target at `at`: its noisy estimate of the
+    /// target's position if it is in range, in the field of view and in
+    /// sight (the first thing a ray toward it hits is the target itself).
+    fn sighting(&mut self, i: usize, from: Pose, at: DVec2, target: Kind) -> Option<DVec2> {
+        let s = self.spec.sensors;
+        let off = at - from.pos;
+        let len = off.length();
+        let bearing = schema::wrap(off.y.atan2(off.x) - from.heading);
+        if len > s.camera_range || bearing.abs() > s.fov / 2.0 {
+            return None;
         }
-        let ray = rp::Ray::new(v32(from), v32(d / len));
-        let filter = rp::QueryFilter::default().exclude_rigid_body(self.robots[me].body);
-        match self.rw.cast_ray(&ray, len as f32, true, filter) {
-            None => true,
-            Some((c, _)) => Some(self.kinds.get(&c.into_raw_parts()).copied()) == Some(target),
+        if len > 1e-9 {
+            let ray = rp::Ray::new(v32(from.pos), v32(off / len));
+            let filter = rp::QueryFilter::default().exclude_rigid_body(self.robots[i].body);
+            if let Some((c, _)) = self.rw.cast_ray(&ray, len as f32, true, filter)
+                && self.kinds.get(&c.into_raw_parts()) != Some(&target)
+            {
+                return None;
+            }
         }
+        let rng = &mut self.robots[i].rng;
+        Some(at + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * len)
     }
 
     /// Robot `i`'s sensors now: updates what it remembers of objects and
@@ -710,23 +759,15 @@ impl World {
             }
         }
         // Camera: teammates and objects in the field of view, in sight.
-        let visible = |target: DVec2| -> bool {
-            let off = target - truth.pos;
-            let bearing = schema::wrap(off.y.atan2(off.x) - truth.heading);
-            off.length() <= s.camera_range && bearing.abs() <= s.fov / 2.0
-        };
-        let mut seen_now: Vec<String> = Vec::new();
+        let mut seen_now: Vec<usize> = Vec::new();
         let mut mates_seen = 0;
         for j in 0..n {
             if j == i {
                 continue;
             }
             let p = self.pose(j).pos;
-            if visible(p) && self.line_of_sight(truth.pos, p, i, Some(Kind::Robot(j))) {
+            if let Some(est) = self.sighting(i, truth, p, Kind::Robot(j)) {
                 mates_seen += 1;
-                let d = p.distance(truth.pos);
-                let rng = &mut self.robots[i].rng;
-                let est = p + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * d;
                 let t = self.t;
                 let r = &mut self.robots[i];
                 let heading = r.mates.get(&(j as u32)).and_then(|(m, at)| {
@@ -748,15 +789,14 @@ impl World {
                 }
             }
         }
-        for (k, o) in self.spec.objects.clone().iter().enumerate() {
+        for k in 0..self.objects.len() {
             let p = self.object_pos(k);
-            if visible(p) && self.line_of_sight(truth.pos, p, i, Some(Kind::Object(k))) {
-                let d = p.distance(truth.pos);
-                let rng = &mut self.robots[i].rng;
-                let est = p + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * d;
-                for key in o.name.iter().chain(o.colour.iter()) {
-                    self.robots[i].seen_objects.insert(key.clone(), est);
-                    seen_now.push(key.clone());
+            if let Some(est) = self.sighting(i, truth, p, Kind::Object(k)) {
+                for (key, ids) in self.object_keys.iter().enumerate() {
+                    if ids.objects.contains(&k) {
+                        self.robots[i].seen_objects.insert(ids.key.clone(), est);
+                        seen_now.push(key);
+                    }
                 }
             }
         }
@@ -798,28 +838,20 @@ impl World {
             "reference_pos",
             Some(Value::Vec2([reference.x, reference.y])),
         );
-        for key in object_keys(&self.spec) {
-            let seen = seen_now.contains(&key);
-            let est = r.seen_objects.get(&key).copied();
-            set(&format!("{key}_seen"), Some(Value::Bool(seen)));
-            set(&format!("{key}_pos"), est.map(|p| Value::Vec2([p.x, p.y])));
-            set(
-                &format!("{key}_distance"),
-                est.map(|p| Value::Num(p.distance(pose.pos))),
-            );
-            set(
-                &format!("{key}_bearing"),
-                est.map(|p| {
-                    let off = p - pose.pos;
-                    Value::Num(schema::wrap(off.y.atan2(off.x) - pose.heading).to_degrees())
-                }),
-            );
+        for (k, key) in self.object_keys.iter().enumerate() {
+            let est = r.seen_objects.get(&key.key).copied();
+            let [seen, pos, distance, bearing] = key.ids;
+            let v = &mut self.values;
+            v[seen.index()] = Some(Value::Bool(seen_now.contains(&k)));
+            v[pos.index()] = est.map(|p| Value::Vec2([p.x, p.y]));
+            v[distance.index()] = est.map(|p| Value::Num(p.distance(pose.pos)));
+            v[bearing.index()] = est.map(|p| {
+                let off = p - pose.pos;
+                Value::Num(schema::wrap(off.y.atan2(off.x) - pose.heading).to_degrees())
+            });
         }
-        for (z, rect) in &self.spec.zones {
-            set(
-                &format!("in_{z}"),
-                Some(Value::Bool(in_rect(pose.pos, rect))),
-            );
+        for (rect, id) in &self.zone_ids {
+            self.values[id.index()] = Some(Value::Bool(in_rect(pose.pos, rect)));
         }
         for (p, g) in &self.direct {
             if let Some(v) = &self.values[p.index()] {
@@ -858,12 +890,7 @@ impl World {
             rng.random_range(0.0..1.0)
         };
         r.cmd = schema::command(&r.skill, &r.view, &mut r.states, &mut draw);
-        r.link = r.skill.iter().find_map(|w| match &w.schema {
-            schema::Schema::KeepSlot { of, .. } | schema::Schema::Follow { of, .. } => {
-                r.roles.get(of).copied()
-            }
-            _ => None,
-        });
+        r.link = r.reference().map(|(l, _)| l);
         // A robot that leads (moves to a goal on its own) is its own
         // reference; one that keeps station keeps its reference while it
         // searches.

@@ -311,29 +311,15 @@ impl PhysicsSpec {
         let obstacles = bodies(raw.obstacles, false);
         let objects = bodies(raw.objects, true);
         let s = &raw.sensors;
+        let (rays, camera) = (s.rays.as_ref(), s.camera.as_ref());
         let sensors = Sensors {
             pose_noise: s.pose_noise.unwrap_or(0.0).max(0.0),
-            rays: s.rays.as_ref().and_then(|r| r.count).unwrap_or(8),
-            ray_range: s.rays.as_ref().and_then(|r| r.range).unwrap_or(1.5),
-            ray_noise: s
-                .rays
-                .as_ref()
-                .and_then(|r| r.noise)
-                .unwrap_or(0.0)
-                .max(0.0),
-            fov: s
-                .camera
-                .as_ref()
-                .and_then(|c| c.fov)
-                .unwrap_or(120.0)
-                .to_radians(),
-            camera_range: s.camera.as_ref().and_then(|c| c.range).unwrap_or(4.0),
-            camera_noise: s
-                .camera
-                .as_ref()
-                .and_then(|c| c.noise)
-                .unwrap_or(0.0)
-                .max(0.0),
+            rays: rays.and_then(|r| r.count).unwrap_or(8),
+            ray_range: rays.and_then(|r| r.range).unwrap_or(1.5),
+            ray_noise: rays.and_then(|r| r.noise).unwrap_or(0.0).max(0.0),
+            fov: camera.and_then(|c| c.fov).unwrap_or(120.0).to_radians(),
+            camera_range: camera.and_then(|c| c.range).unwrap_or(4.0),
+            camera_noise: camera.and_then(|c| c.noise).unwrap_or(0.0).max(0.0),
             radio_range: s.radio_range,
         };
         let goal = raw.goal.map(|g| {

@@ -1,0 +1,95 @@
+//! What the whole-mission tests (timed and physical worlds) share:
+//! loading, running with a fixed seed, and failing with the replay command.
+#![allow(dead_code)] // each test crate uses its own part
+
+use bite_core::graph::{BehaviorGraph, load_str};
+use bite_core::mission::Mission;
+use bite_sim::check::check;
+use bite_sim::runner::{RunOptions, RunReport};
+use bite_sim::{Scenario, prepare, run};
+use std::sync::Arc;
+
+pub const FORMATION: &str = include_str!("../../../../examples/formation.yaml");
+
+/// Table II of the paper: configurations 1-7 of the formation graph.
+pub const TABLE2: [&str; 7] = [
+    include_str!("../../../../examples/configs/1.yaml"),
+    include_str!("../../../../examples/configs/2.yaml"),
+    include_str!("../../../../examples/configs/3.yaml"),
+    include_str!("../../../../examples/configs/4.yaml"),
+    include_str!("../../../../examples/configs/5.yaml"),
+    include_str!("../../../../examples/configs/6.yaml"),
+    include_str!("../../../../examples/configs/7.yaml"),
+];
+
+pub fn graph(name: &str, text: &str) -> BehaviorGraph {
+    load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
+}
+
+pub fn scenario(name: &str, text: &str) -> Scenario {
+    Scenario::load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
+}
+
+pub struct Outcome {
+    pub mission: Arc<Mission>,
+    pub report: RunReport,
+    pub log: Vec<u8>,
+}
+
+pub fn simulate(g: &BehaviorGraph, sc: &Scenario, seed: u64) -> Outcome {
+    let mission =
+        prepare(g, sc, None, &bite_protocols::registry()).unwrap_or_else(|d| panic!("{d}"));
+    let mut log = Vec::new();
+    let report = run(
+        mission.clone(),
+        sc,
+        RunOptions {
+            seed: Some(seed),
+            log: Some(&mut log),
+            record: true,
+            ..RunOptions::default()
+        },
+    )
+    .unwrap_or_else(|d| panic!("{d}"));
+    Outcome {
+        mission,
+        report,
+        log,
+    }
+}
+
+/// The command that replays a run (for failure messages).
+pub fn replay(o: &Outcome) -> String {
+    let s = &o.report.summary;
+    format!(
+        "replay: bite run examples/{}.yaml --scenario examples/scenarios/{}.yaml --seed {}{}",
+        s.graph,
+        s.scenario,
+        s.seed,
+        s.config
+            .as_ref()
+            .map(|c| format!(" (configuration {c})"))
+            .unwrap_or_default()
+    )
+}
+
+/// Fail with the seed and the command that replays the run.
+pub fn assert_clean(o: &Outcome, what: &str) {
+    let v = check(&o.report, &o.mission);
+    let s = &o.report.summary;
+    assert!(
+        v.is_empty(),
+        "{what}: invariants broken ({}):\n{}",
+        replay(o),
+        v.iter()
+            .map(|x| x.to_string())
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    assert_eq!(
+        s.violations,
+        0,
+        "{what}: protocol violations ({})",
+        replay(o)
+    );
+}
