@@ -1,6 +1,9 @@
 //! `bite` — run, check and draw BITE multi-robot missions.
 
 use anyhow::{Context, Result};
+
+mod anim;
+mod plot;
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::graph::BehaviorGraph;
 use bite_core::{Config, Mission};
@@ -133,6 +136,10 @@ struct RunArgs {
     /// Write an animation as numbered SVG frames into this directory.
     #[arg(long)]
     frames: Option<PathBuf>,
+    /// Write an animation as a looping GIF (one frame every `--every`
+    /// simulated seconds, shown ten times faster).
+    #[arg(long)]
+    gif: Option<PathBuf>,
     /// Seconds of simulated time between frames.
     #[arg(long, default_value_t = 1.0)]
     every: f64,
@@ -144,15 +151,19 @@ enum BenchCmd {
     /// coverage), then teams of N robots roaming an arena for a simulated
     /// minute: wall time, physics steps per second, real-time factor.
     Sim {
-        /// Team sizes of the roaming runs.
-        #[arg(long, value_delimiter = ',', default_values_t = [10usize, 50, 200])]
+        /// Team sizes of the coverage runs at scale.
+        #[arg(long, value_delimiter = ',', default_values_t = [10usize, 100, 1000, 10000])]
         robots: Vec<usize>,
-        /// Simulated seconds of each roaming run.
+        /// Simulated seconds of each coverage run at scale.
         #[arg(long, default_value_t = 60.0)]
         seconds: f64,
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Also draw the scaling curve (real-time factor by team size) to
+        /// this SVG file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
     },
     /// Every protocol of the library, one decision each in the
     /// discrete-event runner: messages and rounds per decision by team size;
@@ -305,9 +316,9 @@ fn registry() -> bite_core::interaction::Registry {
 fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     let graph = load_graph(a.graph.as_deref(), a.config.as_deref())?;
     let scenario = load_scenario(a.graph.as_deref(), a.scenario.as_deref(), &graph, a.timed)?;
-    if (a.svg.is_some() || a.frames.is_some()) && scenario.physics.is_none() {
+    if (a.svg.is_some() || a.frames.is_some() || a.gif.is_some()) && scenario.physics.is_none() {
         eprintln!(
-            "error: --svg and --frames draw the physical world, and scenario `{}` is a timed world",
+            "error: --svg, --frames and --gif draw the physical world, and scenario `{}` is a timed world",
             scenario.name
         );
         eprintln!("  = hint: give a scenario with `world: physics`, or leave out --timed");
@@ -357,7 +368,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     bar.finish_and_clear();
     drop(writer);
     print_diags(&report.warnings);
-    let pictures = draw_pictures(&report, &mission, &a.svg, &a.frames, a.every)?;
+    let pictures = draw_pictures(&report, &mission, &a.svg, &a.frames, &a.gif, a.every)?;
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&report.summary)?);
     } else {
@@ -393,6 +404,7 @@ fn draw_pictures(
     mission: &Mission,
     svg: &Option<PathBuf>,
     frames: &Option<PathBuf>,
+    gif: &Option<PathBuf>,
     every: f64,
 ) -> Result<Vec<String>> {
     let Some(world) = &report.world else {
@@ -439,24 +451,36 @@ fn draw_pictures(
         std::fs::write(p, doc).with_context(|| format!("writing {}", p.display()))?;
         written.push(p.display().to_string());
     }
-    if let Some(dir) = frames {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    if frames.is_some() || gif.is_some() {
+        let every = if every > 0.0 { every } else { 1.0 };
         let count = (end / every).floor() as usize + 1;
-        for k in 0..count {
-            let t = (k as f64 * every).min(end);
-            let doc = bite_sim::physics::svg::draw(
-                world,
-                &bite_sim::physics::svg::Labels {
-                    title: title(t),
-                    robots: &robots,
-                    behaviors: &behaviors,
-                    at: Some(t),
-                },
-            );
-            let p = dir.join(format!("frame-{k:05}.svg"));
-            std::fs::write(&p, doc).with_context(|| format!("writing {}", p.display()))?;
+        let docs: Vec<String> = (0..count)
+            .map(|k| {
+                let t = (k as f64 * every).min(end);
+                bite_sim::physics::svg::draw(
+                    world,
+                    &bite_sim::physics::svg::Labels {
+                        title: title(t),
+                        robots: &robots,
+                        behaviors: &behaviors,
+                        at: Some(t),
+                    },
+                )
+            })
+            .collect();
+        if let Some(dir) = frames {
+            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+            for (k, doc) in docs.iter().enumerate() {
+                let p = dir.join(format!("frame-{k:05}.svg"));
+                std::fs::write(&p, doc).with_context(|| format!("writing {}", p.display()))?;
+            }
+            written.push(format!("{} ({count} frames)", dir.display()));
         }
-        written.push(format!("{} ({count} frames)", dir.display()));
+        if let Some(p) = gif {
+            // Ten times faster than simulated time.
+            anim::write_gif(p, &docs, (every * 100.0).round() as u32)?;
+            written.push(format!("{} ({count} frames)", p.display()));
+        }
     }
     Ok(written)
 }
@@ -575,30 +599,13 @@ const BOX_PUSH_PHYSICS: &str = include_str!("../../../examples/scenarios/box-pus
 const COVERAGE_GRAPH: &str = include_str!("../../../examples/coverage.yaml");
 const COVERAGE_PHYSICS: &str = include_str!("../../../examples/scenarios/coverage-physics.yaml");
 
-/// A team of `n` robots roaming a square arena for `seconds`.
-fn roam_mission(n: usize, seconds: f64) -> (String, String) {
-    let side = ((n as f64).sqrt() * 1.5).max(3.0);
-    let graph = format!(
-        "graph: roam\nteam: {{ robots: {n} }}\nstart: roam\ndefaults: {{ terminate: term.wait-all }}\n\
-         behaviors:\n  roam: {{ team: true, skill: roam, until: done }}\n"
-    );
-    let scenario = format!(
-        "scenario: roam\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: {limit}s\n\
-         physics:\n  arena: [{side:.1}, {side:.1}]\n  robot: {{ radius: 0.12, max_speed: 0.3 }}\n\
-         \x20 obstacles:\n    - {{ disc: 0.3, at: [{c:.1}, {c:.1}] }}\n\
-         \x20 sensors: {{ pose_noise: 0.005, rays: {{ count: 8, range: 1.0 }}, camera: {{ fov: 120, range: 3 }} }}\n\
-         \x20 beliefs: {{ done: skill_time >= {seconds} }}\n\
-         skills:\n  roam:\n    schemas:\n      - {{ schema: wander, speed: 0.25, layer: 1 }}\n\
-         \x20     - {{ schema: avoid-teammate, range: 0.4, layer: 2 }}\n\
-         \x20     - {{ schema: avoid-obstacle, range: 0.3, layer: 3 }}\n",
-        limit = seconds + 30.0,
-        c = side / 2.0,
-    );
-    (graph, scenario)
-}
-
 #[allow(clippy::disallowed_methods)] // a benchmark measures wall time
-fn cmd_bench_sim(robots: &[usize], seconds: f64, seed: u64) -> Result<ExitCode> {
+fn cmd_bench_sim(
+    robots: &[usize],
+    seconds: f64,
+    seed: u64,
+    plot_to: Option<&Path>,
+) -> Result<ExitCode> {
     let mut cases: Vec<(String, String, String)> = vec![
         (
             "formation".into(),
@@ -617,35 +624,50 @@ fn cmd_bench_sim(robots: &[usize], seconds: f64, seed: u64) -> Result<ExitCode> 
         ),
     ];
     for n in robots {
-        let (g, s) = roam_mission(*n, seconds);
-        cases.push((format!("roam {n}"), g, s));
+        let (g, s) = bite_sim::physics::swarm::coverage_mission(*n, seconds);
+        cases.push((format!("coverage {n}"), g, s));
     }
+    let at_scale = cases.len() - robots.len();
+    let mut curve = Vec::new();
     outln!("| run | robots | simulated | wall | real-time factor | physics steps/s | completed |");
     outln!("| --- | ---: | ---: | ---: | ---: | ---: | --- |");
-    for (name, g, s) in cases {
+    for (k, (name, g, s)) in cases.into_iter().enumerate() {
         let graph = bite_core::graph::load_str(&Arc::from(format!("{name} (built in)")), &g)
             .map_err(bad_input)?;
         let sc = Scenario::load_str(&Arc::from(format!("{name} scenario (built in)")), &s)
             .map_err(bad_input)?;
         let mission = prepare(&graph, &sc, None, &registry()).map_err(bad_input)?;
-        eprintln!("{name} ...");
+        let bar = ProgressBar::new(sc.time_limit.as_secs().max(1));
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{prefix:>16} simulated {pos}/{len} s [{bar:30}] ({elapsed})",
+            )
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        bar.set_prefix(name.clone());
+        let mut on_progress = |p: Progress| bar.set_position(p.now.as_secs_f64() as u64);
         let start = std::time::Instant::now();
         let report = run(
             mission.clone(),
             &sc,
             RunOptions {
                 seed: Some(seed),
+                progress: Some(&mut on_progress),
                 ..RunOptions::default()
             },
         )
         .map_err(bad_input)?;
         let wall = start.elapsed().as_secs_f64();
+        bar.finish_and_clear();
         let sim = report.end.as_secs_f64();
         let hz = sc.physics.as_ref().map_or(0.0, |p| p.hz);
+        let factor = sim / wall.max(1e-9);
+        let n = mission.graph().roster().len();
+        if k >= at_scale {
+            curve.push((n, factor));
+        }
         outln!(
-            "| {name} | {} | {sim:.1} s | {wall:.2} s | {:.0}× | {:.0} | {} |",
-            mission.graph().roster().len(),
-            sim / wall.max(1e-9),
+            "| {name} | {n} | {sim:.1} s | {wall:.2} s | {factor:.1}× | {:.0} | {} |",
             sim * hz / wall.max(1e-9),
             if report.summary.completed {
                 "yes"
@@ -653,6 +675,14 @@ fn cmd_bench_sim(robots: &[usize], seconds: f64, seed: u64) -> Result<ExitCode> 
                 "no"
             }
         );
+    }
+    if let Some(path) = plot_to {
+        plot::scaling(
+            path,
+            &format!("bite bench sim: coverage mission, {seconds} s simulated"),
+            &curve,
+        )?;
+        eprintln!("wrote {}", path.display());
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -837,8 +867,9 @@ fn main() -> ExitCode {
                     robots,
                     seconds,
                     seed,
+                    plot,
                 },
-        } => cmd_bench_sim(&robots, seconds, seed),
+        } => cmd_bench_sim(&robots, seconds, seed, plot.as_deref()),
         Cmd::Bench {
             which:
                 BenchCmd::Protocols {

@@ -64,6 +64,11 @@ impl MemberSet {
     pub fn is_empty(&self) -> bool {
         self.0.is_clear()
     }
+    /// How many members have a lower id than `r` (its 0-based rank when
+    /// it is a member).
+    pub fn rank(&self, r: RobotId) -> usize {
+        self.0.count_ones(..r.index().min(self.0.len()))
+    }
     /// Members in increasing id order.
     pub fn iter(&self) -> impl Iterator<Item = RobotId> + '_ {
         self.0.ones().map(|i| RobotId(i as u32))

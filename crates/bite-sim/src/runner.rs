@@ -425,9 +425,16 @@ impl Sim<'_, '_> {
                         self.percepts = percepts;
                         self.drain(RobotId(i as u32));
                         if self.physics.is_some() {
-                            let roles = roles_of(&self.kernels[i], &self.graph);
+                            let k = &self.kernels[i];
+                            let roles = roles_of(k, &self.graph);
+                            let rank = k
+                                .leaf()
+                                .and_then(|f| k.org().team(f.team))
+                                .map_or((0, 1), |t| {
+                                    (t.members.rank(RobotId(i as u32)) as u32, t.size)
+                                });
                             if let Some(w) = self.physics.as_mut() {
-                                w.set_roles(i, roles);
+                                w.set_roles(i, roles, rank);
                                 w.control(i);
                             }
                         }

@@ -255,3 +255,26 @@ fn a_behavior_parameter_a_schema_cannot_use_is_an_error_at_resolve() {
     let e = sc.resolve(&g).map(|_| ()).unwrap_err().to_string();
     assert!(e.contains("`side` is left, right or behind"), "{e}");
 }
+
+#[test]
+fn a_swarm_splits_the_arena_into_cells_and_sweeps_all_of_it() {
+    // The generated mission of `bite bench sim`, small enough to finish:
+    // 16 robots, one cell each of a 16 m x 16 m arena with pillars.
+    let (g, s) = bite_sim::physics::swarm::coverage_mission(16, 400.0);
+    let g = graph("coverage-16", &g);
+    let sc = scenario("coverage-16 scenario", &s);
+    let o = simulate(&g, &sc, 1);
+    let s = &o.report.summary;
+    assert!(s.completed, "{s}");
+    assert_clean(&o, "coverage-16");
+    let w = s.world.as_ref().expect("a physical world");
+    assert!(w.coverage >= 0.9, "covered {:.1} %", w.coverage * 100.0);
+    // `trail: 0` keeps no trajectories (coverage is kept as robots move).
+    let world = o.report.world.as_ref().expect("world");
+    assert!(world.trails().all(|t| t.is_empty()));
+    // Each robot stayed in (or by) its own cell: none travelled further
+    // than sweeping a 4 m x 4 m cell takes.
+    for (r, d) in w.distance.iter().enumerate() {
+        assert!(*d < 60.0, "r{r} drove {d} m");
+    }
+}

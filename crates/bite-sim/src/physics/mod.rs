@@ -13,6 +13,7 @@
 pub mod schema;
 pub mod spec;
 pub mod svg;
+pub mod swarm;
 
 use crate::runner::derive_seed;
 use bite_core::cond::{Env, Expr, Resolver};
@@ -161,26 +162,45 @@ impl Env for PerceptEnv<'_> {
     }
 }
 
+/// The percepts every robot has, whatever the scenario; `P_*` are their
+/// indices.
+const FIXED: [&str; 14] = [
+    "x",
+    "y",
+    "pos",
+    "heading",
+    "odometer",
+    "skill_distance",
+    "skill_time",
+    "skill_done",
+    "range_min",
+    "obstacle_near",
+    "contact",
+    "teammates_seen",
+    "teammates_known",
+    "reference_pos",
+];
+const P_X: usize = 0;
+const P_Y: usize = 1;
+const P_POS: usize = 2;
+const P_HEADING: usize = 3;
+const P_ODOMETER: usize = 4;
+const P_SKILL_DISTANCE: usize = 5;
+const P_SKILL_TIME: usize = 6;
+const P_SKILL_DONE: usize = 7;
+const P_RANGE_MIN: usize = 8;
+const P_OBSTACLE_NEAR: usize = 9;
+const P_CONTACT: usize = 10;
+const P_TEAMMATES_SEEN: usize = 11;
+const P_TEAMMATES_KNOWN: usize = 12;
+const P_REFERENCE_POS: usize = 13;
+
 /// The names of the percepts a scenario's robots have (fixed ones, and
 /// per object, colour and zone).
 fn percept_names(spec: &PhysicsSpec) -> Percepts {
     let mut p = Percepts::default();
-    for n in [
-        "x",
-        "y",
-        "pos",
-        "heading",
-        "odometer",
-        "skill_distance",
-        "skill_time",
-        "skill_done",
-        "range_min",
-        "obstacle_near",
-        "contact",
-        "teammates_seen",
-        "teammates_known",
-        "reference_pos",
-    ] {
+    // The fixed percepts come first: their ids are their places in `FIXED`.
+    for n in FIXED {
         p.add(n.to_string());
     }
     for (key, _) in object_keys(spec) {
@@ -231,13 +251,18 @@ struct Mapped {
 pub struct World {
     spec: Arc<PhysicsSpec>,
     rw: rp::PhysicsWorld,
-    kinds: BTreeMap<(u32, u32), Kind>,
+    /// What each collider is, by collider index (none is ever removed).
+    kinds: Vec<Option<Kind>>,
+    /// Scratch: what is near the robot being sensed.
+    near: Vec<(Kind, rp::ColliderHandle)>,
+    coverage: Coverage,
+    /// When the next trajectory sample is due (`spec.trail`).
+    next_trail: f64,
     robots: Vec<Robot>,
     objects: Vec<rp::RigidBodyHandle>,
     object_trails: Vec<Vec<(f64, DVec2)>>,
     dt: f64,
     t: f64,
-    percepts: Percepts,
     /// Percept ids by object key, and of each zone's `in_<zone>`.
     object_keys: Vec<KeyPercepts>,
     zone_ids: Vec<([f64; 4], BeliefId)>,
@@ -334,7 +359,14 @@ impl World {
         let mut rw = rp::PhysicsWorld::new();
         rw.gravity = rp::Vector::ZERO;
         rw.integration_parameters.dt = (1.0 / spec.hz) as f32;
-        let mut kinds = BTreeMap::new();
+        let mut kinds: Vec<Option<Kind>> = Vec::new();
+        let mut set_kind = |c: rp::ColliderHandle, k: Kind| {
+            let at = c.into_raw_parts().0 as usize;
+            if kinds.len() <= at {
+                kinds.resize(at + 1, None);
+            }
+            kinds[at] = Some(k);
+        };
         // Walls: four thin boxes round the arena.
         let (w, h) = (spec.arena.x as f32, spec.arena.y as f32);
         let t = 0.1f32;
@@ -360,7 +392,7 @@ impl World {
                 rp::RigidBodyBuilder::fixed().translation(at),
                 rp::ColliderBuilder::cuboid(half.x, half.y),
             );
-            kinds.insert(c.into_raw_parts(), Kind::Wall);
+            set_kind(c, Kind::Wall);
         }
         for o in &spec.obstacles {
             let (_, c) = rw.insert(
@@ -369,7 +401,7 @@ impl World {
                     .rotation(o.angle as f32),
                 collider_of(&o.shape),
             );
-            kinds.insert(c.into_raw_parts(), Kind::Obstacle);
+            set_kind(c, Kind::Obstacle);
         }
         let mut objects = Vec::new();
         for (i, o) in spec.objects.iter().enumerate() {
@@ -381,13 +413,14 @@ impl World {
                     .angular_damping(o.damping as f32 * 2.0),
                 collider_of(&o.shape).mass(o.mass as f32).friction(0.3),
             );
-            kinds.insert(c.into_raw_parts(), Kind::Object(i));
+            set_kind(c, Kind::Object(i));
             objects.push(b);
         }
         let mut robots = Vec::new();
         let mut errors = Vec::new();
+        let team: std::collections::BTreeSet<&str> = names.iter().map(String::as_str).collect();
         for (name, (_, _, loc)) in &spec.start {
-            if !names.contains(name) {
+            if !team.contains(name.as_str()) {
                 errors.push(Diagnostic::error(
                     file,
                     *loc,
@@ -422,7 +455,7 @@ impl World {
                     .mass(spec.robot.mass as f32)
                     .friction(0.2),
             );
-            kinds.insert(c.into_raw_parts(), Kind::Robot(i));
+            set_kind(c, Kind::Robot(i));
             robots.push(Robot {
                 body: b,
                 collider: c,
@@ -491,16 +524,19 @@ impl World {
             .map(|(z, r)| (*r, id(format!("in_{z}"))))
             .collect();
         let n_objects = objects.len();
+        let coverage = Coverage::new(spec.arena, robots.len());
         Ok(World {
             dt: 1.0 / spec.hz,
             spec,
             rw,
             kinds,
+            near: Vec::new(),
+            coverage,
+            next_trail: 0.0,
             robots,
             objects,
             object_trails: vec![Vec::new(); n_objects],
             t: 0.0,
-            percepts,
             object_keys,
             zone_ids,
             direct,
@@ -662,8 +698,19 @@ impl World {
                 self.slot_error.2 = self.slot_error.2.max(e);
             }
         }
+        let keep = match self.spec.trail {
+            None => true,
+            Some(every) => every > 0.0 && self.t + 1e-9 >= self.next_trail,
+        };
+        if keep && let Some(every) = self.spec.trail {
+            self.next_trail = self.t + every;
+        }
         for i in 0..self.robots.len() {
             let p = self.pose(i);
+            self.coverage.mark(i, p.pos);
+            if !keep {
+                continue;
+            }
             let r = &mut self.robots[i];
             r.trail.push(Sample {
                 t: self.t,
@@ -690,9 +737,12 @@ impl World {
         r.skill_odometer = r.odometer;
     }
 
-    /// Who holds each sibling role for robot `i` (behavior name → robot).
-    pub fn set_roles(&mut self, i: usize, roles: BTreeMap<String, u32>) {
-        self.robots[i].roles = roles;
+    /// Who holds each sibling role for robot `i` (behavior name → robot),
+    /// and its rank among the robots running its behavior (rank, count).
+    pub fn set_roles(&mut self, i: usize, roles: BTreeMap<String, u32>, rank: (u32, u32)) {
+        let r = &mut self.robots[i];
+        r.roles = roles;
+        r.view.rank = rank;
     }
 
     /// Can `a` reach `b` by radio?
@@ -703,10 +753,77 @@ impl World {
             .is_none_or(|r| self.pose(a).pos.distance(self.pose(b).pos) <= r)
     }
 
+    /// What collider `c` is.
+    fn kind(&self, c: rp::ColliderHandle) -> Option<Kind> {
+        self.kinds
+            .get(c.into_raw_parts().0 as usize)
+            .copied()
+            .flatten()
+    }
+
+    /// Every collider near `at` (within `range` on each axis) but robot
+    /// `i`'s own, from the physics engine's bounding-volume hierarchy
+    /// rather than a scan of the whole team; sorted, so that rays and noise
+    /// are drawn in the same order every run.
+    fn near(&self, i: usize, at: DVec2, range: f64, out: &mut Vec<(Kind, rp::ColliderHandle)>) {
+        out.clear();
+        let half = rp::Vector::new(range as f32, range as f32);
+        let aabb = rp::Aabb::from_half_extents(v32(at), half);
+        let q = self.rw.query_pipeline();
+        for (c, _) in q.intersect_aabb_conservative(aabb) {
+            match self.kind(c) {
+                Some(Kind::Robot(j)) if j == i => {}
+                Some(k) => out.push((k, c)),
+                None => {}
+            }
+        }
+        out.sort_unstable_by_key(|(k, c)| {
+            let (a, b) = match k {
+                Kind::Robot(j) => (0, *j),
+                Kind::Object(j) => (1, *j),
+                Kind::Obstacle => (2, 0),
+                Kind::Wall => (3, 0),
+            };
+            (a, b, c.into_raw_parts().0)
+        });
+    }
+
+    /// The first of the colliders `near` that a ray hits within `max`:
+    /// what it is and how far. Exact as long as `near` holds everything
+    /// the ray can reach.
+    fn cast(
+        &self,
+        near: &[(Kind, rp::ColliderHandle)],
+        from: DVec2,
+        dir: DVec2,
+        max: f64,
+    ) -> Option<(Kind, f64)> {
+        let ray = rp::Ray::new(v32(from), v32(dir));
+        let mut best: Option<(Kind, f64)> = None;
+        for (k, c) in near {
+            let Some(co) = self.rw.colliders.get(*c) else {
+                continue;
+            };
+            if let Some(toi) = co.shape().cast_ray(co.position(), &ray, max as f32, true)
+                && best.is_none_or(|(_, b)| (toi as f64) < b)
+            {
+                best = Some((*k, toi as f64));
+            }
+        }
+        best
+    }
+
     /// Robot `i`'s camera on a target at `at`: its noisy estimate of the
     /// target's position if it is in range, in the field of view and in
     /// sight (the first thing a ray toward it hits is the target itself).
-    fn sighting(&mut self, i: usize, from: Pose, at: DVec2, target: Kind) -> Option<DVec2> {
+    fn sighting(
+        &mut self,
+        i: usize,
+        near: &[(Kind, rp::ColliderHandle)],
+        from: Pose,
+        at: DVec2,
+        target: Kind,
+    ) -> Option<DVec2> {
         let s = self.spec.sensors;
         let off = at - from.pos;
         let len = off.length();
@@ -714,14 +831,11 @@ impl World {
         if len > s.camera_range || bearing.abs() > s.fov / 2.0 {
             return None;
         }
-        if len > 1e-9 {
-            let ray = rp::Ray::new(v32(from.pos), v32(off / len));
-            let filter = rp::QueryFilter::default().exclude_rigid_body(self.robots[i].body);
-            if let Some((c, _)) = self.rw.cast_ray(&ray, len as f32, true, filter)
-                && self.kinds.get(&c.into_raw_parts()) != Some(&target)
-            {
-                return None;
-            }
+        if len > 1e-9
+            && let Some((k, _)) = self.cast(near, from.pos, off / len, len)
+            && k != target
+        {
+            return None;
         }
         let rng = &mut self.robots[i].rng;
         Some(at + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * len)
@@ -732,7 +846,6 @@ impl World {
     pub fn sense(&mut self, i: usize, out: &mut Vec<(BeliefId, Value)>) {
         let s = self.spec.sensors;
         let truth = self.pose(i);
-        let n = self.robots.len();
         // Pose estimate.
         let (nx, ny, nh) = {
             let rng = &mut self.robots[i].rng;
@@ -742,31 +855,29 @@ impl World {
             pos: truth.pos + DVec2::new(nx, ny) * s.pose_noise,
             heading: truth.heading + nh * s.pose_noise,
         };
+        // Everything a ray or the camera can reach. The hierarchy holds
+        // bounding boxes as of the last step: a margin covers what moved.
+        let radius = self.spec.robot.radius;
+        let reach = s.camera_range.max(s.ray_range + radius) + 0.5;
+        let mut near = std::mem::take(&mut self.near);
+        self.near(i, truth.pos, reach, &mut near);
         // Range rays, all round.
         let mut rays = Vec::new();
-        let radius = self.spec.robot.radius;
         for k in 0..s.rays {
             let a = std::f64::consts::TAU * k as f64 / s.rays.max(1) as f64;
             let dir = DVec2::from_angle(truth.heading + a);
-            let ray = rp::Ray::new(v32(truth.pos), v32(dir));
-            let filter = rp::QueryFilter::default().exclude_rigid_body(self.robots[i].body);
-            if let Some((_, toi)) =
-                self.rw
-                    .cast_ray(&ray, (s.ray_range + radius) as f32, true, filter)
-            {
+            if let Some((_, toi)) = self.cast(&near, truth.pos, dir, s.ray_range + radius) {
                 let noise = gauss(&mut self.robots[i].rng) * s.ray_noise;
-                rays.push((a, (toi as f64 - radius + noise).max(0.0)));
+                rays.push((a, (toi - radius + noise).max(0.0)));
             }
         }
         // Camera: teammates and objects in the field of view, in sight.
         let mut seen_now: Vec<usize> = Vec::new();
         let mut mates_seen = 0;
-        for j in 0..n {
-            if j == i {
-                continue;
-            }
+        for &(k, _) in &near {
+            let Kind::Robot(j) = k else { continue };
             let p = self.pose(j).pos;
-            if let Some(est) = self.sighting(i, truth, p, Kind::Robot(j)) {
+            if let Some(est) = self.sighting(i, &near, truth, p, Kind::Robot(j)) {
                 mates_seen += 1;
                 let t = self.t;
                 let r = &mut self.robots[i];
@@ -789,9 +900,10 @@ impl World {
                 }
             }
         }
-        for k in 0..self.objects.len() {
+        for &(o, _) in &near {
+            let Kind::Object(k) = o else { continue };
             let p = self.object_pos(k);
-            if let Some(est) = self.sighting(i, truth, p, Kind::Object(k)) {
+            if let Some(est) = self.sighting(i, &near, truth, p, Kind::Object(k)) {
                 for (key, ids) in self.object_keys.iter().enumerate() {
                     if ids.objects.contains(&k) {
                         self.robots[i].seen_objects.insert(ids.key.clone(), est);
@@ -800,44 +912,45 @@ impl World {
                 }
             }
         }
+        // Forget teammates long out of sight, unless a role refers to them.
+        {
+            let t = self.t;
+            let r = &mut self.robots[i];
+            let (anchor, roles) = (r.anchor, &r.roles);
+            r.mates.retain(|k, (_, at)| {
+                t - *at <= 10.0 * MATE_MEMORY
+                    || anchor == Some(*k)
+                    || roles.values().any(|v| v == k)
+            });
+        }
         // Percepts.
         let r = &self.robots[i];
         let skill_done = r.states.iter().any(|s| s.finished);
         let range_min = rays.iter().map(|(_, d)| *d).fold(s.ray_range, f64::min);
-        let mut set = |name: &str, v: Option<Value>| {
-            if let Some(id) = self.percepts.id(name) {
-                self.values[id.index()] = v;
-            }
-        };
-        set("x", Some(Value::Num(pose.pos.x)));
-        set("y", Some(Value::Num(pose.pos.y)));
-        set("pos", Some(Value::Vec2([pose.pos.x, pose.pos.y])));
-        set("heading", Some(Value::Num(pose.heading.to_degrees())));
-        set("odometer", Some(Value::Num(r.odometer)));
-        set(
-            "skill_distance",
-            Some(Value::Num(r.odometer - r.skill_odometer)),
-        );
-        set("skill_time", Some(Value::Num(self.t - r.skill_started)));
-        set("skill_done", Some(Value::Bool(skill_done)));
-        set("range_min", Some(Value::Num(range_min)));
-        set("obstacle_near", Some(Value::Bool(range_min < 0.3)));
-        set("contact", Some(Value::Bool(r.contact)));
-        set("teammates_seen", Some(Value::Num(mates_seen as f64)));
         let known = r
             .mates
             .values()
-            .filter(|(_, at)| self.t - at <= 3.0)
+            .filter(|(_, at)| self.t - at <= MATE_MEMORY)
             .count();
-        set("teammates_known", Some(Value::Num(known as f64)));
         let reference = r
             .anchor
             .and_then(|a| r.mates.get(&a))
             .map_or(pose.pos, |(m, _)| m.pos);
-        set(
-            "reference_pos",
-            Some(Value::Vec2([reference.x, reference.y])),
-        );
+        let v = &mut self.values;
+        v[P_X] = Some(Value::Num(pose.pos.x));
+        v[P_Y] = Some(Value::Num(pose.pos.y));
+        v[P_POS] = Some(Value::Vec2([pose.pos.x, pose.pos.y]));
+        v[P_HEADING] = Some(Value::Num(pose.heading.to_degrees()));
+        v[P_ODOMETER] = Some(Value::Num(r.odometer));
+        v[P_SKILL_DISTANCE] = Some(Value::Num(r.odometer - r.skill_odometer));
+        v[P_SKILL_TIME] = Some(Value::Num(self.t - r.skill_started));
+        v[P_SKILL_DONE] = Some(Value::Bool(skill_done));
+        v[P_RANGE_MIN] = Some(Value::Num(range_min));
+        v[P_OBSTACLE_NEAR] = Some(Value::Bool(range_min < 0.3));
+        v[P_CONTACT] = Some(Value::Bool(r.contact));
+        v[P_TEAMMATES_SEEN] = Some(Value::Num(mates_seen as f64));
+        v[P_TEAMMATES_KNOWN] = Some(Value::Num(known as f64));
+        v[P_REFERENCE_POS] = Some(Value::Vec2([reference.x, reference.y]));
         for (k, key) in self.object_keys.iter().enumerate() {
             let est = r.seen_objects.get(&key.key).copied();
             let [seen, pos, distance, bearing] = key.ids;
@@ -870,11 +983,22 @@ impl World {
             pose,
             rays,
             objects: r.seen_objects.clone(),
-            mates: r.mates.iter().map(|(k, (m, _))| (*k, *m)).collect(),
+            // Teammates seen lately, and the ones its roles refer to (a
+            // stale sighting repels from where a teammate no longer is).
+            mates: (r.mates.iter())
+                .filter(|(k, (_, at))| {
+                    self.t - at <= MATE_MEMORY
+                        || r.anchor == Some(**k)
+                        || r.roles.values().any(|v| v == *k)
+                })
+                .map(|(k, (m, _))| (*k, *m))
+                .collect(),
             roles: BTreeMap::new(),
             skill_time: 0.0,
             max_speed: self.spec.robot.max_speed,
+            rank: r.view.rank,
         };
+        self.near = near;
     }
 
     /// The behavior-selection module: fuse the schemas of robot `i`'s
@@ -911,40 +1035,73 @@ fn in_rect(p: DVec2, r: &[f64; 4]) -> bool {
     p.x >= x0.min(x1) && p.x <= x0.max(x1) && p.y >= y0.min(y1) && p.y <= y0.max(y1)
 }
 
+/// Seconds a teammate's sighting counts as knowing where it is
+/// (`teammates_known`, avoid-teammate).
+pub const MATE_MEMORY: f64 = 3.0;
+
 /// Radius around a robot's path counted as covered, m.
 pub const COVER_RADIUS: f64 = 0.5;
 
-/// Share of the arena (cells of 0.1 m) within `COVER_RADIUS` of some
-/// robot's recorded path.
-pub fn coverage(world: &World) -> f64 {
-    let cell = 0.1;
-    let a = world.spec.arena;
-    let (nx, ny) = ((a.x / cell).ceil() as usize, (a.y / cell).ceil() as usize);
-    if nx == 0 || ny == 0 {
-        return 0.0;
+/// The floor covered so far: cells of `CELL` m within `COVER_RADIUS` of
+/// some robot's path, marked as the robots move (kept incrementally, so
+/// large teams need no trajectories to measure it).
+#[derive(Clone, Debug)]
+struct Coverage {
+    nx: usize,
+    ny: usize,
+    covered: fixedbitset::FixedBitSet,
+    /// Where each robot last marked the floor.
+    last: Vec<Option<DVec2>>,
+}
+
+impl Coverage {
+    const CELL: f64 = 0.1;
+
+    fn new(arena: DVec2, robots: usize) -> Self {
+        let (nx, ny) = (
+            (arena.x / Self::CELL).ceil().max(0.0) as usize,
+            (arena.y / Self::CELL).ceil().max(0.0) as usize,
+        );
+        Coverage {
+            nx,
+            ny,
+            covered: fixedbitset::FixedBitSet::with_capacity(nx * ny),
+            last: vec![None; robots],
+        }
     }
-    let mut covered = vec![false; nx * ny];
-    let reach = (COVER_RADIUS / cell).ceil() as i64;
-    for t in world.trails() {
-        let mut last: Option<DVec2> = None;
-        for s in t {
-            // Samples closer than a cell to the last one add nothing.
-            if last.is_some_and(|l| l.distance(s.pos) < cell) {
-                continue;
-            }
-            last = Some(s.pos);
-            let (cx, cy) = ((s.pos.x / cell) as i64, (s.pos.y / cell) as i64);
-            for gx in (cx - reach).max(0)..=(cx + reach).min(nx as i64 - 1) {
-                for gy in (cy - reach).max(0)..=(cy + reach).min(ny as i64 - 1) {
-                    let c = DVec2::new((gx as f64 + 0.5) * cell, (gy as f64 + 0.5) * cell);
-                    if c.distance(s.pos) <= COVER_RADIUS {
-                        covered[gy as usize * nx + gx as usize] = true;
-                    }
+
+    /// Robot `i` is at `p`.
+    fn mark(&mut self, i: usize, p: DVec2) {
+        let cell = Self::CELL;
+        // Closer than a cell to where it last marked: nothing new.
+        if self.last[i].is_some_and(|l| l.distance(p) < cell) || self.nx == 0 || self.ny == 0 {
+            return;
+        }
+        self.last[i] = Some(p);
+        let reach = (COVER_RADIUS / cell).ceil() as i64;
+        let (cx, cy) = ((p.x / cell) as i64, (p.y / cell) as i64);
+        for gx in (cx - reach).max(0)..=(cx + reach).min(self.nx as i64 - 1) {
+            for gy in (cy - reach).max(0)..=(cy + reach).min(self.ny as i64 - 1) {
+                let c = DVec2::new((gx as f64 + 0.5) * cell, (gy as f64 + 0.5) * cell);
+                if c.distance(p) <= COVER_RADIUS {
+                    self.covered.insert(gy as usize * self.nx + gx as usize);
                 }
             }
         }
     }
-    covered.iter().filter(|c| **c).count() as f64 / covered.len() as f64
+
+    fn share(&self) -> f64 {
+        if self.covered.is_empty() {
+            return 0.0;
+        }
+        self.covered.count_ones(..) as f64 / self.covered.len() as f64
+    }
+}
+
+/// Share of the arena (cells of 0.1 m) within `COVER_RADIUS` of some
+/// robot's path, sampled at control ticks.
+pub fn coverage(world: &World) -> f64 {
+    world.coverage.share()
 }
 
 /// The world's part of the run summary.

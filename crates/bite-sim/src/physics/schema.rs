@@ -116,6 +116,9 @@ pub enum Schema {
         spacing: f64,
         /// Speed, m/s.
         speed: f64,
+        /// Split the region among the robots running the skill: each
+        /// sweeps its own cell of a near-square grid, by rank.
+        split: bool,
     },
     /// Turn to face a target (no translation).
     Face {
@@ -198,6 +201,9 @@ pub struct View {
     pub skill_time: f64,
     /// Top speed of this robot, m/s.
     pub max_speed: f64,
+    /// This robot's rank among the robots running its behavior (0-based),
+    /// and how many they are.
+    pub rank: (u32, u32),
 }
 
 /// A fused command: a desired velocity in the world frame, and a heading
@@ -277,6 +283,36 @@ pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
         y += spacing;
     }
     pts
+}
+
+/// Cell `rank` of `n` when `region` is split into a near-square grid of
+/// at least `n` cells (columns along x, filled row by row; the last row's
+/// cells widen to cover it).
+pub fn split_cell(region: [f64; 4], rank: u32, n: u32) -> [f64; 4] {
+    let [x0, y0, x1, y1] = region;
+    let (xa, xb) = (x0.min(x1), x0.max(x1));
+    let (ya, yb) = (y0.min(y1), y0.max(y1));
+    let n = n.max(1);
+    let rank = rank.min(n - 1);
+    let (w, h) = ((xb - xa).max(1e-9), (yb - ya).max(1e-9));
+    // Columns so that cells are about square.
+    let cols = ((n as f64 * w / h).sqrt().round() as u32).clamp(1, n);
+    let rows = n.div_ceil(cols);
+    let row = rank / cols;
+    // The last row may hold fewer cells: they share its width.
+    let in_row = if row + 1 == rows {
+        n - row * cols
+    } else {
+        cols
+    };
+    let col = rank - row * cols;
+    let (cw, ch) = (w / in_row as f64, h / rows as f64);
+    [
+        xa + cw * col as f64,
+        ya + ch * row as f64,
+        xa + cw * (col + 1) as f64,
+        ya + ch * (row + 1) as f64,
+    ]
 }
 
 /// The output of one schema, or `None` when it is not active.
@@ -362,8 +398,14 @@ pub fn evaluate(
             region,
             spacing,
             speed,
+            split,
         } => {
-            let pts = scan_waypoints(*region, *spacing);
+            let region = if *split {
+                split_cell(*region, view.rank.0, view.rank.1)
+            } else {
+                *region
+            };
+            let pts = scan_waypoints(region, *spacing);
             while let Some(p) = pts.get(state.waypoint) {
                 if p.distance(pose.pos) < 0.2 {
                     state.waypoint += 1;
@@ -658,6 +700,7 @@ mod tests {
             region: [0.0, 0.0, 2.0, 1.0],
             spacing: 0.5,
             speed: 0.3,
+            split: false,
         };
         let mut st = State::default();
         let mut rng = || 0.5;
@@ -681,5 +724,50 @@ mod tests {
         let (f, t) = differential(&c, std::f64::consts::FRAC_PI_2, 0.3, 2.0);
         assert!((f - 0.3).abs() < 1e-9 && t.abs() < 1e-9);
         assert_eq!(wrap(3.0 * std::f64::consts::PI), std::f64::consts::PI);
+    }
+
+    #[test]
+    fn split_cells_tile_the_region_without_overlap() {
+        for n in [1u32, 2, 3, 5, 7, 10, 100, 1000] {
+            let region = [0.0, 0.0, 40.0, 20.0];
+            let mut area = 0.0;
+            let cells: Vec<[f64; 4]> = (0..n).map(|r| split_cell(region, r, n)).collect();
+            for (i, c) in cells.iter().enumerate() {
+                assert!(
+                    c[0] >= -1e-9 && c[2] <= 40.0 + 1e-9 && c[1] >= -1e-9 && c[3] <= 20.0 + 1e-9
+                );
+                area += (c[2] - c[0]) * (c[3] - c[1]);
+                for d in &cells[i + 1..] {
+                    let overlap = (c[2].min(d[2]) - c[0].max(d[0])).max(0.0)
+                        * (c[3].min(d[3]) - c[1].max(d[1])).max(0.0);
+                    assert!(overlap < 1e-9, "n={n}: {c:?} overlaps {d:?}");
+                }
+            }
+            assert!((area - 800.0).abs() < 1e-6, "n={n}: cells cover {area}");
+        }
+        // Near-square cells: 100 robots on a 2:1 region make a 14 x 7 grid
+        // (the last row wider).
+        let c = split_cell([0.0, 0.0, 40.0, 20.0], 0, 100);
+        let (w, h) = (c[2] - c[0], c[3] - c[1]);
+        assert!(w / h > 0.5 && w / h < 2.0, "{c:?}");
+    }
+
+    #[test]
+    fn a_split_scan_sweeps_only_its_own_cell() {
+        let s = Schema::Scan {
+            region: [0.0, 0.0, 4.0, 2.0],
+            spacing: 0.5,
+            speed: 0.3,
+            split: true,
+        };
+        let view = View {
+            rank: (1, 2),
+            ..View::default()
+        };
+        let mut st = State::default();
+        let out = evaluate(&s, &view, &mut st, &mut || 0.5).expect("active");
+        // Rank 1 of 2 sweeps the right half: its first waypoint is at x > 2.
+        assert!(out.v.x > 0.0, "{out:?}");
+        assert_eq!(split_cell([0.0, 0.0, 4.0, 2.0], 1, 2), [2.0, 0.0, 4.0, 2.0]);
     }
 }

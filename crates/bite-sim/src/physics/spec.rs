@@ -29,6 +29,7 @@ pub(crate) struct PhysicsRaw {
     #[serde(default)]
     beliefs: BTreeMap<String, Spanned<String>>,
     goal: Option<GoalRaw>,
+    trail: Option<f64>,
 }
 
 #[derive(Deserialize, Default)]
@@ -207,6 +208,9 @@ pub struct PhysicsSpec {
     pub beliefs: Vec<(String, String, Loc)>,
     /// Success condition: this object inside this zone.
     pub goal: Option<(String, String)>,
+    /// Seconds between the trajectory samples kept for pictures (`None`:
+    /// every control tick; 0: none, for large teams).
+    pub trail: Option<f64>,
 }
 
 fn positive(file: &Arc<str>, loc: Loc, what: &str, v: f64, d: &mut Vec<Diagnostic>) -> f64 {
@@ -362,6 +366,19 @@ impl PhysicsSpec {
                 .map(|(k, v)| (k, v.value, Loc::from(v.referenced)))
                 .collect(),
             goal,
+            trail: raw.trail.map(|t| {
+                if t.is_finite() && t >= 0.0 {
+                    t
+                } else {
+                    d.push(Diagnostic::error(
+                        file,
+                        loc,
+                        "bad-value",
+                        format!("`trail` is seconds between samples (0: none), found {t}"),
+                    ));
+                    0.0
+                }
+            }),
         }
     }
 }
@@ -403,7 +420,7 @@ fn params_of(schema: &str) -> &'static [&'static str] {
         "keep-slot" => &["of", "side", "distance", "speed"],
         "follow" => &["of", "distance", "speed"],
         "wander" => &["speed", "period"],
-        "scan" => &["region", "spacing", "speed"],
+        "scan" => &["region", "spacing", "speed", "split"],
         "face" => &["target"],
         "push" => &["object", "goal", "offset", "speed"],
         _ => &[],
@@ -603,6 +620,13 @@ impl SchemaSpec {
                     region,
                     spacing: num("spacing", Some(1.0))?,
                     speed: speed?,
+                    split: match get("split") {
+                        None => false,
+                        Some(serde_json::Value::Bool(b)) => *b,
+                        Some(_) => {
+                            return Err(format!("schema `{name}`: `split` is true or false"));
+                        }
+                    },
                 }
             }
             "look-around" => Schema::LookAround,
