@@ -4,6 +4,7 @@ use anyhow::{Context, Result};
 
 mod anim;
 mod plot;
+mod rtcl;
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::graph::BehaviorGraph;
 use bite_core::{Config, Mission};
@@ -89,6 +90,41 @@ enum Cmd {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
+    /// Compile a mission in the robot team command language (`.rtcl`) into
+    /// a behavior graph: prints the graph (YAML, or `--dot`), and with
+    /// `--world` the skills, beliefs and targets it gives the scenario.
+    Compile {
+        /// The mission.
+        mission: PathBuf,
+        /// Graphviz DOT of the generated graph instead of YAML.
+        #[arg(long)]
+        dot: bool,
+        /// Also print the world parts (skills, beliefs, targets), in the
+        /// scenario format.
+        #[arg(long)]
+        world: bool,
+        /// The command library (default: the built-in one).
+        #[arg(long)]
+        library: Option<PathBuf>,
+        /// Take the mission origin and team size from this scenario.
+        #[arg(long)]
+        scenario: Option<PathBuf>,
+        /// Team size (default: the scenario's, else 2).
+        #[arg(long, value_parser = parse_robots)]
+        robots: Option<usize>,
+        /// Where the mission's (0, 0) is, `x,y` in metres (default: the
+        /// scenario's, else 0,0).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            num_args = 2,
+            allow_negative_numbers = true
+        )]
+        origin: Option<Vec<f64>>,
+        /// Write to this file instead of standard output.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
     /// List the interaction protocols that can be bound to points.
     Protocols,
     /// Whole-system benchmarks.
@@ -100,8 +136,13 @@ enum Cmd {
 
 #[derive(clap::Args)]
 struct RunArgs {
-    /// The behavior graph (YAML). Default: the built-in formation example.
+    /// The behavior graph (YAML), or a mission in the robot team command
+    /// language (`.rtcl`, compiled first). Default: the built-in formation
+    /// example.
     graph: Option<PathBuf>,
+    /// The command library for `.rtcl` missions (default: the built-in one).
+    #[arg(long)]
+    library: Option<PathBuf>,
     /// A configuration file binding protocols to points (e.g. a Table II row).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -251,12 +292,43 @@ fn load_graph(path: Option<&Path>, config: Option<&Path>) -> Result<BehaviorGrap
         .map_err(bad_input)?,
     };
     print_diags(graph.warnings());
+    with_config(graph, config)
+}
+
+/// A mission file given where a graph is expected (`check`, `graph`): its
+/// graph, compiled with the default options.
+fn load_graph_or_mission(path: &Path, config: Option<&Path>) -> Result<BehaviorGraph> {
+    if rtcl::is_mission(path) {
+        let lib = rtcl::library(None)?;
+        let compiled = rtcl::compile(path, &lib, &bite_rtcl::CompileOptions::default())?;
+        with_config(rtcl::graph(path, &compiled)?, config)
+    } else {
+        load_graph(Some(path), config)
+    }
+}
+
+fn with_config(graph: BehaviorGraph, config: Option<&Path>) -> Result<BehaviorGraph> {
     match config {
         Some(c) => {
             let cfg = Config::load(c).map_err(bad_input)?;
             graph.with_config(&cfg).map_err(bad_input)
         }
         None => Ok(graph),
+    }
+}
+
+/// `scenarios/<stem>-physics.yaml` (or `<stem>.yaml` for the timed world)
+/// next to a graph or mission file.
+fn sibling_scenario(p: &Path, physical: bool) -> PathBuf {
+    let stem = p
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let dir = p.parent().unwrap_or(Path::new("."));
+    if physical {
+        dir.join("scenarios").join(format!("{stem}-physics.yaml"))
+    } else {
+        dir.join("scenarios").join(format!("{stem}.yaml"))
     }
 }
 
@@ -281,13 +353,8 @@ fn load_scenario(
         )
         .map_err(bad_input),
         Some(p) => {
-            let stem = p
-                .file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-                .unwrap_or_default();
-            let dir = p.parent().unwrap_or(Path::new("."));
-            let physical = dir.join("scenarios").join(format!("{stem}-physics.yaml"));
-            let timed_guess = dir.join("scenarios").join(format!("{stem}.yaml"));
+            let physical = sibling_scenario(p, true);
+            let timed_guess = sibling_scenario(p, false);
             let guess = if !timed && physical.exists() {
                 physical
             } else {
@@ -314,8 +381,39 @@ fn registry() -> bite_core::interaction::Registry {
 }
 
 fn cmd_run(a: RunArgs) -> Result<ExitCode> {
-    let graph = load_graph(a.graph.as_deref(), a.config.as_deref())?;
-    let scenario = load_scenario(a.graph.as_deref(), a.scenario.as_deref(), &graph, a.timed)?;
+    let (graph, scenario) = match a.graph.as_deref() {
+        Some(p) if rtcl::is_mission(p) => {
+            // The scenario first: it says where the mission's (0, 0) is
+            // and how many robots there are.
+            let scenario = match a.scenario.as_deref() {
+                Some(s) => Scenario::load(s).map_err(bad_input)?,
+                None => {
+                    let guess = sibling_scenario(p, true);
+                    if !guess.exists() {
+                        eprintln!(
+                            "error: a mission runs in a physical world, and {} does not exist",
+                            guess.display()
+                        );
+                        eprintln!("  = hint: give one with --scenario FILE");
+                        return Ok(ExitCode::from(2));
+                    }
+                    eprintln!("scenario: {}", guess.display());
+                    Scenario::load(&guess).map_err(bad_input)?
+                }
+            };
+            let lib = rtcl::library(a.library.as_deref())?;
+            let compiled = rtcl::compile(p, &lib, &rtcl::options_for(&scenario, a.robots))?;
+            let graph = with_config(rtcl::graph(p, &compiled)?, a.config.as_deref())?;
+            let scenario = rtcl::bind(p, &compiled, &scenario)?;
+            (graph, scenario)
+        }
+        _ => {
+            let graph = load_graph(a.graph.as_deref(), a.config.as_deref())?;
+            let scenario =
+                load_scenario(a.graph.as_deref(), a.scenario.as_deref(), &graph, a.timed)?;
+            (graph, scenario)
+        }
+    };
     if (a.svg.is_some() || a.frames.is_some() || a.gif.is_some()) && scenario.physics.is_none() {
         eprintln!(
             "error: --svg, --frames and --gif draw the physical world, and scenario `{}` is a timed world",
@@ -501,7 +599,7 @@ fn describe_inputs(mission: &Mission, scenario: &Scenario) -> String {
 }
 
 fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
-    let g = load_graph(Some(graph), config)?;
+    let g = load_graph_or_mission(graph, config)?;
     let mission = Mission::new(g, &registry()).map_err(bad_input)?;
     let g = mission.graph();
     outln!("{g}");
@@ -558,7 +656,7 @@ fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
 }
 
 fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Result<ExitCode> {
-    let g = load_graph(Some(graph), config)?;
+    let g = load_graph_or_mission(graph, config)?;
     let mission = Mission::new(g, &registry()).map_err(bad_input)?;
     let dot = bite_core::graph::dot::to_dot_with(mission.graph(), &|b, k| {
         mission
@@ -568,6 +666,53 @@ fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Resu
     match output {
         Some(p) => std::fs::write(p, dot).with_context(|| format!("writing {}", p.display()))?,
         None => out!("{dot}"),
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+struct CompileArgs<'a> {
+    mission: &'a Path,
+    dot: bool,
+    world: bool,
+    library: Option<&'a Path>,
+    scenario: Option<&'a Path>,
+    robots: Option<usize>,
+    origin: Option<[f64; 2]>,
+    output: Option<&'a Path>,
+}
+
+fn cmd_compile(a: CompileArgs<'_>) -> Result<ExitCode> {
+    let mut opts = match a.scenario {
+        Some(s) => rtcl::options_for(&Scenario::load(s).map_err(bad_input)?, a.robots),
+        None => bite_rtcl::CompileOptions::default(),
+    };
+    if let Some(r) = a.robots {
+        opts.robots = r;
+    }
+    if let Some(o) = a.origin {
+        opts.origin = o;
+    }
+    let lib = rtcl::library(a.library)?;
+    let compiled = rtcl::compile(a.mission, &lib, &opts)?;
+    // Check the generated graph as any graph is checked.
+    let g = rtcl::graph(a.mission, &compiled)?;
+    let mut text = if a.dot {
+        let mission = Mission::new(g, &registry()).map_err(bad_input)?;
+        bite_core::graph::dot::to_dot_with(mission.graph(), &|b, k| {
+            mission
+                .bound(b, k)
+                .map_or("?".into(), |x| x.protocol.name().to_string())
+        })
+    } else {
+        compiled.graph.clone()
+    };
+    if a.world && !a.dot {
+        text.push_str("---\n");
+        text.push_str(&compiled.world_yaml());
+    }
+    match a.output {
+        Some(p) => std::fs::write(p, text).with_context(|| format!("writing {}", p.display()))?,
+        None => out!("{text}"),
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -842,6 +987,25 @@ fn main() -> ExitCode {
             output,
             ..
         } => cmd_graph(&graph, config.as_deref(), output.as_deref()),
+        Cmd::Compile {
+            mission,
+            dot,
+            world,
+            library,
+            scenario,
+            robots,
+            origin,
+            output,
+        } => cmd_compile(CompileArgs {
+            mission: &mission,
+            dot,
+            world,
+            library: library.as_deref(),
+            scenario: scenario.as_deref(),
+            robots,
+            origin: origin.map(|o| [o[0], o.get(1).copied().unwrap_or(0.0)]),
+            output: output.as_deref(),
+        }),
         Cmd::Protocols => Ok(cmd_protocols()),
         Cmd::Bench {
             which:

@@ -93,3 +93,149 @@ fn drawing_a_timed_world_is_a_clear_error() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--gif"), "{err}");
 }
+
+/// Run a mission and return (summary JSON, run-log records).
+fn run_mission(mission: &str, tag: &str) -> (serde_json::Value, Vec<serde_json::Value>) {
+    let d = scratch(tag);
+    let log = d.join("run.jsonl");
+    let out = bite()
+        .arg("run")
+        .arg(root().join(mission))
+        .arg("--json")
+        .arg("--log")
+        .arg(&log)
+        .output()
+        .expect("bite runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("the summary is JSON");
+    let records = std::fs::read_to_string(&log)
+        .expect("run log")
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON record"))
+        .collect();
+    (summary, records)
+}
+
+/// The behaviors robot `r` was selected for, in order.
+fn selected(records: &[serde_json::Value], r: &str) -> Vec<String> {
+    records
+        .iter()
+        .filter(|x| x["event"] == "selected" && x["robot"] == r)
+        .filter_map(|x| x["behavior"].as_str().map(str::to_string))
+        .collect()
+}
+
+#[test]
+fn the_search_and_rescue_mission_compiles_runs_and_delivers_the_box_in_order() {
+    let (summary, records) = run_mission("examples/search-rescue.rtcl", "rescue");
+    assert_eq!(summary["completed"], true, "{summary:#}");
+    let world = &summary["world"];
+    assert!(
+        world["goal_met_at"].is_number(),
+        "the box never reached the goal: {world:#}"
+    );
+    // The behavior sets ran in the order the commands were entered: every
+    // robot searched, then moved the box, first leg before last leg.
+    let mut pushers = Vec::new();
+    for r in ["r0", "r1"] {
+        let s = selected(&records, r);
+        let at = |b: &str| {
+            s.iter()
+                .position(|x| x == b)
+                .unwrap_or_else(|| panic!("{r} never ran {b}: {s:?}"))
+        };
+        assert!(at("find_1") < at("move_2"), "{r}: {s:?}");
+        assert!(at("move_2") < at("move_2_first_leg"), "{r}: {s:?}");
+        assert!(at("move_2_first_leg") < at("move_2_last_leg"), "{r}: {s:?}");
+        if s.iter().any(|x| x == "move_2_push") {
+            // The relay: whoever pushed first steps aside.
+            assert!(at("move_2_push") < at("move_2_step_aside"), "{r}: {s:?}");
+            pushers.push(r);
+        } else {
+            assert!(at("move_2_watch") < at("move_2_finish_push"), "{r}: {s:?}");
+        }
+    }
+    assert_eq!(
+        pushers.len(),
+        1,
+        "exactly one robot pushes first: {pushers:?}"
+    );
+}
+
+#[test]
+fn the_red_cube_mission_brings_back_the_red_cube_and_nothing_else() {
+    let (summary, records) = run_mission("examples/red-cube.rtcl", "cube");
+    assert_eq!(summary["completed"], true, "{summary:#}");
+    assert!(summary["world"]["goal_met_at"].is_number(), "{summary:#}");
+    // Of the four objects, only the red 0.25 m cube moved far: not the red
+    // crate (wrong size), the blue cube (wrong colour) or the yellow box.
+    let poses: Vec<&serde_json::Value> = records.iter().filter(|x| x["event"] == "poses").collect();
+    let (first, last) = (poses.first().expect("poses"), poses.last().expect("poses"));
+    let moved = |o: &str| {
+        let a = &first["objects"][o];
+        let b = &last["objects"][o];
+        let (ax, ay, bx, by) = (
+            a[0].as_f64().unwrap_or(0.0),
+            a[1].as_f64().unwrap_or(0.0),
+            b[0].as_f64().unwrap_or(0.0),
+            b[1].as_f64().unwrap_or(0.0),
+        );
+        ((ax - bx).powi(2) + (ay - by).powi(2)).sqrt()
+    };
+    assert!(
+        moved("red_cube") > 3.0,
+        "red cube moved {:.2} m",
+        moved("red_cube")
+    );
+    for other in ["red_crate", "blue_cube", "yellow_box"] {
+        assert!(moved(other) < 0.3, "{other} moved {:.2} m", moved(other));
+    }
+}
+
+#[test]
+fn compile_prints_the_graph_and_locates_mistakes() {
+    let out = bite()
+        .arg("compile")
+        .arg(root().join("examples/search-rescue.rtcl"))
+        .arg("--world")
+        .output()
+        .expect("bite runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("graph: search-rescue") && text.contains("targets:"),
+        "{text}"
+    );
+    let d = scratch("bad-mission");
+    let bad = d.join("bad.rtcl");
+    std::fs::write(&bad, "find::::yellow=>box\nmvoe:box:1:2\n").expect("write");
+    let out = bite().arg("compile").arg(&bad).output().expect("bite runs");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("bad.rtcl:2:1") && err.contains("move"),
+        "{err}"
+    );
+}
+
+#[test]
+fn the_formation_and_coverage_missions_complete_in_their_worlds() {
+    let (summary, _) = run_mission("examples/formation-walk.rtcl", "walk");
+    assert_eq!(summary["completed"], true, "{summary:#}");
+    let err = summary["world"]["formation_error"][0].as_f64().unwrap_or(f64::MAX);
+    assert!(err < 0.25, "formation error {err}");
+    let (summary, _) = run_mission("examples/coverage-sweep.rtcl", "sweep");
+    assert_eq!(summary["completed"], true, "{summary:#}");
+    assert_eq!(summary["robots"], 5, "{summary:#}");
+    let covered = summary["world"]["coverage"].as_f64().unwrap_or(0.0);
+    assert!(covered >= 0.9, "covered {covered}");
+}

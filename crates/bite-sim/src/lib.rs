@@ -29,4 +29,4 @@ pub mod summary;
 pub mod world;
 
 pub use runner::{RunOptions, RunReport, prepare, run};
-pub use scenario::Scenario;
+pub use scenario::{MissionParts, Scenario};

@@ -455,6 +455,103 @@ fn values(
     out
 }
 
+/// The parts of a compiled mission (the robot team command language) that
+/// belong to the world rather than the graph: each skill's motor schemas,
+/// graph beliefs computed from percepts, and named object descriptions.
+#[derive(Clone, Debug, Default)]
+pub struct MissionParts {
+    /// The mission file, for errors.
+    pub file: Arc<str>,
+    /// Skill name → its schemas, as a scenario's `schemas:` entries.
+    pub skills: BTreeMap<String, Vec<serde_json::Value>>,
+    /// Belief name → condition over percepts.
+    pub beliefs: BTreeMap<String, String>,
+    /// Target name → the objects it designates.
+    pub targets: BTreeMap<String, crate::physics::spec::TargetSpec>,
+}
+
+impl Scenario {
+    /// This scenario with a compiled mission's skills, beliefs and targets
+    /// added. The scenario's own skills and beliefs of the same names take
+    /// precedence (a platform tunes a command's default schemas in its
+    /// scenario); targets are the mission's.
+    pub fn with_mission(&self, parts: &MissionParts) -> Result<Scenario, Diagnostics> {
+        let file = &parts.file;
+        let Some(ps) = &self.physics else {
+            return Err(Diagnostics(vec![
+                Diagnostic::error(
+                    &self.file,
+                    Loc::UNKNOWN,
+                    "missing-physics",
+                    format!(
+                        "a compiled mission runs in the physical world, and scenario `{}` is a timed world",
+                        self.name
+                    ),
+                )
+                .with_hint("use a scenario with `world: physics`"),
+            ]));
+        };
+        let mut d = Vec::new();
+        let mut out = self.clone();
+        for (name, schemas) in &parts.skills {
+            if out.skills.contains_key(name) {
+                continue;
+            }
+            let mut list = Vec::new();
+            for v in schemas {
+                match crate::physics::SchemaSpec::from_json(v, Loc::UNKNOWN) {
+                    Ok(sc) => list.push(sc),
+                    Err((e, hint)) => {
+                        let mut diag = Diagnostic::error(
+                            file,
+                            Loc::UNKNOWN,
+                            "bad-schema",
+                            format!("skill `{name}`: {e}"),
+                        );
+                        if let Some(h) = hint {
+                            diag = diag.with_hint(h);
+                        }
+                        d.push(diag);
+                    }
+                }
+            }
+            out.skills.insert(
+                name.clone(),
+                SkillModel {
+                    duration: None,
+                    rates: Vec::new(),
+                    speed: None,
+                    drives: Vec::new(),
+                    on_start: Vec::new(),
+                    on_done: Vec::new(),
+                    schemas: list,
+                },
+            );
+        }
+        let mut spec = (**ps).clone();
+        for (name, expr) in &parts.beliefs {
+            if !spec.beliefs.iter().any(|(b, _, _)| b == name) {
+                spec.beliefs
+                    .push((name.clone(), expr.clone(), Loc::UNKNOWN));
+            }
+        }
+        spec.targets.extend(parts.targets.clone());
+        // A compiled belief that reads a percept the world lacks is the
+        // mission's error, not the scenario's.
+        for mut diag in crate::physics::check_beliefs(&spec, file) {
+            if diag.loc == Loc::UNKNOWN {
+                diag.file = file.clone();
+            }
+            d.push(diag);
+        }
+        if d.iter().any(Diagnostic::is_error) {
+            return Err(Diagnostics(d));
+        }
+        out.physics = Some(Arc::new(spec));
+        Ok(out)
+    }
+}
+
 impl Scenario {
     /// Load a scenario file.
     pub fn load(path: &Path) -> Result<Scenario, Diagnostics> {

@@ -226,6 +226,17 @@ fn object_keys(spec: &PhysicsSpec) -> Vec<(String, Vec<usize>)> {
             }
         }
     }
+    // Targets: a name for the objects that fit a description.
+    for (name, t) in &spec.targets {
+        let fits: Vec<usize> = (spec.objects.iter().enumerate())
+            .filter(|(_, o)| t.fits(o))
+            .map(|(i, _)| i)
+            .collect();
+        match keys.iter_mut().find(|(x, _)| x == name) {
+            Some((_, objects)) => *objects = fits,
+            None => keys.push((name.clone(), fits)),
+        }
+    }
     keys
 }
 

@@ -30,6 +30,7 @@ pub(crate) struct PhysicsRaw {
     beliefs: BTreeMap<String, Spanned<String>>,
     goal: Option<GoalRaw>,
     trail: Option<f64>,
+    origin: Option<[f64; 2]>,
 }
 
 #[derive(Deserialize, Default)]
@@ -211,6 +212,69 @@ pub struct PhysicsSpec {
     /// Seconds between the trajectory samples kept for pictures (`None`:
     /// every control tick; 0: none, for large teams).
     pub trail: Option<f64>,
+    /// Where a mission's (0, 0) is (`None`: where the team starts, the
+    /// centroid of the `start` poses).
+    pub origin: Option<DVec2>,
+    /// Named descriptions of objects (a mission's `find ... => name`):
+    /// robots see the objects that fit under that name.
+    pub targets: BTreeMap<String, TargetSpec>,
+}
+
+/// A description of the objects a name designates: colour and size, each
+/// optional.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TargetSpec {
+    /// Colour (case-insensitive).
+    pub colour: Option<String>,
+    /// Length, width, height, m; unknown ones match anything. The world is
+    /// flat: length and width are compared with the object's footprint (in
+    /// either order; a disc's is its diameter), height is not compared.
+    pub size: [Option<f64>; 3],
+}
+
+impl TargetSpec {
+    /// Relative tolerance of a size match (or 5 cm, whichever is larger).
+    pub const SIZE_TOLERANCE: f64 = 0.25;
+
+    /// Does object `o` fit the description?
+    pub fn fits(&self, o: &Body) -> bool {
+        if let Some(c) = &self.colour
+            && !o
+                .colour
+                .as_ref()
+                .is_some_and(|oc| oc.eq_ignore_ascii_case(c))
+        {
+            return false;
+        }
+        let (a, b) = match o.shape {
+            Shape::Box(s) => (s.x, s.y),
+            Shape::Disc(r) => (2.0 * r, 2.0 * r),
+        };
+        let near =
+            |want: f64, have: f64| (want - have).abs() <= (Self::SIZE_TOLERANCE * want).max(0.05);
+        match (self.size[0], self.size[1]) {
+            (None, None) => true,
+            (Some(l), None) => near(l, a) || near(l, b),
+            (None, Some(w)) => near(w, a) || near(w, b),
+            (Some(l), Some(w)) => (near(l, a) && near(w, b)) || (near(l, b) && near(w, a)),
+        }
+    }
+}
+
+impl PhysicsSpec {
+    /// Where a mission's (0, 0) is in the arena: `origin`, or the centroid
+    /// of the robots' start poses (the paper's "the point the robots
+    /// started from"), or the arena's corner when none is given.
+    pub fn mission_origin(&self) -> DVec2 {
+        if let Some(o) = self.origin {
+            return o;
+        }
+        if self.start.is_empty() {
+            return DVec2::ZERO;
+        }
+        let sum: DVec2 = self.start.values().map(|(p, _, _)| *p).sum();
+        sum / self.start.len() as f64
+    }
 }
 
 fn positive(file: &Arc<str>, loc: Loc, what: &str, v: f64, d: &mut Vec<Diagnostic>) -> f64 {
@@ -366,6 +430,8 @@ impl PhysicsSpec {
                 .map(|(k, v)| (k, v.value, Loc::from(v.referenced)))
                 .collect(),
             goal,
+            origin: raw.origin.map(DVec2::from),
+            targets: BTreeMap::new(),
             trail: raw.trail.map(|t| {
                 if t.is_finite() && t >= 0.0 {
                     t
@@ -653,5 +719,56 @@ impl SchemaSpec {
             gain: self.gain,
             layer: self.layer,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn body(shape: Shape, colour: &str) -> Body {
+        Body {
+            name: None,
+            at: DVec2::ZERO,
+            angle: 0.0,
+            shape,
+            colour: Some(colour.into()),
+            mass: 1.0,
+            damping: 1.0,
+        }
+    }
+
+    #[test]
+    fn a_target_fits_by_colour_and_footprint() {
+        let cube = body(Shape::Box(DVec2::new(0.25, 0.25)), "red");
+        let crate_ = body(Shape::Box(DVec2::new(0.5, 0.5)), "red");
+        let blue = body(Shape::Box(DVec2::new(0.25, 0.25)), "blue");
+        let plank = body(Shape::Box(DVec2::new(0.25, 1.0)), "Red");
+        let ball = body(Shape::Disc(0.125), "red");
+        let red_quarter = TargetSpec {
+            colour: Some("RED".into()),
+            size: [Some(0.25), Some(0.25), Some(0.25)],
+        };
+        assert!(red_quarter.fits(&cube));
+        assert!(!red_quarter.fits(&crate_), "wrong size");
+        assert!(!red_quarter.fits(&blue), "wrong colour");
+        assert!(!red_quarter.fits(&plank), "one side wrong");
+        assert!(
+            red_quarter.fits(&ball),
+            "a disc's footprint is its diameter"
+        );
+        // Unknown parameters match anything; length and width in either order.
+        let red = TargetSpec {
+            colour: Some("red".into()),
+            size: [None; 3],
+        };
+        assert!(red.fits(&crate_) && red.fits(&plank) && !red.fits(&blue));
+        let long = TargetSpec {
+            colour: None,
+            size: [Some(1.0), Some(0.25), None],
+        };
+        assert!(long.fits(&plank) && !long.fits(&cube));
+        let any = TargetSpec::default();
+        assert!(any.fits(&blue));
     }
 }

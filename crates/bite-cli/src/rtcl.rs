@@ -1,0 +1,83 @@
+//! Missions in the robot team command language (`.rtcl`): compiled into a
+//! behavior graph and the world parts (skills, beliefs, targets) that a
+//! physical-world scenario takes.
+
+use anyhow::{Context, Result};
+use bite_core::graph::BehaviorGraph;
+use bite_rtcl::{CompileOptions, Compiled, Library};
+use bite_sim::physics::spec::TargetSpec;
+use bite_sim::{MissionParts, Scenario};
+use std::path::Path;
+use std::sync::Arc;
+
+use crate::{bad_input, print_diags};
+
+/// Is this file a mission in the command language?
+pub fn is_mission(p: &Path) -> bool {
+    p.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("rtcl"))
+}
+
+/// The command library: the given file, or the built-in one.
+pub fn library(path: Option<&Path>) -> Result<Library> {
+    match path {
+        Some(p) => Library::load(p).map_err(bad_input),
+        None => Ok(Library::builtin()),
+    }
+}
+
+/// Compile a mission file.
+pub fn compile(path: &Path, lib: &Library, opts: &CompileOptions) -> Result<Compiled> {
+    let source =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let file = path.display().to_string();
+    let compiled = bite_rtcl::compile(&file, &source, lib, opts).map_err(bad_input)?;
+    print_diags(&compiled.warnings);
+    Ok(compiled)
+}
+
+/// The compiled graph, loaded and validated as any graph file is.
+pub fn graph(path: &Path, compiled: &Compiled) -> Result<BehaviorGraph> {
+    let name: Arc<str> = Arc::from(format!("{} (compiled)", path.display()));
+    let g = bite_core::graph::load_str(&name, &compiled.graph).map_err(bad_input)?;
+    print_diags(g.warnings());
+    Ok(g)
+}
+
+/// The compile options a scenario implies: the team's start as the
+/// mission's (0, 0) and the team size, unless given.
+pub fn options_for(scenario: &Scenario, robots: Option<usize>) -> CompileOptions {
+    let d = CompileOptions::default();
+    let placed = scenario.physics.as_ref().map_or(0, |p| p.start.len());
+    CompileOptions {
+        origin: scenario
+            .physics
+            .as_ref()
+            .map_or(d.origin, |p| p.mission_origin().to_array()),
+        robots: robots
+            .or(scenario.robots)
+            .or((placed > 0).then_some(placed))
+            .unwrap_or(d.robots),
+    }
+}
+
+/// The scenario with the mission's skills, beliefs and targets added.
+pub fn bind(path: &Path, compiled: &Compiled, scenario: &Scenario) -> Result<Scenario> {
+    let parts = MissionParts {
+        file: Arc::from(path.display().to_string()),
+        skills: compiled.skills.clone(),
+        beliefs: compiled.beliefs.clone(),
+        targets: (compiled.targets.iter())
+            .map(|(k, t)| {
+                (
+                    k.clone(),
+                    TargetSpec {
+                        colour: t.colour.clone(),
+                        size: t.size.unwrap_or([None; 3]),
+                    },
+                )
+            })
+            .collect(),
+    };
+    scenario.with_mission(&parts).map_err(bad_input)
+}

@@ -1,0 +1,849 @@
+//! Code generation: checked commands to a BITE behavior graph, the skills
+//! (motor schemas) its atomic behaviors run, the beliefs its conditions
+//! read and the targets its results designate.
+//!
+//! The graph is the paper's O = ⟨B1, ..., Bn⟩: a root team behavior
+//! `mission` whose only child is the first command's behavior, each command
+//! linked by `next` to the following one, so each starts when the previous
+//! one has ended (its `until`). A command's behavior decomposes into its
+//! minimum behavior set B_x, as its library entry says: one team behavior
+//! per phase (chained by `next` under a team behavior for the command when
+//! there are several), each either running a skill with the whole team or
+//! splitting the team among children (an allocation point). Every team
+//! behavior is a termination point: the team ends it together.
+
+use crate::check::Step;
+use crate::library::{Body, ChildDef, CommandDef, Library, PhaseDef, SchemaDef};
+use crate::source::{SourceMap, printable};
+use crate::template::{Env, EvalError, Template, Val, fmt_num};
+use crate::{CompileOptions, Compiled, StepInfo, Target};
+use bite_core::diag::{Diagnostic, Loc};
+use bite_core::graph::spec::MembersSpec;
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt::Write as _;
+
+/// One behavior of the generated graph.
+#[derive(Clone, Debug, Default)]
+struct Beh {
+    name: String,
+    description: Option<String>,
+    team: bool,
+    children: Vec<String>,
+    next: Vec<String>,
+    until: Option<String>,
+    skill: Option<String>,
+    members: Option<String>,
+    terminate: Option<String>,
+    /// The first behavior of a command (a blank line before it).
+    first: bool,
+    /// A later step of a child's chain (not a child itself).
+    chained: bool,
+}
+
+/// The variables of one command, as its templates see them.
+struct StepEnv<'a> {
+    def: &'a CommandDef,
+    step: &'a str,
+    index: usize,
+    result: &'a str,
+    robots: f64,
+    /// Per parameter: the value written, else its default; coordinates
+    /// with the origin added.
+    params: Vec<Option<Val>>,
+    lets: BTreeMap<&'a str, Val>,
+    repeat: Option<(f64, f64)>,
+    /// Beliefs the rendered templates used.
+    used: BTreeSet<&'a str>,
+}
+
+impl Env for StepEnv<'_> {
+    fn get(&mut self, name: &str) -> Option<Val> {
+        match name {
+            "step" => return Some(Val::Text(self.step.to_string())),
+            "index" => return Some(Val::Num(self.index as f64)),
+            "result" => return Some(Val::Text(self.result.to_string())),
+            "robots" => return Some(Val::Num(self.robots)),
+            "i" => return self.repeat.map(|(i, _)| Val::Num(i)),
+            "n" => return self.repeat.map(|(_, n)| Val::Num(n)),
+            _ => {}
+        }
+        let def = self.def;
+        if let Some(i) = def.params.iter().position(|p| p.name == name) {
+            return self.params[i].clone();
+        }
+        if let Some((_, [x, y])) = def.points.iter().find(|(p, _)| p == name) {
+            let get = |n: &str| {
+                def.params
+                    .iter()
+                    .position(|p| p.name == n)
+                    .and_then(|i| match &self.params[i] {
+                        Some(Val::Num(v)) => Some(*v),
+                        _ => None,
+                    })
+            };
+            return Some(Val::Point([get(x)?, get(y)?]));
+        }
+        if let Some(v) = self.lets.get(name) {
+            return Some(v.clone());
+        }
+        if let Some((b, _)) = def.beliefs.iter().find(|(b, _)| b == name) {
+            self.used.insert(b.as_str());
+            return Some(Val::Text(format!("{}_{b}", self.step)));
+        }
+        None
+    }
+}
+
+/// Generate everything for the checked steps.
+pub fn generate(
+    map: &SourceMap<'_>,
+    steps: &[Step],
+    lib: &Library,
+    opts: &CompileOptions,
+) -> Result<Compiled, Vec<Diagnostic>> {
+    let mut g = Gen {
+        map,
+        lib,
+        opts,
+        behs: Vec::new(),
+        names: BTreeSet::new(),
+        skills: BTreeMap::new(),
+        beliefs: BTreeMap::new(),
+        targets: BTreeMap::new(),
+        infos: Vec::new(),
+        diags: Vec::new(),
+        warnings: Vec::new(),
+    };
+    g.names.insert("mission".to_string());
+    g.behs.push(Beh {
+        name: "mission".into(),
+        description: Some(format!(
+            "the mission: {} command{}, in order",
+            steps.len(),
+            if steps.len() == 1 { "" } else { "s" }
+        )),
+        team: true,
+        ..Beh::default()
+    });
+    let mut heads = Vec::new();
+    for s in steps {
+        let Some(def) = lib.command(&s.command) else {
+            continue;
+        };
+        let head = g.behs.len();
+        match g.step(s, def) {
+            Ok(name) => heads.push((head, name)),
+            Err(d) => g.diags.push(*d),
+        }
+        if g.behs.len() > bite_core::graph::MAX_BEHAVIORS {
+            g.diags.push(Diagnostic::error(
+                map.file(),
+                Loc::UNKNOWN,
+                "too-large",
+                format!(
+                    "the mission needs more than {} behaviors, the most a graph may have",
+                    bite_core::graph::MAX_BEHAVIORS
+                ),
+            ));
+            break;
+        }
+    }
+    if !g.diags.is_empty() {
+        return Err(g.diags);
+    }
+    // The chain: mission → B1 → B2 → ... → Bn.
+    if let Some((_, first)) = heads.first() {
+        g.behs[0].children.push(first.clone());
+    }
+    for w in heads.windows(2) {
+        let next = w[1].1.clone();
+        g.behs[w[0].0].next.push(next);
+    }
+    let graph = g.yaml(steps.len());
+    Ok(Compiled {
+        graph,
+        skills: g.skills,
+        beliefs: g.beliefs,
+        targets: g.targets,
+        steps: g.infos,
+        warnings: g.warnings,
+    })
+}
+
+struct Gen<'a, 's> {
+    map: &'a SourceMap<'s>,
+    lib: &'a Library,
+    opts: &'a CompileOptions,
+    behs: Vec<Beh>,
+    names: BTreeSet<String>,
+    skills: BTreeMap<String, Vec<serde_json::Value>>,
+    beliefs: BTreeMap<String, String>,
+    targets: BTreeMap<String, Target>,
+    infos: Vec<StepInfo>,
+    diags: Vec<Diagnostic>,
+    warnings: Vec<Diagnostic>,
+}
+
+impl Gen<'_, '_> {
+    /// A library entry that cannot be generated for this command.
+    fn lib_error(
+        &self,
+        s: &Step,
+        def: &CommandDef,
+        at: Loc,
+        what: impl Into<String>,
+    ) -> Box<Diagnostic> {
+        let mut d = self.map.error(
+            s.span,
+            "library",
+            format!(
+                "the library's `{}` cannot be generated for this command: {}",
+                def.name,
+                what.into()
+            ),
+        );
+        d.hint = Some(if at.is_known() {
+            format!("see {}:{}:{}", self.lib.file, at.line, at.col)
+        } else {
+            format!("see `{}` in {}", def.name, self.lib.file)
+        });
+        Box::new(d)
+    }
+
+    fn add(&mut self, s: &Step, def: &CommandDef, b: Beh) -> Result<(), Box<Diagnostic>> {
+        if !self.names.insert(b.name.clone()) {
+            let msg = format!("two behaviors would be called `{}`", b.name);
+            return Err(self.lib_error(s, def, def.loc, msg));
+        }
+        self.behs.push(b);
+        Ok(())
+    }
+
+    fn render(
+        &self,
+        s: &Step,
+        def: &CommandDef,
+        at: Loc,
+        t: &Template,
+        env: &mut StepEnv<'_>,
+    ) -> Result<String, Box<Diagnostic>> {
+        t.render(env).map_err(|e| self.eval_error(s, def, at, &e))
+    }
+
+    fn eval_error(&self, s: &Step, def: &CommandDef, at: Loc, e: &EvalError) -> Box<Diagnostic> {
+        self.lib_error(s, def, at, e.to_string())
+    }
+
+    fn schemas(
+        &self,
+        s: &Step,
+        def: &CommandDef,
+        list: &[SchemaDef],
+        env: &mut StepEnv<'_>,
+    ) -> Result<Vec<serde_json::Value>, Box<Diagnostic>> {
+        let mut out = Vec::new();
+        for sc in list {
+            if sc.guard.as_ref().is_none_or(|g| g.holds(env)) {
+                out.push(
+                    sc.template
+                        .render(env)
+                        .map_err(|e| self.eval_error(s, def, sc.loc, &e))?,
+                );
+            }
+        }
+        Ok(out)
+    }
+
+    /// Generate one command; returns the name of its behavior.
+    fn step(&mut self, s: &Step, def: &CommandDef) -> Result<String, Box<Diagnostic>> {
+        let step = format!("{}_{}", def.name, s.index);
+        let result = s.result.clone().unwrap_or_else(|| step.clone());
+        if self.opts.robots < def.min_robots {
+            self.warnings.push(
+                self.map
+                    .warning(
+                        s.span,
+                        "too-few-robots",
+                        format!(
+                            "`{}` needs a team of {} robots or more; this one has {}",
+                            def.name, def.min_robots, self.opts.robots
+                        ),
+                    )
+                    .with_hint(format!(
+                        "part of its decomposition may get no robot (see `{}` in {})",
+                        def.name, self.lib.file
+                    )),
+            );
+        }
+        let mut params = Vec::with_capacity(def.params.len());
+        for (p, v) in def.params.iter().zip(&s.values) {
+            let v = v.clone().or_else(|| p.default.clone());
+            let v = match (&p.ty, v) {
+                (crate::library::ParamType::X, Some(Val::Num(x))) => {
+                    Some(Val::Num(x + self.opts.origin[0]))
+                }
+                (crate::library::ParamType::Y, Some(Val::Num(y))) => {
+                    Some(Val::Num(y + self.opts.origin[1]))
+                }
+                (_, v) => v,
+            };
+            params.push(v);
+        }
+        let mut env = StepEnv {
+            def,
+            step: &step,
+            index: s.index,
+            result: &result,
+            robots: self.opts.robots as f64,
+            params,
+            lets: BTreeMap::new(),
+            repeat: None,
+            used: BTreeSet::new(),
+        };
+        for (name, t) in &def.lets {
+            // A value that cannot be computed stays unknown; it is an
+            // error only where it is used.
+            if let Ok(v) = t.value(&mut env) {
+                env.lets.insert(name.as_str(), v);
+            }
+        }
+        let phases: Vec<&PhaseDef> = def
+            .phases
+            .iter()
+            .filter(|p| p.guard.as_ref().is_none_or(|g| g.holds(&mut env)))
+            .collect();
+        if phases.is_empty() {
+            return Err(self.lib_error(s, def, def.loc, "no phase applies (check their `if`)"));
+        }
+        let first_beh = self.behs.len();
+        let description = Some(format!("line {}: {}", s.line, s.text));
+        let single = phases.len() == 1;
+        if !single {
+            let until = match &def.until {
+                Some(t) => Some(self.render(s, def, def.loc, t, &mut env)?),
+                None => None,
+            };
+            self.add(
+                s,
+                def,
+                Beh {
+                    name: step.clone(),
+                    description: description.clone(),
+                    team: true,
+                    children: vec![format!("{step}_{}", phases[0].name)],
+                    until,
+                    ..Beh::default()
+                },
+            )?;
+        }
+        for (k, ph) in phases.iter().enumerate() {
+            let name = if single {
+                step.clone()
+            } else {
+                format!("{step}_{}", ph.name)
+            };
+            let until_t = ph
+                .until
+                .as_ref()
+                .or(if single { def.until.as_ref() } else { None });
+            let until = match until_t {
+                Some(t) => Some(self.render(s, def, ph.loc, t, &mut env)?),
+                None => None,
+            };
+            let pdesc = match &ph.description {
+                Some(t) => Some(self.render(s, def, ph.loc, t, &mut env)?),
+                None => None,
+            };
+            let description = if single {
+                match pdesc {
+                    Some(p) => Some(format!("line {}: {} - {p}", s.line, s.text)),
+                    None => description.clone(),
+                }
+            } else {
+                pdesc
+            };
+            let next = phases
+                .get(k + 1)
+                .map(|p| vec![format!("{step}_{}", p.name)])
+                .unwrap_or_default();
+            let mut beh = Beh {
+                name: name.clone(),
+                description,
+                team: true,
+                next,
+                until,
+                terminate: ph.terminate.clone(),
+                ..Beh::default()
+            };
+            match &ph.body {
+                Body::Skill(list) => {
+                    let schemas = self.schemas(s, def, list, &mut env)?;
+                    self.skills.insert(name.clone(), schemas);
+                    beh.skill = Some(name.clone());
+                    self.add(s, def, beh)?;
+                }
+                Body::Split(children) => {
+                    let kids = self.children(s, def, &step, children, &mut env)?;
+                    if kids.iter().all(|k| k.chained) {
+                        return Err(self.lib_error(
+                            s,
+                            def,
+                            ph.loc,
+                            format!("phase `{}` has no child for this command", ph.name),
+                        ));
+                    }
+                    beh.children = kids
+                        .iter()
+                        .filter(|k| !k.chained)
+                        .map(|k| k.name.clone())
+                        .collect();
+                    let split = beh.children.len() > 1;
+                    self.add(s, def, beh)?;
+                    for mut kid in kids {
+                        if !split {
+                            kid.members = None;
+                        }
+                        self.add(s, def, kid)?;
+                    }
+                }
+            }
+        }
+        // Beliefs the command's conditions read.
+        let used: Vec<&str> = env.used.iter().copied().collect();
+        for b in used {
+            if let Some((_, t)) = def.beliefs.iter().find(|(n, _)| n == b) {
+                let cond = self.render(s, def, def.loc, t, &mut env)?;
+                self.beliefs.insert(format!("{step}_{b}"), cond);
+            }
+        }
+        // What the result designates.
+        if let Some(rd) = &def.result {
+            let get = |n: &Option<String>| -> Option<Val> {
+                let i = def
+                    .params
+                    .iter()
+                    .position(|p| Some(&p.name) == n.as_ref())?;
+                s.values[i].clone()
+            };
+            let colour = match get(&rd.colour) {
+                Some(Val::Text(c)) => Some(c),
+                _ => None,
+            };
+            let size = rd.size.as_ref().and_then(|names| {
+                let v: Vec<Option<f64>> = names
+                    .iter()
+                    .map(|n| match get(&Some(n.clone())) {
+                        Some(Val::Num(x)) => Some(x),
+                        _ => None,
+                    })
+                    .collect();
+                v.iter().any(Option::is_some).then(|| [v[0], v[1], v[2]])
+            });
+            self.targets.insert(result.clone(), Target { colour, size });
+        }
+        if let Some(b) = self.behs.get_mut(first_beh) {
+            b.first = true;
+        }
+        self.infos.push(StepInfo {
+            index: s.index,
+            line: s.line,
+            command: def.name.clone(),
+            behavior: step.clone(),
+            behaviors: self.behs[first_beh..]
+                .iter()
+                .map(|b| b.name.clone())
+                .collect(),
+            result: s.result.clone(),
+        });
+        Ok(step)
+    }
+
+    fn children(
+        &mut self,
+        s: &Step,
+        def: &CommandDef,
+        step: &str,
+        children: &[ChildDef],
+        env: &mut StepEnv<'_>,
+    ) -> Result<Vec<Beh>, Box<Diagnostic>> {
+        let mut out = Vec::new();
+        for ch in children {
+            if !ch.guard.as_ref().is_none_or(|g| g.holds(env)) {
+                continue;
+            }
+            let copies = match &ch.repeat {
+                None => None,
+                Some(t) => {
+                    let v = t
+                        .value(env)
+                        .map_err(|e| self.eval_error(s, def, ch.loc, &e))?;
+                    match v {
+                        Val::Num(n) if n.fract() == 0.0 && (0.0..=10_000.0).contains(&n) => Some(n),
+                        other => {
+                            return Err(self.lib_error(
+                                s,
+                                def,
+                                ch.loc,
+                                format!(
+                                    "`repeat` of `{}` is `{}`, not a count from 0 to 10000",
+                                    ch.name,
+                                    other.to_text()
+                                ),
+                            ));
+                        }
+                    }
+                }
+            };
+            let instances: Vec<Option<(f64, f64)>> = match copies {
+                None => vec![None],
+                #[allow(clippy::cast_possible_truncation, clippy::cast_sign_loss)]
+                Some(n) => (1..=n as u64).map(|i| Some((i as f64, n))).collect(),
+            };
+            for inst in instances {
+                env.repeat = inst;
+                let name = match inst {
+                    None => format!("{step}_{}", ch.name),
+                    Some((i, _)) => format!("{step}_{}_{}", ch.name, fmt_num(i)),
+                };
+                let until = match &ch.until {
+                    Some(t) => Some(self.render(s, def, ch.loc, t, env)?),
+                    None => None,
+                };
+                let description = match &ch.description {
+                    Some(t) => Some(self.render(s, def, ch.loc, t, env)?),
+                    None => None,
+                };
+                let schemas = self.schemas(s, def, &ch.skill, env)?;
+                self.skills.insert(name.clone(), schemas);
+                let chain_name = |t: &str| match inst {
+                    None => format!("{step}_{t}"),
+                    Some((i, _)) => format!("{step}_{t}_{}", fmt_num(i)),
+                };
+                out.push(Beh {
+                    name: name.clone(),
+                    description,
+                    team: false,
+                    until,
+                    skill: Some(name),
+                    members: ch.members.map(members_text),
+                    next: ch
+                        .then
+                        .first()
+                        .map(|t| vec![chain_name(&t.name)])
+                        .unwrap_or_default(),
+                    ..Beh::default()
+                });
+                // The rest of its execution chain.
+                for (k, t) in ch.then.iter().enumerate() {
+                    let name = chain_name(&t.name);
+                    let until = match &t.until {
+                        Some(u) => Some(self.render(s, def, t.loc, u, env)?),
+                        None => None,
+                    };
+                    let description = match &t.description {
+                        Some(d) => Some(self.render(s, def, t.loc, d, env)?),
+                        None => None,
+                    };
+                    let schemas = self.schemas(s, def, &t.skill, env)?;
+                    self.skills.insert(name.clone(), schemas);
+                    out.push(Beh {
+                        name: name.clone(),
+                        description,
+                        until,
+                        skill: Some(name),
+                        next: ch
+                            .then
+                            .get(k + 1)
+                            .map(|n| vec![chain_name(&n.name)])
+                            .unwrap_or_default(),
+                        chained: true,
+                        ..Beh::default()
+                    });
+                }
+            }
+            env.repeat = None;
+        }
+        Ok(out)
+    }
+
+    fn yaml(&self, commands: usize) -> String {
+        let file = printable(self.map.file());
+        let stem = std::path::Path::new(self.map.file().as_ref())
+            .file_stem()
+            .map_or_else(
+                || "mission".to_string(),
+                |s| s.to_string_lossy().into_owned(),
+            );
+        let mut y = String::with_capacity(self.behs.len() * 160 + 512);
+        let _ = writeln!(
+            y,
+            "# Generated by bite-rtcl from {file} ({commands} command{}); do not edit:\n\
+             # change the mission and compile it again.\n\
+             # Mission origin [{}, {}] (the mission's coordinates are relative to it); {} robots.",
+            if commands == 1 { "" } else { "s" },
+            fmt_num(self.opts.origin[0]),
+            fmt_num(self.opts.origin[1]),
+            self.opts.robots
+        );
+        let _ = writeln!(y, "graph: {}", scalar(&printable(&stem)));
+        let _ = writeln!(
+            y,
+            "description: {}",
+            quote(&format!("compiled from {file}"))
+        );
+        let _ = writeln!(y, "team:\n  robots: {}", self.opts.robots);
+        y.push_str("start: mission\n");
+        y.push_str(
+            "defaults:\n  sync: sync.by-rule\n  allocate: alloc.by-id\n  terminate: term.wait-all\n",
+        );
+        y.push_str("behaviors:\n");
+        for (i, b) in self.behs.iter().enumerate() {
+            // A blank line before each command's behavior.
+            if i > 0 && b.first {
+                y.push('\n');
+            }
+            let _ = writeln!(y, "  {}:", b.name);
+            if let Some(d) = &b.description {
+                let _ = writeln!(y, "    description: {}", quote(d));
+            }
+            if b.team {
+                y.push_str("    team: true\n");
+            }
+            if !b.children.is_empty() {
+                let _ = writeln!(y, "    children: [{}]", b.children.join(", "));
+            }
+            if let Some(s) = &b.skill {
+                let _ = writeln!(y, "    skill: {s}");
+            }
+            if let Some(m) = &b.members {
+                let _ = writeln!(y, "    members: {m}");
+            }
+            if let Some(u) = &b.until {
+                let _ = writeln!(y, "    until: {}", scalar(u));
+            }
+            if let Some(t) = &b.terminate {
+                let _ = writeln!(y, "    terminate: {}", scalar(t));
+            }
+            if !b.next.is_empty() {
+                let _ = writeln!(y, "    next: [{}]", b.next.join(", "));
+            }
+        }
+        y
+    }
+}
+
+fn members_text(m: MembersSpec) -> String {
+    if m.min == m.max {
+        m.min.to_string()
+    } else if m.max == u32::MAX {
+        format!("\"{}..\"", m.min)
+    } else {
+        format!("\"{}..{}\"", m.min, m.max)
+    }
+}
+
+/// A YAML double-quoted string.
+pub fn quote(s: &str) -> String {
+    let mut q = String::with_capacity(s.len() + 2);
+    q.push('"');
+    for c in s.chars() {
+        match c {
+            '"' => q.push_str("\\\""),
+            '\\' => q.push_str("\\\\"),
+            '\n' => q.push_str("\\n"),
+            '\t' => q.push_str("\\t"),
+            c if c.is_control() || c == '\u{feff}' || c == '\u{fffe}' || c == '\u{ffff}' => {
+                let _ = write!(q, "\\u{:04x}", c as u32);
+            }
+            c => q.push(c),
+        }
+    }
+    q.push('"');
+    q
+}
+
+/// A YAML scalar: plain when it is a simple name that YAML reads as text,
+/// double-quoted otherwise.
+pub fn scalar(s: &str) -> String {
+    let plain = !s.is_empty()
+        && s.chars()
+            .next()
+            .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'))
+        && !matches!(
+            s.to_ascii_lowercase().as_str(),
+            "true" | "false" | "null" | "yes" | "no" | "on" | "off" | "y" | "n" | "inf" | "nan"
+        );
+    if plain { s.to_string() } else { quote(s) }
+}
+
+/// A JSON value as YAML flow: `{ schema: wander, speed: 0.25, layer: 1 }`.
+pub fn flow(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::Null => "null".into(),
+        serde_json::Value::Bool(b) => b.to_string(),
+        serde_json::Value::Number(n) => n.to_string(),
+        serde_json::Value::String(s) => scalar(s),
+        serde_json::Value::Array(a) => {
+            format!("[{}]", a.iter().map(flow).collect::<Vec<_>>().join(", "))
+        }
+        serde_json::Value::Object(m) => {
+            if m.is_empty() {
+                return "{}".into();
+            }
+            format!(
+                "{{ {} }}",
+                m.iter()
+                    .map(|(k, v)| format!("{}: {}", scalar(k), flow(v)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{CompileOptions, Library, compile};
+
+    fn build(src: &str, robots: usize, origin: [f64; 2]) -> Compiled {
+        compile(
+            "t.rtcl",
+            src,
+            &Library::builtin(),
+            &CompileOptions { origin, robots },
+        )
+        .unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    fn lines_of<'a>(graph: &'a str, behavior: &str) -> Vec<&'a str> {
+        graph
+            .lines()
+            .skip_while(|l| *l != format!("  {behavior}:"))
+            .skip(1)
+            .take_while(|l| l.starts_with("    "))
+            .map(str::trim)
+            .collect()
+    }
+
+    #[test]
+    fn commands_chain_in_order_under_the_mission() {
+        let out = build("wait:1\ngoto:1:2\nwait:3\n", 2, [0.0, 0.0]);
+        assert!(lines_of(&out.graph, "mission").contains(&"children: [wait_1]"));
+        assert!(lines_of(&out.graph, "wait_1").contains(&"next: [goto_2]"));
+        assert!(lines_of(&out.graph, "goto_2").contains(&"next: [wait_3]"));
+        assert!(
+            !lines_of(&out.graph, "wait_3")
+                .iter()
+                .any(|l| l.starts_with("next"))
+        );
+        assert_eq!(
+            out.steps
+                .iter()
+                .map(|s| s.behavior.as_str())
+                .collect::<Vec<_>>(),
+            ["wait_1", "goto_2", "wait_3"]
+        );
+    }
+
+    #[test]
+    fn the_origin_moves_every_point() {
+        let out = build("goto:1:2\nscan:0:0:2:1\n", 2, [10.0, -1.0]);
+        assert_eq!(out.beliefs["goto_1_arrived"], "dist(pos, [11, 1]) < 0.6");
+        assert_eq!(out.skills["goto_1"][0]["goal"], serde_json::json!([11, 1]));
+        assert_eq!(
+            out.skills["scan_2_lane_2"][0]["region"],
+            serde_json::json!([10, -0.5, 12, 0])
+        );
+    }
+
+    #[test]
+    fn repeated_children_one_per_robot() {
+        let out = build("scan:0:0:3:3\n", 3, [0.0, 0.0]);
+        assert!(
+            lines_of(&out.graph, "scan_1")
+                .contains(&"children: [scan_1_lane_1, scan_1_lane_2, scan_1_lane_3]")
+        );
+        assert_eq!(
+            out.skills["scan_1_lane_3"][0]["region"],
+            serde_json::json!([0, 2, 3, 3])
+        );
+        // Alone, a robot's single lane is no allocation: no `members`.
+        let out = build("scan:0:0:3:3\n", 1, [0.0, 0.0]);
+        assert!(
+            !lines_of(&out.graph, "scan_1_lane_1")
+                .iter()
+                .any(|l| l.starts_with("members"))
+        );
+    }
+
+    #[test]
+    fn guards_pick_the_decomposition() {
+        let walk = build("formation:column::4:0\n", 3, [0.0, 0.0]);
+        assert!(lines_of(&walk.graph, "formation_1").contains(&"terminate: term.first-wins"));
+        assert_eq!(
+            walk.skills["formation_1_rank_2"][0],
+            serde_json::json!({"schema": "follow", "of": "formation_1_rank_1", "distance": 0.6, "layer": 1})
+        );
+        assert!(walk.beliefs.contains_key("formation_1_arrived"));
+        let form = build("formation:triangle:0.8\n", 3, [0.0, 0.0]);
+        assert!(
+            !lines_of(&form.graph, "formation_1")
+                .iter()
+                .any(|l| l.starts_with("terminate"))
+        );
+        assert_eq!(form.skills["formation_1_lead"][0]["schema"], "stop");
+        assert_eq!(
+            form.skills["formation_1_left"][0]["distance"],
+            serde_json::json!(0.8)
+        );
+        // Only the beliefs the conditions read are generated.
+        assert_eq!(
+            form.beliefs.keys().collect::<Vec<_>>(),
+            ["formation_1_formed"]
+        );
+    }
+
+    #[test]
+    fn unnamed_results_are_named_after_their_command() {
+        let out = build("find::::red\n", 2, [0.0, 0.0]);
+        assert_eq!(out.targets["find_1"].colour.as_deref(), Some("red"));
+        assert_eq!(out.beliefs["find_1_found"], "known(find_1_pos)");
+    }
+
+    #[test]
+    fn repeated_commands_get_distinct_behaviors() {
+        let out = build(
+            "find::::red=>a\nmove:a:1:1\nfind::::blue=>b\nmove:b:2:2\n",
+            2,
+            [0.0, 0.0],
+        );
+        for b in ["find_1", "move_2_push", "find_3", "move_4_finish_push"] {
+            assert!(out.skills.contains_key(b), "{b}");
+        }
+        assert_eq!(out.targets["b"].colour.as_deref(), Some("blue"));
+        assert_eq!(out.beliefs["find_3_found"], "known(b_pos)");
+    }
+
+    #[test]
+    fn scalars_are_quoted_when_needed() {
+        assert_eq!(scalar("find_1_found"), "find_1_found");
+        assert_eq!(scalar("term.first-wins"), "term.first-wins");
+        assert_eq!(scalar("elapsed >= 3"), "\"elapsed >= 3\"");
+        assert_eq!(scalar("yes"), "\"yes\"");
+        assert_eq!(scalar(""), "\"\"");
+        assert_eq!(quote("a\"b\\c\u{7}"), "\"a\\\"b\\\\c\\u0007\"");
+    }
+
+    #[test]
+    fn flow_mappings() {
+        let v =
+            serde_json::json!({"schema": "push", "goal": [6.2, 2], "object": "box", "layer": 2});
+        assert_eq!(
+            flow(&v),
+            "{ schema: push, goal: [6.2, 2], object: box, layer: 2 }"
+        );
+    }
+}

@@ -1,0 +1,709 @@
+//! Templates of the command library: text with `{expression}` placeholders
+//! that the code generator fills in for each command, and `if:` guards.
+//!
+//! A placeholder holds a small arithmetic expression over the command's
+//! variables: `{goal}`, `{object}_pos`, `{y0 + (y1 - y0) * i / n}`.
+//! Values are numbers, text (names, colours, choices) or points `[x, y]`;
+//! `+ - * /` and unary `-` work on numbers. In a JSON value (a schema
+//! parameter), a string that is exactly one placeholder becomes the value
+//! itself (`goal: "{goal}"` becomes `goal: [6.2, 2]`); anywhere else the
+//! value is written out as text.
+
+use std::fmt::Write as _;
+use thiserror::Error;
+
+/// A template value.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Val {
+    /// A number.
+    Num(f64),
+    /// Text: a name, a colour, a choice.
+    Text(String),
+    /// A point `[x, y]` (metres, absolute: the origin already added).
+    Point([f64; 2]),
+}
+
+impl Val {
+    /// The value as text (numbers rounded to 1e-9 and without a trailing
+    /// `.0`, points as `[x, y]`).
+    pub fn to_text(&self) -> String {
+        match self {
+            Val::Num(x) => fmt_num(*x),
+            Val::Text(t) => t.clone(),
+            Val::Point([x, y]) => format!("[{}, {}]", fmt_num(*x), fmt_num(*y)),
+        }
+    }
+
+    /// The value as JSON (integral numbers as integers).
+    pub fn to_json(&self) -> serde_json::Value {
+        match self {
+            Val::Num(x) => num_json(*x),
+            Val::Text(t) => serde_json::Value::String(t.clone()),
+            Val::Point([x, y]) => serde_json::Value::Array(vec![num_json(*x), num_json(*y)]),
+        }
+    }
+}
+
+/// Round away float noise (`0.1 + 0.2`), and `-0` to `0`.
+pub fn round(x: f64) -> f64 {
+    let r = (x * 1e9).round() / 1e9;
+    if r == 0.0 { 0.0 } else { r }
+}
+
+/// A number as text: `2`, `6.2`, `-0.5`.
+pub fn fmt_num(x: f64) -> String {
+    format!("{}", round(x))
+}
+
+/// A number as JSON: an integer when it is one.
+pub fn num_json(x: f64) -> serde_json::Value {
+    let r = round(x);
+    if r.fract() == 0.0 && r.abs() < 9.0e15 {
+        // Exact: |r| < 2^53.
+        #[allow(clippy::cast_possible_truncation)]
+        return serde_json::Value::from(r as i64);
+    }
+    serde_json::Number::from_f64(r).map_or(serde_json::Value::Null, serde_json::Value::Number)
+}
+
+/// Where the variables of a template come from.
+pub trait Env {
+    /// The value of `name`; `None` when it is unknown (an optional
+    /// parameter left empty).
+    fn get(&mut self, name: &str) -> Option<Val>;
+}
+
+/// Why a template could not be filled in.
+#[derive(Clone, Debug, PartialEq, Error)]
+pub enum EvalError {
+    /// A variable has no value for this command.
+    #[error("`{0}` is unknown for this command")]
+    Unknown(String),
+    /// An operator got a value it cannot use.
+    #[error("`{op}` needs numbers, but `{var}` is {what}")]
+    Type {
+        /// The operator.
+        op: char,
+        /// The offending variable or value.
+        var: String,
+        /// What it is.
+        what: &'static str,
+    },
+    /// Division by zero or overflow.
+    #[error("the expression has no finite value")]
+    NotFinite,
+}
+
+/// A syntax error in a template, at a byte offset of the template text.
+#[derive(Clone, Debug, PartialEq, Eq, Error)]
+#[error("{message}")]
+pub struct SyntaxError {
+    /// Byte offset in the template text.
+    pub at: usize,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// An arithmetic operator.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Op {
+    /// `+`
+    Add,
+    /// `-`
+    Sub,
+    /// `*`
+    Mul,
+    /// `/`
+    Div,
+}
+
+impl Op {
+    fn char(self) -> char {
+        match self {
+            Op::Add => '+',
+            Op::Sub => '-',
+            Op::Mul => '*',
+            Op::Div => '/',
+        }
+    }
+}
+
+/// An expression inside `{}`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Expr {
+    /// A number.
+    Num(f64),
+    /// A variable, with its byte offset in the template text.
+    Var(String, usize),
+    /// `-e`
+    Neg(Box<Expr>),
+    /// `a op b`
+    Bin(Op, Box<Expr>, Box<Expr>),
+}
+
+impl Expr {
+    /// Every variable the expression reads, with its offset.
+    pub fn vars<'a>(&'a self, out: &mut Vec<(&'a str, usize)>) {
+        match self {
+            Expr::Num(_) => {}
+            Expr::Var(v, at) => out.push((v, *at)),
+            Expr::Neg(e) => e.vars(out),
+            Expr::Bin(_, a, b) => {
+                a.vars(out);
+                b.vars(out);
+            }
+        }
+    }
+
+    /// Evaluate.
+    pub fn eval(&self, env: &mut dyn Env) -> Result<Val, EvalError> {
+        match self {
+            Expr::Num(x) => Ok(Val::Num(*x)),
+            Expr::Var(v, _) => env.get(v).ok_or_else(|| EvalError::Unknown(v.clone())),
+            Expr::Neg(e) => {
+                let x = num(&e.eval(env)?, '-', e)?;
+                Ok(Val::Num(-x))
+            }
+            Expr::Bin(op, a, b) => {
+                let x = num(&a.eval(env)?, op.char(), a)?;
+                let y = num(&b.eval(env)?, op.char(), b)?;
+                let r = match op {
+                    Op::Add => x + y,
+                    Op::Sub => x - y,
+                    Op::Mul => x * y,
+                    Op::Div => x / y,
+                };
+                if r.is_finite() {
+                    Ok(Val::Num(r))
+                } else {
+                    Err(EvalError::NotFinite)
+                }
+            }
+        }
+    }
+}
+
+fn num(v: &Val, op: char, e: &Expr) -> Result<f64, EvalError> {
+    let what = match v {
+        Val::Num(x) => return Ok(*x),
+        Val::Text(_) => "text",
+        Val::Point(_) => "a point",
+    };
+    let var = match e {
+        Expr::Var(n, _) => n.clone(),
+        _ => v.to_text(),
+    };
+    Err(EvalError::Type { op, var, what })
+}
+
+/// One piece of a template.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Part {
+    /// Literal text.
+    Lit(String),
+    /// A placeholder.
+    Expr(Expr),
+}
+
+/// A parsed template.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Template {
+    /// Its pieces, in order.
+    pub parts: Vec<Part>,
+}
+
+impl Template {
+    /// Parse `text`. `{{` and `}}` stand for literal braces.
+    pub fn parse(text: &str) -> Result<Template, SyntaxError> {
+        let mut parts = Vec::new();
+        let mut lit = String::new();
+        let b = text.as_bytes();
+        let mut i = 0;
+        while i < b.len() {
+            match b[i] {
+                b'{' if b.get(i + 1) == Some(&b'{') => {
+                    lit.push('{');
+                    i += 2;
+                }
+                b'}' if b.get(i + 1) == Some(&b'}') => {
+                    lit.push('}');
+                    i += 2;
+                }
+                b'{' => {
+                    let close = text[i..].find('}').ok_or_else(|| SyntaxError {
+                        at: i,
+                        message: "`{` without a closing `}`".into(),
+                    })?;
+                    let inner = &text[i + 1..i + close];
+                    let expr = ExprParser::new(inner, i + 1).parse()?;
+                    if !lit.is_empty() {
+                        parts.push(Part::Lit(std::mem::take(&mut lit)));
+                    }
+                    parts.push(Part::Expr(expr));
+                    i += close + 1;
+                }
+                b'}' => {
+                    return Err(SyntaxError {
+                        at: i,
+                        message: "`}` without an opening `{` (write `}}` for a brace)".into(),
+                    });
+                }
+                _ => {
+                    let c = text[i..].chars().next().unwrap_or(' ');
+                    lit.push(c);
+                    i += c.len_utf8();
+                }
+            }
+        }
+        if !lit.is_empty() {
+            parts.push(Part::Lit(lit));
+        }
+        Ok(Template { parts })
+    }
+
+    /// The expression, when the template is exactly one placeholder.
+    pub fn whole(&self) -> Option<&Expr> {
+        match self.parts.as_slice() {
+            [Part::Expr(e)] => Some(e),
+            _ => None,
+        }
+    }
+
+    /// Every variable the template reads, with its byte offset.
+    pub fn vars(&self) -> Vec<(&str, usize)> {
+        let mut out = Vec::new();
+        for p in &self.parts {
+            if let Part::Expr(e) = p {
+                e.vars(&mut out);
+            }
+        }
+        out
+    }
+
+    /// Fill in the placeholders, as text.
+    pub fn render(&self, env: &mut dyn Env) -> Result<String, EvalError> {
+        let mut s = String::new();
+        for p in &self.parts {
+            match p {
+                Part::Lit(l) => s.push_str(l),
+                Part::Expr(e) => {
+                    let _ = write!(s, "{}", e.eval(env)?.to_text());
+                }
+            }
+        }
+        Ok(s)
+    }
+
+    /// Evaluate a template that must be a single placeholder, or render it
+    /// as text otherwise.
+    pub fn value(&self, env: &mut dyn Env) -> Result<Val, EvalError> {
+        match self.whole() {
+            Some(e) => e.eval(env),
+            None => self.render(env).map(Val::Text),
+        }
+    }
+}
+
+struct ExprParser<'a> {
+    s: &'a [u8],
+    text: &'a str,
+    pos: usize,
+    /// Offset of `text` in the whole template.
+    base: usize,
+    depth: usize,
+}
+
+impl<'a> ExprParser<'a> {
+    fn new(text: &'a str, base: usize) -> Self {
+        ExprParser {
+            s: text.as_bytes(),
+            text,
+            pos: 0,
+            base,
+            depth: 0,
+        }
+    }
+
+    fn err(&self, message: impl Into<String>) -> SyntaxError {
+        SyntaxError {
+            at: self.base + self.pos,
+            message: message.into(),
+        }
+    }
+
+    fn ws(&mut self) {
+        while self
+            .s
+            .get(self.pos)
+            .is_some_and(|b| *b == b' ' || *b == b'\t')
+        {
+            self.pos += 1;
+        }
+    }
+
+    fn parse(mut self) -> Result<Expr, SyntaxError> {
+        let e = self.sum()?;
+        self.ws();
+        if self.pos < self.s.len() {
+            return Err(self.err(format!(
+                "unexpected `{}` in a placeholder",
+                &self.text[self.pos..]
+            )));
+        }
+        Ok(e)
+    }
+
+    fn sum(&mut self) -> Result<Expr, SyntaxError> {
+        let mut a = self.product()?;
+        loop {
+            self.ws();
+            let op = match self.s.get(self.pos) {
+                Some(b'+') => Op::Add,
+                Some(b'-') => Op::Sub,
+                _ => return Ok(a),
+            };
+            self.pos += 1;
+            let b = self.product()?;
+            a = Expr::Bin(op, Box::new(a), Box::new(b));
+        }
+    }
+
+    fn product(&mut self) -> Result<Expr, SyntaxError> {
+        let mut a = self.unary()?;
+        loop {
+            self.ws();
+            let op = match self.s.get(self.pos) {
+                Some(b'*') => Op::Mul,
+                Some(b'/') => Op::Div,
+                _ => return Ok(a),
+            };
+            self.pos += 1;
+            let b = self.unary()?;
+            a = Expr::Bin(op, Box::new(a), Box::new(b));
+        }
+    }
+
+    fn unary(&mut self) -> Result<Expr, SyntaxError> {
+        self.ws();
+        self.depth += 1;
+        if self.depth > 32 {
+            return Err(self.err("the placeholder nests too deeply"));
+        }
+        let r = if self.s.get(self.pos) == Some(&b'-') {
+            self.pos += 1;
+            self.unary().map(|e| Expr::Neg(Box::new(e)))
+        } else {
+            self.atom()
+        };
+        self.depth -= 1;
+        r
+    }
+
+    fn atom(&mut self) -> Result<Expr, SyntaxError> {
+        self.ws();
+        let start = self.pos;
+        match self.s.get(self.pos) {
+            Some(b'(') => {
+                self.pos += 1;
+                let e = self.sum()?;
+                self.ws();
+                if self.s.get(self.pos) != Some(&b')') {
+                    return Err(self.err("expected `)`"));
+                }
+                self.pos += 1;
+                Ok(e)
+            }
+            Some(b) if b.is_ascii_digit() || *b == b'.' => {
+                while self
+                    .s
+                    .get(self.pos)
+                    .is_some_and(|b| b.is_ascii_digit() || *b == b'.')
+                {
+                    self.pos += 1;
+                }
+                self.text[start..self.pos]
+                    .parse::<f64>()
+                    .map(Expr::Num)
+                    .map_err(|_| SyntaxError {
+                        at: self.base + start,
+                        message: format!("`{}` is not a number", &self.text[start..self.pos]),
+                    })
+            }
+            Some(b) if b.is_ascii_alphabetic() || *b == b'_' => {
+                while self
+                    .s
+                    .get(self.pos)
+                    .is_some_and(|b| b.is_ascii_alphanumeric() || *b == b'_')
+                {
+                    self.pos += 1;
+                }
+                Ok(Expr::Var(
+                    self.text[start..self.pos].to_string(),
+                    self.base + start,
+                ))
+            }
+            None => Err(self.err("expected a name or a number in the placeholder")),
+            Some(_) => Err(self.err(format!(
+                "expected a name or a number, found `{}`",
+                self.text[self.pos..].chars().next().unwrap_or(' ')
+            ))),
+        }
+    }
+}
+
+/// A template over a JSON value (a motor schema): strings are templates.
+#[derive(Clone, Debug, PartialEq)]
+pub enum JsonTemplate {
+    /// A number, bool or null, as is.
+    Lit(serde_json::Value),
+    /// A string template.
+    Str(Template),
+    /// A list.
+    Arr(Vec<JsonTemplate>),
+    /// A mapping, in order.
+    Obj(Vec<(String, JsonTemplate)>),
+}
+
+impl JsonTemplate {
+    /// Parse every string of `v` as a template.
+    pub fn parse(v: &serde_json::Value) -> Result<JsonTemplate, SyntaxError> {
+        Ok(match v {
+            serde_json::Value::String(s) => JsonTemplate::Str(Template::parse(s)?),
+            serde_json::Value::Array(a) => JsonTemplate::Arr(
+                a.iter()
+                    .map(JsonTemplate::parse)
+                    .collect::<Result<_, _>>()?,
+            ),
+            serde_json::Value::Object(m) => JsonTemplate::Obj(
+                m.iter()
+                    .map(|(k, v)| Ok((k.clone(), JsonTemplate::parse(v)?)))
+                    .collect::<Result<_, _>>()?,
+            ),
+            other => JsonTemplate::Lit(other.clone()),
+        })
+    }
+
+    /// Every variable read anywhere in it.
+    pub fn vars(&self) -> Vec<&str> {
+        let mut out = Vec::new();
+        self.collect(&mut out);
+        out
+    }
+
+    fn collect<'a>(&'a self, out: &mut Vec<&'a str>) {
+        match self {
+            JsonTemplate::Lit(_) => {}
+            JsonTemplate::Str(t) => out.extend(t.vars().into_iter().map(|(v, _)| v)),
+            JsonTemplate::Arr(a) => a.iter().for_each(|t| t.collect(out)),
+            JsonTemplate::Obj(m) => m.iter().for_each(|(_, t)| t.collect(out)),
+        }
+    }
+
+    /// Fill in: a string that is one placeholder becomes its value.
+    pub fn render(&self, env: &mut dyn Env) -> Result<serde_json::Value, EvalError> {
+        Ok(match self {
+            JsonTemplate::Lit(v) => v.clone(),
+            JsonTemplate::Str(t) => match t.whole() {
+                Some(e) => e.eval(env)?.to_json(),
+                None => serde_json::Value::String(t.render(env)?),
+            },
+            JsonTemplate::Arr(a) => {
+                serde_json::Value::Array(a.iter().map(|t| t.render(env)).collect::<Result<_, _>>()?)
+            }
+            JsonTemplate::Obj(m) => {
+                let mut o = serde_json::Map::new();
+                for (k, t) in m {
+                    o.insert(k.clone(), t.render(env)?);
+                }
+                serde_json::Value::Object(o)
+            }
+        })
+    }
+}
+
+/// An `if:` guard: whether a phase, child or schema is part of this
+/// command's decomposition.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Guard {
+    /// `name`: the parameter was given.
+    Known(String),
+    /// `not name` / `!name`: it was left empty.
+    Unknown(String),
+    /// `name == value` (or `!=`), compared without case.
+    Eq {
+        /// The variable.
+        var: String,
+        /// The value compared with.
+        value: String,
+        /// `!=`.
+        negated: bool,
+    },
+}
+
+impl Guard {
+    /// Parse `name`, `not name`, `!name`, `name == value`, `name != value`.
+    pub fn parse(text: &str) -> Result<Guard, String> {
+        let t = text.trim();
+        let ident = |s: &str| {
+            let s = s.trim();
+            (!s.is_empty()
+                && s.chars()
+                    .next()
+                    .is_some_and(|c| c.is_ascii_alphabetic() || c == '_')
+                && s.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'))
+            .then(|| s.to_string())
+        };
+        let expected = || {
+            format!("`if: {t}`: expected `name`, `not name`, `name == value` or `name != value`")
+        };
+        for (sep, negated) in [("==", false), ("!=", true)] {
+            if let Some((a, b)) = t.split_once(sep) {
+                let (Some(var), Some(value)) = (ident(a), ident(b)) else {
+                    return Err(expected());
+                };
+                return Ok(Guard::Eq {
+                    var,
+                    value: value.to_ascii_lowercase(),
+                    negated,
+                });
+            }
+        }
+        if let Some(rest) = t.strip_prefix('!').or_else(|| t.strip_prefix("not ")) {
+            return ident(rest).map(Guard::Unknown).ok_or_else(expected);
+        }
+        ident(t).map(Guard::Known).ok_or_else(expected)
+    }
+
+    /// The variable the guard tests.
+    pub fn var(&self) -> &str {
+        match self {
+            Guard::Known(v) | Guard::Unknown(v) | Guard::Eq { var: v, .. } => v,
+        }
+    }
+
+    /// Does it hold?
+    pub fn holds(&self, env: &mut dyn Env) -> bool {
+        match self {
+            Guard::Known(v) => env.get(v).is_some(),
+            Guard::Unknown(v) => env.get(v).is_none(),
+            Guard::Eq {
+                var,
+                value,
+                negated,
+            } => {
+                let eq = env
+                    .get(var)
+                    .is_some_and(|v| v.to_text().eq_ignore_ascii_case(value));
+                eq != *negated
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::collections::BTreeMap;
+
+    struct Map(BTreeMap<&'static str, Val>);
+    impl Env for Map {
+        fn get(&mut self, name: &str) -> Option<Val> {
+            self.0.get(name).cloned()
+        }
+    }
+
+    fn env() -> Map {
+        Map(BTreeMap::from([
+            ("object", Val::Text("box".into())),
+            ("goal", Val::Point([6.2, 2.0])),
+            ("y0", Val::Num(1.0)),
+            ("y1", Val::Num(4.0)),
+            ("i", Val::Num(2.0)),
+            ("n", Val::Num(3.0)),
+            ("shape", Val::Text("triangle".into())),
+        ]))
+    }
+
+    #[test]
+    fn renders_text_and_arithmetic() {
+        let t = Template::parse("dist({object}_pos, {goal}) < {0.1 + 0.2}").expect("parses");
+        assert_eq!(
+            t.render(&mut env()),
+            Ok("dist(box_pos, [6.2, 2]) < 0.3".to_string())
+        );
+        let lane = Template::parse("{y0 + (y1 - y0) * (i - 1) / n}").expect("parses");
+        assert_eq!(lane.value(&mut env()), Ok(Val::Num(2.0)));
+        let neg = Template::parse("{-i * -2}").expect("parses");
+        assert_eq!(neg.value(&mut env()), Ok(Val::Num(4.0)));
+        let braces = Template::parse("{{x}}").expect("parses");
+        assert_eq!(braces.render(&mut env()), Ok("{x}".to_string()));
+    }
+
+    #[test]
+    fn json_placeholders_keep_their_type() {
+        let v = serde_json::json!({"schema": "push", "object": "{object}", "goal": "{goal}",
+            "region": ["{y0}", "{y1 / 2}"], "label": "to {object}", "layer": 2});
+        let t = JsonTemplate::parse(&v).expect("parses");
+        assert_eq!(
+            t.render(&mut env()),
+            Ok(
+                serde_json::json!({"schema": "push", "object": "box", "goal": [6.2, 2],
+                "region": [1, 2], "label": "to box", "layer": 2})
+            )
+        );
+        let mut vars = t.vars();
+        vars.sort_unstable();
+        assert_eq!(vars, ["goal", "object", "object", "y0", "y1"]);
+    }
+
+    #[test]
+    fn errors() {
+        assert_eq!(
+            Template::parse("a {b").map_err(|e| e.at),
+            Err(2),
+            "unclosed"
+        );
+        assert_eq!(Template::parse("a } b").map_err(|e| e.at), Err(2));
+        assert_eq!(Template::parse("{a +}").map_err(|e| e.at), Err(4));
+        assert_eq!(Template::parse("{a b}").map_err(|e| e.at), Err(3));
+        assert_eq!(Template::parse("{(a}").map_err(|e| e.at), Err(3));
+        let t = Template::parse("{missing}").expect("parses");
+        assert_eq!(
+            t.render(&mut env()),
+            Err(EvalError::Unknown("missing".into()))
+        );
+        let t = Template::parse("{object + 1}").expect("parses");
+        assert!(matches!(
+            t.render(&mut env()),
+            Err(EvalError::Type { op: '+', .. })
+        ));
+        let t = Template::parse("{1 / (i - 2)}").expect("parses");
+        assert_eq!(t.render(&mut env()), Err(EvalError::NotFinite));
+    }
+
+    #[test]
+    fn guards() {
+        let mut e = env();
+        assert!(Guard::parse("goal").expect("guard").holds(&mut e));
+        assert!(!Guard::parse("x").expect("guard").holds(&mut e));
+        assert!(Guard::parse("not x").expect("guard").holds(&mut e));
+        assert!(Guard::parse("!x").expect("guard").holds(&mut e));
+        assert!(
+            Guard::parse("shape == Triangle")
+                .expect("guard")
+                .holds(&mut e)
+        );
+        assert!(Guard::parse("shape != line").expect("guard").holds(&mut e));
+        assert!(Guard::parse("a ==").is_err());
+        assert!(Guard::parse("").is_err());
+    }
+
+    #[test]
+    fn numbers_format_cleanly() {
+        assert_eq!(fmt_num(0.1 + 0.2), "0.3");
+        assert_eq!(fmt_num(-0.0), "0");
+        assert_eq!(fmt_num(6.7 - 0.5), "6.2");
+        assert_eq!(num_json(3.0), serde_json::json!(3));
+        assert_eq!(num_json(0.25), serde_json::json!(0.25));
+    }
+}
