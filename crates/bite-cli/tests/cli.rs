@@ -231,7 +231,9 @@ fn compile_prints_the_graph_and_locates_mistakes() {
 fn the_formation_and_coverage_missions_complete_in_their_worlds() {
     let (summary, _) = run_mission("examples/formation-walk.rtcl", "walk");
     assert_eq!(summary["completed"], true, "{summary:#}");
-    let err = summary["world"]["formation_error"][0].as_f64().unwrap_or(f64::MAX);
+    let err = summary["world"]["formation_error"][0]
+        .as_f64()
+        .unwrap_or(f64::MAX);
     assert!(err < 0.25, "formation error {err}");
     let (summary, _) = run_mission("examples/coverage-sweep.rtcl", "sweep");
     assert_eq!(summary["completed"], true, "{summary:#}");
