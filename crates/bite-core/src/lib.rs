@@ -37,6 +37,7 @@ pub mod roster;
 pub mod rules;
 pub mod time;
 pub mod value;
+pub mod wm;
 pub mod yaml;
 
 pub use graph::{BehaviorGraph, Config};

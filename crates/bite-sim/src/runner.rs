@@ -137,6 +137,12 @@ enum What {
         to: RobotId,
         env: Arc<Envelope>,
     },
+    /// A world-model message.
+    Inform {
+        from: RobotId,
+        to: RobotId,
+        msg: Arc<bite_core::wm::Inform>,
+    },
     Timer(RobotId),
     Fact(usize),
     Crash(RobotId),
@@ -205,6 +211,10 @@ struct Sim<'a, 'w> {
     physics: Option<crate::physics::World>,
     /// Each behavior's motor schemas (empty: none).
     motor: Vec<Arc<[crate::physics::schema::Weighted]>>,
+    /// Each robot's world model (empty when the team shares nothing).
+    wms: Vec<bite_core::wm::WorldModel>,
+    /// Scratch for the world model's outputs.
+    told: Vec<(BeliefId, Value, Source)>,
     next_poses: Time,
 }
 
@@ -284,9 +294,25 @@ impl Sim<'_, '_> {
         if k.stack_version() != self.versions[i] {
             self.versions[i] = k.stack_version();
             let leaf = k.leaf().map(|f| (f.behavior, f.team, f.epoch));
-            let started = self.worlds[i].leaf_changed(&self.book, leaf, self.now);
-            for (id, v) in started {
-                self.kernels[i].set_belief(*id, v.clone(), Source::Percept);
+            let started: Vec<(BeliefId, Value)> = self.worlds[i]
+                .leaf_changed(&self.book, leaf, self.now)
+                .to_vec();
+            if self.wms.is_empty() {
+                for (id, v) in started {
+                    self.kernels[i].set_belief(id, v, Source::Percept);
+                }
+            } else {
+                let mut own = Vec::new();
+                let mut told = std::mem::take(&mut self.told);
+                told.clear();
+                self.wms[i].perceive(self.now, &started, &mut own, &mut told);
+                for (id, v) in own {
+                    self.kernels[i].set_belief(id, v, Source::Percept);
+                }
+                for (id, v, src) in told.drain(..) {
+                    self.kernels[i].set_belief(id, v, src);
+                }
+                self.told = told;
             }
             if let Some(w) = self.physics.as_mut() {
                 let leaf = leaf.map(|l| l.0);
@@ -306,6 +332,15 @@ impl Sim<'_, '_> {
     }
 
     fn transmit(&mut self, from: RobotId, to: RobotId, env: &Arc<Envelope>) {
+        self.send(from, to, || What::Deliver {
+            to,
+            env: env.clone(),
+        });
+    }
+
+    /// Put a message on the simulated network: radio range, loss,
+    /// duplication, latency; `what` makes each copy's delivery.
+    fn send(&mut self, from: RobotId, to: RobotId, what: impl Fn() -> What) {
         if let Some(w) = &self.physics
             && !w.in_radio_range(from.index(), to.index())
         {
@@ -315,15 +350,44 @@ impl Sim<'_, '_> {
         let mut times = std::mem::take(&mut self.times);
         self.net.transmit(self.now, from, to, &mut times);
         for t in &times {
-            self.schedule(
-                *t,
-                What::Deliver {
-                    to,
-                    env: env.clone(),
-                },
-            );
+            self.schedule(*t, what());
         }
         self.times = times;
+    }
+
+    /// Robot `r`'s world model: decide what to share when due, then send
+    /// what the budget allows.
+    fn share(&mut self, r: RobotId) {
+        let i = r.index();
+        if i >= self.wms.len() {
+            return;
+        }
+        if self.wms[i].due(self.now) {
+            self.wms[i].share(self.now, &self.kernels[i]);
+        }
+        while let Some(o) = self.wms[i].poll(self.now) {
+            if self.log.is_writing() {
+                let rec = json!({
+                    "t": self.now.as_secs_f64(),
+                    "robot": self.graph.roster().name(r),
+                    "event": "inform",
+                    "reason": o.msg.reason,
+                    "about": o.msg.about.map(|b| self.graph.name_of(b).to_string()),
+                    "to": o.to.iter().map(|x| self.graph.roster().name(*x)).collect::<Vec<_>>(),
+                    "beliefs": bite_core::wm::belief_names(&self.graph, &o.msg),
+                });
+                self.log.write(&rec);
+            }
+            let msg = Arc::new(o.msg);
+            for to in o.to {
+                let msg = msg.clone();
+                self.send(r, to, move || What::Inform {
+                    from: r,
+                    to,
+                    msg: msg.clone(),
+                });
+            }
+        }
     }
 
     /// When `observer` notices a change about `subject`: detection happens
@@ -421,7 +485,26 @@ impl Sim<'_, '_> {
                         if let Some(w) = self.physics.as_mut() {
                             w.sense(i, &mut percepts);
                         }
-                        self.kernels[i].tick(self.now, &percepts);
+                        if self.wms.is_empty() {
+                            self.kernels[i].tick(self.now, &percepts);
+                        } else {
+                            // The world model between perception and the
+                            // kernel: fused with what teammates said.
+                            let mut own = Vec::with_capacity(percepts.len());
+                            let mut told = std::mem::take(&mut self.told);
+                            told.clear();
+                            self.wms[i].perceive(self.now, &percepts, &mut own, &mut told);
+                            for (id, v, src) in told.drain(..) {
+                                self.kernels[i].set_belief(id, v, src);
+                            }
+                            self.told = told;
+                            // What the new beliefs make true is shared
+                            // before the kernel acts on it (and, say,
+                            // dissolves the subteams it would inform).
+                            self.kernels[i].observe(self.now, &own);
+                            self.share(RobotId(i as u32));
+                            self.kernels[i].tick(self.now, &[]);
+                        }
                         self.percepts = percepts;
                         self.drain(RobotId(i as u32));
                         if self.physics.is_some() {
@@ -486,6 +569,22 @@ impl Sim<'_, '_> {
                     if !self.crashed[to.index()] {
                         self.kernels[to.index()].message(self.now, (*env).clone());
                         self.drain(to);
+                    }
+                }
+                What::Inform { from, to, msg } => {
+                    let i = to.index();
+                    if !self.crashed[i] && i < self.wms.len() {
+                        let mut own = Vec::new();
+                        let mut told = std::mem::take(&mut self.told);
+                        told.clear();
+                        self.wms[i].receive(from, &msg, &mut own, &mut told);
+                        for (id, v) in own {
+                            self.kernels[i].set_belief(id, v, Source::Percept);
+                        }
+                        for (id, v, src) in told.drain(..) {
+                            self.kernels[i].set_belief(id, v, src);
+                        }
+                        self.told = told;
                     }
                 }
                 What::Timer(r) => {
@@ -648,6 +747,27 @@ pub fn run(
         }
     };
     let motor = resolved.motor.clone();
+    let sharing = graph.sharing();
+    let wms = if sharing.policy == bite_core::wm::Policy::None {
+        Vec::new()
+    } else {
+        let mut private = vec![false; sym.len()];
+        let mut personal = crate::world::SkillBook::private_beliefs(scenario, &graph);
+        if let Some(w) = &physics {
+            personal.extend(w.private_beliefs());
+        }
+        for id in personal {
+            if let Some(p) = private.get_mut(id.index()) {
+                *p = true;
+            }
+        }
+        let private: Arc<[bool]> = Arc::from(private);
+        (0..n as u32)
+            .map(|r| {
+                bite_core::wm::WorldModel::new(RobotId(r), sym.len(), sharing, private.clone())
+            })
+            .collect()
+    };
     let mut sim = Sim {
         book: SkillBook::new(scenario, &graph),
         kernels,
@@ -674,6 +794,8 @@ pub fn run(
         seed,
         physics,
         motor,
+        wms,
+        told: Vec::new(),
         next_poses: Time::ZERO,
     };
     let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);
@@ -712,6 +834,9 @@ pub fn run(
         fingerprint,
     );
     summary.world = sim.physics.as_ref().map(crate::physics::summary);
+    summary.sharing = (!sim.wms.is_empty()).then(|| {
+        bite_core::wm::SharingTotals::of(graph.sharing().policy, sim.wms.iter().map(|w| w.stats()))
+    });
     sim.log.write(&json!({
         "t": end.as_secs_f64(),
         "event": "run_finished",

@@ -132,6 +132,9 @@ pub struct Summary {
     /// The physical world's results (`world: physics`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub world: Option<WorldSummary>,
+    /// The world models' messages (when the team shares beliefs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sharing: Option<bite_core::wm::SharingTotals>,
 }
 
 /// What happened in the physical world.
@@ -328,6 +331,7 @@ impl Aggregator {
             points,
             log_fingerprint: format!("{log_fingerprint:016x}"),
             world: None,
+            sharing: None,
         }
     }
 }
@@ -382,6 +386,21 @@ impl fmt::Display for Summary {
                 w.formation_error
                     .map(|[m, x]| format!("; formation error {m:.2} m mean, {x:.2} m max"))
                     .unwrap_or_default()
+            )?;
+        }
+        if let Some(w) = &self.sharing {
+            let get = |k: &str| w.messages.get(k).copied().unwrap_or(0);
+            writeln!(
+                f,
+                "  world model      {}: {} messages ({} bytes): obligatory {}, helpful {}, broadcast {}; {} dropped for budget; {} beliefs adopted",
+                w.policy,
+                w.total(),
+                w.bytes.values().sum::<u64>(),
+                get("obligatory"),
+                get("helpful"),
+                get("broadcast"),
+                w.dropped,
+                w.adopted
             )?;
         }
         writeln!(

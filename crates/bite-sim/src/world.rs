@@ -37,6 +37,23 @@ pub struct SkillBook {
 }
 
 impl SkillBook {
+    /// The beliefs skills drive (rates, `drives`, start and done effects):
+    /// about the robot's own progress, never shared by a world model.
+    pub fn private_beliefs(scenario: &Scenario, graph: &BehaviorGraph) -> Vec<BeliefId> {
+        let sym = graph.symbols();
+        let mut out: Vec<BeliefId> = Vec::new();
+        for m in scenario.skills.values() {
+            let names = (m.rates.iter().map(|(n, _)| n))
+                .chain(m.drives.iter())
+                .chain(m.on_start.iter().map(|(n, _)| n))
+                .chain(m.on_done.iter().map(|(n, _)| n));
+            out.extend(names.filter_map(|n| sym.get(n)));
+        }
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
     /// Resolve the scenario's skills for the graph's behaviors. Beliefs no
     /// condition reads are dropped (the scenario check warns about them).
     pub fn new(scenario: &Scenario, graph: &BehaviorGraph) -> Self {

@@ -33,6 +33,7 @@ pub struct Config {
     pub file: Arc<str>,
     defaults: [Option<Binding>; 3],
     bindings: Vec<(String, Binding)>,
+    world_model: Option<serde_saphyr::Spanned<super::spec::WorldModelSpec>>,
 }
 
 impl Config {
@@ -78,12 +79,20 @@ impl Config {
                 .file_stem()
                 .map_or_else(|| file.to_string(), |s| s.to_string_lossy().into_owned())
         });
+        if let Some(w) = &spec.world_model {
+            // Checked now, applied over the graph's settings later.
+            crate::wm::Sharing::default().with_spec(file, w, &mut diags);
+        }
+        if diags.iter().any(|d| d.is_error()) {
+            return Err(Diagnostics(diags));
+        }
         Ok(Config {
             name,
             description: spec.description,
             file: file.clone(),
             defaults,
             bindings,
+            world_model: spec.world_model,
         })
     }
 
@@ -143,6 +152,9 @@ impl BehaviorGraph {
             if let Some(d) = &cfg.defaults[kind.index()] {
                 g.defaults[kind.index()] = Some(d.clone());
             }
+        }
+        if let Some(w) = &cfg.world_model {
+            g.sharing = g.sharing.with_spec(&cfg.file, w, &mut diags);
         }
         if !diags.is_empty() {
             return Err(Diagnostics(diags));

@@ -241,6 +241,10 @@ impl Builder<'_> {
             self.check_runs_scope(&out, start);
         }
         let defaults = self.defaults(&spec.defaults);
+        let sharing = match &spec.world_model {
+            Some(w) => crate::wm::Sharing::default().with_spec(&self.file, w, &mut self.diags),
+            None => crate::wm::Sharing::default(),
+        };
         let initial_beliefs = self.beliefs(&spec.beliefs);
 
         if self.diags.iter().any(Diagnostic::is_error) {
@@ -260,6 +264,7 @@ impl Builder<'_> {
             roster: Arc::new(roster),
             defaults,
             initial_beliefs,
+            sharing,
             config: None,
             warnings: self.diags,
         })

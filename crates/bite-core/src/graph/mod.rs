@@ -139,6 +139,7 @@ pub struct BehaviorGraph {
     roster: Arc<Roster>,
     defaults: [Option<Binding>; 3],
     initial_beliefs: Vec<(String, Value)>,
+    sharing: crate::wm::Sharing,
     config: Option<String>,
     warnings: Vec<Diagnostic>,
 }
@@ -155,6 +156,10 @@ impl BehaviorGraph {
     /// File it was loaded from.
     pub fn file(&self) -> &Arc<str> {
         &self.file
+    }
+    /// The team's world-model settings (`world_model:`).
+    pub fn sharing(&self) -> crate::wm::Sharing {
+        self.sharing
     }
     /// Name of the applied configuration, if any.
     pub fn config_name(&self) -> Option<&str> {

@@ -57,8 +57,22 @@ pub struct GraphSpec {
     /// Beliefs every robot starts with.
     #[serde(default)]
     pub beliefs: Ordered<serde_json::Value>,
+    /// Collaborative world modelling: what the robots tell each other.
+    pub world_model: Option<Spanned<WorldModelSpec>>,
     /// The behaviors, by name.
     pub behaviors: Option<Spanned<Ordered<BehaviorSpec>>>,
+}
+
+/// `world_model: { sharing: focused+helpful, hz: 10, budget: 20 }`.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WorldModelSpec {
+    /// `none`, `broadcast`, `focused`, `helpful` or `focused+helpful`.
+    pub sharing: Option<String>,
+    /// Decisions per second.
+    pub hz: Option<f64>,
+    /// Messages per second per robot (one per recipient).
+    pub budget: Option<f64>,
 }
 
 /// The `team:` section.
@@ -374,4 +388,6 @@ pub struct ConfigSpec {
     /// Point name (label such as `A`, or `behavior.kind`) → binding.
     #[serde(default)]
     pub bindings: Ordered<BindingSpec>,
+    /// Overrides of the graph's world-model settings.
+    pub world_model: Option<Spanned<WorldModelSpec>>,
 }

@@ -427,13 +427,19 @@ impl Kernel {
         }
     }
 
-    /// A control tick: record percepts, fire due timers, run Algorithm 1
-    /// until it must wait.
-    pub fn tick(&mut self, now: Time, percepts: &[(BeliefId, Value)]) {
+    /// Record percepts without acting on them yet: the world model looks at
+    /// the beliefs they make before the next [`tick`](Kernel::tick) acts.
+    pub fn observe(&mut self, now: Time, percepts: &[(BeliefId, Value)]) {
         self.set_now(now);
         for (id, v) in percepts {
             self.beliefs.set(*id, v.clone(), self.now, Source::Percept);
         }
+    }
+
+    /// A control tick: record percepts, fire due timers, run Algorithm 1
+    /// until it must wait.
+    pub fn tick(&mut self, now: Time, percepts: &[(BeliefId, Value)]) {
+        self.observe(now, percepts);
         self.ticks += 1;
         self.in_tick = true;
         self.step();

@@ -1012,6 +1012,27 @@ impl World {
         self.near = near;
     }
 
+    /// The graph beliefs that are about the robot itself (its pose, its
+    /// skill, its odometry, the zone it is in, what it sees of teammates):
+    /// computed from those percepts alone or in part. A world model never
+    /// shares them: a teammate's `skill_done` says nothing about mine.
+    pub fn private_beliefs(&self) -> Vec<BeliefId> {
+        let personal =
+            |p: BeliefId| p.index() < FIXED.len() || self.zone_ids.iter().any(|(_, z)| *z == p);
+        let mut out: Vec<BeliefId> = (self.direct.iter())
+            .filter(|(p, _)| personal(*p))
+            .map(|(_, g)| *g)
+            .collect();
+        out.extend(
+            (self.mapped.iter())
+                .filter(|m| m.expr.beliefs().iter().any(|p| personal(*p)))
+                .map(|m| m.belief),
+        );
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+
     /// The behavior-selection module: fuse the schemas of robot `i`'s
     /// current skill over what it sensed last into its velocity command.
     pub fn control(&mut self, i: usize) {
