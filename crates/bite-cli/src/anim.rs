@@ -1,5 +1,5 @@
 //! Animated GIFs of a run: the SVG frames, rasterised with resvg and
-//! encoded with the `gif` crate.
+//! encoded with the `gif` crate, one at a time.
 
 use anyhow::{Context, Result, anyhow};
 use resvg::{tiny_skia, usvg};
@@ -9,40 +9,63 @@ use std::sync::Arc;
 /// Width of the animation, pixels (frames are scaled to it).
 const WIDTH: u32 = 800;
 
-/// Write `frames` (SVG documents) as a looping GIF, `delay_ms` apart.
-pub fn write_gif(path: &Path, frames: &[String], delay_ms: u32) -> Result<()> {
-    let mut opt = usvg::Options::default();
-    // Labels need a font: the system's, if it has one (without, shapes are
-    // still drawn).
-    let mut db = usvg::fontdb::Database::new();
-    db.load_system_fonts();
-    // `sans-serif` maps to Arial unless told otherwise: use a family the
-    // system has.
-    let families: Vec<String> = db
-        .faces()
-        .flat_map(|f| f.families.iter().map(|(n, _)| n.clone()))
-        .collect();
-    if let Some(f) = [
-        "DejaVu Sans",
-        "Liberation Sans",
-        "Noto Sans",
-        "Arial",
-        "Helvetica",
-    ]
-    .into_iter()
-    .find(|f| families.iter().any(|n| n == f))
-    .map(str::to_string)
-    .or_else(|| families.first().cloned())
-    {
-        db.set_sans_serif_family(f);
+/// A looping GIF written one frame at a time.
+pub struct GifWriter {
+    path: std::path::PathBuf,
+    opt: usvg::Options<'static>,
+    /// Hundredths of a second between frames (at least 2: viewers play
+    /// faster ones flat out).
+    delay: u16,
+    file: Option<std::io::BufWriter<std::fs::File>>,
+    encoder: Option<gif::Encoder<std::io::BufWriter<std::fs::File>>>,
+    frames: usize,
+}
+
+impl GifWriter {
+    /// A GIF at `path`, frames `delay_ms` apart.
+    pub fn create(path: &Path, delay_ms: u32) -> Result<Self> {
+        let mut opt = usvg::Options::default();
+        // Labels need a font: the system's, if it has one (without, shapes
+        // are still drawn).
+        let mut db = usvg::fontdb::Database::new();
+        db.load_system_fonts();
+        // `sans-serif` maps to Arial unless told otherwise: use a family the
+        // system has.
+        let families: Vec<String> = db
+            .faces()
+            .flat_map(|f| f.families.iter().map(|(n, _)| n.clone()))
+            .collect();
+        if let Some(f) = [
+            "DejaVu Sans",
+            "Liberation Sans",
+            "Noto Sans",
+            "Arial",
+            "Helvetica",
+        ]
+        .into_iter()
+        .find(|f| families.iter().any(|n| n == f))
+        .map(str::to_string)
+        .or_else(|| families.first().cloned())
+        {
+            db.set_sans_serif_family(f);
+        }
+        opt.fontdb = Arc::new(db);
+        let file =
+            std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
+        Ok(GifWriter {
+            path: path.to_path_buf(),
+            opt,
+            delay: u16::try_from(delay_ms / 10).unwrap_or(u16::MAX).max(2),
+            file: Some(std::io::BufWriter::new(file)),
+            encoder: None,
+            frames: 0,
+        })
     }
-    opt.fontdb = Arc::new(db);
-    let file =
-        std::fs::File::create(path).with_context(|| format!("creating {}", path.display()))?;
-    let mut encoder: Option<gif::Encoder<std::io::BufWriter<std::fs::File>>> = None;
-    let mut file = Some(std::io::BufWriter::new(file));
-    for (k, svg) in frames.iter().enumerate() {
-        let tree = usvg::Tree::from_str(svg, &opt).with_context(|| format!("frame {k}"))?;
+
+    /// Add one frame (an SVG document), scaled to `WIDTH` pixels.
+    pub fn push(&mut self, svg: &str) -> Result<()> {
+        let k = self.frames;
+        let tree = usvg::Tree::from_str(svg, &self.opt).with_context(|| format!("frame {k}"))?;
         let size = tree.size();
         let scale = WIDTH as f32 / size.width().max(1.0);
         let (w, h) = (WIDTH, (size.height() * scale).ceil().max(1.0) as u32);
@@ -58,23 +81,24 @@ pub fn write_gif(path: &Path, frames: &[String], delay_ms: u32) -> Result<()> {
             u16::try_from(w).context("frame too wide")?,
             u16::try_from(h).context("frame too tall")?,
         );
-        if encoder.is_none()
-            && let Some(f) = file.take()
+        if self.encoder.is_none()
+            && let Some(f) = self.file.take()
         {
             let mut e = gif::Encoder::new(f, w16, h16, &[])
-                .with_context(|| format!("writing {}", path.display()))?;
+                .with_context(|| format!("writing {}", self.path.display()))?;
             e.set_repeat(gif::Repeat::Infinite)?;
-            encoder = Some(e);
+            self.encoder = Some(e);
         }
-        let Some(e) = encoder.as_mut() else {
-            continue;
+        let Some(e) = self.encoder.as_mut() else {
+            return Ok(());
         };
         // Opaque (filled white first), so premultiplied RGBA is plain RGBA.
         let mut rgba = pixmap.take();
         let mut frame = gif::Frame::from_rgba_speed(w16, h16, &mut rgba, 10);
-        frame.delay = u16::try_from(delay_ms / 10).unwrap_or(u16::MAX);
+        frame.delay = self.delay;
         e.write_frame(&frame)
-            .with_context(|| format!("writing {}", path.display()))?;
+            .with_context(|| format!("writing {}", self.path.display()))?;
+        self.frames += 1;
+        Ok(())
     }
-    Ok(())
 }

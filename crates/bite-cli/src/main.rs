@@ -114,13 +114,8 @@ enum Cmd {
         robots: Option<usize>,
         /// Where the mission's (0, 0) is, `x,y` in metres (default: the
         /// scenario's, else 0,0).
-        #[arg(
-            long,
-            value_delimiter = ',',
-            num_args = 2,
-            allow_negative_numbers = true
-        )]
-        origin: Option<Vec<f64>>,
+        #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+        origin: Option<[f64; 2]>,
         /// Write to this file instead of standard output.
         #[arg(short, long)]
         output: Option<PathBuf>,
@@ -193,7 +188,7 @@ enum BenchCmd {
     /// minute: wall time, physics steps per second, real-time factor.
     Sim {
         /// Team sizes of the coverage runs at scale.
-        #[arg(long, value_delimiter = ',', default_values_t = [10usize, 100, 1000, 10000])]
+        #[arg(long, value_delimiter = ',', value_parser = parse_robots, default_values_t = [10usize, 100, 1000, 10000])]
         robots: Vec<usize>,
         /// Simulated seconds of each coverage run at scale.
         #[arg(long, default_value_t = 60.0)]
@@ -245,6 +240,21 @@ enum BenchCmd {
 
 fn parse_dur(s: &str) -> Result<Duration, String> {
     bite_core::time::parse_duration(s)
+}
+
+/// `x,y` in metres.
+fn parse_point(s: &str) -> Result<[f64; 2], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [x, y] = parts.as_slice() else {
+        return Err(format!("expected `x,y` (two numbers, metres), found `{s}`"));
+    };
+    let num = |t: &str| {
+        t.parse::<f64>()
+            .ok()
+            .filter(|v| v.is_finite())
+            .ok_or_else(|| format!("`{t}` is not a number (in `{s}`)"))
+    };
+    Ok([num(x)?, num(y)?])
 }
 
 fn parse_robots(s: &str) -> Result<usize, String> {
@@ -552,31 +562,36 @@ fn draw_pictures(
     if frames.is_some() || gif.is_some() {
         let every = if every > 0.0 { every } else { 1.0 };
         let count = (end / every).floor() as usize + 1;
-        let docs: Vec<String> = (0..count)
-            .map(|k| {
-                let t = (k as f64 * every).min(end);
-                bite_sim::physics::svg::draw(
-                    world,
-                    &bite_sim::physics::svg::Labels {
-                        title: title(t),
-                        robots: &robots,
-                        behaviors: &behaviors,
-                        at: Some(t),
-                    },
-                )
-            })
-            .collect();
         if let Some(dir) = frames {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-            for (k, doc) in docs.iter().enumerate() {
-                let p = dir.join(format!("frame-{k:05}.svg"));
-                std::fs::write(&p, doc).with_context(|| format!("writing {}", p.display()))?;
-            }
-            written.push(format!("{} ({count} frames)", dir.display()));
         }
-        if let Some(p) = gif {
-            // Ten times faster than simulated time.
-            anim::write_gif(p, &docs, (every * 100.0).round() as u32)?;
+        // Ten times faster than simulated time.
+        let mut anim = match gif {
+            Some(p) => Some(anim::GifWriter::create(p, (every * 100.0).round() as u32)?),
+            None => None,
+        };
+        // One frame at a time: a long run does not hold them all.
+        for k in 0..count {
+            let t = (k as f64 * every).min(end);
+            let doc = bite_sim::physics::svg::draw(
+                world,
+                &bite_sim::physics::svg::Labels {
+                    title: title(t),
+                    robots: &robots,
+                    behaviors: &behaviors,
+                    at: Some(t),
+                },
+            );
+            if let Some(dir) = frames {
+                let p = dir.join(format!("frame-{k:05}.svg"));
+                std::fs::write(&p, &doc).with_context(|| format!("writing {}", p.display()))?;
+            }
+            if let Some(a) = anim.as_mut() {
+                a.push(&doc)?;
+            }
+        }
+        drop(anim);
+        for p in [frames, gif].into_iter().flatten() {
             written.push(format!("{} ({count} frames)", p.display()));
         }
     }
@@ -1003,7 +1018,7 @@ fn main() -> ExitCode {
             library: library.as_deref(),
             scenario: scenario.as_deref(),
             robots,
-            origin: origin.map(|o| [o[0], o.get(1).copied().unwrap_or(0.0)]),
+            origin,
             output: output.as_deref(),
         }),
         Cmd::Protocols => Ok(cmd_protocols()),

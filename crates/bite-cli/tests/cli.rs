@@ -38,9 +38,17 @@ fn run_writes_an_animated_gif_of_the_box_push() {
     );
     let bytes = std::fs::read(&gif).expect("gif written");
     assert_eq!(&bytes[..6], b"GIF89a");
-    // One image descriptor (0x2C after a graphic control block) per frame:
-    // the run lasts over 50 s, so at least 6 frames at one per 10 s.
-    let frames = bytes.windows(2).filter(|w| w == &[0x00, 0x2C]).count();
+    // Decoded: the run lasts over 50 s, so at least 6 frames at one per
+    // 10 s, each 800 pixels wide, shown a second apart.
+    let mut opts = gif::DecodeOptions::new();
+    opts.set_color_output(gif::ColorOutput::Indexed);
+    let mut d = opts.read_info(bytes.as_slice()).expect("a GIF");
+    assert_eq!(d.width(), 800);
+    let mut frames = 0;
+    while let Some(f) = d.read_next_frame().expect("a frame") {
+        assert_eq!(f.delay, 100);
+        frames += 1;
+    }
     assert!(frames >= 6, "{frames} frames");
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("push.gif"), "{stdout}");
@@ -215,6 +223,31 @@ fn compile_prints_the_graph_and_locates_mistakes() {
         text.contains("graph: search-rescue") && text.contains("targets:"),
         "{text}"
     );
+    // The origin as the docs write it, negative numbers included.
+    let out = bite()
+        .arg("compile")
+        .arg(root().join("examples/search-rescue.rtcl"))
+        .args(["--world", "--origin", "-1,2.5"])
+        .output()
+        .expect("bite runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("[-1.5, 3]"),
+        "the goal moved with the origin:\n{text}"
+    );
+    let out = bite()
+        .arg("compile")
+        .arg(root().join("examples/search-rescue.rtcl"))
+        .args(["--origin", "1"])
+        .output()
+        .expect("bite runs");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("x,y"));
     let d = scratch("bad-mission");
     let bad = d.join("bad.rtcl");
     std::fs::write(&bad, "find::::yellow=>box\nmvoe:box:1:2\n").expect("write");

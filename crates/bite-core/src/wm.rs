@@ -49,6 +49,9 @@ pub const HELPFUL_TTL: Duration = Duration::from_secs(1);
 /// fused with it rather than replacing it.
 pub const FUSE_WINDOW: Duration = Duration::from_secs(1);
 
+/// Messages a world model holds back for want of budget, at most.
+pub const MAX_QUEUED: usize = 1024;
+
 /// Confidence a robot gives its own percepts.
 pub const OWN_CONFIDENCE: f32 = 1.0;
 
@@ -377,7 +380,15 @@ impl WorldModel {
                 });
                 self.changed.insert(*id);
             }
-            self.settle(*id, own_out, told_out);
+            // The robot's own percept reaches the kernel at every tick, as
+            // without a world model (`age(b)` counts from the last
+            // reading); a teammate's value only when it changes.
+            if let Some((value, Source::Percept)) = self.fused(*id) {
+                self.given[id.index()] = Some((value.clone(), Source::Percept));
+                own_out.push((*id, value));
+            } else {
+                self.settle(*id, own_out, told_out);
+            }
         }
     }
 
@@ -605,6 +616,13 @@ impl WorldModel {
         // next becomes true.
         self.informed.retain(|k| keep.contains(k));
         self.queue.extend(out.into_iter().map(|o| (now, o)));
+        // Bounded: under a budget too tight for a condition that keeps
+        // flipping, the oldest messages go first (counted).
+        while self.queue.len() > MAX_QUEUED {
+            if let Some((_, o)) = self.queue.pop_front() {
+                self.stats.dropped += o.to.len() as u64;
+            }
+        }
         // Obligatory messages first.
         let (mut first, rest): (VecDeque<_>, VecDeque<_>) = std::mem::take(&mut self.queue)
             .into_iter()
@@ -679,9 +697,19 @@ impl WorldModel {
             return None;
         }
         let b = beliefs.get(id)?;
-        let time = match (&self.own.get(id.index())?, b.source) {
-            (Some(o), Source::Percept) => o.changed,
-            _ => b.time,
+        // When the value changed where it was observed: ours, or the
+        // time the teammate reported (not when we stored it).
+        let time = match b.source {
+            Source::Percept => self
+                .own
+                .get(id.index())?
+                .as_ref()
+                .map_or(b.time, |o| o.changed),
+            _ => self
+                .told
+                .get(id.index())?
+                .as_ref()
+                .map_or(b.time, |t| t.time),
         };
         Some(Report {
             belief: id,

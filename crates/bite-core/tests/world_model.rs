@@ -264,6 +264,11 @@ fn latest_change_wins_and_positions_are_fused_by_confidence() {
     // Own: false since 0 s.
     wm.perceive(t(0.0), &[(flag, Value::Bool(false))], &mut own, &mut told);
     assert_eq!(own, vec![(flag, Value::Bool(false))]);
+    // The robot's own reading reaches the kernel at every tick, changed or
+    // not (so `age(b)` means what it means without a world model).
+    own.clear();
+    wm.perceive(t(0.1), &[(flag, Value::Bool(false))], &mut own, &mut told);
+    assert_eq!(own, vec![(flag, Value::Bool(false))]);
     // A teammate saw it true at 2 s: newer than our last change, it wins...
     let report = |b, v, at| Inform {
         reason: Reason::Obligatory,

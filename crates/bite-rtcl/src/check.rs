@@ -353,6 +353,27 @@ impl Checker<'_, '_> {
                 .or_insert((Defined::Unknown, line));
             return false;
         }
+        // `<command>_<n>` is what the compiler calls the unnamed result (and
+        // the behaviors) of command n: a user's name must not collide.
+        if let Some((cmd, n)) = lc.rsplit_once('_')
+            && !n.is_empty()
+            && n.bytes().all(|b| b.is_ascii_digit())
+            && self.lib.command(cmd).is_some()
+        {
+            self.error(
+                r.span,
+                "bad-name",
+                format!(
+                    "`{}` cannot name a result: `<command>_<n>` names are the compiler's (the unnamed result of command n)",
+                    r.text
+                ),
+                Some(format!("choose another name, e.g. `{cmd}_target{n}`")),
+            );
+            self.names
+                .entry(r.text.clone())
+                .or_insert((Defined::Unknown, line));
+            return false;
+        }
         if let Some((_, first)) = self.names.get(&r.text) {
             let first = *first;
             self.error(

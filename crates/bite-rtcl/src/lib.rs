@@ -141,9 +141,9 @@ impl Compiled {
     /// format, to read or to merge into a physical-world scenario:
     ///
     /// ```yaml
-    /// targets:
-    ///   box: { colour: yellow }
     /// physics:
+    ///   targets:
+    ///     box: { colour: yellow }
     ///   beliefs:
     ///     find_1_found: "known(box_pos)"
     /// skills:
@@ -156,16 +156,16 @@ impl Compiled {
         use std::fmt::Write as _;
         let mut y = String::new();
         y.push_str("# Targets, beliefs and skills of the compiled mission (scenario format).\n");
+        y.push_str("physics:\n");
         if self.targets.is_empty() {
-            y.push_str("targets: {}\n");
+            y.push_str("  targets: {}\n");
         } else {
-            y.push_str("targets:\n");
+            y.push_str("  targets:\n");
             for (name, t) in &self.targets {
                 let v = serde_json::to_value(t).unwrap_or(serde_json::Value::Null);
-                let _ = writeln!(y, "  {name}: {}", flow(&v));
+                let _ = writeln!(y, "    {name}: {}", flow(&v));
             }
         }
-        y.push_str("physics:\n");
         if self.beliefs.is_empty() {
             y.push_str("  beliefs: {}\n");
         } else {

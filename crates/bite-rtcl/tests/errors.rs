@@ -277,6 +277,14 @@ fn bad_name() {
         msg,
         "`skill` cannot name a result: it is a percept of the robots, and `skill_pos` would be ambiguous"
     );
+    // `find_2` is what the unnamed result of the second command is called.
+    let (code, line, col, hint, msg) = one("find::::red=>find_2\nfind::::blue\n");
+    assert_eq!((code, line, col), ("bad-name", 1, 14));
+    assert!(msg.contains("the compiler's"), "{msg}");
+    assert_eq!(
+        hint.as_deref(),
+        Some("choose another name, e.g. `find_target2`")
+    );
 }
 
 #[test]

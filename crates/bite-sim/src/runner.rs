@@ -306,6 +306,7 @@ impl Sim<'_, '_> {
                 let mut told = std::mem::take(&mut self.told);
                 told.clear();
                 self.wms[i].perceive(self.now, &started, &mut own, &mut told);
+                self.kernels[i].observe(self.now, &[]);
                 for (id, v) in own {
                     self.kernels[i].set_belief(id, v, Source::Percept);
                 }
@@ -494,6 +495,7 @@ impl Sim<'_, '_> {
                             let mut told = std::mem::take(&mut self.told);
                             told.clear();
                             self.wms[i].perceive(self.now, &percepts, &mut own, &mut told);
+                            self.kernels[i].observe(self.now, &own);
                             for (id, v, src) in told.drain(..) {
                                 self.kernels[i].set_belief(id, v, src);
                             }
@@ -501,7 +503,6 @@ impl Sim<'_, '_> {
                             // What the new beliefs make true is shared
                             // before the kernel acts on it (and, say,
                             // dissolves the subteams it would inform).
-                            self.kernels[i].observe(self.now, &own);
                             self.share(RobotId(i as u32));
                             self.kernels[i].tick(self.now, &[]);
                         }
@@ -578,6 +579,8 @@ impl Sim<'_, '_> {
                         let mut told = std::mem::take(&mut self.told);
                         told.clear();
                         self.wms[i].receive(from, &msg, &mut own, &mut told);
+                        // The kernel's clock first: beliefs set now are dated now.
+                        self.kernels[i].observe(self.now, &[]);
                         for (id, v) in own {
                             self.kernels[i].set_belief(id, v, Source::Percept);
                         }

@@ -535,6 +535,50 @@ impl World {
             .map(|(z, r)| (*r, id(format!("in_{z}"))))
             .collect();
         let n_objects = objects.len();
+        // One step at rest before the clock starts: it fills the broad
+        // phase's hierarchy that scene queries (what each robot can sense)
+        // read, and the contacts the start check below reads; nothing
+        // moves unless it was placed overlapping something.
+        rw.step();
+        // A robot placed inside a wall, an obstacle, an object or another
+        // robot is the scenario's mistake, not a physics puzzle.
+        for (i, r) in robots.iter().enumerate() {
+            let inside = rw.contact_pairs_with(r.collider).find_map(|p| {
+                let other = if p.collider1 == r.collider {
+                    p.collider2
+                } else {
+                    p.collider1
+                };
+                let (_, c) = p.find_deepest_contact()?;
+                (c.dist < -0.01).then_some(other)
+            });
+            if let Some(other) = inside {
+                let what = match kinds
+                    .get(other.into_raw_parts().0 as usize)
+                    .copied()
+                    .flatten()
+                {
+                    Some(Kind::Wall) => "a wall".to_string(),
+                    Some(Kind::Obstacle) => "an obstacle".to_string(),
+                    Some(Kind::Object(k)) => format!("object {}", k + 1),
+                    Some(Kind::Robot(j)) => format!("robot `{}`", names[j]),
+                    None => "something".to_string(),
+                };
+                let loc = spec
+                    .start
+                    .get(&names[i])
+                    .map_or(bite_core::diag::Loc::UNKNOWN, |s| s.2);
+                errors.push(Diagnostic::error(
+                    file,
+                    loc,
+                    "bad-start",
+                    format!("robot `{}` starts inside {what}", names[i]),
+                ));
+            }
+        }
+        if !errors.is_empty() {
+            return Err(Diagnostics(errors));
+        }
         let coverage = Coverage::new(spec.arena, robots.len());
         Ok(World {
             dt: 1.0 / spec.hz,
@@ -731,9 +775,11 @@ impl World {
                 link: r.link,
             });
         }
-        for i in 0..self.objects.len() {
-            let p = self.object_pos(i);
-            self.object_trails[i].push((self.t, p));
+        if keep {
+            for i in 0..self.objects.len() {
+                let p = self.object_pos(i);
+                self.object_trails[i].push((self.t, p));
+            }
         }
     }
 
@@ -1017,8 +1063,15 @@ impl World {
     /// computed from those percepts alone or in part. A world model never
     /// shares them: a teammate's `skill_done` says nothing about mine.
     pub fn private_beliefs(&self) -> Vec<BeliefId> {
-        let personal =
-            |p: BeliefId| p.index() < FIXED.len() || self.zone_ids.iter().any(|(_, z)| *z == p);
+        // Measured from this robot: its pose, its zone, its view (whether it
+        // sees an object now, how far, at what bearing). Where an object
+        // was seen (`<key>_pos`) is a fact about the world.
+        let personal = |p: BeliefId| {
+            p.index() < FIXED.len()
+                || self.zone_ids.iter().any(|(_, z)| *z == p)
+                || (self.object_keys.iter())
+                    .any(|k| k.ids[0] == p || k.ids[2] == p || k.ids[3] == p)
+        };
         let mut out: Vec<BeliefId> = (self.direct.iter())
             .filter(|(p, _)| personal(*p))
             .map(|(_, g)| *g)
@@ -1088,11 +1141,14 @@ struct Coverage {
 
 impl Coverage {
     const CELL: f64 = 0.1;
+    /// Cells per side at most (the spec limits arenas to this many tenths
+    /// of a metre: 2 km, a 50 MB bitset at most).
+    const MAX_SIDE: f64 = 20_000.0;
 
     fn new(arena: DVec2, robots: usize) -> Self {
         let (nx, ny) = (
-            (arena.x / Self::CELL).ceil().max(0.0) as usize,
-            (arena.y / Self::CELL).ceil().max(0.0) as usize,
+            (arena.x / Self::CELL).ceil().clamp(0.0, Self::MAX_SIDE) as usize,
+            (arena.y / Self::CELL).ceil().clamp(0.0, Self::MAX_SIDE) as usize,
         );
         Coverage {
             nx,
@@ -1150,5 +1206,117 @@ pub fn summary(world: &World) -> crate::summary::WorldSummary {
         formation_error: world
             .formation_error()
             .map(|(m, x)| [(m * 1000.0).round() / 1000.0, (x * 1000.0).round() / 1000.0]),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A world of the generated coverage mission for `n` robots.
+    fn world(n: usize) -> World {
+        let (g, s) = swarm::coverage_mission(n, 10.0);
+        let g = bite_core::graph::load_str(&Arc::from("g"), &g).expect("graph");
+        let sc = crate::Scenario::load_str(&Arc::from("s"), &s).expect("scenario");
+        let names: Vec<String> = (0..n).map(|i| format!("r{i}")).collect();
+        let spec = sc.physics.clone().expect("physical");
+        World::new(spec, &names, g.symbols(), &Arc::from("s"), 1).expect("world")
+    }
+
+    /// Everything within `range` of `at`, by scanning every collider.
+    fn scan(w: &World, i: usize, at: DVec2, range: f64) -> Vec<Kind> {
+        let mut out: Vec<Kind> = (w.rw.colliders.iter())
+            .filter_map(|(c, co)| {
+                let k = w.kind(c)?;
+                if k == Kind::Robot(i) {
+                    return None;
+                }
+                let aabb = co.compute_aabb();
+                let near =
+                    |lo: f32, hi: f32, p: f64| (p - range) <= hi as f64 && lo as f64 <= p + range;
+                (near(aabb.mins.x, aabb.maxs.x, at.x) && near(aabb.mins.y, aabb.maxs.y, at.y))
+                    .then_some(k)
+            })
+            .collect();
+        out.sort_by_key(|k| format!("{k:?}"));
+        out
+    }
+
+    #[test]
+    fn the_hierarchy_query_finds_everything_a_full_scan_does() {
+        let mut w = world(40);
+        let stopped = vec![false; 40];
+        let mut near = Vec::new();
+        for step in 0..30 {
+            // Invariant 10: at every control tick, from the first on.
+            for i in 0..40 {
+                let at = w.pose(i).pos;
+                w.near(i, at, 3.5, &mut near);
+                let mut got: Vec<Kind> = near.iter().map(|(k, _)| *k).collect();
+                got.sort_by_key(|k| format!("{k:?}"));
+                got.dedup();
+                let mut want = scan(&w, i, at, 3.0);
+                want.dedup();
+                for k in &want {
+                    assert!(got.contains(k), "step {step}, r{i}: {k:?} missed");
+                }
+            }
+            let mut out = Vec::new();
+            for i in 0..40 {
+                w.sense(i, &mut out);
+                w.control(i);
+            }
+            w.advance(Time::from_secs_f64((step + 1) as f64 * 0.1), &stopped);
+        }
+    }
+
+    #[test]
+    fn robots_see_each_other_at_the_first_tick() {
+        // The formation: two followers behind the leader, all facing +x.
+        let g = bite_core::graph::load_str(
+            &Arc::from("formation.yaml"),
+            include_str!("../../../../examples/formation.yaml"),
+        )
+        .expect("graph");
+        let sc = crate::Scenario::load_str(
+            &Arc::from("formation-physics.yaml"),
+            include_str!("../../../../examples/scenarios/formation-physics.yaml"),
+        )
+        .expect("scenario");
+        let names: Vec<String> = (0..3).map(|i| format!("r{i}")).collect();
+        let spec = sc.physics.clone().expect("physical");
+        let mut w = World::new(spec, &names, g.symbols(), &Arc::from("s"), 1).expect("world");
+        let mut out = Vec::new();
+        let seen: f64 = (0..3)
+            .map(|i| {
+                w.sense(i, &mut out);
+                match &w.values[P_TEAMMATES_SEEN] {
+                    Some(Value::Num(x)) => *x,
+                    _ => 0.0,
+                }
+            })
+            .sum();
+        assert!(seen >= 2.0, "{seen} sightings at t = 0");
+    }
+
+    #[test]
+    fn a_robot_placed_inside_an_obstacle_is_a_located_error() {
+        let (g, s) = swarm::coverage_mission(4, 10.0);
+        let s = s.replace("r0: { at: [0.50, 0.50] }", "r0: { at: [4.00, 4.00] }");
+        let s = s.replace(
+            "obstacles:\n",
+            "obstacles:\n    - { disc: 0.3, at: [4.0, 4.0] }\n",
+        );
+        let g = bite_core::graph::load_str(&Arc::from("g"), &g).expect("graph");
+        let sc = crate::Scenario::load_str(&Arc::from("s.yaml"), &s).expect("scenario");
+        let names: Vec<String> = (0..4).map(|i| format!("r{i}")).collect();
+        let spec = sc.physics.clone().expect("physical");
+        let err =
+            World::new(spec, &names, g.symbols(), &Arc::from("s.yaml"), 1).expect_err("rejected");
+        assert!(err.has("bad-start"), "{err}");
+        assert!(
+            err.to_string().contains("`r0` starts inside an obstacle"),
+            "{err}"
+        );
     }
 }

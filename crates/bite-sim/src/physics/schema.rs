@@ -285,9 +285,9 @@ pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
     pts
 }
 
-/// Cell `rank` of `n` when `region` is split into a near-square grid of
-/// at least `n` cells (columns along x, filled row by row; the last row's
-/// cells widen to cover it).
+/// Cell `rank` of `n` when `region` is split into `n` cells of equal area,
+/// about square: `rows ≈ √(n·h/w)` rows holding `n / rows` or one more
+/// cells each, each row as tall as its share of the cells.
 pub fn split_cell(region: [f64; 4], rank: u32, n: u32) -> [f64; 4] {
     let [x0, y0, x1, y1] = region;
     let (xa, xb) = (x0.min(x1), x0.max(x1));
@@ -295,23 +295,25 @@ pub fn split_cell(region: [f64; 4], rank: u32, n: u32) -> [f64; 4] {
     let n = n.max(1);
     let rank = rank.min(n - 1);
     let (w, h) = ((xb - xa).max(1e-9), (yb - ya).max(1e-9));
-    // Columns so that cells are about square.
-    let cols = ((n as f64 * w / h).sqrt().round() as u32).clamp(1, n);
-    let rows = n.div_ceil(cols);
-    let row = rank / cols;
-    // The last row may hold fewer cells: they share its width.
-    let in_row = if row + 1 == rows {
-        n - row * cols
-    } else {
-        cols
-    };
-    let col = rank - row * cols;
-    let (cw, ch) = (w / in_row as f64, h / rows as f64);
+    let rows = ((n as f64 * h / w).sqrt().round() as u32).clamp(1, n);
+    // The first `extra` rows hold one more cell.
+    let (base, extra) = (n / rows, n % rows);
+    let count = |r: u32| base + u32::from(r < extra);
+    let (mut row, mut first) = (0, 0);
+    while rank >= first + count(row) {
+        first += count(row);
+        row += 1;
+    }
+    let in_row = count(row);
+    let col = rank - first;
+    let bottom = ya + h * first as f64 / n as f64;
+    let top = ya + h * (first + in_row) as f64 / n as f64;
+    let cw = w / in_row as f64;
     [
         xa + cw * col as f64,
-        ya + ch * row as f64,
+        bottom,
         xa + cw * (col + 1) as f64,
-        ya + ch * (row + 1) as f64,
+        top,
     ]
 }
 
@@ -727,29 +729,34 @@ mod tests {
     }
 
     #[test]
-    fn split_cells_tile_the_region_without_overlap() {
-        for n in [1u32, 2, 3, 5, 7, 10, 100, 1000] {
-            let region = [0.0, 0.0, 40.0, 20.0];
-            let mut area = 0.0;
-            let cells: Vec<[f64; 4]> = (0..n).map(|r| split_cell(region, r, n)).collect();
-            for (i, c) in cells.iter().enumerate() {
-                assert!(
-                    c[0] >= -1e-9 && c[2] <= 40.0 + 1e-9 && c[1] >= -1e-9 && c[3] <= 20.0 + 1e-9
-                );
-                area += (c[2] - c[0]) * (c[3] - c[1]);
-                for d in &cells[i + 1..] {
-                    let overlap = (c[2].min(d[2]) - c[0].max(d[0])).max(0.0)
-                        * (c[3].min(d[3]) - c[1].max(d[1])).max(0.0);
-                    assert!(overlap < 1e-9, "n={n}: {c:?} overlaps {d:?}");
+    fn split_cells_tile_the_region_in_equal_near_square_cells() {
+        for (w, h) in [(40.0, 20.0), (20.0, 40.0), (10.0, 10.0), (100.0, 3.0)] {
+            for n in [1u32, 2, 3, 5, 7, 10, 99, 100, 1000] {
+                let region = [0.0, 0.0, w, h];
+                let cells: Vec<[f64; 4]> = (0..n).map(|r| split_cell(region, r, n)).collect();
+                let mut area = 0.0;
+                for (i, c) in cells.iter().enumerate() {
+                    assert!(c[0] >= -1e-9 && c[2] <= w + 1e-9 && c[1] >= -1e-9 && c[3] <= h + 1e-9);
+                    let a = (c[2] - c[0]) * (c[3] - c[1]);
+                    assert!(
+                        (a - w * h / n as f64).abs() < 1e-6,
+                        "{w}x{h}, n={n}: cell {i} area {a}"
+                    );
+                    area += a;
+                    for d in &cells[i + 1..] {
+                        let overlap = (c[2].min(d[2]) - c[0].max(d[0])).max(0.0)
+                            * (c[3].min(d[3]) - c[1].max(d[1])).max(0.0);
+                        assert!(overlap < 1e-9, "n={n}: {c:?} overlaps {d:?}");
+                    }
+                    // About square once there are enough cells to shape.
+                    let aspect = (c[2] - c[0]) / (c[3] - c[1]);
+                    if n >= 10 && w / h < 20.0 && h / w < 20.0 {
+                        assert!((0.5..=2.0).contains(&aspect), "{w}x{h}, n={n}: {c:?}");
+                    }
                 }
+                assert!((area - w * h).abs() < 1e-6, "n={n}: cells cover {area}");
             }
-            assert!((area - 800.0).abs() < 1e-6, "n={n}: cells cover {area}");
         }
-        // Near-square cells: 100 robots on a 2:1 region make a 14 x 7 grid
-        // (the last row wider).
-        let c = split_cell([0.0, 0.0, 40.0, 20.0], 0, 100);
-        let (w, h) = (c[2] - c[0], c[3] - c[1]);
-        assert!(w / h > 0.5 && w / h < 2.0, "{c:?}");
     }
 
     #[test]
@@ -766,8 +773,10 @@ mod tests {
         };
         let mut st = State::default();
         let out = evaluate(&s, &view, &mut st, &mut || 0.5).expect("active");
-        // Rank 1 of 2 sweeps the right half: its first waypoint is at x > 2.
-        assert!(out.v.x > 0.0, "{out:?}");
+        // Rank 1 of 2 sweeps the right half: from (0, 0) it heads for its
+        // first waypoint (2.25, 0.25), nearly along x (unsplit, it would
+        // head for (0.25, 0.25), at 45°).
+        assert!(out.v.x > 0.0 && out.v.y.abs() < 0.2 * out.v.x, "{out:?}");
         assert_eq!(split_cell([0.0, 0.0, 4.0, 2.0], 1, 2), [2.0, 0.0, 4.0, 2.0]);
     }
 }

@@ -31,6 +31,15 @@ pub(crate) struct PhysicsRaw {
     goal: Option<GoalRaw>,
     trail: Option<f64>,
     origin: Option<[f64; 2]>,
+    #[serde(default)]
+    targets: BTreeMap<String, TargetRaw>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TargetRaw {
+    colour: Option<String>,
+    size: Option<[Option<f64>; 3]>,
 }
 
 #[derive(Deserialize, Default)]
@@ -277,6 +286,9 @@ impl PhysicsSpec {
     }
 }
 
+/// Largest arena side, m (the coverage grid is 0.1 m cells).
+pub const MAX_ARENA: f64 = 2_000.0;
+
 fn positive(file: &Arc<str>, loc: Loc, what: &str, v: f64, d: &mut Vec<Diagnostic>) -> f64 {
     if !(v.is_finite() && v > 0.0) {
         d.push(Diagnostic::error(
@@ -301,6 +313,17 @@ impl PhysicsSpec {
             positive(file, loc, "arena width", raw.arena[0], d),
             positive(file, loc, "arena height", raw.arena[1], d),
         );
+        if arena.x > MAX_ARENA || arena.y > MAX_ARENA {
+            d.push(Diagnostic::error(
+                file,
+                loc,
+                "bad-value",
+                format!(
+                    "the arena is at most {MAX_ARENA} m on a side, found {} x {}",
+                    arena.x, arena.y
+                ),
+            ));
+        }
         let r = &raw.robot;
         let drive = match r.drive.as_deref() {
             None | Some("differential") => Drive::Differential,
@@ -431,7 +454,19 @@ impl PhysicsSpec {
                 .collect(),
             goal,
             origin: raw.origin.map(DVec2::from),
-            targets: BTreeMap::new(),
+            targets: raw
+                .targets
+                .into_iter()
+                .map(|(k, t)| {
+                    (
+                        k,
+                        TargetSpec {
+                            colour: t.colour,
+                            size: t.size.unwrap_or([None; 3]),
+                        },
+                    )
+                })
+                .collect(),
             trail: raw.trail.map(|t| {
                 if t.is_finite() && t >= 0.0 {
                     t

@@ -2,9 +2,10 @@
 //! size, for `bite bench sim` and for tests.
 
 /// The coverage mission at scale: `n` robots split a square arena of about
-/// 16 m² per robot (pillars every 8 m) into near-square cells, one each
+/// 16 m² per robot (pillars every 8 m, mid-lane, away from the lanes' ends)
+/// into near-square cells, one each
 /// (`scan` with `split`: the cell is the robot's rank in the team), and
-/// sweep them. Robots start in their cells; the run stops after `seconds`
+/// sweep them. Robots start in their cells, where their sweep begins; the run stops after `seconds`
 /// (a cell takes longer than a minute to sweep, so the figure is the
 /// steady state of sensing, kernels, fusion and physics).
 pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
@@ -39,8 +40,10 @@ pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
         let _ = writeln!(
             sc,
             "    r{r}: {{ at: [{:.2}, {:.2}] }}",
-            (c[0] + c[2]) / 2.0,
-            (c[1] + c[3]) / 2.0
+            // Where its sweep begins: by the cell's lower-left corner
+            // (pillars stand mid-cell).
+            c[0] + 0.5_f64.min((c[2] - c[0]) / 2.0),
+            c[1] + 0.5_f64.min((c[3] - c[1]) / 2.0)
         );
     }
     let _ = write!(
