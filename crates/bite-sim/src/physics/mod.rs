@@ -1040,6 +1040,10 @@ impl World {
             pose,
             rays,
             objects: r.seen_objects.clone(),
+            in_view: seen_now
+                .iter()
+                .map(|k| self.object_keys[*k].key.clone())
+                .collect(),
             // Teammates seen lately, and the ones its roles refer to (a
             // stale sighting repels from where a teammate no longer is).
             mates: (r.mates.iter())

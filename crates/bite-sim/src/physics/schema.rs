@@ -193,6 +193,8 @@ pub struct View {
     pub rays: Vec<(f64, f64)>,
     /// Objects by name and by colour: last seen position.
     pub objects: BTreeMap<String, DVec2>,
+    /// The object keys in view now.
+    pub in_view: std::collections::BTreeSet<String>,
     /// Teammates' last seen positions, by robot index.
     pub mates: BTreeMap<u32, Mate>,
     /// The robot holding each sibling role (behavior name → robot index).
@@ -227,6 +229,9 @@ pub struct State {
     waypoint: usize,
     /// Scan: all waypoints visited.
     pub finished: bool,
+    /// Push: when it started looking round for an object that was not
+    /// where it was last seen.
+    search: Option<f64>,
 }
 
 /// One schema's output, before fusion.
@@ -284,6 +289,10 @@ pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
     }
     pts
 }
+
+/// Seconds a pushing robot turns in place looking for an object that was
+/// not where it was last seen (about a full turn).
+pub const SEARCH_TURN: f64 = 6.0;
 
 /// Cell `rank` of `n` when `region` is split into `n` cells of equal area,
 /// about square: `rows ≈ √(n·h/w)` rows holding `n / rows` or one more
@@ -441,6 +450,27 @@ pub fn evaluate(
             speed,
         } => {
             let o = *view.objects.get(object)?;
+            // Looking at the place it was last seen, close by, and it is not
+            // there: it has been moved (by a teammate, out of this robot's
+            // sight). Look round for it rather than circle an empty spot.
+            let to = o - pose.pos;
+            let facing = wrap(to.y.atan2(to.x) - pose.heading).abs() < 0.6;
+            if view.in_view.contains(object) {
+                state.search = None;
+            } else if state.search.is_none() && facing && to.length() < offset * 2.0 {
+                state.search = Some(view.skill_time);
+            }
+            // A full turn at most, then back to the last known place.
+            match state.search {
+                Some(t0) if view.skill_time - t0 < SEARCH_TURN => {
+                    return Some(Output {
+                        v: DVec2::ZERO,
+                        face: Some(pose.heading + std::f64::consts::FRAC_PI_2),
+                    });
+                }
+                Some(_) => state.search = None,
+                None => {}
+            }
             let dir = (*goal - o).normalize_or_zero();
             if dir == DVec2::ZERO || goal.distance(o) < 0.05 {
                 return Some(Output {
@@ -669,6 +699,7 @@ mod tests {
             ..View::default()
         };
         view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
+        view.in_view.insert("box".into());
         let s = Schema::Push {
             object: "box".into(),
             goal: DVec2::new(3.0, 0.0),
@@ -778,5 +809,38 @@ mod tests {
         // head for (0.25, 0.25), at 45°).
         assert!(out.v.x > 0.0 && out.v.y.abs() < 0.2 * out.v.x, "{out:?}");
         assert_eq!(split_cell([0.0, 0.0, 4.0, 2.0], 1, 2), [2.0, 0.0, 4.0, 2.0]);
+    }
+
+    #[test]
+    fn a_pusher_looks_round_for_an_object_that_is_not_where_it_was_seen() {
+        let push = Schema::Push {
+            object: "box".into(),
+            goal: DVec2::new(-3.0, 0.0),
+            offset: 0.4,
+            speed: 0.2,
+        };
+        let mut view = View::default();
+        view.pose.pos = DVec2::new(0.6, 0.0);
+        view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
+        let mut st = State::default();
+        // Facing the spot, close, and the box is not in view: turn in place.
+        let out = evaluate(&push, &view, &mut st, &mut || 0.5).expect("active");
+        assert_eq!(out.v, DVec2::ZERO);
+        assert!(out.face.is_some());
+        // Still turning a moment later, though no longer facing the spot.
+        view.pose.heading = 2.0;
+        view.skill_time = 3.0;
+        let out = evaluate(&push, &view, &mut st, &mut || 0.5).expect("active");
+        assert_eq!(out.v, DVec2::ZERO);
+        // In view again: back to pushing (it moves).
+        view.in_view.insert("box".into());
+        let out = evaluate(&push, &view, &mut st, &mut || 0.5).expect("active");
+        assert!(out.v.length() > 0.0, "{out:?}");
+        // Not in view but far from the spot: go there as before.
+        let mut st = State::default();
+        view.in_view.clear();
+        view.pose.pos = DVec2::new(4.0, 0.0);
+        let out = evaluate(&push, &view, &mut st, &mut || 0.5).expect("active");
+        assert!(out.v.length() > 0.0, "{out:?}");
     }
 }
