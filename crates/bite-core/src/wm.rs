@@ -500,7 +500,7 @@ impl WorldModel {
         }
         let period = Duration::from_secs_f64(1.0 / self.sharing.hz.max(1e-3));
         self.next_share = now + period;
-        let graph = kernel.mission().graph().clone();
+        let graph = kernel.mission().graph();
         let beliefs = kernel.beliefs();
         let org = kernel.org();
         let mut keep: BTreeSet<(Reason, Edge)> = BTreeSet::new();
@@ -542,37 +542,21 @@ impl WorldModel {
         } else {
             self.changed.clear();
         }
+        // (reason, the subteam, the behavior, the edge, the reports).
+        let mut found = Vec::new();
         if self.sharing.policy.focused() {
             // Algorithm 2: behaviors on the stack, their own subteams.
             for f in kernel.stack() {
-                let members = org.team(f.team).map(|t| t.members.clone());
-                let Some(members) = members else { continue };
+                let Some(t) = org.team(f.team) else { continue };
                 for (edge, reports) in self.conditions(
-                    &graph,
+                    graph,
                     beliefs,
                     (now, f.started),
                     f.behavior,
                     f.team,
                     f.epoch,
                 ) {
-                    keep.insert((Reason::Obligatory, edge));
-                    if !self.informed.insert((Reason::Obligatory, edge)) {
-                        continue;
-                    }
-                    let to: Vec<RobotId> = members
-                        .iter()
-                        .filter(|r| *r != self.me && !kernel.lost().contains(*r))
-                        .collect();
-                    if !to.is_empty() {
-                        out.push(Outgoing {
-                            to,
-                            msg: Inform {
-                                reason: Reason::Obligatory,
-                                about: Some(f.behavior),
-                                beliefs: reports,
-                            },
-                        });
-                    }
+                    found.push((Reason::Obligatory, t, f.behavior, edge, reports));
                 }
             }
         }
@@ -581,35 +565,37 @@ impl WorldModel {
             let on_stack: BTreeSet<BehaviorId> =
                 kernel.stack().iter().map(|f| f.behavior).collect();
             for t in org.teams() {
-                for b in org.behaviors_of(t.id) {
-                    if on_stack.contains(&b) {
-                        continue;
-                    }
+                for b in org.behaviors_of(t.id).filter(|b| !on_stack.contains(b)) {
                     let epoch = org.runs(t.id, b);
                     for (edge, reports) in
-                        self.conditions(&graph, beliefs, (now, now), b, t.id, epoch)
+                        self.conditions(graph, beliefs, (now, now), b, t.id, epoch)
                     {
-                        keep.insert((Reason::Helpful, edge));
-                        if !self.informed.insert((Reason::Helpful, edge)) {
-                            continue;
-                        }
-                        let to: Vec<RobotId> = t
-                            .members
-                            .iter()
-                            .filter(|r| *r != self.me && !kernel.lost().contains(*r))
-                            .collect();
-                        if !to.is_empty() {
-                            out.push(Outgoing {
-                                to,
-                                msg: Inform {
-                                    reason: Reason::Helpful,
-                                    about: Some(b),
-                                    beliefs: reports,
-                                },
-                            });
-                        }
+                        found.push((Reason::Helpful, t, b, edge, reports));
                     }
                 }
+            }
+        }
+        // Inform(b, t): once per condition while it holds, to the live
+        // members of t other than this robot.
+        for (reason, t, about, edge, reports) in found {
+            keep.insert((reason, edge));
+            if !self.informed.insert((reason, edge)) {
+                continue;
+            }
+            let to: Vec<RobotId> = t
+                .members
+                .iter()
+                .filter(|r| *r != self.me && !kernel.lost().contains(*r))
+                .collect();
+            if !to.is_empty() {
+                out.push(Outgoing {
+                    to,
+                    msg: Inform {
+                        reason,
+                        about: Some(about),
+                        beliefs: reports,
+                    },
+                });
             }
         }
         // A condition that stopped holding may be reported again when it

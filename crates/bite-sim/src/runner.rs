@@ -214,6 +214,7 @@ struct Sim<'a, 'w> {
     /// Each robot's world model (empty when the team shares nothing).
     wms: Vec<bite_core::wm::WorldModel>,
     /// Scratch for the world model's outputs.
+    own: Vec<(BeliefId, Value)>,
     told: Vec<(BeliefId, Value, Source)>,
     next_poses: Time,
 }
@@ -302,18 +303,10 @@ impl Sim<'_, '_> {
                     self.kernels[i].set_belief(id, v, Source::Percept);
                 }
             } else {
-                let mut own = Vec::new();
-                let mut told = std::mem::take(&mut self.told);
-                told.clear();
-                self.wms[i].perceive(self.now, &started, &mut own, &mut told);
-                self.kernels[i].observe(self.now, &[]);
-                for (id, v) in own {
-                    self.kernels[i].set_belief(id, v, Source::Percept);
-                }
-                for (id, v, src) in told.drain(..) {
-                    self.kernels[i].set_belief(id, v, src);
-                }
-                self.told = told;
+                let now = self.now;
+                self.through_world_model(i, |wm, own, told| {
+                    wm.perceive(now, &started, own, told);
+                });
             }
             if let Some(w) = self.physics.as_mut() {
                 let leaf = leaf.map(|l| l.0);
@@ -354,6 +347,33 @@ impl Sim<'_, '_> {
             self.schedule(*t, what());
         }
         self.times = times;
+    }
+
+    /// Feed robot `i`'s world model (`feed` calls `perceive` or
+    /// `receive`), then record what it decided in the kernel, dated now,
+    /// without acting on it yet.
+    fn through_world_model(
+        &mut self,
+        i: usize,
+        feed: impl FnOnce(
+            &mut bite_core::wm::WorldModel,
+            &mut Vec<(BeliefId, Value)>,
+            &mut Vec<(BeliefId, Value, Source)>,
+        ),
+    ) {
+        let (mut own, mut told) = (
+            std::mem::take(&mut self.own),
+            std::mem::take(&mut self.told),
+        );
+        own.clear();
+        told.clear();
+        feed(&mut self.wms[i], &mut own, &mut told);
+        let k = &mut self.kernels[i];
+        k.observe(self.now, &own);
+        for (id, v, src) in told.drain(..) {
+            k.set_belief(id, v, src);
+        }
+        (self.own, self.told) = (own, told);
     }
 
     /// Robot `r`'s world model: decide what to share when due, then send
@@ -491,15 +511,10 @@ impl Sim<'_, '_> {
                         } else {
                             // The world model between perception and the
                             // kernel: fused with what teammates said.
-                            let mut own = Vec::with_capacity(percepts.len());
-                            let mut told = std::mem::take(&mut self.told);
-                            told.clear();
-                            self.wms[i].perceive(self.now, &percepts, &mut own, &mut told);
-                            self.kernels[i].observe(self.now, &own);
-                            for (id, v, src) in told.drain(..) {
-                                self.kernels[i].set_belief(id, v, src);
-                            }
-                            self.told = told;
+                            let now = self.now;
+                            self.through_world_model(i, |wm, own, told| {
+                                wm.perceive(now, &percepts, own, told);
+                            });
                             // What the new beliefs make true is shared
                             // before the kernel acts on it (and, say,
                             // dissolves the subteams it would inform).
@@ -575,19 +590,9 @@ impl Sim<'_, '_> {
                 What::Inform { from, to, msg } => {
                     let i = to.index();
                     if !self.crashed[i] && i < self.wms.len() {
-                        let mut own = Vec::new();
-                        let mut told = std::mem::take(&mut self.told);
-                        told.clear();
-                        self.wms[i].receive(from, &msg, &mut own, &mut told);
-                        // The kernel's clock first: beliefs set now are dated now.
-                        self.kernels[i].observe(self.now, &[]);
-                        for (id, v) in own {
-                            self.kernels[i].set_belief(id, v, Source::Percept);
-                        }
-                        for (id, v, src) in told.drain(..) {
-                            self.kernels[i].set_belief(id, v, src);
-                        }
-                        self.told = told;
+                        self.through_world_model(i, |wm, own, told| {
+                            wm.receive(from, &msg, own, told);
+                        });
                     }
                 }
                 What::Timer(r) => {
@@ -798,6 +803,7 @@ pub fn run(
         physics,
         motor,
         wms,
+        own: Vec::new(),
         told: Vec::new(),
         next_poses: Time::ZERO,
     };

@@ -3,12 +3,11 @@
 //! coverage; reproducibility; and the errors a scenario author sees.
 
 use bite_core::event::Event;
-use bite_core::graph::Config;
 use bite_sim::Scenario;
 use std::sync::Arc;
 
 mod missions;
-use missions::{FORMATION, TABLE2, assert_clean, graph, scenario, simulate};
+use missions::{assert_clean, graph, scenario, simulate, table2};
 
 const FORMATION_SC: &str = include_str!("../../../examples/scenarios/formation-physics.yaml");
 const BOX_PUSH: &str = include_str!("../../../examples/box-push.yaml");
@@ -19,13 +18,7 @@ const COVERAGE_SC: &str = include_str!("../../../examples/scenarios/coverage-phy
 #[test]
 fn the_formation_walks_six_metres_under_all_seven_configurations() {
     let sc = scenario("formation-physics.yaml", FORMATION_SC);
-    for (i, text) in TABLE2.iter().enumerate() {
-        let row = i + 1;
-        let cfg = Config::load_str(&Arc::from(format!("{row}.yaml")), text)
-            .unwrap_or_else(|d| panic!("{d}"));
-        let g = graph("formation.yaml", FORMATION)
-            .with_config(&cfg)
-            .unwrap_or_else(|d| panic!("{d}"));
+    for (row, g) in table2() {
         let o = simulate(&g, &sc, 1);
         let report = &o.report;
         let s = &report.summary;

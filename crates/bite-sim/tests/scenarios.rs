@@ -11,7 +11,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 mod missions;
-use missions::{FORMATION, Outcome, TABLE2, assert_clean, graph, replay, scenario, simulate};
+use missions::{FORMATION, Outcome, assert_clean, graph, replay, scenario, simulate, table2};
 
 const FORMATION_SC: &str = include_str!("../../../examples/scenarios/formation.yaml");
 const PATROL: &str = include_str!("../../../examples/patrol.yaml");
@@ -220,15 +220,7 @@ fn a_long_partition_splits_the_team_and_each_side_reallocates() {
     let o = simulate(&g, &partitioned("10s", "18s"), 1);
     let s = &o.report.summary;
     assert!(s.completed, "{s}\n{}", replay(&o));
-    let realloc: BTreeMap<u32, u32> = o
-        .report
-        .history
-        .iter()
-        .filter_map(|r| match r.event {
-            Event::Reallocating { round, .. } => Some((r.robot.0, round)),
-            _ => None,
-        })
-        .collect();
+    let realloc: BTreeMap<u32, u32> = reallocations(&o).into_iter().collect();
     // r0 and r1 lose r2 (round 1); r2 loses both, one after the other
     // (rounds 1 and 2). When the partition heals, r2's round-2 messages
     // reach r0 and r1, which join that round: one allocation again.
@@ -391,15 +383,7 @@ fn a_lost_members_child_is_reallocated_by_the_points_protocol() {
         assert!(s.completed, "{protocol}: {s}\n{}", replay(&o));
         assert_clean(&o, protocol);
         // Every survivor re-allocated once, and someone else runs b to the end.
-        let rounds: Vec<(u32, u32)> = o
-            .report
-            .history
-            .iter()
-            .filter_map(|r| match r.event {
-                Event::Reallocating { round, .. } => Some((r.robot.0, round)),
-                _ => None,
-            })
-            .collect();
+        let rounds = reallocations(&o);
         assert_eq!(rounds.len(), 3, "{protocol}: {rounds:?}");
         assert!(rounds.iter().all(|(r, k)| *r != holder.0 && *k == 1));
         let finished_b: Vec<RobotId> = o
@@ -484,18 +468,12 @@ fn the_seven_table2_configurations_complete_the_formation() {
         ],
     ];
     let sc = scenario("formation-sc.yaml", FORMATION_SC);
-    for (i, text) in TABLE2.iter().enumerate() {
-        let row = i + 1;
-        let cfg = Config::load_str(&Arc::from(format!("{row}.yaml")), text)
-            .unwrap_or_else(|d| panic!("{d}"));
-        let g = graph("formation.yaml", FORMATION)
-            .with_config(&cfg)
-            .unwrap_or_else(|d| panic!("{d}"));
+    for (row, g) in table2() {
         let o = simulate(&g, &sc, row as u64);
         let s = &o.report.summary;
         assert!(s.completed, "row {row}: {s}\n{}", replay(&o));
         assert_clean(&o, &format!("Table II row {row}"));
-        for (label, want) in ["A", "B", "C", "D", "E"].iter().zip(rows[i]) {
+        for (label, want) in ["A", "B", "C", "D", "E"].iter().zip(rows[row - 1]) {
             let (b, kind) = o
                 .mission
                 .graph()
@@ -603,4 +581,16 @@ fn an_urgent_condition_preempts_a_slow_termination() {
         _ => None,
     });
     assert!(ended.is_some_and(|t| (5.0..5.5).contains(&t)), "{ended:?}");
+}
+
+/// Every re-allocation in the recorded history: (robot, round), in order.
+fn reallocations(o: &Outcome) -> Vec<(u32, u32)> {
+    o.report
+        .history
+        .iter()
+        .filter_map(|r| match r.event {
+            Event::Reallocating { round, .. } => Some((r.robot.0, round)),
+            _ => None,
+        })
+        .collect()
 }

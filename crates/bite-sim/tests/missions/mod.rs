@@ -22,6 +22,19 @@ pub const TABLE2: [&str; 7] = [
     include_str!("../../../../examples/configs/7.yaml"),
 ];
 
+/// The formation graph under each Table II configuration: (row, graph).
+pub fn table2() -> impl Iterator<Item = (usize, BehaviorGraph)> {
+    TABLE2.iter().enumerate().map(|(i, text)| {
+        let row = i + 1;
+        let cfg = bite_core::graph::Config::load_str(&Arc::from(format!("{row}.yaml")), text)
+            .unwrap_or_else(|d| panic!("{d}"));
+        let g = graph("formation.yaml", FORMATION)
+            .with_config(&cfg)
+            .unwrap_or_else(|d| panic!("{d}"));
+        (row, g)
+    })
+}
+
 pub fn graph(name: &str, text: &str) -> BehaviorGraph {
     load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
 }
