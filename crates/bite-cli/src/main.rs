@@ -5,6 +5,8 @@ use anyhow::{Context, Result};
 mod anim;
 mod plot;
 mod rtcl;
+mod team;
+mod zbench;
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::graph::BehaviorGraph;
 use bite_core::{Config, Mission};
@@ -122,11 +124,38 @@ enum Cmd {
     },
     /// List the interaction protocols that can be bound to points.
     Protocols,
+    /// One robot as its own process: its kernel, world model and skills,
+    /// talking to its teammates over Zenoh (authenticated with the team key).
+    Robot(team::RobotArgs),
+    /// The simulator as a server over Zenoh.
+    Sim {
+        #[command(subcommand)]
+        which: SimCmd,
+    },
+    /// Start a whole team on this machine (robot processes, and the
+    /// simulator server for a physical world) over Zenoh on 127.0.0.1,
+    /// gather their logs, check they agree, and stop them.
+    Launch(team::LaunchArgs),
+    /// Submit a mission (graph or `.rtcl`) to a running team, signed with the team key.
+    Submit(team::SubmitArgs),
+    /// Make a new team key (hex) for `--key`.
+    Keygen {
+        /// Write it to this file (mode 0600) instead of standard output.
+        #[arg(short, long)]
+        output: Option<PathBuf>,
+    },
     /// Whole-system benchmarks.
     Bench {
         #[command(subcommand)]
         which: BenchCmd,
     },
+}
+
+#[derive(Subcommand)]
+enum SimCmd {
+    /// Own the physical world of a scenario: publish each robot's sensor
+    /// readings and apply its velocity commands over Zenoh.
+    Serve(team::ServeArgs),
 }
 
 #[derive(clap::Args)]
@@ -214,6 +243,31 @@ enum BenchCmd {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+    },
+    /// Decision latency over Zenoh between robot processes on 127.0.0.1
+    /// (sync.leader, sync.vote, alloc.auction), next to a raw Zenoh
+    /// ping-pong round trip measured in the same run.
+    Zenoh {
+        /// Team sizes (robot processes).
+        #[arg(long, value_delimiter = ',', value_parser = parse_robots, default_values_t = [3usize, 10])]
+        robots: Vec<usize>,
+        /// Decisions per protocol and team size.
+        #[arg(long, default_value_t = 20)]
+        decisions: usize,
+        /// Ping-pong round trips.
+        #[arg(long, default_value_t = 500)]
+        pings: usize,
+        /// Where to keep the teams' logs and the results.
+        #[arg(long, default_value = "out/bench-zenoh")]
+        out: PathBuf,
+    },
+    /// The echo side of `bench zenoh`'s ping-pong.
+    #[command(hide = true)]
+    Pong {
+        #[arg(long)]
+        team: String,
+        #[arg(long)]
+        listen: String,
     },
     /// A whole team in the timed-skill world: simulated seconds per wall second.
     Team {
@@ -390,12 +444,22 @@ fn registry() -> bite_core::interaction::Registry {
     bite_protocols::registry()
 }
 
-fn cmd_run(a: RunArgs) -> Result<ExitCode> {
-    let (graph, scenario) = match a.graph.as_deref() {
+/// The graph and the scenario of a run: a graph file (or the built-in
+/// formation example) with its scenario, or a mission compiled against its
+/// scenario (`bite run`, `bite robot`, `bite sim serve`, `bite launch`).
+fn load_team(
+    graph: Option<&Path>,
+    library: Option<&Path>,
+    config: Option<&Path>,
+    scenario: Option<&Path>,
+    robots: Option<usize>,
+    timed: bool,
+) -> Result<(BehaviorGraph, Scenario)> {
+    Ok(match graph {
         Some(p) if rtcl::is_mission(p) => {
             // The scenario first: it says where the mission's (0, 0) is
             // and how many robots there are.
-            let scenario = match a.scenario.as_deref() {
+            let scenario = match scenario {
                 Some(s) => Scenario::load(s).map_err(bad_input)?,
                 None => {
                     let guess = sibling_scenario(p, true);
@@ -405,25 +469,35 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
                             guess.display()
                         );
                         eprintln!("  = hint: give one with --scenario FILE");
-                        return Ok(ExitCode::from(2));
+                        return Err(anyhow::Error::new(Reported(2)));
                     }
                     eprintln!("scenario: {}", guess.display());
                     Scenario::load(&guess).map_err(bad_input)?
                 }
             };
-            let lib = rtcl::library(a.library.as_deref())?;
-            let compiled = rtcl::compile(p, &lib, &rtcl::options_for(&scenario, a.robots))?;
-            let graph = with_config(rtcl::graph(p, &compiled)?, a.config.as_deref())?;
+            let lib = rtcl::library(library)?;
+            let compiled = rtcl::compile(p, &lib, &rtcl::options_for(&scenario, robots))?;
+            let graph = with_config(rtcl::graph(p, &compiled)?, config)?;
             let scenario = rtcl::bind(p, &compiled, &scenario)?;
             (graph, scenario)
         }
         _ => {
-            let graph = load_graph(a.graph.as_deref(), a.config.as_deref())?;
-            let scenario =
-                load_scenario(a.graph.as_deref(), a.scenario.as_deref(), &graph, a.timed)?;
-            (graph, scenario)
+            let g = load_graph(graph, config)?;
+            let scenario = load_scenario(graph, scenario, &g, timed)?;
+            (g, scenario)
         }
-    };
+    })
+}
+
+fn cmd_run(a: RunArgs) -> Result<ExitCode> {
+    let (graph, scenario) = load_team(
+        a.graph.as_deref(),
+        a.library.as_deref(),
+        a.config.as_deref(),
+        a.scenario.as_deref(),
+        a.robots,
+        a.timed,
+    )?;
     if (a.svg.is_some() || a.frames.is_some() || a.gif.is_some()) && scenario.physics.is_none() {
         eprintln!(
             "error: --svg, --frames and --gif draw the physical world, and scenario `{}` is a timed world",
@@ -1022,6 +1096,13 @@ fn main() -> ExitCode {
             output: output.as_deref(),
         }),
         Cmd::Protocols => Ok(cmd_protocols()),
+        Cmd::Robot(a) => team::cmd_robot(a),
+        Cmd::Sim {
+            which: SimCmd::Serve(a),
+        } => team::cmd_serve(a),
+        Cmd::Launch(a) => team::cmd_launch(a),
+        Cmd::Submit(a) => team::cmd_submit(a),
+        Cmd::Keygen { output } => team::cmd_keygen(output.as_deref()),
         Cmd::Bench {
             which:
                 BenchCmd::Team {
@@ -1049,6 +1130,18 @@ fn main() -> ExitCode {
                     plot,
                 },
         } => cmd_bench_sim(&robots, seconds, seed, plot.as_deref()),
+        Cmd::Bench {
+            which:
+                BenchCmd::Zenoh {
+                    robots,
+                    decisions,
+                    pings,
+                    out,
+                },
+        } => zbench::cmd_bench_zenoh(&robots, decisions, pings, &out),
+        Cmd::Bench {
+            which: BenchCmd::Pong { team, listen },
+        } => zbench::cmd_pong(&team, &listen),
         Cmd::Bench {
             which:
                 BenchCmd::Protocols {

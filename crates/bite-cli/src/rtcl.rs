@@ -63,8 +63,17 @@ pub fn options_for(scenario: &Scenario, robots: Option<usize>) -> CompileOptions
 
 /// The scenario with the mission's skills, beliefs and targets added.
 pub fn bind(path: &Path, compiled: &Compiled, scenario: &Scenario) -> Result<Scenario> {
+    bind_parts(&path.display().to_string(), compiled, scenario).map_err(bad_input)
+}
+
+/// [`bind`] for a mission that is not a file (`label` names it in errors).
+pub fn bind_parts(
+    label: &str,
+    compiled: &Compiled,
+    scenario: &Scenario,
+) -> Result<Scenario, bite_core::diag::Diagnostics> {
     let parts = MissionParts {
-        file: Arc::from(path.display().to_string()),
+        file: Arc::from(label),
         skills: compiled.skills.clone(),
         beliefs: compiled.beliefs.clone(),
         targets: (compiled.targets.iter())
@@ -79,5 +88,5 @@ pub fn bind(path: &Path, compiled: &Compiled, scenario: &Scenario) -> Result<Sce
             })
             .collect(),
     };
-    scenario.with_mission(&parts).map_err(bad_input)
+    scenario.with_mission(&parts)
 }

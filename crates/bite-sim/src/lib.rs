@@ -18,6 +18,7 @@
 
 #![warn(missing_docs)]
 
+pub mod agent;
 pub mod check;
 pub mod log;
 pub mod net;

@@ -221,7 +221,7 @@ struct Sim<'a, 'w> {
 
 /// Who holds each sibling role of robot `k`'s leaf behavior: the leader of
 /// each subteam its parent's allocation made, by the child's name.
-fn roles_of(k: &Kernel, graph: &BehaviorGraph) -> BTreeMap<String, u32> {
+pub(crate) fn roles_of(k: &Kernel, graph: &BehaviorGraph) -> BTreeMap<String, u32> {
     let mut roles: BTreeMap<String, (u32, u32)> = BTreeMap::new();
     let org = k.org();
     if let Some(leaf) = k.leaf()

@@ -3,29 +3,45 @@
 //! behavior-selection module that turns each robot's current behavior into
 //! the motor schemas that drive it.
 //!
-//! The runner owns the clock: [`World::advance`] steps the physics at its
-//! fixed rate up to a control tick, [`World::sense`] turns what each robot's
-//! sensors report into percepts (and, through the scenario's `beliefs:`
-//! expressions, into the beliefs its graph reads), and [`World::control`]
-//! fuses the schemas of the robot's current skill into a velocity command.
+//! Two sides, as in Player/Stage. The world's side ([`World`]) owns the
+//! physics: bodies, drives, odometry, contacts, trajectories and coverage,
+//! and the raw sensing: [`World::observe`] reads robot `i`'s sensors (its
+//! noisy pose estimate, range rays, camera sightings of teammates and
+//! objects, odometer, contact) into a [`Sensed`], and [`World::actuate`]
+//! sets the velocity [`Command`] its drive follows. The robot's side
+//! ([`Pilot`], one per robot, in [`pilot`]) is its mind: the skill of its
+//! current leaf and its schemas' state, what it remembers of objects and
+//! teammates, the roles it refers to; it turns a [`Sensed`] into percepts
+//! and, through the scenario's `beliefs:` expressions, into the beliefs its
+//! graph reads ([`Pilot::perceive`]), and fuses its skill's schemas into a
+//! [`Command`] ([`Pilot::control`]). Both ends speak JSON ([`Sensed`] and
+//! [`Command`] are serde types), so a robot process can run its pilot
+//! against a simulator server, or a real robot.
+//!
+//! In a run on one machine the world keeps a pilot per robot, and the
+//! runner owns the clock: [`World::advance`] steps the physics at its fixed
+//! rate up to a control tick, [`World::sense`] observes and perceives, and
+//! [`World::control`] runs the pilot and actuates its command.
 //! Everything is seeded: a run is a pure function of its inputs.
 
+pub mod pilot;
 pub mod schema;
 pub mod spec;
 pub mod svg;
 pub mod swarm;
 
 use crate::runner::derive_seed;
-use bite_core::cond::{Env, Expr, Resolver};
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::ids::{BehaviorId, BeliefId};
 use bite_core::interaction::Rng;
 use bite_core::time::Time;
 use bite_core::value::Value;
 use glam::DVec2;
+pub use pilot::{PerceptTables, Pilot, check_beliefs};
 use rand::SeedableRng;
 use rapier2d::prelude as rp;
-use schema::{Command, Mate, Pose, State, View, Weighted};
+pub use schema::{Command, Sensed};
+use schema::{Pose, Weighted};
 pub use spec::{Drive, PhysicsSpec, SchemaSpec, Shape};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -54,7 +70,8 @@ pub struct Sample {
     pub link: Option<u32>,
 }
 
-/// What robot `i` knows and drives.
+/// Robot `i`'s body in the world: what drives it and what its sensors
+/// measure (its mind is its [`Pilot`]).
 #[derive(Debug)]
 struct Robot {
     body: rp::RigidBodyHandle,
@@ -67,195 +84,8 @@ struct Robot {
     cmd: Command,
     odometer: f64,
     last_pos: DVec2,
-    /// Skill of the current leaf.
-    skill: Arc<[Weighted]>,
-    states: Vec<State>,
-    skill_started: f64,
-    skill_odometer: f64,
-    leaf: Option<BehaviorId>,
-    /// Last seen positions of objects, by name and by colour.
-    seen_objects: BTreeMap<String, DVec2>,
-    /// Last seen teammates.
-    mates: BTreeMap<u32, (Mate, f64)>,
-    /// Robots holding each sibling role (set by the runner).
-    roles: BTreeMap<String, u32>,
-    /// The robot this one's schemas refer to, for the pictures.
-    link: Option<u32>,
-    /// The last robot it kept a slot on or followed (its reference in the
-    /// formation, kept while it searches).
-    anchor: Option<u32>,
     trail: Vec<Sample>,
     contact: bool,
-    /// What it sensed last.
-    view: View,
-}
-
-impl Robot {
-    /// The teammate its skill keeps a slot on or follows (the holder of
-    /// the role the schema names), with the slot's side and distance for
-    /// `keep-slot`.
-    fn reference(&self) -> Option<(u32, Option<(schema::Side, f64)>)> {
-        self.skill.iter().find_map(|w| match &w.schema {
-            schema::Schema::KeepSlot {
-                of, side, distance, ..
-            } => self.roles.get(of).map(|l| (*l, Some((*side, *distance)))),
-            schema::Schema::Follow { of, .. } => self.roles.get(of).map(|l| (*l, None)),
-            _ => None,
-        })
-    }
-}
-
-/// The percepts every robot computes, by name.
-#[derive(Clone, Debug, Default)]
-struct Percepts {
-    names: Vec<String>,
-    index: BTreeMap<String, BeliefId>,
-}
-
-impl Percepts {
-    fn add(&mut self, name: String) {
-        if !self.index.contains_key(&name) {
-            self.index
-                .insert(name.clone(), BeliefId(self.names.len() as u32));
-            self.names.push(name);
-        }
-    }
-    fn id(&self, name: &str) -> Option<BeliefId> {
-        self.index.get(name).copied()
-    }
-}
-
-struct PerceptResolver<'a> {
-    known: &'a Percepts,
-    unknown: Vec<String>,
-}
-
-impl Resolver for PerceptResolver<'_> {
-    fn belief(&mut self, name: &str) -> BeliefId {
-        match self.known.id(name) {
-            Some(id) => id,
-            None => {
-                self.unknown.push(name.to_string());
-                BeliefId(u32::MAX)
-            }
-        }
-    }
-    fn behavior(&self, _: &str) -> Option<BehaviorId> {
-        None
-    }
-}
-
-struct PerceptEnv<'a>(&'a [Option<Value>]);
-
-impl Env for PerceptEnv<'_> {
-    fn belief(&self, id: BeliefId) -> Option<&Value> {
-        self.0.get(id.index())?.as_ref()
-    }
-    fn belief_age(&self, _: BeliefId) -> Option<f64> {
-        None
-    }
-    fn elapsed(&self) -> f64 {
-        0.0
-    }
-    fn runs(&self, _: Option<BehaviorId>) -> u32 {
-        1
-    }
-}
-
-/// The percepts every robot has, whatever the scenario; `P_*` are their
-/// indices.
-const FIXED: [&str; 14] = [
-    "x",
-    "y",
-    "pos",
-    "heading",
-    "odometer",
-    "skill_distance",
-    "skill_time",
-    "skill_done",
-    "range_min",
-    "obstacle_near",
-    "contact",
-    "teammates_seen",
-    "teammates_known",
-    "reference_pos",
-];
-const P_X: usize = 0;
-const P_Y: usize = 1;
-const P_POS: usize = 2;
-const P_HEADING: usize = 3;
-const P_ODOMETER: usize = 4;
-const P_SKILL_DISTANCE: usize = 5;
-const P_SKILL_TIME: usize = 6;
-const P_SKILL_DONE: usize = 7;
-const P_RANGE_MIN: usize = 8;
-const P_OBSTACLE_NEAR: usize = 9;
-const P_CONTACT: usize = 10;
-const P_TEAMMATES_SEEN: usize = 11;
-const P_TEAMMATES_KNOWN: usize = 12;
-const P_REFERENCE_POS: usize = 13;
-
-/// The names of the percepts a scenario's robots have (fixed ones, and
-/// per object, colour and zone).
-fn percept_names(spec: &PhysicsSpec) -> Percepts {
-    let mut p = Percepts::default();
-    // The fixed percepts come first: their ids are their places in `FIXED`.
-    for n in FIXED {
-        p.add(n.to_string());
-    }
-    for (key, _) in object_keys(spec) {
-        for suffix in KEY_SUFFIXES {
-            p.add(format!("{key}_{suffix}"));
-        }
-    }
-    for z in spec.zones.keys() {
-        p.add(format!("in_{z}"));
-    }
-    p
-}
-
-/// Objects are seen by name and by colour: each key, and the objects
-/// that answer to it.
-fn object_keys(spec: &PhysicsSpec) -> Vec<(String, Vec<usize>)> {
-    let mut keys: Vec<(String, Vec<usize>)> = Vec::new();
-    for (i, o) in spec.objects.iter().enumerate() {
-        for k in o.name.iter().chain(o.colour.iter()) {
-            match keys.iter_mut().find(|(x, _)| x == k) {
-                Some((_, objects)) => objects.push(i),
-                None => keys.push((k.clone(), vec![i])),
-            }
-        }
-    }
-    // Targets: a name for the objects that fit a description.
-    for (name, t) in &spec.targets {
-        let fits: Vec<usize> = (spec.objects.iter().enumerate())
-            .filter(|(_, o)| t.fits(o))
-            .map(|(i, _)| i)
-            .collect();
-        match keys.iter_mut().find(|(x, _)| x == name) {
-            Some((_, objects)) => *objects = fits,
-            None => keys.push((name.clone(), fits)),
-        }
-    }
-    keys
-}
-
-/// An object key with the ids of its percepts.
-#[derive(Debug)]
-struct KeyPercepts {
-    key: String,
-    objects: Vec<usize>,
-    /// `<key>_seen`, `_pos`, `_distance`, `_bearing`.
-    ids: [BeliefId; 4],
-}
-
-const KEY_SUFFIXES: [&str; 4] = ["seen", "pos", "distance", "bearing"];
-
-/// A compiled `beliefs:` entry.
-#[derive(Debug)]
-struct Mapped {
-    belief: BeliefId,
-    expr: Expr,
 }
 
 /// The physical world of a run.
@@ -270,17 +100,14 @@ pub struct World {
     /// When the next trajectory sample is due (`spec.trail`).
     next_trail: f64,
     robots: Vec<Robot>,
+    /// Each robot's mind.
+    pilots: Vec<Pilot>,
     objects: Vec<rp::RigidBodyHandle>,
     object_trails: Vec<Vec<(f64, DVec2)>>,
     dt: f64,
     t: f64,
-    /// Percept ids by object key, and of each zone's `in_<zone>`.
-    object_keys: Vec<KeyPercepts>,
-    zone_ids: Vec<([f64; 4], BeliefId)>,
-    /// Graph beliefs the percepts set directly (same name): percept → graph id.
-    direct: Vec<(BeliefId, BeliefId)>,
-    mapped: Vec<Mapped>,
-    values: Vec<Option<Value>>,
+    /// How percepts become graph beliefs (shared by the pilots).
+    tables: Arc<PerceptTables>,
     goal_met: Option<f64>,
     /// Formation error samples: distance from a slot keeper's true position
     /// to its true slot (sum, count, max).
@@ -315,46 +142,6 @@ fn collider_of(shape: &Shape) -> rp::ColliderBuilder {
         Shape::Box(s) => rp::ColliderBuilder::cuboid(s.x as f32 / 2.0, s.y as f32 / 2.0),
         Shape::Disc(r) => rp::ColliderBuilder::ball(*r as f32),
     }
-}
-
-/// Check a scenario's `beliefs:` against the percepts its world has.
-pub fn check_beliefs(spec: &PhysicsSpec, file: &Arc<str>) -> Vec<Diagnostic> {
-    let percepts = percept_names(spec);
-    let mut d = Vec::new();
-    for (name, text, loc) in &spec.beliefs {
-        let mut r = PerceptResolver {
-            known: &percepts,
-            unknown: Vec::new(),
-        };
-        match Expr::parse(text, &mut r) {
-            Err(e) => d.push(Diagnostic::error(
-                file,
-                *loc,
-                "bad-belief",
-                format!("belief `{name}`: {e}"),
-            )),
-            Ok(_) if !r.unknown.is_empty() => d.push(
-                Diagnostic::error(
-                    file,
-                    *loc,
-                    "unknown-percept",
-                    format!(
-                        "belief `{name}` reads `{}`, which no sensor provides",
-                        r.unknown[0]
-                    ),
-                )
-                .with_hint(
-                    bite_core::diag::did_you_mean(
-                        &r.unknown[0],
-                        percepts.names.iter().map(String::as_str),
-                    )
-                    .unwrap_or_else(|| format!("the percepts are: {}", percepts.names.join(", "))),
-                ),
-            ),
-            Ok(_) => {}
-        }
-    }
-    d
 }
 
 impl World {
@@ -476,64 +263,20 @@ impl World {
                 cmd: Command::default(),
                 odometer: 0.0,
                 last_pos: at,
-                skill: Arc::from(Vec::new()),
-                states: Vec::new(),
-                skill_started: 0.0,
-                skill_odometer: 0.0,
-                leaf: None,
-                seen_objects: BTreeMap::new(),
-                mates: BTreeMap::new(),
-                roles: BTreeMap::new(),
-                link: None,
-                anchor: None,
                 trail: Vec::new(),
                 contact: false,
-                view: View::default(),
             });
         }
-        let percepts = percept_names(&spec);
-        let mut mapped = Vec::new();
-        for (name, text, loc) in &spec.beliefs {
-            let Some(belief) = symbols.get(name) else {
-                continue; // nobody reads it (the scenario check warns)
-            };
-            let mut r = PerceptResolver {
-                known: &percepts,
-                unknown: Vec::new(),
-            };
-            match Expr::parse(text, &mut r) {
-                Ok(expr) if r.unknown.is_empty() => mapped.push(Mapped { belief, expr }),
-                _ => errors.push(Diagnostic::error(
-                    file,
-                    *loc,
-                    "bad-belief",
-                    format!("belief `{name}` cannot be computed from the percepts"),
-                )),
+        let tables = match PerceptTables::new(&spec, symbols, file) {
+            Ok(tables) => Some(tables),
+            Err(d) => {
+                errors.extend(d.0);
+                None
             }
-        }
-        if !errors.is_empty() {
+        };
+        let Some(tables) = tables.filter(|_| errors.is_empty()) else {
             return Err(Diagnostics(errors));
-        }
-        let direct = percepts
-            .names
-            .iter()
-            .enumerate()
-            .filter(|(_, n)| !spec.beliefs.iter().any(|(b, _, _)| b == *n))
-            .filter_map(|(i, n)| symbols.get(n).map(|g| (BeliefId(i as u32), g)))
-            .collect();
-        let values = vec![None; percepts.names.len()];
-        let id = |n: String| percepts.id(&n).unwrap_or(BeliefId(u32::MAX));
-        let object_keys = object_keys(&spec)
-            .into_iter()
-            .map(|(key, objects)| KeyPercepts {
-                ids: KEY_SUFFIXES.map(|x| id(format!("{key}_{x}"))),
-                key,
-                objects,
-            })
-            .collect();
-        let zone_ids = (spec.zones.iter())
-            .map(|(z, r)| (*r, id(format!("in_{z}"))))
-            .collect();
+        };
         let n_objects = objects.len();
         // One step at rest before the clock starts: it fills the broad
         // phase's hierarchy that scene queries (what each robot can sense)
@@ -580,6 +323,9 @@ impl World {
             return Err(Diagnostics(errors));
         }
         let coverage = Coverage::new(spec.arena, robots.len());
+        let pilots = (0..robots.len())
+            .map(|_| Pilot::new(spec.clone(), tables.clone()))
+            .collect();
         Ok(World {
             dt: 1.0 / spec.hz,
             spec,
@@ -589,14 +335,11 @@ impl World {
             coverage,
             next_trail: 0.0,
             robots,
+            pilots,
             objects,
             object_trails: vec![Vec::new(); n_objects],
             t: 0.0,
-            object_keys,
-            zone_ids,
-            direct,
-            mapped,
-            values,
+            tables,
             goal_met: None,
             slot_error: (0.0, 0, 0.0),
         })
@@ -737,8 +480,8 @@ impl World {
     /// Record one sample of every trajectory (called at control ticks).
     pub fn record(&mut self) {
         for i in 0..self.robots.len() {
-            let r = &self.robots[i];
-            if self.t - r.skill_started < 1.0 {
+            let r = &self.pilots[i];
+            if self.t - r.skill_started() < 1.0 {
                 continue; // still getting into its slot
             }
             if let Some((l, Some((side, d)))) = r.reference()
@@ -766,13 +509,13 @@ impl World {
             if !keep {
                 continue;
             }
-            let r = &mut self.robots[i];
-            r.trail.push(Sample {
+            let pilot = &self.pilots[i];
+            self.robots[i].trail.push(Sample {
                 t: self.t,
                 pos: p.pos,
                 heading: p.heading,
-                behavior: r.leaf,
-                link: r.link,
+                behavior: pilot.leaf(),
+                link: pilot.link(),
             });
         }
         if keep {
@@ -785,21 +528,14 @@ impl World {
 
     /// Robot `i` starts the skill of a new leaf behavior (or none).
     pub fn leaf_changed(&mut self, i: usize, leaf: Option<BehaviorId>, skill: Arc<[Weighted]>) {
-        let t = self.t;
-        let r = &mut self.robots[i];
-        r.leaf = leaf;
-        r.skill = skill;
-        r.states.clear();
-        r.skill_started = t;
-        r.skill_odometer = r.odometer;
+        let odometer = self.robots[i].odometer;
+        self.pilots[i].leaf_changed(self.t, odometer, leaf, skill);
     }
 
     /// Who holds each sibling role for robot `i` (behavior name → robot),
     /// and its rank among the robots running its behavior (rank, count).
     pub fn set_roles(&mut self, i: usize, roles: BTreeMap<String, u32>, rank: (u32, u32)) {
-        let r = &mut self.robots[i];
-        r.roles = roles;
-        r.view.rank = rank;
+        self.pilots[i].set_roles(roles, rank);
     }
 
     /// Can `a` reach `b` by radio?
@@ -898,9 +634,11 @@ impl World {
         Some(at + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * len)
     }
 
-    /// Robot `i`'s sensors now: updates what it remembers of objects and
-    /// teammates, and writes the graph beliefs its percepts give into `out`.
-    pub fn sense(&mut self, i: usize, out: &mut Vec<(BeliefId, Value)>) {
+    /// Robot `i`'s sensors now, raw: its noisy pose estimate, the range
+    /// rays, what its camera sees of teammates and objects, its odometer
+    /// and whether it touches something (the world's side of sensing; the
+    /// noise comes from the robot's own seeded stream).
+    pub fn observe(&mut self, i: usize) -> Sensed {
         let s = self.spec.sensors;
         let truth = self.pose(i);
         // Pose estimate.
@@ -928,138 +666,48 @@ impl World {
                 rays.push((a, (toi - radius + noise).max(0.0)));
             }
         }
-        // Camera: teammates and objects in the field of view, in sight.
-        let mut seen_now: Vec<usize> = Vec::new();
-        let mut mates_seen = 0;
+        // Camera: teammates, then objects, in the field of view, in sight.
+        let mut mates = Vec::new();
         for &(k, _) in &near {
             let Kind::Robot(j) = k else { continue };
             let p = self.pose(j).pos;
             if let Some(est) = self.sighting(i, &near, truth, p, Kind::Robot(j)) {
-                mates_seen += 1;
-                let t = self.t;
-                let r = &mut self.robots[i];
-                let heading = r.mates.get(&(j as u32)).and_then(|(m, at)| {
-                    let moved = est - m.pos;
-                    if moved.length() > 0.03 && t - at < 2.0 {
-                        Some(moved.y.atan2(moved.x))
-                    } else {
-                        m.heading
-                    }
-                });
-                // Keep the old sighting as the reference for the heading
-                // until the mate has moved enough to tell.
-                let keep_old = r
-                    .mates
-                    .get(&(j as u32))
-                    .is_some_and(|(m, at)| est.distance(m.pos) <= 0.03 && t - at < 2.0);
-                if !keep_old {
-                    r.mates.insert(j as u32, (Mate { pos: est, heading }, t));
-                }
+                mates.push((j as u32, est));
             }
         }
+        let mut objects = Vec::new();
         for &(o, _) in &near {
             let Kind::Object(k) = o else { continue };
             let p = self.object_pos(k);
             if let Some(est) = self.sighting(i, &near, truth, p, Kind::Object(k)) {
-                for (key, ids) in self.object_keys.iter().enumerate() {
-                    if ids.objects.contains(&k) {
-                        self.robots[i].seen_objects.insert(ids.key.clone(), est);
-                        seen_now.push(key);
-                    }
-                }
+                objects.push((k, est));
             }
         }
-        // Forget teammates long out of sight, unless a role refers to them.
-        {
-            let t = self.t;
-            let r = &mut self.robots[i];
-            let (anchor, roles) = (r.anchor, &r.roles);
-            r.mates.retain(|k, (_, at)| {
-                t - *at <= 10.0 * MATE_MEMORY
-                    || anchor == Some(*k)
-                    || roles.values().any(|v| v == k)
-            });
-        }
-        // Percepts.
+        self.near = near;
         let r = &self.robots[i];
-        let skill_done = r.states.iter().any(|s| s.finished);
-        let range_min = rays.iter().map(|(_, d)| *d).fold(s.ray_range, f64::min);
-        let known = r
-            .mates
-            .values()
-            .filter(|(_, at)| self.t - at <= MATE_MEMORY)
-            .count();
-        let reference = r
-            .anchor
-            .and_then(|a| r.mates.get(&a))
-            .map_or(pose.pos, |(m, _)| m.pos);
-        let v = &mut self.values;
-        v[P_X] = Some(Value::Num(pose.pos.x));
-        v[P_Y] = Some(Value::Num(pose.pos.y));
-        v[P_POS] = Some(Value::Vec2([pose.pos.x, pose.pos.y]));
-        v[P_HEADING] = Some(Value::Num(pose.heading.to_degrees()));
-        v[P_ODOMETER] = Some(Value::Num(r.odometer));
-        v[P_SKILL_DISTANCE] = Some(Value::Num(r.odometer - r.skill_odometer));
-        v[P_SKILL_TIME] = Some(Value::Num(self.t - r.skill_started));
-        v[P_SKILL_DONE] = Some(Value::Bool(skill_done));
-        v[P_RANGE_MIN] = Some(Value::Num(range_min));
-        v[P_OBSTACLE_NEAR] = Some(Value::Bool(range_min < 0.3));
-        v[P_CONTACT] = Some(Value::Bool(r.contact));
-        v[P_TEAMMATES_SEEN] = Some(Value::Num(mates_seen as f64));
-        v[P_TEAMMATES_KNOWN] = Some(Value::Num(known as f64));
-        v[P_REFERENCE_POS] = Some(Value::Vec2([reference.x, reference.y]));
-        for (k, key) in self.object_keys.iter().enumerate() {
-            let est = r.seen_objects.get(&key.key).copied();
-            let [seen, pos, distance, bearing] = key.ids;
-            let v = &mut self.values;
-            v[seen.index()] = Some(Value::Bool(seen_now.contains(&k)));
-            v[pos.index()] = est.map(|p| Value::Vec2([p.x, p.y]));
-            v[distance.index()] = est.map(|p| Value::Num(p.distance(pose.pos)));
-            v[bearing.index()] = est.map(|p| {
-                let off = p - pose.pos;
-                Value::Num(schema::wrap(off.y.atan2(off.x) - pose.heading).to_degrees())
-            });
-        }
-        for (rect, id) in &self.zone_ids {
-            self.values[id.index()] = Some(Value::Bool(in_rect(pose.pos, rect)));
-        }
-        for (p, g) in &self.direct {
-            if let Some(v) = &self.values[p.index()] {
-                out.push((*g, v.clone()));
-            }
-        }
-        let env = PerceptEnv(&self.values);
-        for m in &self.mapped {
-            if let Some(v) = m.expr.eval_value(&env) {
-                out.push((m.belief, v));
-            }
-        }
-        // What the schemas read when the robot is next controlled.
-        let r = &mut self.robots[i];
-        r.view = View {
+        Sensed {
+            t: self.t,
             pose,
             rays,
-            objects: r.seen_objects.clone(),
-            in_view: seen_now
-                .iter()
-                .map(|k| self.object_keys[*k].key.clone())
-                .collect(),
-            // Teammates seen lately, and the ones its roles refer to (a
-            // stale sighting repels from where a teammate no longer is).
-            mates: (r.mates.iter())
-                .filter(|(k, (_, at))| {
-                    self.t - at <= MATE_MEMORY
-                        || r.anchor == Some(**k)
-                        || r.roles.values().any(|v| v == *k)
-                })
-                .map(|(k, (m, _))| (*k, *m))
-                .collect(),
-            roles: BTreeMap::new(),
-            skill_time: 0.0,
-            max_speed: self.spec.robot.max_speed,
-            rank: r.view.rank,
-        };
-        self.near = near;
+            mates,
+            objects,
+            odometer: r.odometer,
+            contact: r.contact,
+        }
+    }
+
+    /// Robot `i`'s velocity command, which its drive follows from the
+    /// next physics step on (what a simulator server does with a command
+    /// a robot process sends).
+    pub fn actuate(&mut self, i: usize, cmd: Command) {
+        self.robots[i].cmd = cmd;
+    }
+
+    /// Robot `i`'s sensors now: updates what it remembers of objects and
+    /// teammates, and writes the graph beliefs its percepts give into `out`.
+    pub fn sense(&mut self, i: usize, out: &mut Vec<(BeliefId, Value)>) {
+        let s = self.observe(i);
+        self.pilots[i].perceive(&s, out);
     }
 
     /// The graph beliefs that are about the robot itself (its pose, its
@@ -1067,55 +715,25 @@ impl World {
     /// computed from those percepts alone or in part. A world model never
     /// shares them: a teammate's `skill_done` says nothing about mine.
     pub fn private_beliefs(&self) -> Vec<BeliefId> {
-        // Measured from this robot: its pose, its zone, its view (whether it
-        // sees an object now, how far, at what bearing). Where an object
-        // was seen (`<key>_pos`) is a fact about the world.
-        let personal = |p: BeliefId| {
-            p.index() < FIXED.len()
-                || self.zone_ids.iter().any(|(_, z)| *z == p)
-                || (self.object_keys.iter())
-                    .any(|k| k.ids[0] == p || k.ids[2] == p || k.ids[3] == p)
-        };
-        let mut out: Vec<BeliefId> = (self.direct.iter())
-            .filter(|(p, _)| personal(*p))
-            .map(|(_, g)| *g)
-            .collect();
-        out.extend(
-            (self.mapped.iter())
-                .filter(|m| m.expr.beliefs().iter().any(|p| personal(*p)))
-                .map(|m| m.belief),
-        );
-        out.sort_unstable();
-        out.dedup();
-        out
+        self.tables.private_beliefs()
+    }
+
+    /// Robot `i`'s mind.
+    pub fn pilot(&self, i: usize) -> &Pilot {
+        &self.pilots[i]
     }
 
     /// The behavior-selection module: fuse the schemas of robot `i`'s
     /// current skill over what it sensed last into its velocity command.
     pub fn control(&mut self, i: usize) {
         let t = self.t;
-        let r = &mut self.robots[i];
-        r.view.roles = r.roles.clone();
-        r.view.skill_time = t - r.skill_started;
-        let rng = &mut r.rng;
+        let rng = &mut self.robots[i].rng;
         let mut draw = || {
             use rand::RngExt;
             rng.random_range(0.0..1.0)
         };
-        r.cmd = schema::command(&r.skill, &r.view, &mut r.states, &mut draw);
-        r.link = r.reference().map(|(l, _)| l);
-        // A robot that leads (moves to a goal on its own) is its own
-        // reference; one that keeps station keeps its reference while it
-        // searches.
-        if r.link.is_some() {
-            r.anchor = r.link;
-        } else if r
-            .skill
-            .iter()
-            .any(|w| matches!(w.schema, schema::Schema::MoveToGoal { .. }))
-        {
-            r.anchor = None;
-        }
+        let cmd = self.pilots[i].control(t, &mut draw);
+        self.actuate(i, cmd);
     }
 }
 
@@ -1294,13 +912,115 @@ mod tests {
         let seen: f64 = (0..3)
             .map(|i| {
                 w.sense(i, &mut out);
-                match &w.values[P_TEAMMATES_SEEN] {
+                match w.pilot(i).percept("teammates_seen") {
                     Some(Value::Num(x)) => *x,
                     _ => 0.0,
                 }
             })
             .sum();
         assert!(seen >= 2.0, "{seen} sightings at t = 0");
+    }
+
+    /// The box-push arena with its graph's symbols, two robots.
+    fn box_push() -> (bite_core::graph::BehaviorGraph, Arc<PhysicsSpec>) {
+        let g = bite_core::graph::load_str(
+            &Arc::from("box-push.yaml"),
+            include_str!("../../../../examples/box-push.yaml"),
+        )
+        .expect("graph");
+        let sc = crate::Scenario::load_str(
+            &Arc::from("box-push-physics.yaml"),
+            include_str!("../../../../examples/scenarios/box-push-physics.yaml"),
+        )
+        .expect("scenario");
+        (g, sc.physics.clone().expect("physical"))
+    }
+
+    /// Go to `goal`, clear of obstacles.
+    fn go_to(goal: DVec2) -> Arc<[Weighted]> {
+        use schema::{Schema, Target};
+        Arc::from(vec![
+            Weighted {
+                schema: Schema::MoveToGoal {
+                    goal: Target::Point(goal),
+                    speed: 0.25,
+                },
+                gain: 1.0,
+                layer: 1,
+            },
+            Weighted {
+                schema: Schema::AvoidObstacle { range: 0.25 },
+                gain: 1.0,
+                layer: 3,
+            },
+        ])
+    }
+
+    /// The same run twice: in process (`sense`, `control`), and split as
+    /// between a simulator server and robot processes (`observe`, JSON,
+    /// pilots of their own with draws of their own, JSON, `actuate`).
+    #[test]
+    fn a_split_robot_perceives_and_drives_as_an_in_process_one() {
+        use rand::RngExt;
+        let (g, spec) = box_push();
+        let file: Arc<str> = Arc::from("box-push-physics.yaml");
+        let names: Vec<String> = vec!["r0".into(), "r1".into()];
+        let world = || World::new(spec.clone(), &names, g.symbols(), &file, 1).expect("world");
+        let (mut inproc, mut server) = (world(), world());
+        let mut pilots: Vec<Pilot> = (0..2)
+            .map(|i| Pilot::for_robot(spec.clone(), &names, g.symbols(), &file, i).expect("pilot"))
+            .collect();
+        let mut draws: Vec<Rng> = (0..2).map(|i| Rng::seed_from_u64(100 + i)).collect();
+        let goals = [DVec2::new(2.0, 0.5), DVec2::new(2.0, 2.0)];
+        for i in 0..2 {
+            inproc.leaf_changed(i, None, go_to(goals[i]));
+            pilots[i].leaf_changed(0.0, 0.0, None, go_to(goals[i]));
+        }
+        let before: Vec<f64> = (0..2)
+            .map(|i| server.pose(i).pos.distance(goals[i]))
+            .collect();
+        let stopped = [false; 2];
+        let mut sightings = 0;
+        for tick in 0..80 {
+            for i in 0..2 {
+                let mut want = Vec::new();
+                inproc.sense(i, &mut want);
+                inproc.control(i);
+                // The server's side.
+                let sensed = serde_json::to_string(&server.observe(i)).expect("json");
+                // The robot's side.
+                let sensed: Sensed = serde_json::from_str(&sensed).expect("sensed");
+                let mut got = Vec::new();
+                pilots[i].perceive(&sensed, &mut got);
+                if tick == 0 {
+                    sightings += sensed.mates.len() + sensed.objects.len();
+                    assert_eq!(got, want, "r{i}'s percepts at the first tick");
+                }
+                let rng = &mut draws[i];
+                let cmd = pilots[i].control(sensed.t, &mut || rng.random_range(0.0..1.0));
+                let cmd = serde_json::to_string(&cmd).expect("json");
+                // The server's side again.
+                server.actuate(i, serde_json::from_str(&cmd).expect("command"));
+            }
+            let now = Time::from_secs_f64((tick + 1) as f64 * 0.1);
+            for w in [&mut inproc, &mut server] {
+                w.advance(now, &stopped);
+                w.record();
+            }
+        }
+        assert!(sightings >= 2, "{sightings} sightings at the first tick");
+        for i in 0..2 {
+            // Nothing here draws: the two runs go the same way.
+            let (a, b) = (inproc.pose(i).pos, server.pose(i).pos);
+            assert!(a.distance(b) < 1e-3, "r{i}: {a} in process, {b} split");
+            let after = server.pose(i).pos.distance(goals[i]);
+            assert!(
+                after < before[i] - 1.0,
+                "r{i}: {:.2} m from its goal, was {:.2}",
+                after,
+                before[i]
+            );
+        }
     }
 
     #[test]

@@ -19,11 +19,13 @@
 //! a seeded random stream), so it is unit-testable without physics.
 
 use glam::DVec2;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// Where a robot is and which way it faces (radians, counter-clockwise
-/// from +x).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// from +x). In JSON: `{"x": m, "y": m, "heading": radians}`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(from = "PoseJson", into = "PoseJson")]
 pub struct Pose {
     /// Position, metres.
     pub pos: DVec2,
@@ -209,8 +211,12 @@ pub struct View {
 }
 
 /// A fused command: a desired velocity in the world frame, and a heading
-/// to turn to when standing (from `face`).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+/// to turn to when standing (from `face`). What a robot sends the world
+/// at each control tick; in JSON
+/// `{"vx": m/s, "vy": m/s, "face": radians | null, "layer": 0-3 | null}`
+/// (`face` and `layer` may be left out: null).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "CommandJson", into = "CommandJson")]
 pub struct Command {
     /// Desired velocity, m/s, world frame.
     pub v: DVec2,
@@ -218,6 +224,192 @@ pub struct Command {
     pub face: Option<f64>,
     /// The layer that produced it (`None`: no schema active).
     pub layer: Option<u8>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct PoseJson {
+    x: f64,
+    y: f64,
+    heading: f64,
+}
+
+impl From<PoseJson> for Pose {
+    fn from(p: PoseJson) -> Self {
+        Pose {
+            pos: DVec2::new(p.x, p.y),
+            heading: p.heading,
+        }
+    }
+}
+
+impl From<Pose> for PoseJson {
+    fn from(p: Pose) -> Self {
+        PoseJson {
+            x: p.pos.x,
+            y: p.pos.y,
+            heading: p.heading,
+        }
+    }
+}
+
+#[derive(Serialize, Deserialize)]
+struct CommandJson {
+    vx: f64,
+    vy: f64,
+    #[serde(default)]
+    face: Option<f64>,
+    #[serde(default)]
+    layer: Option<u8>,
+}
+
+impl TryFrom<CommandJson> for Command {
+    type Error = String;
+    fn try_from(c: CommandJson) -> Result<Self, String> {
+        if let Some(l) = c.layer
+            && l > 3
+        {
+            return Err(format!("layer {l}: layers are 0 to 3"));
+        }
+        Ok(Command {
+            v: DVec2::new(c.vx, c.vy),
+            face: c.face,
+            layer: c.layer,
+        })
+    }
+}
+
+impl From<Command> for CommandJson {
+    fn from(c: Command) -> Self {
+        CommandJson {
+            vx: c.v.x,
+            vy: c.v.y,
+            face: c.face,
+            layer: c.layer,
+        }
+    }
+}
+
+/// One robot's raw sensor readings at a control tick: what the world (the
+/// simulator, or a real robot's drivers) measures, before the robot's mind
+/// makes percepts of it. In JSON:
+///
+/// ```json
+/// { "t": 12.3,
+///   "pose": { "x": 1.0, "y": 2.0, "heading": 0.5 },
+///   "rays": [[0.0, 0.84], [0.5236, 1.02]],
+///   "mates": [{ "robot": 1, "x": 2.1, "y": 0.4 }],
+///   "objects": [{ "index": 0, "x": 3.0, "y": 2.5 }],
+///   "odometer": 4.2,
+///   "contact": false }
+/// ```
+///
+/// Lengths in metres, angles in radians; `t` and `pose` are required, the
+/// rest may be left out (no rays, no sightings, 0 m, no contact).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Sensed {
+    /// World time of the readings, s.
+    pub t: f64,
+    /// Estimated pose.
+    pub pose: Pose,
+    /// Range readings: (angle relative to the heading, distance), only
+    /// those that hit something within the sensor's range.
+    pub rays: Vec<(f64, f64)>,
+    /// Teammates the camera sees: robot index and estimated position.
+    pub mates: Vec<(u32, DVec2)>,
+    /// Objects the camera sees: index in the scenario's `objects` and
+    /// estimated position.
+    pub objects: Vec<(usize, DVec2)>,
+    /// Distance travelled since the start, m.
+    pub odometer: f64,
+    /// Touching something.
+    pub contact: bool,
+}
+
+#[derive(Serialize, Deserialize)]
+struct MateJson {
+    robot: u32,
+    x: f64,
+    y: f64,
+}
+
+#[derive(Serialize, Deserialize)]
+struct ObjectJson {
+    index: usize,
+    x: f64,
+    y: f64,
+}
+
+#[derive(Serialize)]
+struct SensedOut<'a> {
+    t: f64,
+    pose: Pose,
+    rays: &'a [(f64, f64)],
+    mates: Vec<MateJson>,
+    objects: Vec<ObjectJson>,
+    odometer: f64,
+    contact: bool,
+}
+
+#[derive(Deserialize)]
+struct SensedIn {
+    t: f64,
+    pose: Pose,
+    #[serde(default)]
+    rays: Vec<(f64, f64)>,
+    #[serde(default)]
+    mates: Vec<MateJson>,
+    #[serde(default)]
+    objects: Vec<ObjectJson>,
+    #[serde(default)]
+    odometer: f64,
+    #[serde(default)]
+    contact: bool,
+}
+
+impl Serialize for Sensed {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        SensedOut {
+            t: self.t,
+            pose: self.pose,
+            rays: &self.rays,
+            mates: (self.mates.iter())
+                .map(|(robot, p)| MateJson {
+                    robot: *robot,
+                    x: p.x,
+                    y: p.y,
+                })
+                .collect(),
+            objects: (self.objects.iter())
+                .map(|(index, p)| ObjectJson {
+                    index: *index,
+                    x: p.x,
+                    y: p.y,
+                })
+                .collect(),
+            odometer: self.odometer,
+            contact: self.contact,
+        }
+        .serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for Sensed {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = SensedIn::deserialize(d)?;
+        Ok(Sensed {
+            t: s.t,
+            pose: s.pose,
+            rays: s.rays,
+            mates: (s.mates.into_iter())
+                .map(|m| (m.robot, DVec2::new(m.x, m.y)))
+                .collect(),
+            objects: (s.objects.into_iter())
+                .map(|o| (o.index, DVec2::new(o.x, o.y)))
+                .collect(),
+            odometer: s.odometer,
+            contact: s.contact,
+        })
+    }
 }
 
 /// State a schema keeps across steps during one execution of its skill.
@@ -598,6 +790,92 @@ mod tests {
             v: DVec2::new(x, y),
             face: None,
         })
+    }
+
+    #[test]
+    fn readings_round_trip_through_json() {
+        let s = Sensed {
+            t: 12.3,
+            pose: Pose {
+                pos: DVec2::new(1.0, 2.5),
+                heading: -0.75,
+            },
+            rays: vec![(0.0, 0.84), (std::f64::consts::FRAC_PI_6, 1.02)],
+            mates: vec![(1, DVec2::new(2.1, 0.4))],
+            objects: vec![(0, DVec2::new(3.0, 2.5)), (2, DVec2::new(0.5, 0.25))],
+            odometer: 4.2,
+            contact: true,
+        };
+        let json = serde_json::to_value(&s).expect("json");
+        assert_eq!(
+            json,
+            serde_json::json!({
+                "t": 12.3,
+                "pose": { "x": 1.0, "y": 2.5, "heading": -0.75 },
+                "rays": [[0.0, 0.84], [std::f64::consts::FRAC_PI_6, 1.02]],
+                "mates": [{ "robot": 1, "x": 2.1, "y": 0.4 }],
+                "objects": [{ "index": 0, "x": 3.0, "y": 2.5 }, { "index": 2, "x": 0.5, "y": 0.25 }],
+                "odometer": 4.2,
+                "contact": true
+            })
+        );
+        let back: Sensed = serde_json::from_str(&json.to_string()).expect("sensed");
+        assert_eq!(back, s);
+        // A robot without rays or a camera says only where it is.
+        let bare: Sensed =
+            serde_json::from_str(r#"{"t": 1, "pose": {"x": 0.5, "y": 0, "heading": 0}}"#)
+                .expect("sensed");
+        assert_eq!(
+            bare,
+            Sensed {
+                t: 1.0,
+                pose: Pose {
+                    pos: DVec2::new(0.5, 0.0),
+                    heading: 0.0
+                },
+                ..Sensed::default()
+            }
+        );
+        assert!(serde_json::from_str::<Sensed>(r#"{"t": 1}"#).is_err());
+    }
+
+    #[test]
+    fn commands_round_trip_through_json() {
+        for c in [
+            Command {
+                v: DVec2::new(0.25, -0.1),
+                face: None,
+                layer: Some(1),
+            },
+            Command {
+                v: DVec2::ZERO,
+                face: Some(std::f64::consts::FRAC_PI_2),
+                layer: Some(3),
+            },
+            Command::default(),
+        ] {
+            let json = serde_json::to_string(&c).expect("json");
+            assert_eq!(serde_json::from_str::<Command>(&json).expect("command"), c);
+        }
+        let c = Command {
+            v: DVec2::new(0.25, -0.1),
+            face: Some(1.5),
+            layer: Some(2),
+        };
+        assert_eq!(
+            serde_json::to_value(c).expect("json"),
+            serde_json::json!({ "vx": 0.25, "vy": -0.1, "face": 1.5, "layer": 2 })
+        );
+        // `face` and `layer` may be left out; there are four layers.
+        assert_eq!(
+            serde_json::from_str::<Command>(r#"{"vx": 0.5, "vy": 0}"#).expect("command"),
+            Command {
+                v: DVec2::new(0.5, 0.0),
+                face: None,
+                layer: None
+            }
+        );
+        assert!(serde_json::from_str::<Command>(r#"{"vx": 0, "vy": 0, "layer": 4}"#).is_err());
     }
 
     #[test]

@@ -1,0 +1,845 @@
+//! Robots as separate processes over Zenoh: `bite robot`, `bite sim serve`,
+//! `bite launch`, `bite submit`, `bite keygen`.
+
+use anyhow::{Context, Result, bail};
+use bite_core::graph::BehaviorGraph;
+use bite_sim::Scenario;
+use bite_zenoh::auth::TeamKey;
+use bite_zenoh::net::{NetOptions, unix_micros};
+use bite_zenoh::robot::{Prepared, RobotOptions};
+use bite_zenoh::wire::MissionBody;
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Child, ExitCode, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
+
+use crate::{Reported, parse_dur, parse_robots, rtcl};
+
+/// How a process joins the team's Zenoh network.
+#[derive(clap::Args, Clone, Debug)]
+pub struct NetArgs {
+    /// The team: the `bite/<team>/` key prefix.
+    #[arg(long, default_value = "bite")]
+    pub team: String,
+    /// Endpoint to listen on, e.g. `tcp/127.0.0.1:7447` (repeatable).
+    #[arg(long)]
+    pub listen: Vec<String>,
+    /// Endpoint to connect to (repeatable).
+    #[arg(long)]
+    pub connect: Vec<String>,
+    /// A Zenoh configuration file (JSON5: TLS, access control, routers);
+    /// `--listen`, `--connect` and `--multicast` are laid over it.
+    #[arg(long)]
+    pub zenoh_config: Option<PathBuf>,
+    /// Turn multicast scouting on (off by default; give `--multicast-interface lo` on one machine).
+    #[arg(long)]
+    pub multicast: bool,
+    /// The network interface multicast scouting uses.
+    #[arg(long)]
+    pub multicast_interface: Option<String>,
+    /// Zenoh mode: `peer` (default) or `client` (through a zenohd router).
+    #[arg(long)]
+    pub mode: Option<String>,
+}
+
+impl NetArgs {
+    fn options(&self) -> NetOptions {
+        NetOptions {
+            config: self.zenoh_config.clone(),
+            listen: self.listen.clone(),
+            connect: self.connect.clone(),
+            multicast: self.multicast,
+            multicast_interface: self.multicast_interface.clone(),
+            mode: self.mode.clone(),
+        }
+    }
+}
+
+/// What mission to run and in which world (as `bite run` takes it).
+#[derive(clap::Args, Clone, Debug, Default)]
+pub struct MissionArgs {
+    /// The behavior graph (YAML) or mission (`.rtcl`). Default for `robot`:
+    /// none, wait for one to be submitted; for `sim serve` and `launch`:
+    /// the built-in formation example.
+    pub graph: Option<PathBuf>,
+    /// The command library for `.rtcl` missions.
+    #[arg(long)]
+    pub library: Option<PathBuf>,
+    /// A configuration file binding protocols to points.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// The scenario (default: next to the graph, physical world first).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// Team size.
+    #[arg(long, value_parser = parse_robots)]
+    pub robots: Option<usize>,
+    /// Seed (default: the scenario's).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Use the timed-skill world when picking the default scenario.
+    #[arg(long)]
+    pub timed: bool,
+}
+
+impl MissionArgs {
+    /// The graph and scenario, as `bite run` loads them.
+    fn load(&self) -> Result<(BehaviorGraph, Scenario)> {
+        crate::load_team(
+            self.graph.as_deref(),
+            self.library.as_deref(),
+            self.config.as_deref(),
+            self.scenario.as_deref(),
+            self.robots,
+            self.timed,
+        )
+    }
+
+    /// Arguments that give the same mission to a child process.
+    fn to_args(&self) -> Vec<String> {
+        let mut a = Vec::new();
+        if let Some(g) = &self.graph {
+            a.push(g.display().to_string());
+        }
+        let mut opt = |k: &str, v: Option<String>| {
+            if let Some(v) = v {
+                a.push(k.to_string());
+                a.push(v);
+            }
+        };
+        opt(
+            "--library",
+            self.library.as_ref().map(|p| p.display().to_string()),
+        );
+        opt(
+            "--config",
+            self.config.as_ref().map(|p| p.display().to_string()),
+        );
+        opt(
+            "--scenario",
+            self.scenario.as_ref().map(|p| p.display().to_string()),
+        );
+        opt("--robots", self.robots.map(|n| n.to_string()));
+        opt("--seed", self.seed.map(|n| n.to_string()));
+        if self.timed {
+            a.push("--timed".into());
+        }
+        a
+    }
+}
+
+#[derive(clap::Args)]
+pub struct RobotArgs {
+    /// This robot's name on the mission's roster (e.g. `r0`).
+    #[arg(long)]
+    pub name: String,
+    #[command(flatten)]
+    pub mission: MissionArgs,
+    #[command(flatten)]
+    pub net: NetArgs,
+    /// The team key file (hex, 32 bytes or more; `bite keygen` makes one).
+    /// Also read from `BITE_TEAM_KEY`. A robot without a valid key does not start.
+    #[arg(long)]
+    pub key: Option<PathBuf>,
+    /// Team seconds per wall second (1 for real robots; a simulator server
+    /// and every robot of the team must agree).
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// The team clock's origin, milliseconds since the Unix epoch (shared
+    /// by the team; default: when every teammate has been heard).
+    #[arg(long)]
+    pub start_at: Option<u64>,
+    /// Where to write the run log (JSON lines).
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+    /// Exit once the mission is completed.
+    #[arg(long)]
+    pub exit_when_done: bool,
+    /// Give up after this much team time (e.g. `300s`).
+    #[arg(long, value_parser = parse_dur)]
+    pub time_limit: Option<Duration>,
+    /// How long to wait for every teammate before starting anyway (wall).
+    #[arg(long, value_parser = parse_dur, default_value = "10s")]
+    pub gather_timeout: Duration,
+}
+
+#[derive(clap::Args)]
+pub struct ServeArgs {
+    #[command(flatten)]
+    pub mission: MissionArgs,
+    #[command(flatten)]
+    pub net: NetArgs,
+    /// Team seconds per wall second.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// The team clock's origin, milliseconds since the Unix epoch.
+    #[arg(long)]
+    pub start_at: Option<u64>,
+    /// Where to write the world's log (JSON lines).
+    #[arg(long)]
+    pub log: Option<PathBuf>,
+    /// Stop after this much team time (default: until stopped).
+    #[arg(long, value_parser = parse_dur)]
+    pub time_limit: Option<Duration>,
+    /// Stop a robot whose commands stop for this long (team time).
+    #[arg(long, value_parser = parse_dur, default_value = "1s")]
+    pub deadman: Duration,
+    /// Draw the run (arena, trajectories) to this SVG file when stopped.
+    #[arg(long)]
+    pub svg: Option<PathBuf>,
+}
+
+#[derive(clap::Args)]
+pub struct LaunchArgs {
+    #[command(flatten)]
+    pub mission: MissionArgs,
+    /// The team name (default: `launch-<process id>`).
+    #[arg(long)]
+    pub team: Option<String>,
+    /// The team key file (default: a new key in the output directory).
+    #[arg(long)]
+    pub key: Option<PathBuf>,
+    /// Team seconds per wall second.
+    #[arg(long, default_value_t = 1.0)]
+    pub speed: f64,
+    /// Where to gather the logs.
+    #[arg(long, default_value = "out/launch")]
+    pub out: PathBuf,
+    /// Kill a robot process at a team time, e.g. `r1@20s` (repeatable).
+    #[arg(long)]
+    pub kill: Vec<String>,
+    /// Give up after this much team time (default: the scenario's limit).
+    #[arg(long, value_parser = parse_dur)]
+    pub time_limit: Option<Duration>,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(clap::Args)]
+pub struct SubmitArgs {
+    /// The behavior graph (YAML) or mission (`.rtcl`) to submit.
+    pub graph: PathBuf,
+    /// A scenario to send with it (YAML).
+    #[arg(long)]
+    pub scenario: Option<PathBuf>,
+    /// A configuration to send with it (YAML).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// The submission id (default: a random one).
+    #[arg(long)]
+    pub id: Option<String>,
+    /// The team key file (or `BITE_TEAM_KEY`).
+    #[arg(long)]
+    pub key: Option<PathBuf>,
+    #[command(flatten)]
+    pub net: NetArgs,
+}
+
+/// The team key: `--key FILE`, else `BITE_TEAM_KEY`. Fails closed.
+fn team_key(path: Option<&Path>) -> Result<TeamKey> {
+    let text = match path {
+        Some(p) => std::fs::read_to_string(p)
+            .with_context(|| format!("reading the team key {}", p.display()))?,
+        None => match std::env::var("BITE_TEAM_KEY") {
+            Ok(k) => k,
+            Err(_) => bail!(
+                "no team key: give --key FILE or set BITE_TEAM_KEY (make one with `bite keygen`); \
+                 robots never run unauthenticated"
+            ),
+        },
+    };
+    TeamKey::from_hex(&text).map_err(|e| match path {
+        Some(p) => anyhow::anyhow!("{}: {e}", p.display()),
+        None => anyhow::anyhow!("BITE_TEAM_KEY: {e}"),
+    })
+}
+
+fn new_key() -> Result<TeamKey> {
+    let mut b = vec![0u8; 32];
+    getrandom::fill(&mut b).map_err(|e| anyhow::anyhow!("no random source: {e}"))?;
+    Ok(TeamKey::new(b)?)
+}
+
+/// A flag set by SIGINT / SIGTERM.
+fn stop_flag() -> Result<Arc<AtomicBool>> {
+    let stop = Arc::new(AtomicBool::new(false));
+    let s = stop.clone();
+    ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
+        .context("installing the signal handler")?;
+    Ok(stop)
+}
+
+/// `bite keygen`.
+pub fn cmd_keygen(output: Option<&Path>) -> Result<ExitCode> {
+    let k = new_key()?;
+    match output {
+        Some(p) => {
+            write_secret(p, &k.to_hex())?;
+            eprintln!("team key written to {}", p.display());
+        }
+        None => println!("{}", k.to_hex()),
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn write_secret(p: &Path, text: &str) -> Result<()> {
+    if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(d)?;
+    }
+    std::fs::write(p, format!("{text}\n")).with_context(|| format!("writing {}", p.display()))?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        std::fs::set_permissions(p, std::fs::Permissions::from_mode(0o600))?;
+    }
+    Ok(())
+}
+
+/// Load a submitted mission against the robot's own scenario (or the one
+/// the submission carries).
+fn loader(base: MissionArgs, robots: Option<usize>) -> bite_zenoh::robot::Loader {
+    Box::new(move |body: &MissionBody| {
+        let scenario = match &body.scenario {
+            Some(text) => Scenario::load_str(
+                &Arc::from(format!("{} (submitted scenario)", body.id)),
+                text,
+            )
+            .map_err(|d| d.to_string())?,
+            None => match &base.scenario {
+                Some(p) => Scenario::load(p).map_err(|d| d.to_string())?,
+                None => Scenario::default(),
+            },
+        };
+        let label = format!("{} (submitted)", body.id);
+        let (graph, scenario) = if let Some(src) = &body.rtcl {
+            let lib = rtcl::library(base.library.as_deref()).map_err(|e| e.to_string())?;
+            let opts = rtcl::options_for(&scenario, robots);
+            let compiled =
+                bite_rtcl::compile(&label, src, &lib, &opts).map_err(|d| d.to_string())?;
+            let g = bite_core::graph::load_str(&Arc::from(label.as_str()), &compiled.graph)
+                .map_err(|d| d.to_string())?;
+            let s = rtcl::bind_parts(&label, &compiled, &scenario).map_err(|d| d.to_string())?;
+            (g, s)
+        } else {
+            let text = body.graph.as_deref().unwrap_or_default();
+            let g = bite_core::graph::load_str(&Arc::from(label.as_str()), text)
+                .map_err(|d| d.to_string())?;
+            (g, scenario)
+        };
+        let graph = match &body.config {
+            Some(c) => {
+                let cfg =
+                    bite_core::Config::load_str(&Arc::from(format!("{} (config)", body.id)), c)
+                        .map_err(|d| d.to_string())?;
+                graph.with_config(&cfg).map_err(|d| d.to_string())?
+            }
+            None => graph,
+        };
+        let mission = bite_sim::runner::prepare(&graph, &scenario, robots, &crate::registry())
+            .map_err(|d| d.to_string())?;
+        let seed = body.seed.unwrap_or(scenario.seed);
+        Ok(Prepared {
+            mission,
+            scenario,
+            seed,
+        })
+    })
+}
+
+/// `bite robot`.
+pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
+    let key = team_key(a.key.as_deref())?;
+    let first = match &a.mission.graph {
+        Some(_) => {
+            let (graph, scenario) = a.mission.load()?;
+            let mission =
+                bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())
+                    .map_err(crate::bad_input)?;
+            let seed = a.mission.seed.unwrap_or(scenario.seed);
+            Some(Prepared {
+                mission,
+                scenario,
+                seed,
+            })
+        }
+        None => None,
+    };
+    let stop = stop_flag()?;
+    let opts = RobotOptions {
+        team: a.net.team.clone(),
+        name: a.name.clone(),
+        key,
+        net: a.net.options(),
+        speed: a.speed,
+        start_at_us: a.start_at.map(|ms| ms * 1000),
+        log: a.log.clone(),
+        exit_when_done: a.exit_when_done,
+        time_limit: a.time_limit,
+        gather_timeout: a.gather_timeout,
+        status_period: Duration::from_millis(500),
+    };
+    if first.is_none() {
+        eprintln!(
+            "robot {} of team {}: waiting for a mission on bite/{}/mission",
+            a.name, a.net.team, a.net.team
+        );
+    }
+    let out = bite_zenoh::robot::run(
+        opts,
+        first,
+        loader(a.mission.clone(), a.mission.robots),
+        stop,
+    )?;
+    eprintln!(
+        "robot {}: {} ({} frames accepted, {} rejected)",
+        a.name,
+        if out.completed {
+            "mission completed"
+        } else {
+            "stopped before completing"
+        },
+        out.auth.accepted,
+        out.auth.rejected_total()
+    );
+    Ok(if out.completed {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// `bite sim serve`.
+pub fn cmd_serve(a: ServeArgs) -> Result<ExitCode> {
+    let (graph, scenario) = a.mission.load()?;
+    let mission =
+        bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())
+            .map_err(crate::bad_input)?;
+    let seed = a.mission.seed.unwrap_or(scenario.seed);
+    let stop = stop_flag()?;
+    let opts = bite_zenoh::server::ServerOptions {
+        team: a.net.team.clone(),
+        net: a.net.options(),
+        speed: a.speed,
+        start_at_us: a.start_at.map(|ms| ms * 1000),
+        time_limit: a.time_limit,
+        deadman: a.deadman,
+        log: a.log.clone(),
+    };
+    eprintln!(
+        "simulator server for team {}: scenario `{}`, {} robots, seed {seed}",
+        a.net.team,
+        scenario.name,
+        mission.graph().roster().len()
+    );
+    let report = bite_zenoh::server::serve(mission.graph(), &scenario, seed, &opts, stop)?;
+    if let Some(svg) = &a.svg {
+        let g = mission.graph();
+        let names: Vec<String> = g.roster().iter().map(|(_, r)| r.name.clone()).collect();
+        let behaviors = |b: bite_core::ids::BehaviorId| g.name_of(b).to_string();
+        let text = bite_sim::physics::svg::draw(
+            &report.world,
+            &bite_sim::physics::svg::Labels {
+                title: format!("{} over Zenoh, team {}", g.name(), a.net.team),
+                robots: &names,
+                behaviors: &behaviors,
+                at: None,
+            },
+        );
+        std::fs::write(svg, text).with_context(|| format!("writing {}", svg.display()))?;
+    }
+    eprintln!(
+        "simulator server stopped at {:.1} s: commands {:?}, {} rejected",
+        report.end.as_secs_f64(),
+        report.commands,
+        report.rejected
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `bite submit`.
+pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
+    use bite_zenoh::zenoh::Wait;
+    let key = team_key(a.key.as_deref())?;
+    let read =
+        |p: &Path| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()));
+    let text = read(&a.graph)?;
+    let id = match a.id {
+        Some(id) => id,
+        None => {
+            let mut b = [0u8; 8];
+            getrandom::fill(&mut b).map_err(|e| anyhow::anyhow!("no random source: {e}"))?;
+            bite_zenoh::auth::to_hex(&b)
+        }
+    };
+    let is_rtcl = rtcl::is_mission(&a.graph);
+    let body = MissionBody {
+        id: id.clone(),
+        graph: (!is_rtcl).then(|| text.clone()),
+        rtcl: is_rtcl.then_some(text),
+        config: a.config.as_deref().map(read).transpose()?,
+        scenario: a.scenario.as_deref().map(read).transpose()?,
+        seed: None,
+    };
+    let sub = bite_zenoh::wire::sign_submission(&key, &a.net.team, &body);
+    let session = a.net.options().open()?;
+    // Give the session a moment to reach its peers before the put.
+    std::thread::sleep(Duration::from_millis(500));
+    session
+        .put(
+            bite_zenoh::Keys::new(&a.net.team).mission(),
+            serde_json::to_vec(&sub)?,
+        )
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
+    std::thread::sleep(Duration::from_millis(200));
+    let _ = session.close().wait();
+    println!("{id}");
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A free TCP port on 127.0.0.1 (the OS picks one; it is released at once,
+/// so another process could take it in between: fine for development).
+fn free_port() -> Result<u16> {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").context("finding a free port")?;
+    Ok(l.local_addr()?.port())
+}
+
+struct Proc {
+    name: String,
+    child: Child,
+    exit: Option<std::process::ExitStatus>,
+    killed_at: Option<f64>,
+}
+
+/// `bite launch`: the whole team on this machine.
+pub fn cmd_launch(a: LaunchArgs) -> Result<ExitCode> {
+    let (summary, ok) = launch(&a, false)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "team {}: mission `{}` on scenario `{}` over Zenoh",
+            summary["team"].as_str().unwrap_or("?"),
+            summary["graph"].as_str().unwrap_or("?"),
+            summary["scenario"].as_str().unwrap_or("?")
+        );
+        for r in summary["robots"].as_array().into_iter().flatten() {
+            let state = if r["completed"] == true {
+                "COMPLETED"
+            } else if !r["killed_at"].is_null() {
+                "KILLED"
+            } else {
+                "INCOMPLETE"
+            };
+            let lost: Vec<&str> = (r["lost"].as_array().into_iter().flatten())
+                .filter_map(|x| x.as_str())
+                .collect();
+            println!(
+                "  {:<6} {:<10} exit {:<4} {}{}",
+                r["robot"].as_str().unwrap_or("?"),
+                state,
+                r["exit"].as_i64().map_or("-".into(), |c| c.to_string()),
+                r["completed_at"]
+                    .as_f64()
+                    .map_or(String::new(), |t| format!("at {t:.1} s")),
+                if lost.is_empty() {
+                    String::new()
+                } else {
+                    format!("; presumed lost: {}", lost.join(", "))
+                },
+            );
+        }
+        let dis = summary["disagreements"]
+            .as_array()
+            .cloned()
+            .unwrap_or_default();
+        println!(
+            "  joint decisions: {} instances, {} disagreements",
+            summary["joint_decisions"],
+            dis.len()
+        );
+        for d in &dis {
+            println!("    {}", d.as_str().unwrap_or("?"));
+        }
+        println!("  logs: {}", summary["logs"].as_str().unwrap_or("?"));
+    }
+    Ok(if ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(Reported(1).0)
+    })
+}
+
+/// Run a team on this machine until its robots end; the summary (also
+/// written to `<out>/summary.json`) and whether every robot not killed
+/// completed with its teammates agreeing on every joint decision.
+pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> {
+    let (graph, scenario) = a.mission.load()?;
+    let mission =
+        bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())
+            .map_err(crate::bad_input)?;
+    let graph = mission.graph().clone();
+    let n = graph.roster().len();
+    let names: Vec<String> = graph.roster().iter().map(|(_, r)| r.name.clone()).collect();
+    let physical = scenario.physics.is_some();
+    let mut kills: BTreeMap<String, f64> = BTreeMap::new();
+    for k in &a.kill {
+        let (who, at) = k
+            .split_once('@')
+            .with_context(|| format!("--kill {k}: expected ROBOT@TIME, e.g. r1@20s"))?;
+        if !names.iter().any(|n| n == who) {
+            bail!(
+                "--kill {k}: no robot `{who}` on the roster ({})",
+                names.join(", ")
+            );
+        }
+        let at = parse_dur(at).map_err(|e| anyhow::anyhow!("--kill {k}: {e}"))?;
+        kills.insert(who.to_string(), at.as_secs_f64());
+    }
+    let team = a
+        .team
+        .clone()
+        .unwrap_or_else(|| format!("launch-{}", std::process::id()));
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let key_path = match &a.key {
+        Some(p) => {
+            team_key(Some(p))?;
+            p.clone()
+        }
+        None => {
+            let p = a.out.join("team.key");
+            write_secret(&p, &new_key()?.to_hex())?;
+            p
+        }
+    };
+    let limit = a.time_limit.unwrap_or(scenario.time_limit);
+    let exe = std::env::current_exe().context("finding the bite executable")?;
+    let ports: Vec<u16> = (0..=n).map(|_| free_port()).collect::<Result<_>>()?;
+    let ep = |i: usize| format!("tcp/127.0.0.1:{}", ports[i]);
+    // Everyone starts its clock at the same moment, once all are up.
+    let start_ms = unix_micros() / 1000 + 2500;
+    let stop = stop_flag()?;
+    let mut procs: Vec<Proc> = Vec::new();
+    let spawn = |name: &str, args: Vec<String>| -> Result<Proc> {
+        let out = std::fs::File::create(a.out.join(format!("{name}.log")))?;
+        let err = out.try_clone()?;
+        let child = std::process::Command::new(&exe)
+            .args(&args)
+            .stdin(Stdio::null())
+            .stdout(Stdio::from(out))
+            .stderr(Stdio::from(err))
+            .spawn()
+            .with_context(|| format!("starting {name}"))?;
+        Ok(Proc {
+            name: name.to_string(),
+            child,
+            exit: None,
+            killed_at: None,
+        })
+    };
+    let common = |v: &mut Vec<String>| {
+        v.extend([
+            "--team".into(),
+            team.clone(),
+            "--speed".into(),
+            a.speed.to_string(),
+        ]);
+        v.extend(["--start-at".into(), start_ms.to_string()]);
+    };
+    let server = if physical {
+        let mut args = vec!["sim".to_string(), "serve".into()];
+        args.extend(a.mission.to_args());
+        common(&mut args);
+        args.extend(["--listen".into(), ep(0)]);
+        args.extend([
+            "--log".into(),
+            a.out.join("server.jsonl").display().to_string(),
+        ]);
+        args.extend([
+            "--svg".into(),
+            a.out.join("world.svg").display().to_string(),
+        ]);
+        Some(spawn("server", args)?)
+    } else {
+        None
+    };
+    for (k, name) in names.iter().enumerate() {
+        let mut args = vec!["robot".to_string(), "--name".into(), name.clone()];
+        args.extend(a.mission.to_args());
+        common(&mut args);
+        args.extend(["--listen".into(), ep(k + 1)]);
+        // Each pair connects once: to the server and to the robots before.
+        for j in 0..=k {
+            if j > 0 || physical {
+                args.extend(["--connect".into(), ep(j)]);
+            }
+        }
+        args.extend(["--key".into(), key_path.display().to_string()]);
+        args.extend([
+            "--log".into(),
+            a.out.join(format!("{name}.jsonl")).display().to_string(),
+        ]);
+        args.extend([
+            "--exit-when-done".into(),
+            "--time-limit".into(),
+            format!("{}s", limit.as_secs_f64()),
+        ]);
+        procs.push(spawn(name, args)?);
+    }
+    if !quiet {
+        eprintln!(
+            "team {team}: {n} robot processes{} on 127.0.0.1, logs in {}",
+            if physical {
+                " and the simulator server"
+            } else {
+                ""
+            },
+            a.out.display()
+        );
+    }
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        indicatif::ProgressBar::new(limit.as_secs().max(1))
+    };
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} team time {pos}/{len} s [{bar:30}] {msg}",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let wall_limit =
+        Duration::from_secs_f64(limit.as_secs_f64() / a.speed) + Duration::from_secs(20);
+    let began = unix_micros();
+    loop {
+        let t = (unix_micros() as f64 / 1000.0 - start_ms as f64) / 1000.0 * a.speed;
+        bar.set_position(t.max(0.0) as u64);
+        for p in procs.iter_mut() {
+            if p.exit.is_none() {
+                p.exit = p.child.try_wait()?;
+            }
+            if p.exit.is_none()
+                && p.killed_at.is_none()
+                && kills.get(&p.name).is_some_and(|at| t >= *at)
+            {
+                let _ = p.child.kill();
+                p.killed_at = Some(t);
+                bar.println(format!("killed {} at team time {t:.1} s", p.name));
+            }
+        }
+        let done = procs.iter().filter(|p| p.exit.is_some()).count();
+        bar.set_message(format!("{done}/{n} robot processes ended"));
+        if done == procs.len() {
+            break;
+        }
+        if stop.load(Ordering::Relaxed) || Duration::from_micros(unix_micros() - began) > wall_limit
+        {
+            bar.println("stopping the team");
+            for p in procs.iter_mut().filter(|p| p.exit.is_none()) {
+                terminate(&mut p.child);
+                p.exit = p.child.try_wait()?;
+            }
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    bar.finish_and_clear();
+    let server_exit = server.map(|mut s| {
+        terminate(&mut s.child);
+        s.child.try_wait().ok().flatten()
+    });
+    for p in procs.iter_mut() {
+        if p.exit.is_none() {
+            p.exit = p.child.wait().ok();
+        }
+    }
+    // Gather the logs and check agreement on joint decisions.
+    let logs: Vec<(String, Vec<serde_json::Value>)> = names
+        .iter()
+        .map(|n| Ok((n.clone(), read_jsonl(&a.out.join(format!("{n}.jsonl")))?)))
+        .collect::<Result<_>>()?;
+    let agreement = bite_zenoh::agreement::check(&logs);
+    let robots: Vec<serde_json::Value> = procs
+        .iter()
+        .map(|p| {
+            let log = &logs.iter().find(|(n, _)| *n == p.name).map(|(_, l)| l.as_slice()).unwrap_or(&[]);
+            let completed = log.iter().any(|r| r["event"] == "mission_completed");
+            let lost: Vec<&serde_json::Value> = log
+                .iter()
+                .filter(|r| r["event"] == "member_lost")
+                .map(|r| &r["member"])
+                .collect();
+            let rejected: u64 = log
+                .iter()
+                .rev()
+                .find(|r| r["event"] == "run_finished")
+                .and_then(|r| r["auth"]["rejected"].as_object())
+                .map_or(0, |m| m.iter().filter(|(k, _)| *k != "own").filter_map(|(_, v)| v.as_u64()).sum());
+            json!({
+                "robot": p.name,
+                "exit": p.exit.and_then(|e| e.code()),
+                "killed_at": p.killed_at,
+                "completed": completed,
+                "completed_at": log.iter().find(|r| r["event"] == "mission_completed").map(|r| r["t"].clone()),
+                "lost": lost,
+                "frames_rejected": rejected,
+            })
+        })
+        .collect();
+    let survivors_completed = robots
+        .iter()
+        .filter(|r| r["killed_at"].is_null())
+        .all(|r| r["completed"] == true);
+    let summary = json!({
+        "team": team,
+        "graph": graph.name(),
+        "scenario": scenario.name,
+        "speed": a.speed,
+        "robots": robots,
+        "server": server_exit.map(|e| e.and_then(|e| e.code())),
+        "completed": survivors_completed,
+        "joint_decisions": agreement.decisions,
+        "disagreements": agreement.disagreements,
+        "logs": a.out.display().to_string(),
+    });
+    std::fs::write(
+        a.out.join("summary.json"),
+        serde_json::to_string_pretty(&summary)?,
+    )?;
+    let ok = survivors_completed && agreement.disagreements.is_empty();
+    Ok((summary, ok))
+}
+
+/// Ask a child to stop (SIGTERM), then kill it if it does not within 5 s.
+fn terminate(c: &mut Child) {
+    if let Ok(Some(_)) = c.try_wait() {
+        return;
+    }
+    let pid = nix::unistd::Pid::from_raw(c.id() as i32);
+    let _ = nix::sys::signal::kill(pid, nix::sys::signal::Signal::SIGTERM);
+    for _ in 0..100 {
+        if let Ok(Some(_)) = c.try_wait() {
+            return;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let _ = c.kill();
+    let _ = c.wait();
+}
+
+fn read_jsonl(p: &Path) -> Result<Vec<serde_json::Value>> {
+    let text = match std::fs::read_to_string(p) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e).with_context(|| format!("reading {}", p.display())),
+    };
+    // A killed process may leave a torn last line: skip what does not parse.
+    Ok(text
+        .lines()
+        .filter_map(|l| serde_json::from_str(l).ok())
+        .collect())
+}

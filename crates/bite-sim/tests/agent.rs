@@ -1,0 +1,186 @@
+//! The per-robot `Agent` (what `bite robot` runs in each process), driven
+//! by hand with an instant, lossless network: a team of agents completes
+//! the same missions as the simulator's runner, and agrees on its decisions.
+
+mod missions;
+
+use bite_core::event::Event;
+use bite_core::ids::RobotId;
+use bite_core::interaction::Recipients;
+use bite_core::time::Time;
+use bite_sim::agent::{Agent, AgentOutput};
+use bite_sim::physics::Sensed;
+use bite_sim::{Scenario, prepare};
+use missions::{FORMATION, graph};
+use std::collections::BTreeMap;
+use std::time::Duration;
+
+const FORMATION_TIMED: &str = include_str!("../../../examples/scenarios/formation.yaml");
+const FORMATION_PHYSICS: &str = include_str!("../../../examples/scenarios/formation-physics.yaml");
+
+/// Run a team of agents: control ticks at the scenario's rate, messages
+/// delivered at once, kernel timers at their time; in the physical world
+/// the simulator's `World` plays the body (observe / actuate), as
+/// `bite sim serve` does. Returns each robot's decisions and completion.
+fn run_team(
+    sc: &Scenario,
+    config: Option<usize>,
+    crash: Option<(u32, f64)>,
+) -> (Vec<Vec<Event>>, Vec<bool>, f64) {
+    let g = match config {
+        Some(row) => missions::table2().nth(row - 1).unwrap().1,
+        None => graph("formation.yaml", FORMATION),
+    };
+    let mission = prepare(&g, sc, None, &bite_protocols::registry()).unwrap();
+    let n = mission.graph().roster().len();
+    let mut agents: Vec<Agent> = (0..n as u32)
+        .map(|r| Agent::new(mission.clone(), sc, RobotId(r), 1).unwrap())
+        .collect();
+    let mut world = sc.physics.as_ref().map(|spec| {
+        let names: Vec<String> = (0..n as u32)
+            .map(|r| mission.graph().roster().name(RobotId(r)))
+            .collect();
+        bite_sim::physics::World::new(spec.clone(), &names, mission.graph().symbols(), &sc.file, 1)
+            .unwrap()
+    });
+    let mut events: Vec<Vec<Event>> = vec![Vec::new(); n];
+    let mut dead = vec![false; n];
+    let period = Duration::from_secs_f64(1.0 / sc.control_hz);
+    let mut now = Time::ZERO;
+    let limit = Time::ZERO + Duration::from_secs(200);
+    while now < limit {
+        if let Some((who, at)) = crash
+            && now.as_secs_f64() >= at
+            && !dead[who as usize]
+        {
+            dead[who as usize] = true;
+            // The others' failure detectors notice 2 s later (below).
+        }
+        if let Some((who, at)) = crash
+            && (now.as_secs_f64() - (at + 2.0)).abs() < period.as_secs_f64() / 2.0
+        {
+            for (i, a) in agents.iter_mut().enumerate() {
+                if !dead[i] {
+                    a.member_lost(now, RobotId(who));
+                }
+            }
+        }
+        if let Some(w) = world.as_mut() {
+            w.advance(now, &dead);
+        }
+        for i in 0..n {
+            if dead[i] {
+                continue;
+            }
+            let s: Option<Sensed> = world.as_mut().map(|w| w.observe(i));
+            agents[i].tick(now, s.as_ref());
+            for t in 0..n {
+                if !dead[t] {
+                    agents[t].timer(now);
+                }
+            }
+            // Deliver until quiet.
+            let mut queue: Vec<(usize, AgentOutput)> = Vec::new();
+            for (k, a) in agents.iter_mut().enumerate() {
+                while let Some(o) = a.poll() {
+                    queue.push((k, o));
+                }
+            }
+            while let Some((from, o)) = queue.pop() {
+                match o {
+                    AgentOutput::Send { to, envelope } => {
+                        let targets: Vec<usize> = match &to {
+                            Recipients::One(x) => vec![x.index()],
+                            Recipients::Team(set) => set
+                                .iter()
+                                .map(|r| r.index())
+                                .filter(|x| *x != from)
+                                .collect(),
+                        };
+                        for t in targets {
+                            if !dead[t] {
+                                agents[t].message(now, envelope.clone());
+                                while let Some(o) = agents[t].poll() {
+                                    queue.push((t, o));
+                                }
+                            }
+                        }
+                    }
+                    AgentOutput::Inform(_) => {}
+                    AgentOutput::Event(e) => events[from].push(e),
+                    AgentOutput::Drive(cmd) => {
+                        if let Some(w) = world.as_mut() {
+                            w.actuate(from, cmd);
+                        }
+                    }
+                }
+            }
+        }
+        if (0..n).all(|i| dead[i] || agents[i].kernel().is_finished()) {
+            break;
+        }
+        now += period;
+    }
+    let finished = agents.iter().map(|a| a.kernel().is_finished()).collect();
+    (events, finished, now.as_secs_f64())
+}
+
+/// Every instance decided by two or more robots has one outcome.
+fn assert_agreement(events: &[Vec<Event>]) -> usize {
+    let mut by: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    for (r, evs) in events.iter().enumerate() {
+        for e in evs {
+            if let Event::InteractionDecided {
+                instance, outcome, ..
+            } = e
+            {
+                by.entry(format!("{instance:?}"))
+                    .or_default()
+                    .push(format!("r{r}: {outcome:?}"));
+            }
+        }
+    }
+    let mut joint = 0;
+    for (k, v) in &by {
+        if v.len() > 1 {
+            joint += 1;
+            let what = |o: &String| o.split_once(": ").map(|x| x.1.to_string());
+            assert!(
+                v.iter().all(|o| what(o) == what(&v[0])),
+                "disagreement on {k}: {v:?}"
+            );
+        }
+    }
+    joint
+}
+
+#[test]
+fn a_team_of_agents_completes_the_timed_formation() {
+    let sc = Scenario::load_str(&"formation.yaml".into(), FORMATION_TIMED).unwrap();
+    let (events, finished, end) = run_team(&sc, None, None);
+    assert!(finished.iter().all(|f| *f), "not finished by {end} s");
+    assert!(assert_agreement(&events) >= 5);
+}
+
+#[test]
+fn a_team_of_agents_drives_the_formation_through_observe_and_actuate() {
+    let sc = Scenario::load_str(&"formation-physics.yaml".into(), FORMATION_PHYSICS).unwrap();
+    let (events, finished, end) = run_team(&sc, None, None);
+    assert!(finished.iter().all(|f| *f), "not finished by {end} s");
+    assert!(end > 30.0 && end < 120.0, "{end}");
+    assert!(assert_agreement(&events) >= 5);
+}
+
+#[test]
+fn agents_reallocate_when_a_teammate_is_lost() {
+    let sc = Scenario::load_str(&"formation-physics.yaml".into(), FORMATION_PHYSICS).unwrap();
+    // Table II row 7: an elected leader decides at A. (Under the default
+    // silent rule at A, the survivors can choose differently: each reads
+    // `narrow_ahead` from its own view of the formation's reference.)
+    let (events, finished, end) = run_team(&sc, Some(7), Some((2, 15.0)));
+    assert!(
+        finished[0] && finished[1],
+        "survivors not finished by {end} s"
+    );
+    assert_agreement(&events);
+}

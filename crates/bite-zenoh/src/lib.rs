@@ -1,0 +1,87 @@
+//! BITE robots as separate processes over Zenoh.
+//!
+//! - [`robot`]: one robot's runtime (`bite robot`): an [`bite_sim::agent::Agent`]
+//!   (kernel, world model, skills, pilot) driven by wall-clock timers and
+//!   Zenoh messages, with heartbeats for lost-teammate detection.
+//! - [`server`]: the simulator as a server (`bite sim serve`): owns the
+//!   physical world, publishes each robot's sensor readings, takes its
+//!   velocity commands.
+//! - [`auth`]: authenticated frames (HMAC-SHA256 over the team key, per-sender
+//!   counters, anti-replay windows); sans-IO.
+//! - [`wire`]: payloads inside frames (binary, versioned) and the JSON outside
+//!   interface (status, run-log records, mission submission, membership),
+//!   documented in `docs/zenoh-interface.md`.
+//! - [`net`]: the Zenoh session configuration (explicit endpoints, multicast
+//!   scouting off unless asked for) and the team clock.
+
+pub mod agreement;
+pub mod auth;
+pub mod net;
+pub mod robot;
+pub mod server;
+pub mod wire;
+
+pub use zenoh;
+
+/// Key expressions of a team, all under `bite/<team>/`.
+#[derive(Clone, Debug)]
+pub struct Keys {
+    prefix: String,
+}
+
+impl Keys {
+    /// The keys of team `team` (a single key-expression chunk).
+    pub fn new(team: &str) -> Keys {
+        Keys {
+            prefix: format!("bite/{team}"),
+        }
+    }
+    /// Authenticated frames from `robot`.
+    pub fn net(&self, robot: &str) -> String {
+        format!("{}/net/{robot}", self.prefix)
+    }
+    /// Status (JSON) of `robot`.
+    pub fn status(&self, robot: &str) -> String {
+        format!("{}/status/{robot}", self.prefix)
+    }
+    /// Run-log records (JSON) of `robot`.
+    pub fn log(&self, robot: &str) -> String {
+        format!("{}/log/{robot}", self.prefix)
+    }
+    /// Mission submissions (JSON).
+    pub fn mission(&self) -> String {
+        format!("{}/mission", self.prefix)
+    }
+    /// Membership queries answered by `robot`.
+    pub fn members(&self, robot: &str) -> String {
+        format!("{}/members/{robot}", self.prefix)
+    }
+    /// Sensor readings (JSON) for `robot`, from the simulator or its body.
+    pub fn sensors(&self, robot: &str) -> String {
+        format!("{}/sim/sensors/{robot}", self.prefix)
+    }
+    /// Velocity commands (JSON) from `robot` to its body.
+    pub fn cmd(&self, robot: &str) -> String {
+        format!("{}/sim/cmd/{robot}", self.prefix)
+    }
+    /// The simulated world's state (JSON), about once a second.
+    pub fn world(&self) -> String {
+        format!("{}/sim/world", self.prefix)
+    }
+    /// `<prefix>/<what>/*`: every robot's key of one kind.
+    pub fn all(&self, what: &str) -> String {
+        format!("{}/{what}/*", self.prefix)
+    }
+    /// The last chunk of a key expression (the robot's name).
+    pub fn robot_of(key: &str) -> &str {
+        key.rsplit('/').next().unwrap_or("")
+    }
+}
+
+/// Is `name` usable as a key-expression chunk (team or robot name)?
+pub fn valid_chunk(name: &str) -> bool {
+    !name.is_empty()
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_' || b == b'.')
+}

@@ -1,0 +1,871 @@
+//! One robot's runtime (`bite robot`): its [`Agent`] (kernel, world model,
+//! skills, pilot) driven by the team clock and by what arrives over Zenoh.
+//!
+//! Everything Zenoh delivers (frames from teammates, sensor readings,
+//! mission submissions, membership queries) goes through one bounded
+//! queue to one thread, which owns the agent: the agent stays a plain
+//! state machine, as in the simulator. The thread sleeps until the next
+//! of: a message, the next control tick, the kernel's timer, the next
+//! heartbeat, the next status report.
+//!
+//! Failure detection: every robot sends a signed heartbeat every
+//! `failure_detector.heartbeat` (team time); a teammate silent for
+//! `lost_after` is presumed lost (the kernel re-allocates), and is back
+//! when it is heard again. A teammate whose last heartbeat said it had
+//! completed the mission is not presumed lost when it goes quiet.
+
+use crate::Keys;
+use crate::auth::{AuthStats, FrameKind, Opener, Reject, Sealer, TeamKey};
+use crate::net::{Clock, NetOptions, unix_micros};
+use crate::wire::{self, Heartbeat, Membership, MissionBody, Status};
+use bite_core::graph::BehaviorGraph;
+use bite_core::ids::RobotId;
+use bite_core::mission::Mission;
+use bite_core::time::Time;
+use bite_sim::agent::{Agent, AgentOutput, beliefs_by_name};
+use bite_sim::log::Namer;
+use bite_sim::physics::Sensed;
+use bite_sim::scenario::{FailureDetector, Scenario};
+use serde_json::json;
+use std::collections::{BTreeMap, BTreeSet};
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, TrySendError};
+use std::time::Duration;
+use zenoh::Wait;
+
+/// A mission ready to run: the mission (graph with protocols), the
+/// scenario (the robot's body and world), and the seed.
+pub struct Prepared {
+    /// The mission.
+    pub mission: Arc<Mission>,
+    /// The scenario.
+    pub scenario: Scenario,
+    /// The seed of the robots' random streams.
+    pub seed: u64,
+}
+
+/// Turns a submitted mission into a [`Prepared`] one (the CLI compiles
+/// graphs and command-language missions against the robot's scenario).
+pub type Loader = Box<dyn Fn(&MissionBody) -> Result<Prepared, String> + Send>;
+
+/// How a robot runs.
+pub struct RobotOptions {
+    /// The team (the `bite/<team>/` key prefix).
+    pub team: String,
+    /// This robot's name in the mission's roster.
+    pub name: String,
+    /// The team key.
+    pub key: TeamKey,
+    /// How to join the Zenoh network.
+    pub net: NetOptions,
+    /// Team seconds per wall second (1 for real robots).
+    pub speed: f64,
+    /// The team clock's origin for the first mission, microseconds since the
+    /// Unix epoch (default: when every teammate has been heard).
+    pub start_at_us: Option<u64>,
+    /// The run log (JSON lines).
+    pub log: Option<PathBuf>,
+    /// Exit once the mission is completed (after a short grace period).
+    pub exit_when_done: bool,
+    /// Give up after this much team time.
+    pub time_limit: Option<Duration>,
+    /// How long to wait for every teammate to be heard before starting
+    /// anyway (wall time).
+    pub gather_timeout: Duration,
+    /// Wall time between status reports.
+    pub status_period: Duration,
+}
+
+/// How a robot's run ended.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    /// It completed its last mission.
+    pub completed: bool,
+    /// Frames accepted and dropped.
+    pub auth: AuthStats,
+    /// Inputs dropped because the queue was full.
+    pub overflow: u64,
+}
+
+/// Why a robot could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum RobotError {
+    /// Bad options.
+    #[error("{0}")]
+    Options(String),
+    /// Zenoh.
+    #[error(transparent)]
+    Net(#[from] crate::net::ConfigError),
+    /// Zenoh refused a declaration.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    /// The run log.
+    #[error("run log {0}: {1}")]
+    Log(PathBuf, std::io::Error),
+}
+
+enum Input {
+    Frame { from: String, bytes: Vec<u8> },
+    Sensors(Vec<u8>),
+    Mission(Vec<u8>),
+    Query(zenoh::query::Query),
+}
+
+/// Queue size between Zenoh's callbacks and the robot's thread.
+const QUEUE: usize = 4096;
+/// Rejected frames logged one by one, per reason (all are counted).
+const LOG_REJECTS: u64 = 100;
+
+/// One running mission.
+struct Running {
+    agent: Agent,
+    graph: Arc<BehaviorGraph>,
+    me: RobotId,
+    names: Vec<String>,
+    index: BTreeMap<String, u32>,
+    sealer: Sealer,
+    opener: Opener,
+    clock: Clock,
+    /// The clock's origin was given (shared by the team).
+    shared_origin: bool,
+    /// Waiting for teammates until this wall time (`None`: started).
+    gather_until: Option<u64>,
+    /// Wall time each teammate was last heard.
+    heard: Vec<Option<u64>>,
+    /// Teammates whose last heartbeat said they completed.
+    done: BTreeSet<u32>,
+    suspected: BTreeSet<u32>,
+    detector: FailureDetector,
+    period: Duration,
+    next_control: Time,
+    next_heartbeat: u64,
+    last_sensed: Option<Sensed>,
+    mission_id: Option<String>,
+    finished_at: Option<u64>,
+    payload_rejects: BTreeMap<&'static str, u64>,
+}
+
+/// Run a robot until it is stopped (`stop`), its time limit passes, or
+/// (with `exit_when_done`) it completes its mission.
+pub fn run(
+    opts: RobotOptions,
+    first: Option<Prepared>,
+    loader: Loader,
+    stop: Arc<AtomicBool>,
+) -> Result<Outcome, RobotError> {
+    if !crate::valid_chunk(&opts.team) || !crate::valid_chunk(&opts.name) {
+        return Err(RobotError::Options(format!(
+            "team `{}` and robot `{}` must be letters, digits, `-`, `_` or `.`",
+            opts.team, opts.name
+        )));
+    }
+    if !(opts.speed.is_finite() && opts.speed > 0.0) {
+        return Err(RobotError::Options("--speed must be positive".into()));
+    }
+    let keys = Keys::new(&opts.team);
+    let session = opts.net.open()?;
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Input>(QUEUE);
+    let overflow = Arc::new(AtomicU64::new(0));
+    let z = |e: zenoh::Error| RobotError::Zenoh(e.to_string());
+    let push = {
+        let tx = tx.clone();
+        let overflow = overflow.clone();
+        move |i: Input| {
+            if let Err(TrySendError::Full(_)) = tx.try_send(i) {
+                overflow.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+    };
+    let push = Arc::new(push);
+    let _frames = {
+        let push = push.clone();
+        session
+            .declare_subscriber(keys.all("net"))
+            .callback(move |s| {
+                push(Input::Frame {
+                    from: Keys::robot_of(s.key_expr().as_str()).to_string(),
+                    bytes: s.payload().to_bytes().into_owned(),
+                })
+            })
+            .wait()
+            .map_err(z)?
+    };
+    let _sensors = {
+        let push = push.clone();
+        session
+            .declare_subscriber(keys.sensors(&opts.name))
+            .callback(move |s| push(Input::Sensors(s.payload().to_bytes().into_owned())))
+            .wait()
+            .map_err(z)?
+    };
+    let _missions = {
+        let push = push.clone();
+        session
+            .declare_subscriber(keys.mission())
+            .callback(move |s| push(Input::Mission(s.payload().to_bytes().into_owned())))
+            .wait()
+            .map_err(z)?
+    };
+    let _members = {
+        let push = push.clone();
+        session
+            .declare_queryable(keys.members(&opts.name))
+            .callback(move |q| push(Input::Query(q)))
+            .wait()
+            .map_err(z)?
+    };
+    drop(tx);
+    let mut log = match &opts.log {
+        Some(p) => {
+            if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(d).map_err(|e| RobotError::Log(p.clone(), e))?;
+            }
+            let f = std::fs::File::create(p).map_err(|e| RobotError::Log(p.clone(), e))?;
+            Some(std::io::BufWriter::new(f))
+        }
+        None => None,
+    };
+    let mut node = Node {
+        keys,
+        session: &session,
+        opts: &opts,
+        run: None,
+        seen_missions: BTreeSet::new(),
+        missions_rejected: 0,
+        log: log.as_mut().map(|w| w as &mut dyn Write),
+        log_error: None,
+        next_status: 0,
+        last_auth: AuthStats::default(),
+    };
+    if let Some(p) = first {
+        node.start(p, None, opts.start_at_us)?;
+    }
+    let completed = node.main_loop(&rx, &loader, &stop);
+    node.finish(overflow.load(Ordering::Relaxed));
+    let auth = node
+        .run
+        .as_ref()
+        .map_or_else(|| node.last_auth.clone(), |r| r.opener.stats().clone());
+    if let Some(e) = node.log_error.take() {
+        return Err(RobotError::Log(opts.log.clone().unwrap_or_default(), e));
+    }
+    drop(node);
+    if let Some(mut w) = log
+        && let Err(e) = w.flush()
+    {
+        return Err(RobotError::Log(opts.log.clone().unwrap_or_default(), e));
+    }
+    let _ = session.close().wait();
+    Ok(Outcome {
+        completed,
+        auth,
+        overflow: overflow.load(Ordering::Relaxed),
+    })
+}
+
+struct Node<'a> {
+    keys: Keys,
+    session: &'a zenoh::Session,
+    opts: &'a RobotOptions,
+    run: Option<Running>,
+    seen_missions: BTreeSet<String>,
+    missions_rejected: u64,
+    log: Option<&'a mut dyn Write>,
+    log_error: Option<std::io::Error>,
+    next_status: u64,
+    last_auth: AuthStats,
+}
+
+impl Node<'_> {
+    fn main_loop(&mut self, rx: &Receiver<Input>, loader: &Loader, stop: &AtomicBool) -> bool {
+        loop {
+            if stop.load(Ordering::Relaxed) {
+                self.log_record(json!({"event": "stopped", "reason": "signal"}));
+                return self.completed();
+            }
+            let wake = self.periodic();
+            if let Some(r) = &self.run {
+                let now = r.clock.now();
+                if let Some(limit) = self.opts.time_limit
+                    && r.gather_until.is_none()
+                    && now >= Time::ZERO + limit
+                    && r.finished_at.is_none()
+                {
+                    self.log_record(json!({"event": "stopped", "reason": "time limit"}));
+                    return false;
+                }
+                if self.opts.exit_when_done
+                    && let Some(at) = r.finished_at
+                    && unix_micros() >= at + grace_us(r)
+                {
+                    return true;
+                }
+            }
+            let wait = Duration::from_micros(wake.saturating_sub(unix_micros()))
+                .min(Duration::from_millis(100));
+            match rx.recv_timeout(wait) {
+                Ok(i) => {
+                    self.input(i, loader);
+                    // Take whatever else is queued before the timers.
+                    while let Ok(i) = rx.try_recv() {
+                        self.input(i, loader);
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return self.completed(),
+            }
+        }
+    }
+
+    fn completed(&self) -> bool {
+        self.run
+            .as_ref()
+            .is_some_and(|r| r.agent.kernel().is_finished())
+    }
+
+    /// Start a mission.
+    fn start(
+        &mut self,
+        p: Prepared,
+        id: Option<String>,
+        start_at: Option<u64>,
+    ) -> Result<(), RobotError> {
+        let graph = p.mission.graph().clone();
+        let Some(me) = graph.roster().find(&self.opts.name) else {
+            return Err(RobotError::Options(format!(
+                "robot `{}` is not on the roster of mission `{}` ({})",
+                self.opts.name,
+                graph.name(),
+                (graph.roster().iter().map(|(_, r)| r.name.clone()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )));
+        };
+        let agent = Agent::new(p.mission.clone(), &p.scenario, me, p.seed).map_err(|d| {
+            RobotError::Options(
+                d.0.iter()
+                    .map(|x| x.to_string())
+                    .collect::<Vec<_>>()
+                    .join("\n"),
+            )
+        })?;
+        let names: Vec<String> = (0..graph.roster().len() as u32)
+            .map(|r| graph.roster().name(RobotId(r)))
+            .collect();
+        let index = names
+            .iter()
+            .enumerate()
+            .map(|(i, n)| (n.clone(), i as u32))
+            .collect();
+        let n = names.len() as u32;
+        let now_us = unix_micros();
+        let detector = p.scenario.failure_detector.unwrap_or_default();
+        let origin = start_at.unwrap_or(now_us);
+        let clock = Clock {
+            origin_us: origin,
+            speed: self.opts.speed,
+        };
+        let gather = now_us.max(origin) + self.opts.gather_timeout.as_micros() as u64;
+        if let Some(old) = &self.run {
+            self.last_auth = old.opener.stats().clone();
+        }
+        self.log_record(json!({
+            "t": 0.0,
+            "event": "run_started",
+            "graph": graph.name(),
+            "config": graph.config_name(),
+            "scenario": p.scenario.name,
+            "seed": p.seed,
+            "robots": n,
+            "robot": self.opts.name,
+            "engine": concat!("bite ", env!("CARGO_PKG_VERSION")),
+            "transport": "zenoh",
+            "team": self.opts.team,
+            "mission_id": id,
+            "speed": self.opts.speed,
+        }));
+        self.run = Some(Running {
+            agent,
+            graph,
+            me,
+            index,
+            sealer: Sealer::new(self.opts.key.clone(), &self.opts.team, me.0, now_us),
+            opener: Opener::new(self.opts.key.clone(), &self.opts.team, me.0, n),
+            clock,
+            shared_origin: start_at.is_some(),
+            gather_until: Some(gather),
+            heard: vec![None; n as usize],
+            done: BTreeSet::new(),
+            suspected: BTreeSet::new(),
+            detector,
+            period: Duration::from_secs_f64(1.0 / p.scenario.control_hz),
+            next_control: Time::ZERO,
+            next_heartbeat: 0,
+            last_sensed: None,
+            mission_id: id,
+            finished_at: None,
+            payload_rejects: BTreeMap::new(),
+            names,
+        });
+        Ok(())
+    }
+
+    /// Timers: heartbeats, gathering, failure detection, control ticks,
+    /// kernel timers, status. Returns the wall time to wake up next.
+    fn periodic(&mut self) -> u64 {
+        let now_us = unix_micros();
+        let mut wake = now_us + 100_000;
+        if now_us >= self.next_status {
+            self.next_status = now_us + self.opts.status_period.as_micros() as u64;
+            self.publish_status();
+        }
+        wake = wake.min(self.next_status);
+        let Some(r) = self.run.as_mut() else {
+            return wake;
+        };
+        let hb_us = r.clock.wall(r.detector.heartbeat).as_micros() as u64;
+        if now_us >= r.next_heartbeat {
+            r.next_heartbeat = now_us + hb_us.max(1000);
+            let hb = Heartbeat {
+                finished: r.agent.kernel().is_finished(),
+            };
+            let frame = r
+                .sealer
+                .seal(FrameKind::Heartbeat, &wire::encode_heartbeat(&hb));
+            let key = self.keys.net(&self.opts.name);
+            let _ = self.session.put(key, frame).wait();
+        }
+        wake = wake.min(r.next_heartbeat);
+        if let Some(until) = r.gather_until {
+            let everyone = (0..r.names.len()).all(|i| i == r.me.index() || r.heard[i].is_some());
+            if !((everyone && now_us >= r.clock.origin_us) || now_us >= until) {
+                return wake.min(until).min(now_us + 10_000);
+            }
+            r.gather_until = None;
+            // A shared origin (given by whoever launched the team) is kept
+            // when everyone is here; otherwise the clock starts now.
+            if !(everyone && r.shared_origin) {
+                r.clock.origin_us = now_us;
+            }
+            let missing: Vec<String> = (0..r.names.len())
+                .filter(|i| *i != r.me.index() && r.heard[*i].is_none())
+                .map(|i| r.names[i].clone())
+                .collect();
+            for h in r.heard.iter_mut() {
+                // Silence is counted from the start.
+                *h = Some(h.unwrap_or(now_us).max(r.clock.origin_us));
+            }
+            let rec = json!({"t": 0.0, "event": "gathered", "missing": missing});
+            self.log_record(rec);
+        }
+        let Some(r) = self.run.as_mut() else {
+            return wake;
+        };
+        let now = r.clock.now();
+        // Failure detector.
+        let lost_us = r.clock.wall(r.detector.lost_after).as_micros() as u64;
+        let mut lost = Vec::new();
+        for (i, h) in r.heard.iter().enumerate() {
+            let i32_ = i as u32;
+            if i == r.me.index() || r.suspected.contains(&i32_) || r.done.contains(&i32_) {
+                continue;
+            }
+            if let Some(h) = h {
+                if now_us >= h + lost_us {
+                    lost.push(i32_);
+                } else {
+                    wake = wake.min(h + lost_us);
+                }
+            }
+        }
+        for i in lost {
+            if let Some(r) = self.run.as_mut() {
+                r.suspected.insert(i);
+                // The kernel logs it (`member_lost`).
+                r.agent.member_lost(now, RobotId(i));
+            }
+            self.flush_agent();
+        }
+        let Some(r) = self.run.as_mut() else {
+            return wake;
+        };
+        // Control ticks: in the physical world at each sensor reading
+        // (see `input`); in the timed world on the team clock.
+        if !r.agent.has_body() && now >= r.next_control {
+            r.next_control = now + r.period;
+            r.agent.tick(now, None);
+            self.flush_agent();
+        }
+        let Some(r) = self.run.as_mut() else {
+            return wake;
+        };
+        if !r.agent.has_body() {
+            wake = wake.min(r.clock.origin_us + wall_us(&r.clock, r.next_control));
+        }
+        if let Some(t) = r.agent.poll_timeout() {
+            if t <= now {
+                r.agent.timer(now);
+                self.flush_agent();
+                return now_us;
+            }
+            wake = wake.min(r.clock.origin_us + wall_us(&r.clock, t));
+        }
+        self.check_finished();
+        wake
+    }
+
+    fn check_finished(&mut self) {
+        let Some(r) = self.run.as_mut() else { return };
+        if r.finished_at.is_none() && r.agent.kernel().is_finished() {
+            r.finished_at = Some(unix_micros());
+            let rec = json!({
+                "t": r.clock.now().as_secs_f64(),
+                "robot": self.opts.name,
+                "event": "run_finished",
+                "completed": true,
+                "auth": r.opener.stats(),
+                "payload_rejects": r.payload_rejects,
+                "messages": r.agent.kernel().stats().sent,
+            });
+            self.log_record(rec);
+            self.publish_status();
+        }
+    }
+
+    fn input(&mut self, i: Input, loader: &Loader) {
+        match i {
+            Input::Frame { from, bytes } => self.frame(&from, &bytes),
+            Input::Sensors(bytes) => {
+                let Some(r) = self.run.as_mut() else { return };
+                match serde_json::from_slice::<Sensed>(&bytes) {
+                    Ok(s) => r.last_sensed = Some(s),
+                    Err(_) => {
+                        *r.payload_rejects.entry("sensors-malformed").or_insert(0) += 1;
+                        return;
+                    }
+                }
+                if r.gather_until.is_some() || !r.agent.has_body() {
+                    return;
+                }
+                let now = r.clock.now();
+                // One tick per control period, whatever the server's rate.
+                if now + r.period / 2 < r.next_control {
+                    return;
+                }
+                r.next_control = now + r.period;
+                let mut s = r.last_sensed.take();
+                if let Some(s) = s.as_mut() {
+                    // Readings are dated on arrival, on the team clock.
+                    s.t = now.as_secs_f64();
+                }
+                r.agent.tick(now, s.as_ref());
+                r.last_sensed = s;
+                self.flush_agent();
+                self.check_finished();
+            }
+            Input::Mission(bytes) => self.submission(&bytes, loader),
+            Input::Query(q) => {
+                let m = self.membership();
+                let body = serde_json::to_vec(&m).unwrap_or_default();
+                let key = q.key_expr().clone();
+                let _ = q.reply(key, body).wait();
+            }
+        }
+    }
+
+    fn frame(&mut self, from: &str, bytes: &[u8]) {
+        // Zenoh hands a session its own publications too.
+        if from == self.opts.name {
+            return;
+        }
+        let Some(r) = self.run.as_mut() else { return };
+        // A key no member publishes on matches no sender.
+        let claimed = r.index.get(from).copied().unwrap_or(u32::MAX);
+        let result = r
+            .opener
+            .open(bytes, Some(claimed))
+            .map(|f| (f.kind, f.sender, f.payload.to_vec()));
+        let (kind, sender, payload) = match result {
+            Ok(x) => x,
+            Err(Reject::Own) => return,
+            Err(reason) => {
+                let count = r.opener.stats().rejected.get(&reason).copied().unwrap_or(0);
+                if count <= LOG_REJECTS {
+                    let rec = json!({
+                        "t": r.clock.now().as_secs_f64(),
+                        "robot": self.opts.name,
+                        "event": "frame_rejected",
+                        "key": from,
+                        "reason": reason,
+                    });
+                    self.log_record(rec);
+                }
+                return;
+            }
+        };
+        let now_us = unix_micros();
+        let now = r.clock.now();
+        r.heard[sender as usize] = Some(now_us);
+        if r.suspected.remove(&sender) && r.gather_until.is_none() {
+            r.agent.member_back(now, RobotId(sender));
+            self.flush_agent();
+        }
+        let Some(r) = self.run.as_mut() else { return };
+        match kind {
+            FrameKind::Heartbeat => match wire::decode_heartbeat(&payload) {
+                Ok(h) => {
+                    if h.finished {
+                        r.done.insert(sender);
+                    } else {
+                        r.done.remove(&sender);
+                    }
+                }
+                Err(_) => *r.payload_rejects.entry("heartbeat-malformed").or_insert(0) += 1,
+            },
+            FrameKind::Kernel => match wire::decode_kernel(&payload) {
+                Ok((to, env)) => {
+                    if env.sender.0 != sender {
+                        *r.payload_rejects.entry("sender-mismatch").or_insert(0) += 1;
+                    } else if to.includes(r.me) && r.gather_until.is_none() {
+                        r.agent.message(now, env);
+                        self.flush_agent();
+                    }
+                }
+                Err(_) => *r.payload_rejects.entry("kernel-malformed").or_insert(0) += 1,
+            },
+            FrameKind::Inform => match wire::decode_inform(&payload) {
+                Ok((to, msg)) => {
+                    if to.contains(&r.me.0) && r.gather_until.is_none() {
+                        r.agent.inform(now, RobotId(sender), &msg);
+                    }
+                }
+                Err(_) => *r.payload_rejects.entry("inform-malformed").or_insert(0) += 1,
+            },
+        }
+    }
+
+    fn submission(&mut self, bytes: &[u8], loader: &Loader) {
+        let body = match wire::open_submission(&self.opts.key, &self.opts.team, bytes) {
+            Ok(b) => b,
+            Err(e) => {
+                self.missions_rejected += 1;
+                self.log_record(json!({"event": "mission_rejected", "reason": e.to_string()}));
+                return;
+            }
+        };
+        if !self.seen_missions.insert(body.id.clone()) {
+            self.missions_rejected += 1;
+            self.log_record(
+                json!({"event": "mission_rejected", "id": body.id, "reason": "replayed id"}),
+            );
+            return;
+        }
+        if let Some(r) = &self.run
+            && !r.agent.kernel().is_finished()
+        {
+            self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": "busy: the current mission has not completed"}));
+            return;
+        }
+        match loader(&body) {
+            Ok(p) => {
+                if let Err(e) = self.start(p, Some(body.id.clone()), None) {
+                    self.log_record(
+                        json!({"event": "mission_refused", "id": body.id, "reason": e.to_string()}),
+                    );
+                }
+            }
+            Err(e) => {
+                self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": e}));
+            }
+        }
+    }
+
+    /// Send and log what the agent produced.
+    fn flush_agent(&mut self) {
+        let Some(r) = self.run.as_mut() else { return };
+        let net = self.keys.net(&self.opts.name);
+        let now = r.clock.now();
+        let mut records = Vec::new();
+        while let Some(o) = r.agent.poll() {
+            match o {
+                AgentOutput::Send { to, envelope } => {
+                    let frame = r
+                        .sealer
+                        .seal(FrameKind::Kernel, &wire::encode_kernel(&to, &envelope));
+                    let _ = self.session.put(&net, frame).wait();
+                }
+                AgentOutput::Inform(o) => {
+                    records.push(json!({
+                        "t": now.as_secs_f64(),
+                        "robot": self.opts.name,
+                        "event": "inform",
+                        "reason": o.msg.reason,
+                        "about": o.msg.about.map(|b| r.graph.name_of(b).to_string()),
+                        "to": o.to.iter().map(|x| r.names[x.index()].clone()).collect::<Vec<_>>(),
+                        "beliefs": bite_core::wm::belief_names(&r.graph, &o.msg),
+                    }));
+                    let frame = r
+                        .sealer
+                        .seal(FrameKind::Inform, &wire::encode_inform(&o.to, &o.msg));
+                    let _ = self.session.put(&net, frame).wait();
+                }
+                AgentOutput::Event(e) => {
+                    records.push(Namer::new(&r.graph).record(now, r.me, &e));
+                }
+                AgentOutput::Drive(cmd) => {
+                    let body = serde_json::to_vec(&cmd).unwrap_or_default();
+                    let _ = self
+                        .session
+                        .put(self.keys.cmd(&self.opts.name), body)
+                        .wait();
+                }
+            }
+        }
+        for rec in records {
+            self.log_record(rec);
+        }
+    }
+
+    /// Write a record to the run log and publish it.
+    fn log_record(&mut self, mut rec: serde_json::Value) {
+        if let Some(o) = rec.as_object_mut() {
+            if !o.contains_key("t") {
+                let t = self
+                    .run
+                    .as_ref()
+                    .map_or(0.0, |r| r.clock.now().as_secs_f64());
+                o.insert("t".into(), json!(t));
+            }
+            if !o.contains_key("robot") {
+                o.insert("robot".into(), json!(self.opts.name));
+            }
+        }
+        let mut line = rec.to_string();
+        line.push('\n');
+        if let Some(w) = self.log.as_mut()
+            && self.log_error.is_none()
+            && let Err(e) = w.write_all(line.as_bytes())
+        {
+            self.log_error = Some(e);
+        }
+        let _ = self
+            .session
+            .put(self.keys.log(&self.opts.name), line.trim_end().to_string())
+            .wait();
+    }
+
+    fn status(&self) -> Status {
+        let mut s = Status {
+            robot: self.opts.name.clone(),
+            team: self.opts.team.clone(),
+            mission: None,
+            mission_id: None,
+            t: 0.0,
+            state: "waiting".into(),
+            phase: None,
+            stack: Vec::new(),
+            subteam: None,
+            beliefs: BTreeMap::new(),
+            lost: Vec::new(),
+            auth: self.last_auth.clone(),
+            missions_rejected: self.missions_rejected,
+        };
+        if let Some(r) = &self.run {
+            let k = r.agent.kernel();
+            s.mission = Some(r.graph.name().to_string());
+            s.mission_id = r.mission_id.clone();
+            s.t = r.clock.now().as_secs_f64();
+            s.state = if r.gather_until.is_some() {
+                "gathering"
+            } else if k.is_finished() {
+                "completed"
+            } else {
+                "running"
+            }
+            .into();
+            s.phase = Some(k.phase_name().to_string());
+            (s.stack, s.subteam) = Status::of_kernel(k, &r.graph);
+            s.beliefs = beliefs_by_name(k, &r.graph)
+                .into_iter()
+                .filter_map(|(n, v)| serde_json::to_value(v).ok().map(|v| (n, v)))
+                .collect();
+            s.lost = r
+                .suspected
+                .iter()
+                .map(|i| r.names[*i as usize].clone())
+                .collect();
+            s.auth = r.opener.stats().clone();
+        }
+        s
+    }
+
+    fn publish_status(&mut self) {
+        let s = self.status();
+        let body = serde_json::to_vec(&s).unwrap_or_default();
+        let _ = self
+            .session
+            .put(self.keys.status(&self.opts.name), body)
+            .wait();
+    }
+
+    fn membership(&self) -> Membership {
+        let mut m = Membership {
+            robot: self.opts.name.clone(),
+            roster: Vec::new(),
+            alive: Vec::new(),
+            lost: Vec::new(),
+            subteams: Vec::new(),
+        };
+        if let Some(r) = &self.run {
+            m.roster = r.names.clone();
+            m.lost = r
+                .suspected
+                .iter()
+                .map(|i| r.names[*i as usize].clone())
+                .collect();
+            m.alive = (0..r.names.len())
+                .filter(|i| {
+                    *i != r.me.index()
+                        && r.heard[*i].is_some()
+                        && !r.suspected.contains(&(*i as u32))
+                })
+                .map(|i| r.names[i].clone())
+                .collect();
+            m.subteams = Status::of_kernel(r.agent.kernel(), &r.graph).0;
+        }
+        m
+    }
+
+    fn finish(&mut self, overflow: u64) {
+        self.publish_status();
+        if let Some(r) = &self.run
+            && r.finished_at.is_none()
+        {
+            let rec = json!({
+                "robot": self.opts.name,
+                "event": "run_finished",
+                "completed": false,
+                "auth": r.opener.stats(),
+                "payload_rejects": r.payload_rejects,
+                "overflow": overflow,
+            });
+            self.log_record(rec);
+        }
+    }
+}
+
+/// Wall microseconds after the origin at which team time `t` comes.
+fn wall_us(c: &Clock, t: Time) -> u64 {
+    (t.as_secs_f64() / c.speed * 1e6) as u64
+}
+
+/// How long a robot that completed stays (answering late teammates, wall µs).
+fn grace_us(r: &Running) -> u64 {
+    r.clock.wall(r.detector.heartbeat * 4).as_micros() as u64
+}
+
+/// Shared flag set by a signal handler.
+pub type StopFlag = Arc<AtomicBool>;

@@ -1,0 +1,274 @@
+//! The simulator as a server (`bite sim serve`), like Player/Stage: it owns
+//! the physical world, steps it on the team clock, publishes every robot's
+//! sensor readings on `bite/<team>/sim/sensors/<robot>` at the scenario's
+//! control rate, and applies the velocity commands robots publish on
+//! `bite/<team>/sim/cmd/<robot>`. A real robot's body replaces it by
+//! publishing the same readings and taking the same commands
+//! (`docs/zenoh-interface.md`).
+//!
+//! A robot whose commands stop for `deadman` is stopped where it is (a
+//! killed robot process leaves its body standing, as a crashed robot does
+//! in the simulator).
+
+use crate::Keys;
+use crate::net::{Clock, NetOptions, unix_micros};
+use bite_core::graph::BehaviorGraph;
+use bite_core::ids::RobotId;
+use bite_core::time::Time;
+use bite_sim::physics::World;
+use bite_sim::physics::schema::Command;
+use bite_sim::scenario::Scenario;
+use serde_json::json;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc::{RecvTimeoutError, TrySendError};
+use std::time::Duration;
+use zenoh::Wait;
+
+/// How the server runs.
+pub struct ServerOptions {
+    /// The team (key prefix).
+    pub team: String,
+    /// How to join the Zenoh network.
+    pub net: NetOptions,
+    /// Team seconds per wall second.
+    pub speed: f64,
+    /// The team clock's origin, microseconds since the Unix epoch (default:
+    /// when the server starts).
+    pub start_at_us: Option<u64>,
+    /// Stop after this much team time (default: run until stopped).
+    pub time_limit: Option<Duration>,
+    /// A robot without a command for this long (team time) is stopped.
+    pub deadman: Duration,
+    /// Where to write the world's log (poses once a second, JSON lines).
+    pub log: Option<PathBuf>,
+}
+
+/// What the server saw.
+#[derive(Debug)]
+pub struct ServeReport {
+    /// Team time when it stopped.
+    pub end: Time,
+    /// Commands applied, per robot.
+    pub commands: Vec<u64>,
+    /// Commands dropped as malformed or from unknown robots.
+    pub rejected: u64,
+    /// The world at the end (for pictures).
+    pub world: World,
+}
+
+/// Why the server could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum ServeError {
+    /// Bad options or scenario.
+    #[error("{0}")]
+    Options(String),
+    /// Zenoh.
+    #[error(transparent)]
+    Net(#[from] crate::net::ConfigError),
+    /// Zenoh refused a declaration.
+    #[error("zenoh: {0}")]
+    Zenoh(String),
+    /// The log.
+    #[error("log {0}: {1}")]
+    Log(PathBuf, std::io::Error),
+}
+
+/// Serve the physical world of `scenario` for the robots of `graph`'s
+/// roster until `stop` is set or the time limit passes.
+pub fn serve(
+    graph: &BehaviorGraph,
+    scenario: &Scenario,
+    seed: u64,
+    opts: &ServerOptions,
+    stop: Arc<AtomicBool>,
+) -> Result<ServeReport, ServeError> {
+    let Some(spec) = &scenario.physics else {
+        return Err(ServeError::Options(format!(
+            "scenario `{}` is a timed world: the simulator server needs `world: physics`",
+            scenario.name
+        )));
+    };
+    if !crate::valid_chunk(&opts.team) {
+        return Err(ServeError::Options(format!(
+            "team `{}` must be letters, digits, `-`, `_` or `.`",
+            opts.team
+        )));
+    }
+    if !(opts.speed.is_finite() && opts.speed > 0.0) {
+        return Err(ServeError::Options("--speed must be positive".into()));
+    }
+    let n = graph.roster().len();
+    let names: Vec<String> = (0..n as u32)
+        .map(|r| graph.roster().name(RobotId(r)))
+        .collect();
+    let index: BTreeMap<String, usize> = names
+        .iter()
+        .enumerate()
+        .map(|(i, s)| (s.clone(), i))
+        .collect();
+    let mut world = World::new(spec.clone(), &names, graph.symbols(), &scenario.file, seed)
+        .map_err(|d| {
+            ServeError::Options(
+                d.0.iter()
+                    .map(|x| x.to_string())
+                    .collect::<Vec<_>>()
+                    .join("\n"),
+            )
+        })?;
+    let keys = Keys::new(&opts.team);
+    let session = opts.net.open()?;
+    let z = |e: zenoh::Error| ServeError::Zenoh(e.to_string());
+    let (tx, rx) = std::sync::mpsc::sync_channel::<(String, Vec<u8>)>(4096);
+    let overflow = Arc::new(AtomicU64::new(0));
+    let _cmds = {
+        let overflow = overflow.clone();
+        session
+            .declare_subscriber(keys.all("sim/cmd"))
+            .callback(move |s| {
+                let from = Keys::robot_of(s.key_expr().as_str()).to_string();
+                if let Err(TrySendError::Full(_)) =
+                    tx.try_send((from, s.payload().to_bytes().into_owned()))
+                {
+                    overflow.fetch_add(1, Ordering::Relaxed);
+                }
+            })
+            .wait()
+            .map_err(z)?
+    };
+    let mut log = match &opts.log {
+        Some(p) => {
+            if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(d).map_err(|e| ServeError::Log(p.clone(), e))?;
+            }
+            let f = std::fs::File::create(p).map_err(|e| ServeError::Log(p.clone(), e))?;
+            Some(std::io::BufWriter::new(f))
+        }
+        None => None,
+    };
+    let clock = Clock {
+        origin_us: opts.start_at_us.unwrap_or_else(unix_micros),
+        speed: opts.speed,
+    };
+    let period = Duration::from_secs_f64(1.0 / scenario.control_hz);
+    let deadman = opts.deadman;
+    let mut last_cmd: Vec<Option<Time>> = vec![None; n];
+    let mut commands = vec![0u64; n];
+    let mut rejected = 0u64;
+    let mut next = Time::ZERO;
+    let mut next_world = Time::ZERO;
+    let write = |log: &mut Option<std::io::BufWriter<std::fs::File>>, rec: serde_json::Value| {
+        let line = rec.to_string();
+        let _ = session.put(keys.world(), line.clone()).wait();
+        if let Some(w) = log.as_mut() {
+            writeln!(w, "{line}")
+        } else {
+            Ok(())
+        }
+    };
+    write(
+        &mut log,
+        json!({"t": 0.0, "event": "server_started", "scenario": scenario.name, "graph": graph.name(),
+               "robots": names, "seed": seed, "speed": opts.speed}),
+    )
+    .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
+    let end = loop {
+        let now = clock.now();
+        if stop.load(Ordering::Relaxed) {
+            break now;
+        }
+        if let Some(l) = opts.time_limit
+            && now >= Time::ZERO + l
+        {
+            break now;
+        }
+        if now >= next {
+            next = now + period;
+            let stopped: Vec<bool> = last_cmd
+                .iter()
+                .map(|c| c.is_none_or(|c| now.saturating_since(c) > deadman))
+                .collect();
+            world.advance(now, &stopped);
+            world.record();
+            for (i, name) in names.iter().enumerate() {
+                let s = world.observe(i);
+                if let Ok(body) = serde_json::to_vec(&s) {
+                    let _ = session.put(keys.sensors(name), body).wait();
+                }
+            }
+            if now >= next_world {
+                next_world = now + Duration::from_secs(1);
+                let robots: Vec<[f64; 3]> = (0..n)
+                    .map(|i| {
+                        let p = world.pose(i);
+                        [
+                            round3(p.pos.x),
+                            round3(p.pos.y),
+                            round3(p.heading.to_degrees()),
+                        ]
+                    })
+                    .collect();
+                let objects: BTreeMap<String, [f64; 2]> = (world.spec().objects.iter())
+                    .enumerate()
+                    .filter_map(|(k, o)| {
+                        let p = world.object_pos(k);
+                        o.name.clone().map(|n| (n, [round3(p.x), round3(p.y)]))
+                    })
+                    .collect();
+                let rec = json!({"t": now.as_secs_f64(), "event": "poses", "robots": robots,
+                                 "objects": objects, "stopped": stopped});
+                write(&mut log, rec)
+                    .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
+            }
+        }
+        let wait_us = (next.as_secs_f64() / clock.speed * 1e6) as u64 + clock.origin_us;
+        let wait = Duration::from_micros(wait_us.saturating_sub(unix_micros()))
+            .min(Duration::from_millis(100));
+        match rx.recv_timeout(wait) {
+            Ok(first) => {
+                let mut batch = vec![first];
+                while let Ok(m) = rx.try_recv() {
+                    batch.push(m);
+                }
+                let now = clock.now();
+                for (from, bytes) in batch {
+                    let Some(&i) = index.get(&from) else {
+                        rejected += 1;
+                        continue;
+                    };
+                    match serde_json::from_slice::<Command>(&bytes) {
+                        Ok(cmd) => {
+                            world.actuate(i, cmd);
+                            last_cmd[i] = Some(now);
+                            commands[i] += 1;
+                        }
+                        Err(_) => rejected += 1,
+                    }
+                }
+            }
+            Err(RecvTimeoutError::Timeout) => {}
+            Err(RecvTimeoutError::Disconnected) => break clock.now(),
+        }
+    };
+    let rec = json!({"t": end.as_secs_f64(), "event": "server_stopped", "commands": commands,
+                     "rejected": rejected, "overflow": overflow.load(Ordering::Relaxed)});
+    write(&mut log, rec).map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
+    if let Some(mut w) = log {
+        w.flush()
+            .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
+    }
+    let _ = session.close().wait();
+    Ok(ServeReport {
+        end,
+        commands,
+        rejected,
+        world,
+    })
+}
+
+fn round3(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
