@@ -264,13 +264,17 @@ fn new_key() -> Result<TeamKey> {
     Ok(TeamKey::new(b)?)
 }
 
-/// A flag set by SIGINT / SIGTERM.
+/// A flag set by SIGINT / SIGTERM (the handler is installed once per process).
 fn stop_flag() -> Result<Arc<AtomicBool>> {
+    static STOP: std::sync::OnceLock<Arc<AtomicBool>> = std::sync::OnceLock::new();
+    if let Some(s) = STOP.get() {
+        return Ok(s.clone());
+    }
     let stop = Arc::new(AtomicBool::new(false));
     let s = stop.clone();
     ctrlc::set_handler(move || s.store(true, Ordering::Relaxed))
         .context("installing the signal handler")?;
-    Ok(stop)
+    Ok(STOP.get_or_init(|| stop).clone())
 }
 
 /// `bite keygen`.

@@ -5,7 +5,7 @@
 //! For each protocol and team size, a team of `bite robot` processes runs
 //! a graph that takes the same decision again and again (a synchronization
 //! point that loops, or an allocation that is made anew each round); each
-//! instance's latency is the time from the last member entering it to the
+//! instance's latency is the time from the first member entering it to the
 //! last member deciding, read from the robots' run logs (one team clock).
 //! The same graph in the discrete-event simulator with a fixed 1 ms
 //! one-way latency gives the protocol's critical path in message hops
@@ -29,7 +29,7 @@ fn graph_yaml(protocol: &str, n: usize, decisions: usize) -> String {
     if protocol.starts_with("sync.") {
         format!(
             "graph: bench-{protocol}\nteam: {{ robots: {n} }}\nstart: bench\n\
-             defaults: {{ sync: {protocol}, allocate: alloc.by-id, terminate: term.local }}\n\
+             defaults: {{ sync: {protocol}, allocate: alloc.by-id, terminate: term.wait-all }}\n\
              behaviors:\n\
              \x20 bench: {{ team: true, children: [step] }}\n\
              \x20 step:\n    team: true\n    skill: tick\n    pre: runs(step) < {decisions}\n    until: ticked\n    next: [step, done]\n\
@@ -38,7 +38,7 @@ fn graph_yaml(protocol: &str, n: usize, decisions: usize) -> String {
     } else {
         format!(
             "graph: bench-{protocol}\nteam: {{ robots: {n} }}\nstart: bench\n\
-             defaults: {{ sync: sync.by-rule, allocate: {protocol}, terminate: term.local }}\n\
+             defaults: {{ sync: sync.by-rule, allocate: {protocol}, terminate: term.wait-all }}\n\
              behaviors:\n\
              \x20 bench: {{ team: true, children: [round] }}\n\
              \x20 round:\n    team: true\n    pre: runs(round) < {decisions}\n    children: [x, y]\n    next: [round, done]\n\
@@ -57,7 +57,9 @@ fn scenario_yaml(latency_ms: f64) -> String {
     )
 }
 
-/// Per instance of `kind`: last member's start to last member's decision, seconds.
+/// Per instance of `kind`: first member's start to last member's decision,
+/// seconds. (Robots tick on one team clock, so members enter together up
+/// to scheduling jitter, which this counts against the protocol.)
 fn latencies(logs: &[Vec<Value>], kind: &str) -> Vec<f64> {
     let mut started: BTreeMap<String, f64> = BTreeMap::new();
     let mut decided: BTreeMap<String, f64> = BTreeMap::new();
@@ -68,12 +70,17 @@ fn latencies(logs: &[Vec<Value>], kind: &str) -> Vec<f64> {
             }
             let key = r["instance"].to_string();
             let t = r["t"].as_f64().unwrap_or(0.0);
-            let slot = match r["event"].as_str() {
-                Some("interaction_started") => started.entry(key).or_insert(t),
-                Some("interaction_decided") => decided.entry(key).or_insert(t),
+            match r["event"].as_str() {
+                Some("interaction_started") => {
+                    let s = started.entry(key).or_insert(t);
+                    *s = s.min(t);
+                }
+                Some("interaction_decided") => {
+                    let d = decided.entry(key).or_insert(t);
+                    *d = d.max(t);
+                }
                 _ => continue,
-            };
-            *slot = slot.max(t);
+            }
         }
     }
     decided
@@ -207,18 +214,16 @@ pub fn cmd_pong(team: &str, listen: &str) -> Result<ExitCode> {
         .declare_publisher(format!("bench/{team}/pong"))
         .wait()
         .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
-    let (tx, rx) = std::sync::mpsc::channel::<Vec<u8>>();
+    // Echo straight from Zenoh's callback: the raw round trip.
     let _sub = session
         .declare_subscriber(format!("bench/{team}/ping"))
         .callback(move |s| {
-            let _ = tx.send(s.payload().to_bytes().into_owned());
+            let _ = publisher.put(s.payload().clone()).wait();
         })
         .wait()
         .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
-    // Runs until killed by the benchmark (or a minute of silence).
-    while let Ok(b) = rx.recv_timeout(Duration::from_secs(60)) {
-        let _ = publisher.put(b).wait();
-    }
+    // Runs until killed by the benchmark (at most ten minutes).
+    std::thread::sleep(Duration::from_secs(600));
     Ok(ExitCode::SUCCESS)
 }
 

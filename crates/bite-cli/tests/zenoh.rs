@@ -494,3 +494,43 @@ fn a_python_client_follows_the_status_and_submits_a_mission() {
     t.procs.terminate();
     check_agreement(&t.out, &["r0", "r1", "r2"]);
 }
+
+#[test]
+fn the_zenoh_benchmark_measures_every_protocol() {
+    let _one = serial();
+    let out = tmp("bench");
+    let o = bite()
+        .current_dir(repo())
+        .args([
+            "bench",
+            "zenoh",
+            "--robots",
+            "3",
+            "--decisions",
+            "3",
+            "--pings",
+            "50",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success(),
+        "{text}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(text.contains("Raw Zenoh round trip"), "{text}");
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("bench-zenoh.json")).unwrap())
+            .unwrap();
+    assert!(report["rtt_median_us"].as_f64().unwrap() > 0.0);
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 3);
+    for r in rows {
+        assert_eq!(r["completed"], true, "{r}");
+        assert_eq!(r["decisions"], 3, "{r}");
+        assert!(r["latency_median_us"].as_f64().unwrap() > 0.0, "{r}");
+    }
+}
