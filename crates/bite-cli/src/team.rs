@@ -294,12 +294,18 @@ fn write_secret(p: &Path, text: &str) -> Result<()> {
     if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(d)?;
     }
-    std::fs::write(p, format!("{text}\n")).with_context(|| format!("writing {}", p.display()))?;
+    let mut o = std::fs::OpenOptions::new();
+    o.write(true).create(true).truncate(true);
     #[cfg(unix)]
     {
-        use std::os::unix::fs::PermissionsExt;
-        std::fs::set_permissions(p, std::fs::Permissions::from_mode(0o600))?;
+        use std::os::unix::fs::OpenOptionsExt;
+        o.mode(0o600);
     }
+    let mut f = o
+        .open(p)
+        .with_context(|| format!("writing {}", p.display()))?;
+    use std::io::Write as _;
+    writeln!(f, "{text}").with_context(|| format!("writing {}", p.display()))?;
     Ok(())
 }
 
@@ -379,7 +385,7 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
         key,
         net: a.net.options(),
         speed: a.speed,
-        start_at_us: a.start_at.map(|ms| ms * 1000),
+        start_at_us: a.start_at.map(|ms| ms.saturating_mul(1000)),
         log: a.log.clone(),
         exit_when_done: a.exit_when_done,
         time_limit: a.time_limit,
@@ -428,7 +434,7 @@ pub fn cmd_serve(a: ServeArgs) -> Result<ExitCode> {
         team: a.net.team.clone(),
         net: a.net.options(),
         speed: a.speed,
-        start_at_us: a.start_at.map(|ms| ms * 1000),
+        start_at_us: a.start_at.map(|ms| ms.saturating_mul(1000)),
         time_limit: a.time_limit,
         deadman: a.deadman,
         log: a.log.clone(),
@@ -482,6 +488,7 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
     let is_rtcl = rtcl::is_mission(&a.graph);
     let body = MissionBody {
         id: id.clone(),
+        issued_at: unix_micros() / 1000,
         graph: (!is_rtcl).then(|| text.clone()),
         rtcl: is_rtcl.then_some(text),
         config: a.config.as_deref().map(read).transpose()?,
@@ -517,6 +524,16 @@ struct Proc {
     child: Child,
     exit: Option<std::process::ExitStatus>,
     killed_at: Option<f64>,
+}
+
+impl Drop for Proc {
+    /// Whatever happens to the launcher (an error, a panic), no child is
+    /// left behind: one still running is asked to stop, then killed.
+    fn drop(&mut self) {
+        if self.exit.is_none() {
+            terminate(&mut self.child);
+        }
+    }
 }
 
 /// `bite launch`: the whole team on this machine.
@@ -654,7 +671,7 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         ]);
         v.extend(["--start-at".into(), start_ms.to_string()]);
     };
-    let server = if physical {
+    let mut server = if physical {
         let mut args = vec!["sim".to_string(), "serve".into()];
         args.extend(a.mission.to_args());
         common(&mut args);
@@ -666,6 +683,11 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         args.extend([
             "--svg".into(),
             a.out.join("world.svg").display().to_string(),
+        ]);
+        // The server stops by itself a little after the robots' limit.
+        args.extend([
+            "--time-limit".into(),
+            format!("{}s", limit.as_secs_f64() + 10.0 * a.speed),
         ]);
         Some(spawn("server", args)?)
     } else {
@@ -740,7 +762,23 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         if done == procs.len() {
             break;
         }
-        if stop.load(Ordering::Relaxed) || Duration::from_micros(unix_micros() - began) > wall_limit
+        // Without its world, a physical team cannot go on.
+        let server_died = match server.as_mut() {
+            Some(s) if s.exit.is_none() => {
+                s.exit = s.child.try_wait()?;
+                s.exit.is_some()
+            }
+            _ => false,
+        };
+        if server_died {
+            bar.println(format!(
+                "the simulator server exited early (see {})",
+                a.out.join("server.log").display()
+            ));
+        }
+        if server_died
+            || stop.load(Ordering::Relaxed)
+            || Duration::from_micros(unix_micros().saturating_sub(began)) > wall_limit
         {
             bar.println("stopping the team");
             for p in procs.iter_mut().filter(|p| p.exit.is_none()) {
@@ -752,9 +790,12 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         std::thread::sleep(Duration::from_millis(50));
     }
     bar.finish_and_clear();
-    let server_exit = server.map(|mut s| {
-        terminate(&mut s.child);
-        s.child.try_wait().ok().flatten()
+    let server_exit = server.as_mut().map(|s| {
+        if s.exit.is_none() {
+            terminate(&mut s.child);
+            s.exit = s.child.try_wait().ok().flatten();
+        }
+        s.exit
     });
     for p in procs.iter_mut() {
         if p.exit.is_none() {

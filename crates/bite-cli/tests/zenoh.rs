@@ -3,7 +3,8 @@
 //! distributed runtime. Each test uses its own team name and ports, and
 //! every process it starts is stopped when the test ends, pass or fail.
 
-use bite_zenoh::auth::{FrameKind, TeamKey, seal_with};
+use bite_zenoh::auth::{FrameKind, Scope, TeamKey, seal_with};
+use bite_zenoh::net::unix_micros;
 use bite_zenoh::zenoh::{self, Wait};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -310,12 +311,13 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         })
         .wait()
         .unwrap();
+    // Once the team runs (everyone connected), take one of r0's frames and
+    // replay it at once (well inside every receiver's window).
+    std::thread::sleep(Duration::from_secs(4));
+    while rx.try_recv().is_ok() {}
     let frame = rx
         .recv_timeout(Duration::from_secs(20))
         .expect("no frame from r0");
-    // Wait until the team has started (the frame must be well in the past
-    // of every receiver's window, and the mission running).
-    std::thread::sleep(Duration::from_secs(2));
     let put = |key: &str, bytes: Vec<u8>| {
         session
             .put(format!("bite/{}/net/{key}", t.team), bytes)
@@ -324,46 +326,30 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
     };
     // 1. Replayed: r0's captured frame, again.
     put("r0", frame.clone());
-    // 2. Tampered: one byte of the payload flipped.
+    // 2. Tampered: one byte flipped.
     let mut tampered = frame.clone();
     tampered[20] ^= 1;
     put("r0", tampered);
+    // The mission these robots run (started from the command line, no
+    // shared origin): frames must carry its tag to verify.
+    let g = bite_core::graph::load(&repo().join("examples/formation.yaml")).unwrap();
+    let scope = Scope::new(&t.team, bite_zenoh::robot::mission_tag(None, &g, None));
     // 3. Forged: a heartbeat claiming r0, sealed with another key.
     let wrong = TeamKey::new(vec![1; 32]).unwrap();
+    let hb = [1, 0];
     put(
         "r0",
-        seal_with(
-            &wrong,
-            &t.team,
-            FrameKind::Heartbeat,
-            0,
-            u64::MAX / 2,
-            &[1, 0],
-        ),
+        seal_with(&wrong, &scope, FrameKind::Heartbeat, 0, unix_micros(), &hb),
     );
     // 4. From a non-member (roster index 7), even with the right key.
     put(
         "r7",
-        seal_with(
-            &t.key,
-            &t.team,
-            FrameKind::Heartbeat,
-            7,
-            u64::MAX / 2,
-            &[1, 0],
-        ),
+        seal_with(&t.key, &scope, FrameKind::Heartbeat, 7, unix_micros(), &hb),
     );
     // 5. r1's identity on r0's key expression.
     put(
         "r0",
-        seal_with(
-            &t.key,
-            &t.team,
-            FrameKind::Heartbeat,
-            1,
-            u64::MAX / 2,
-            &[1, 0],
-        ),
+        seal_with(&t.key, &scope, FrameKind::Heartbeat, 1, unix_micros(), &hb),
     );
     let codes = t.procs.wait_all(Duration::from_secs(240));
     for (n, c) in &codes {

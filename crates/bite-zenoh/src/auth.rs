@@ -214,27 +214,48 @@ pub enum Reject {
 #[derive(Debug)]
 pub struct Sealer {
     key: TeamKey,
-    team: String,
+    scope: Scope,
     me: u32,
     counter: u64,
 }
 
+/// What a MAC binds a frame to besides its bytes: the team and the mission
+/// (a frame of another team or of another mission does not verify).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Scope {
+    /// The team name.
+    pub team: String,
+    /// The mission's tag (e.g. a hash of its submission id).
+    pub mission: u64,
+}
+
+impl Scope {
+    /// Team `team`, mission `mission`.
+    pub fn new(team: &str, mission: u64) -> Scope {
+        Scope {
+            team: team.to_string(),
+            mission,
+        }
+    }
+}
+
 impl Sealer {
-    /// Frames from robot `me` of `team`; counters start after `incarnation`
-    /// (e.g. microseconds since the Unix epoch when the process started).
-    pub fn new(key: TeamKey, team: &str, me: u32, incarnation: u64) -> Sealer {
+    /// Frames from robot `me`.
+    pub fn new(key: TeamKey, scope: Scope, me: u32) -> Sealer {
         Sealer {
             key,
-            team: team.to_string(),
+            scope,
             me,
-            counter: incarnation,
+            counter: 0,
         }
     }
 
-    /// The next frame.
-    pub fn seal(&mut self, kind: FrameKind, payload: &[u8]) -> Vec<u8> {
-        self.counter += 1;
-        seal_with(&self.key, &self.team, kind, self.me, self.counter, payload)
+    /// The next frame, at wall time `now_us` (µs since the Unix epoch):
+    /// its counter is the larger of the last one plus one and `now_us`, so
+    /// counters follow the clock and a restarted robot never reuses one.
+    pub fn seal(&mut self, kind: FrameKind, payload: &[u8], now_us: u64) -> Vec<u8> {
+        self.counter = (self.counter + 1).max(now_us);
+        seal_with(&self.key, &self.scope, kind, self.me, self.counter, payload)
     }
 
     /// The last counter used.
@@ -246,7 +267,7 @@ impl Sealer {
 /// A frame sealed with explicit fields (tests build forged ones with it).
 pub fn seal_with(
     key: &TeamKey,
-    team: &str,
+    scope: &Scope,
     kind: FrameKind,
     sender: u32,
     counter: u64,
@@ -259,7 +280,13 @@ pub fn seal_with(
     out.extend_from_slice(&sender.to_le_bytes());
     out.extend_from_slice(&counter.to_le_bytes());
     out.extend_from_slice(payload);
-    let tag = key.mac(&[DOMAIN, team.as_bytes(), &[0], &out]);
+    let tag = key.mac(&[
+        DOMAIN,
+        scope.team.as_bytes(),
+        &[0],
+        &scope.mission.to_le_bytes(),
+        &out,
+    ]);
     out.extend_from_slice(&tag);
     out
 }
@@ -341,11 +368,16 @@ impl AuthStats {
     }
 }
 
+/// How old (µs) a sender's first frame may be: counters follow the sender's
+/// clock, so a recorded frame replayed later is refused even by a receiver
+/// that has no window for that sender yet (clocks must agree within this).
+pub const FRESH_US: u64 = 30_000_000;
+
 /// Opens the team's frames: checks MAC, membership and freshness.
 #[derive(Debug)]
 pub struct Opener {
     key: TeamKey,
-    team: String,
+    scope: Scope,
     me: u32,
     roster: u32,
     windows: BTreeMap<u32, Window>,
@@ -353,11 +385,11 @@ pub struct Opener {
 }
 
 impl Opener {
-    /// Frames for robot `me` of `team`, whose roster has `roster` robots.
-    pub fn new(key: TeamKey, team: &str, me: u32, roster: u32) -> Opener {
+    /// Frames for robot `me` of a team whose roster has `roster` robots.
+    pub fn new(key: TeamKey, scope: Scope, me: u32, roster: u32) -> Opener {
         Opener {
             key,
-            team: team.to_string(),
+            scope,
             me,
             roster,
             windows: BTreeMap::new(),
@@ -365,10 +397,15 @@ impl Opener {
         }
     }
 
-    /// Check a frame that arrived on the key of `claimed` (if known).
-    /// Counted either way.
-    pub fn open<'a>(&mut self, bytes: &'a [u8], claimed: Option<u32>) -> Result<Frame<'a>, Reject> {
-        let r = self.check(bytes, claimed);
+    /// Check a frame that arrived on the key of `claimed` (if known) at
+    /// wall time `now_us`. Counted either way.
+    pub fn open<'a>(
+        &mut self,
+        bytes: &'a [u8],
+        claimed: Option<u32>,
+        now_us: u64,
+    ) -> Result<Frame<'a>, Reject> {
+        let r = self.check(bytes, claimed, now_us);
         match &r {
             Ok(_) => self.stats.accepted += 1,
             Err(e) => *self.stats.rejected.entry(*e).or_insert(0) += 1,
@@ -376,7 +413,12 @@ impl Opener {
         r
     }
 
-    fn check<'a>(&mut self, bytes: &'a [u8], claimed: Option<u32>) -> Result<Frame<'a>, Reject> {
+    fn check<'a>(
+        &mut self,
+        bytes: &'a [u8],
+        claimed: Option<u32>,
+        now_us: u64,
+    ) -> Result<Frame<'a>, Reject> {
         if bytes.len() < HEADER + MAC
             || bytes.len() > HEADER + MAX_PAYLOAD + MAC
             || &bytes[0..2] != MAGIC
@@ -386,10 +428,9 @@ impl Opener {
         }
         let kind = FrameKind::from_byte(bytes[3]).ok_or(Reject::Malformed)?;
         let (body, tag) = bytes.split_at(bytes.len() - MAC);
-        if !self
-            .key
-            .verify(&[DOMAIN, self.team.as_bytes(), &[0], body], tag)
-        {
+        let mission = self.scope.mission.to_le_bytes();
+        let team = self.scope.team.as_bytes();
+        if !self.key.verify(&[DOMAIN, team, &[0], &mission, body], tag) {
             return Err(Reject::BadMac);
         }
         let sender = u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]);
@@ -404,6 +445,9 @@ impl Opener {
         }
         if sender == self.me {
             return Err(Reject::Own);
+        }
+        if !self.windows.contains_key(&sender) && counter.saturating_add(FRESH_US) < now_us {
+            return Err(Reject::TooOld);
         }
         let w = self.windows.entry(sender).or_default();
         w.check(counter)?;
@@ -427,33 +471,49 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    const NOW: u64 = 1_800_000_000_000_000;
+
+    fn sc(team: &str) -> Scope {
+        Scope::new(team, 7)
+    }
+
     fn key(b: u8) -> TeamKey {
         TeamKey::new(vec![b; 32]).unwrap()
     }
 
     #[test]
     fn sealed_frames_open_once() {
-        let mut s = Sealer::new(key(1), "t", 0, 1000);
-        let mut o = Opener::new(key(1), "t", 1, 3);
-        let f = s.seal(FrameKind::Kernel, b"hello");
-        let got = o.open(&f, Some(0)).unwrap();
+        let mut s = Sealer::new(key(1), sc("t"), 0);
+        let mut o = Opener::new(key(1), sc("t"), 1, 3);
+        let f = s.seal(FrameKind::Kernel, b"hello", NOW);
+        let got = o.open(&f, Some(0), NOW).unwrap();
         assert_eq!(got.payload, b"hello");
         assert_eq!(got.sender, 0);
-        assert_eq!(got.counter, 1001);
-        assert_eq!(o.open(&f, Some(0)), Err(Reject::Replay));
+        assert_eq!(got.counter, NOW);
+        assert_eq!(o.open(&f, Some(0), NOW), Err(Reject::Replay));
     }
 
     #[test]
     fn every_attack_is_rejected_and_counted() {
-        let mut s = Sealer::new(key(1), "t", 0, 0);
-        let mut o = Opener::new(key(1), "t", 1, 3);
-        let good = s.seal(FrameKind::Heartbeat, b"x");
+        let mut s = Sealer::new(key(1), sc("t"), 0);
+        let mut o = Opener::new(key(1), sc("t"), 1, 3);
+        let good = s.seal(FrameKind::Heartbeat, b"x", NOW);
         // Forged with another key.
-        let forged = seal_with(&key(2), "t", FrameKind::Kernel, 0, 99, b"x");
-        assert_eq!(o.open(&forged, Some(0)), Err(Reject::BadMac));
+        let forged = seal_with(&key(2), &sc("t"), FrameKind::Kernel, 0, NOW + 99, b"x");
+        assert_eq!(o.open(&forged, Some(0), NOW), Err(Reject::BadMac));
+        // Another mission's frame.
+        let other_mission = seal_with(
+            &key(1),
+            &Scope::new("t", 8),
+            FrameKind::Kernel,
+            0,
+            NOW,
+            b"x",
+        );
+        assert_eq!(o.open(&other_mission, Some(0), NOW), Err(Reject::BadMac));
         // Another team's frame.
-        let other = seal_with(&key(1), "u", FrameKind::Kernel, 0, 99, b"x");
-        assert_eq!(o.open(&other, Some(0)), Err(Reject::BadMac));
+        let other = seal_with(&key(1), &sc("u"), FrameKind::Kernel, 0, NOW + 99, b"x");
+        assert_eq!(o.open(&other, Some(0), NOW), Err(Reject::BadMac));
         // Tampered: every byte flipped in turn.
         for i in 0..good.len() {
             let mut t = good.clone();
@@ -463,25 +523,44 @@ mod tests {
             } else {
                 Reject::BadMac
             };
-            assert_eq!(o.open(&t, Some(0)), Err(want), "byte {i}");
+            assert_eq!(o.open(&t, Some(0), NOW), Err(want), "byte {i}");
         }
         // Not a member, wrong key expression, own.
-        let outsider = seal_with(&key(1), "t", FrameKind::Kernel, 7, 1, b"x");
-        assert_eq!(o.open(&outsider, Some(7)), Err(Reject::NotMember));
-        assert_eq!(o.open(&good, Some(2)), Err(Reject::WrongSender));
-        let own = seal_with(&key(1), "t", FrameKind::Kernel, 1, 1, b"x");
-        assert_eq!(o.open(&own, Some(1)), Err(Reject::Own));
-        assert!(o.open(&good, Some(0)).is_ok());
-        assert_eq!(o.open(&good, Some(0)), Err(Reject::Replay));
+        let outsider = seal_with(&key(1), &sc("t"), FrameKind::Kernel, 7, NOW + 1, b"x");
+        assert_eq!(o.open(&outsider, Some(7), NOW), Err(Reject::NotMember));
+        assert_eq!(o.open(&good, Some(2), NOW), Err(Reject::WrongSender));
+        let own = seal_with(&key(1), &sc("t"), FrameKind::Kernel, 1, NOW + 1, b"x");
+        assert_eq!(o.open(&own, Some(1), NOW), Err(Reject::Own));
+        assert!(o.open(&good, Some(0), NOW).is_ok());
+        assert_eq!(o.open(&good, Some(0), NOW), Err(Reject::Replay));
         assert_eq!(o.stats().accepted, 1);
         assert_eq!(o.stats().rejected[&Reject::Replay], 1);
         assert_eq!(
             o.stats().rejected[&Reject::BadMac] as usize,
-            2 + good.len() - 4
+            3 + good.len() - 4
         );
         assert_eq!(o.stats().rejected[&Reject::Malformed], 4);
-        assert!(o.open(&[], None).is_err());
-        assert_eq!(o.open(b"BZ\x01", None), Err(Reject::Malformed));
+        assert!(o.open(&[], None, NOW).is_err());
+        assert_eq!(o.open(b"BZ\x01", None, NOW), Err(Reject::Malformed));
+    }
+
+    #[test]
+    fn a_recorded_frame_is_too_old_for_a_receiver_that_never_saw_its_sender() {
+        let mut s = Sealer::new(key(1), sc("t"), 0);
+        let f = s.seal(FrameKind::Heartbeat, b"x", NOW);
+        let mut late = Opener::new(key(1), sc("t"), 1, 3);
+        assert_eq!(
+            late.open(&f, Some(0), NOW + FRESH_US + 1),
+            Err(Reject::TooOld)
+        );
+        let mut soon = Opener::new(key(1), sc("t"), 1, 3);
+        assert!(soon.open(&f, Some(0), NOW + 1000).is_ok());
+        // Counters follow the clock, and never go back.
+        let g = s.seal(FrameKind::Heartbeat, b"x", NOW - 5);
+        assert_eq!(
+            soon.open(&g, Some(0), NOW + 1000).map(|f| f.counter),
+            Ok(NOW + 1)
+        );
     }
 
     #[test]
@@ -518,8 +597,8 @@ mod tests {
         /// Random bytes never open and never panic.
         #[test]
         fn random_bytes_never_open(bytes in proptest::collection::vec(any::<u8>(), 0..200)) {
-            let mut o = Opener::new(key(1), "t", 1, 3);
-            prop_assert!(o.open(&bytes, None).is_err());
+            let mut o = Opener::new(key(1), sc("t"), 1, 3);
+            prop_assert!(o.open(&bytes, None, NOW).is_err());
         }
     }
 }

@@ -44,13 +44,13 @@ impl NetOptions {
         } else if self.config.is_none() {
             set(&mut c, "mode", json("peer"))?;
         }
-        if self.config.is_none() || self.multicast {
-            set(
-                &mut c,
-                "scouting/multicast/enabled",
-                self.multicast.to_string(),
-            )?;
-        }
+        // Off unless asked for, whatever the file says (Zenoh's own
+        // default is on).
+        set(
+            &mut c,
+            "scouting/multicast/enabled",
+            self.multicast.to_string(),
+        )?;
         if let Some(i) = &self.multicast_interface {
             set(&mut c, "scouting/multicast/interface", json(i))?;
         }

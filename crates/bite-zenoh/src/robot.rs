@@ -15,7 +15,7 @@
 //! completed the mission is not presumed lost when it goes quiet.
 
 use crate::Keys;
-use crate::auth::{AuthStats, FrameKind, Opener, Reject, Sealer, TeamKey};
+use crate::auth::{AuthStats, FrameKind, Opener, Reject, Scope, Sealer, TeamKey};
 use crate::net::{Clock, NetOptions, unix_micros};
 use crate::wire::{self, Heartbeat, Membership, MissionBody, Status};
 use bite_core::graph::BehaviorGraph;
@@ -108,7 +108,12 @@ pub enum RobotError {
 }
 
 enum Input {
-    Frame { from: String, bytes: Vec<u8> },
+    /// A frame, and when it arrived (wall µs).
+    Frame {
+        from: String,
+        bytes: Vec<u8>,
+        at_us: u64,
+    },
     Sensors(Vec<u8>),
     Mission(Vec<u8>),
     Query(zenoh::query::Query),
@@ -118,6 +123,14 @@ enum Input {
 const QUEUE: usize = 4096;
 /// Rejected frames logged one by one, per reason (all are counted).
 const LOG_REJECTS: u64 = 100;
+/// Largest sensor reading or mission submission taken (bytes).
+const MAX_JSON: usize = 1 << 20;
+/// Inputs handled before the timers get a turn.
+const BATCH: usize = 256;
+/// Range readings and object sightings taken per reading.
+const MAX_READINGS: usize = 1024;
+/// How far a submission's `issued_at` may be from the robot's clock.
+const SUBMISSION_FRESH_MS: u64 = 5 * 60 * 1000;
 
 /// One running mission.
 struct Running {
@@ -146,6 +159,12 @@ struct Running {
     mission_id: Option<String>,
     finished_at: Option<u64>,
     payload_rejects: BTreeMap<&'static str, u64>,
+    /// Kernel messages that arrived before the first control tick.
+    early: Vec<bite_core::msg::Envelope>,
+    /// Presume silent teammates lost (the scenario's failure detector).
+    detects: bool,
+    /// The first control tick has run.
+    ticked: bool,
 }
 
 /// Run a robot until it is stopped (`stop`), its time limit passes, or
@@ -162,8 +181,10 @@ pub fn run(
             opts.team, opts.name
         )));
     }
-    if !(opts.speed.is_finite() && opts.speed > 0.0) {
-        return Err(RobotError::Options("--speed must be positive".into()));
+    if !(opts.speed.is_finite() && (0.01..=100.0).contains(&opts.speed)) {
+        return Err(RobotError::Options(
+            "--speed must be between 0.01 and 100".into(),
+        ));
     }
     let keys = Keys::new(&opts.team);
     let session = opts.net.open()?;
@@ -185,9 +206,16 @@ pub fn run(
         session
             .declare_subscriber(keys.all("net"))
             .callback(move |s| {
+                // Oversized frames are dropped before they are copied.
+                if s.payload().len()
+                    > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC
+                {
+                    return;
+                }
                 push(Input::Frame {
                     from: Keys::robot_of(s.key_expr().as_str()).to_string(),
                     bytes: s.payload().to_bytes().into_owned(),
+                    at_us: unix_micros(),
                 })
             })
             .wait()
@@ -197,7 +225,11 @@ pub fn run(
         let push = push.clone();
         session
             .declare_subscriber(keys.sensors(&opts.name))
-            .callback(move |s| push(Input::Sensors(s.payload().to_bytes().into_owned())))
+            .callback(move |s| {
+                if s.payload().len() <= MAX_JSON {
+                    push(Input::Sensors(s.payload().to_bytes().into_owned()))
+                }
+            })
             .wait()
             .map_err(z)?
     };
@@ -205,7 +237,11 @@ pub fn run(
         let push = push.clone();
         session
             .declare_subscriber(keys.mission())
-            .callback(move |s| push(Input::Mission(s.payload().to_bytes().into_owned())))
+            .callback(move |s| {
+                if s.payload().len() <= MAX_JSON {
+                    push(Input::Mission(s.payload().to_bytes().into_owned()))
+                }
+            })
             .wait()
             .map_err(z)?
     };
@@ -297,11 +333,20 @@ impl Node<'_> {
                     self.log_record(json!({"event": "stopped", "reason": "time limit"}));
                     return false;
                 }
+                // A robot that completed stays while a teammate may still
+                // need its answers (until every teammate completed or is
+                // presumed lost, at most twice `lost_after`).
                 if self.opts.exit_when_done
                     && let Some(at) = r.finished_at
-                    && unix_micros() >= at + grace_us(r)
                 {
-                    return true;
+                    let others_done = (0..r.names.len() as u32)
+                        .all(|i| i == r.me.0 || r.done.contains(&i) || r.suspected.contains(&i));
+                    let now_us = unix_micros();
+                    if (others_done && now_us >= at.saturating_add(grace_us(r)))
+                        || now_us >= at.saturating_add(linger_us(r))
+                    {
+                        return true;
+                    }
                 }
             }
             let wait = Duration::from_micros(wake.saturating_sub(unix_micros()))
@@ -309,9 +354,12 @@ impl Node<'_> {
             match rx.recv_timeout(wait) {
                 Ok(i) => {
                     self.input(i, loader);
-                    // Take whatever else is queued before the timers.
-                    while let Ok(i) = rx.try_recv() {
-                        self.input(i, loader);
+                    // Take what else is queued (bounded) before the timers.
+                    for _ in 0..BATCH {
+                        match rx.try_recv() {
+                            Ok(i) => self.input(i, loader),
+                            Err(_) => break,
+                        }
                     }
                 }
                 Err(RecvTimeoutError::Timeout) => {}
@@ -362,7 +410,12 @@ impl Node<'_> {
             .collect();
         let n = names.len() as u32;
         let now_us = unix_micros();
+        // Without a failure detector (`enabled: false`) heartbeats still
+        // serve gathering, but nobody is ever presumed lost.
+        let detects = p.scenario.failure_detector.is_some();
         let detector = p.scenario.failure_detector.unwrap_or_default();
+        let tag = mission_tag(id.as_deref(), &graph, start_at);
+        let scope = Scope::new(&self.opts.team, tag);
         let origin = start_at.unwrap_or(now_us);
         let clock = Clock {
             origin_us: origin,
@@ -392,8 +445,10 @@ impl Node<'_> {
             graph,
             me,
             index,
-            sealer: Sealer::new(self.opts.key.clone(), &self.opts.team, me.0, now_us),
-            opener: Opener::new(self.opts.key.clone(), &self.opts.team, me.0, n),
+            sealer: Sealer::new(self.opts.key.clone(), scope.clone(), me.0),
+            opener: Opener::new(self.opts.key.clone(), scope, me.0, n),
+            detects,
+            ticked: false,
             clock,
             shared_origin: start_at.is_some(),
             gather_until: Some(gather),
@@ -408,6 +463,7 @@ impl Node<'_> {
             mission_id: id,
             finished_at: None,
             payload_rejects: BTreeMap::new(),
+            early: Vec::new(),
             names,
         });
         Ok(())
@@ -421,6 +477,13 @@ impl Node<'_> {
         if now_us >= self.next_status {
             self.next_status = now_us + self.opts.status_period.as_micros() as u64;
             self.publish_status();
+            // A killed process loses at most one status period of its log.
+            if let Some(w) = self.log.as_mut()
+                && let Err(e) = w.flush()
+                && self.log_error.is_none()
+            {
+                self.log_error = Some(e);
+            }
         }
         wake = wake.min(self.next_status);
         let Some(r) = self.run.as_mut() else {
@@ -434,7 +497,7 @@ impl Node<'_> {
             };
             let frame = r
                 .sealer
-                .seal(FrameKind::Heartbeat, &wire::encode_heartbeat(&hb));
+                .seal(FrameKind::Heartbeat, &wire::encode_heartbeat(&hb), now_us);
             let key = self.keys.net(&self.opts.name);
             let _ = self.session.put(key, frame).wait();
         }
@@ -447,7 +510,7 @@ impl Node<'_> {
             r.gather_until = None;
             // A shared origin (given by whoever launched the team) is kept
             // when everyone is here; otherwise the clock starts now.
-            if !(everyone && r.shared_origin) {
+            if !r.shared_origin {
                 r.clock.origin_us = now_us;
             }
             let missing: Vec<String> = (0..r.names.len())
@@ -470,14 +533,18 @@ impl Node<'_> {
         let mut lost = Vec::new();
         for (i, h) in r.heard.iter().enumerate() {
             let i32_ = i as u32;
-            if i == r.me.index() || r.suspected.contains(&i32_) || r.done.contains(&i32_) {
+            if !r.detects
+                || i == r.me.index()
+                || r.suspected.contains(&i32_)
+                || r.done.contains(&i32_)
+            {
                 continue;
             }
             if let Some(h) = h {
-                if now_us >= h + lost_us {
+                if now_us >= h.saturating_add(lost_us) {
                     lost.push(i32_);
                 } else {
-                    wake = wake.min(h + lost_us);
+                    wake = wake.min(h.saturating_add(lost_us));
                 }
             }
         }
@@ -497,13 +564,18 @@ impl Node<'_> {
         if !r.agent.has_body() && now >= r.next_control {
             r.next_control = now + r.period;
             r.agent.tick(now, None);
+            Self::after_first_tick(r, now);
             self.flush_agent();
         }
         let Some(r) = self.run.as_mut() else {
             return wake;
         };
         if !r.agent.has_body() {
-            wake = wake.min(r.clock.origin_us + wall_us(&r.clock, r.next_control));
+            wake = wake.min(
+                r.clock
+                    .origin_us
+                    .saturating_add(wall_us(&r.clock, r.next_control)),
+            );
         }
         if let Some(t) = r.agent.poll_timeout() {
             if t <= now {
@@ -511,10 +583,21 @@ impl Node<'_> {
                 self.flush_agent();
                 return now_us;
             }
-            wake = wake.min(r.clock.origin_us + wall_us(&r.clock, t));
+            wake = wake.min(r.clock.origin_us.saturating_add(wall_us(&r.clock, t)));
         }
         self.check_finished();
         wake
+    }
+
+    /// Messages kept until the kernel had its first tick (as in the
+    /// simulator, every robot ticks before it hears anything).
+    fn after_first_tick(r: &mut Running, now: Time) {
+        if !r.ticked {
+            r.ticked = true;
+            for env in std::mem::take(&mut r.early) {
+                r.agent.message(now, env);
+            }
+        }
     }
 
     fn check_finished(&mut self) {
@@ -537,11 +620,19 @@ impl Node<'_> {
 
     fn input(&mut self, i: Input, loader: &Loader) {
         match i {
-            Input::Frame { from, bytes } => self.frame(&from, &bytes),
+            Input::Frame { from, bytes, at_us } => self.frame(&from, &bytes, at_us),
             Input::Sensors(bytes) => {
                 let Some(r) = self.run.as_mut() else { return };
                 match serde_json::from_slice::<Sensed>(&bytes) {
-                    Ok(s) => r.last_sensed = Some(s),
+                    Ok(mut s) => {
+                        // Only sightings that can be: teammates on the roster
+                        // other than itself; bounded lists.
+                        let (n, me) = (r.names.len() as u32, r.me.0);
+                        s.mates.retain(|(j, _)| *j < n && *j != me);
+                        s.rays.truncate(MAX_READINGS);
+                        s.objects.truncate(MAX_READINGS);
+                        r.last_sensed = Some(s)
+                    }
                     Err(_) => {
                         *r.payload_rejects.entry("sensors-malformed").or_insert(0) += 1;
                         return;
@@ -562,6 +653,7 @@ impl Node<'_> {
                     s.t = now.as_secs_f64();
                 }
                 r.agent.tick(now, s.as_ref());
+                Self::after_first_tick(r, now);
                 r.last_sensed = s;
                 self.flush_agent();
                 self.check_finished();
@@ -570,13 +662,12 @@ impl Node<'_> {
             Input::Query(q) => {
                 let m = self.membership();
                 let body = serde_json::to_vec(&m).unwrap_or_default();
-                let key = q.key_expr().clone();
-                let _ = q.reply(key, body).wait();
+                let _ = q.reply(self.keys.members(&self.opts.name), body).wait();
             }
         }
     }
 
-    fn frame(&mut self, from: &str, bytes: &[u8]) {
+    fn frame(&mut self, from: &str, bytes: &[u8], at_us: u64) {
         // Zenoh hands a session its own publications too.
         if from == self.opts.name {
             return;
@@ -586,7 +677,7 @@ impl Node<'_> {
         let claimed = r.index.get(from).copied().unwrap_or(u32::MAX);
         let result = r
             .opener
-            .open(bytes, Some(claimed))
+            .open(bytes, Some(claimed), at_us)
             .map(|f| (f.kind, f.sender, f.payload.to_vec()));
         let (kind, sender, payload) = match result {
             Ok(x) => x,
@@ -606,9 +697,9 @@ impl Node<'_> {
                 return;
             }
         };
-        let now_us = unix_micros();
         let now = r.clock.now();
-        r.heard[sender as usize] = Some(now_us);
+        // Heard when it arrived, not when this thread got to it.
+        r.heard[sender as usize] = Some(at_us.max(r.heard[sender as usize].unwrap_or(0)));
         if r.suspected.remove(&sender) && r.gather_until.is_none() {
             r.agent.member_back(now, RobotId(sender));
             self.flush_agent();
@@ -629,9 +720,17 @@ impl Node<'_> {
                 Ok((to, env)) => {
                     if env.sender.0 != sender {
                         *r.payload_rejects.entry("sender-mismatch").or_insert(0) += 1;
-                    } else if to.includes(r.me) && r.gather_until.is_none() {
-                        r.agent.message(now, env);
-                        self.flush_agent();
+                    } else if to.includes(r.me) {
+                        if !r.ticked {
+                            // A teammate that started first: kept for the
+                            // start (bounded, as the input queue is).
+                            if r.early.len() < QUEUE {
+                                r.early.push(env);
+                            }
+                        } else {
+                            r.agent.message(now, env);
+                            self.flush_agent();
+                        }
                     }
                 }
                 Err(_) => *r.payload_rejects.entry("kernel-malformed").or_insert(0) += 1,
@@ -656,7 +755,13 @@ impl Node<'_> {
                 return;
             }
         };
-        if !self.seen_missions.insert(body.id.clone()) {
+        let now_ms = unix_micros() / 1000;
+        if body.issued_at.abs_diff(now_ms) > SUBMISSION_FRESH_MS {
+            self.missions_rejected += 1;
+            self.log_record(json!({"event": "mission_rejected", "id": body.id, "reason": "stale: issued_at is more than 5 minutes from now"}));
+            return;
+        }
+        if self.seen_missions.contains(&body.id) {
             self.missions_rejected += 1;
             self.log_record(
                 json!({"event": "mission_rejected", "id": body.id, "reason": "replayed id"}),
@@ -666,18 +771,24 @@ impl Node<'_> {
         if let Some(r) = &self.run
             && !r.agent.kernel().is_finished()
         {
+            self.missions_rejected += 1;
             self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": "busy: the current mission has not completed"}));
             return;
         }
         match loader(&body) {
             Ok(p) => {
-                if let Err(e) = self.start(p, Some(body.id.clone()), None) {
-                    self.log_record(
-                        json!({"event": "mission_refused", "id": body.id, "reason": e.to_string()}),
-                    );
+                match self.start(p, Some(body.id.clone()), None) {
+                    Ok(()) => {
+                        self.seen_missions.insert(body.id.clone());
+                    }
+                    Err(e) => {
+                        self.missions_rejected += 1;
+                        self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": e.to_string()}));
+                    }
                 }
             }
             Err(e) => {
+                self.missions_rejected += 1;
                 self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": e}));
             }
         }
@@ -692,9 +803,11 @@ impl Node<'_> {
         while let Some(o) = r.agent.poll() {
             match o {
                 AgentOutput::Send { to, envelope } => {
-                    let frame = r
-                        .sealer
-                        .seal(FrameKind::Kernel, &wire::encode_kernel(&to, &envelope));
+                    let frame = r.sealer.seal(
+                        FrameKind::Kernel,
+                        &wire::encode_kernel(&to, &envelope),
+                        unix_micros(),
+                    );
                     let _ = self.session.put(&net, frame).wait();
                 }
                 AgentOutput::Inform(o) => {
@@ -707,9 +820,11 @@ impl Node<'_> {
                         "to": o.to.iter().map(|x| r.names[x.index()].clone()).collect::<Vec<_>>(),
                         "beliefs": bite_core::wm::belief_names(&r.graph, &o.msg),
                     }));
-                    let frame = r
-                        .sealer
-                        .seal(FrameKind::Inform, &wire::encode_inform(&o.to, &o.msg));
+                    let frame = r.sealer.seal(
+                        FrameKind::Inform,
+                        &wire::encode_inform(&o.to, &o.msg),
+                        unix_micros(),
+                    );
                     let _ = self.session.put(&net, frame).wait();
                 }
                 AgentOutput::Event(e) => {
@@ -857,14 +972,45 @@ impl Node<'_> {
     }
 }
 
+/// The tag that binds frames to a mission: a hash of its submission id, or
+/// of what the robots were started with (graph name, configuration name,
+/// clock origin in µs), so frames of another mission do not verify.
+pub fn mission_tag(id: Option<&str>, graph: &BehaviorGraph, start_at_us: Option<u64>) -> u64 {
+    let mut h = bite_core::ids::Fnv1a::new();
+    match id {
+        Some(id) => {
+            h.write(b"id\0");
+            h.write(id.as_bytes());
+        }
+        None => {
+            h.write(b"cli\0");
+            h.write(graph.name().as_bytes());
+            h.write(b"\0");
+            h.write(graph.config_name().unwrap_or("").as_bytes());
+            h.write(&start_at_us.unwrap_or(0).to_le_bytes());
+        }
+    }
+    h.finish()
+}
+
 /// Wall microseconds after the origin at which team time `t` comes.
 fn wall_us(c: &Clock, t: Time) -> u64 {
     (t.as_secs_f64() / c.speed * 1e6) as u64
 }
 
-/// How long a robot that completed stays (answering late teammates, wall µs).
+/// How long a robot that completed stays at least (its last heartbeats
+/// say so), wall µs.
 fn grace_us(r: &Running) -> u64 {
-    r.clock.wall(r.detector.heartbeat * 4).as_micros() as u64
+    r.clock
+        .wall(r.detector.heartbeat.saturating_mul(2))
+        .as_micros() as u64
+}
+
+/// How long a robot that completed stays at most, wall µs.
+fn linger_us(r: &Running) -> u64 {
+    r.clock
+        .wall(r.detector.lost_after.saturating_mul(2))
+        .as_micros() as u64
 }
 
 /// Shared flag set by a signal handler.

@@ -98,8 +98,10 @@ pub fn serve(
             opts.team
         )));
     }
-    if !(opts.speed.is_finite() && opts.speed > 0.0) {
-        return Err(ServeError::Options("--speed must be positive".into()));
+    if !(opts.speed.is_finite() && (0.01..=100.0).contains(&opts.speed)) {
+        return Err(ServeError::Options(
+            "--speed must be between 0.01 and 100".into(),
+        ));
     }
     let n = graph.roster().len();
     let names: Vec<String> = (0..n as u32)

@@ -188,6 +188,10 @@ pub struct Submission {
 pub struct MissionBody {
     /// Unique id (a submission id is run at most once: replays are dropped).
     pub id: String,
+    /// When it was issued, milliseconds since the Unix epoch; robots refuse
+    /// submissions more than 5 minutes from their clock (recorded ones
+    /// replayed later).
+    pub issued_at: u64,
     /// A behavior graph (YAML text) ...
     #[serde(default)]
     pub graph: Option<String>,
@@ -313,6 +317,7 @@ mod tests {
         let key = TeamKey::new(vec![7; 32]).unwrap();
         let body = MissionBody {
             id: "m1".into(),
+            issued_at: 0,
             graph: Some("name: x".into()),
             rtcl: None,
             config: None,

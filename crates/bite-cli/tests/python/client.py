@@ -57,6 +57,7 @@ def main():
 
     body = json.dumps({
         "id": f"py-{int(time.time() * 1000)}",
+        "issued_at": int(time.time() * 1000),
         "graph": open(graph_file).read(),
         "scenario": open(scenario_file).read(),
     })
