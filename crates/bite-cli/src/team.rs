@@ -514,7 +514,7 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
 
 /// A free TCP port on 127.0.0.1 (the OS picks one; it is released at once,
 /// so another process could take it in between: fine for development).
-fn free_port() -> Result<u16> {
+pub fn free_port() -> Result<u16> {
     let l = std::net::TcpListener::bind("127.0.0.1:0").context("finding a free port")?;
     Ok(l.local_addr()?.port())
 }
@@ -876,7 +876,7 @@ fn terminate(c: &mut Child) {
     let _ = c.wait();
 }
 
-fn read_jsonl(p: &Path) -> Result<Vec<serde_json::Value>> {
+pub fn read_jsonl(p: &Path) -> Result<Vec<serde_json::Value>> {
     let text = match std::fs::read_to_string(p) {
         Ok(t) => t,
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),

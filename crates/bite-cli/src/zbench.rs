@@ -20,7 +20,7 @@ use std::process::{ExitCode, Stdio};
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::team::{LaunchArgs, MissionArgs, launch};
+use crate::team::{LaunchArgs, MissionArgs, launch, read_jsonl};
 
 /// The protocols measured.
 pub const PROTOCOLS: [&str; 3] = ["sync.leader", "sync.vote", "alloc.auction"];
@@ -132,9 +132,7 @@ fn rounds_in_sim(graph: &str, protocol: &str) -> Result<f64> {
 /// Raw Zenoh round trips (µs) to an echo process, `n` of them after a warm-up.
 #[allow(clippy::disallowed_methods)] // a benchmark measures wall time
 fn ping_pong(exe: &Path, out: &Path, n: usize) -> Result<Vec<f64>> {
-    let port = std::net::TcpListener::bind("127.0.0.1:0")?
-        .local_addr()?
-        .port();
+    let port = crate::team::free_port()?;
     let ep = format!("tcp/127.0.0.1:{port}");
     let team = format!("bench-{}", std::process::id());
     let log = std::fs::File::create(out.join("pong.log"))?;
@@ -271,8 +269,8 @@ pub fn cmd_bench_zenoh(
             };
             let (summary, ok) = launch(&args, true)?;
             let logs: Vec<Vec<Value>> = (0..n)
-                .map(|k| read(&dir.join(format!("r{k}.jsonl"))))
-                .collect();
+                .map(|k| read_jsonl(&dir.join(format!("r{k}.jsonl"))))
+                .collect::<Result<_>>()?;
             let kind = if protocol.starts_with("sync.") {
                 "sync"
             } else {
@@ -325,12 +323,4 @@ pub fn cmd_bench_zenoh(
     )?;
     println!("details: {}", out.join("bench-zenoh.json").display());
     Ok(ExitCode::SUCCESS)
-}
-
-fn read(p: &Path) -> Vec<Value> {
-    std::fs::read_to_string(p)
-        .unwrap_or_default()
-        .lines()
-        .filter_map(|l| serde_json::from_str(l).ok())
-        .collect()
 }

@@ -26,7 +26,7 @@ use bite_core::time::Time;
 use bite_core::value::Value;
 use bite_core::wm::{Inform, Outgoing, Policy, WorldModel};
 use rand::SeedableRng;
-use std::collections::{BTreeMap, VecDeque};
+use std::collections::VecDeque;
 use std::sync::Arc;
 
 use crate::physics::schema::{Command, Weighted};
@@ -332,18 +332,4 @@ fn facts_for(
         .collect();
     out.sort_by_key(|(t, _)| *t);
     out.into()
-}
-
-/// The names of what an agent's kernel believes now (for status reports):
-/// every belief that has a value.
-pub fn beliefs_by_name(k: &Kernel, graph: &BehaviorGraph) -> BTreeMap<String, Value> {
-    let sym = graph.symbols();
-    let mut out = BTreeMap::new();
-    for i in 0..sym.len() {
-        let id = BeliefId(i as u32);
-        if let Some(v) = k.beliefs().value(id) {
-            out.insert(sym.name(id).to_string(), v.clone());
-        }
-    }
-    out
 }

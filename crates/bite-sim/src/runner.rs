@@ -543,23 +543,7 @@ impl Sim<'_, '_> {
                     {
                         self.next_poses = self.now + Duration::from_secs(1);
                         if self.log.is_writing() {
-                            let robots: Vec<[f64; 3]> = (0..n)
-                                .map(|i| {
-                                    let p = w.pose(i);
-                                    [
-                                        round3(p.pos.x),
-                                        round3(p.pos.y),
-                                        round3(p.heading.to_degrees()),
-                                    ]
-                                })
-                                .collect();
-                            let objects: BTreeMap<String, [f64; 2]> = (w.spec().objects.iter())
-                                .enumerate()
-                                .filter_map(|(k, o)| {
-                                    let p = w.object_pos(k);
-                                    o.name.clone().map(|n| (n, [round3(p.x), round3(p.y)]))
-                                })
-                                .collect();
+                            let (robots, objects) = w.poses();
                             let rec = json!({"t": self.now.as_secs_f64(), "event": "poses", "robots": robots, "objects": objects});
                             self.log.write(&rec);
                         }
@@ -685,10 +669,6 @@ impl Sim<'_, '_> {
         }
         self.now
     }
-}
-
-fn round3(x: f64) -> f64 {
-    (x * 1000.0).round() / 1000.0
 }
 
 /// Run a mission: in the timed-skill world, or in the physical world when

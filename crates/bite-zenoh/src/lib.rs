@@ -78,6 +78,33 @@ impl Keys {
     }
 }
 
+/// Check what a robot or the server is started with: team and robot names
+/// usable as key-expression chunks, a clock speed in 0.01..=100.
+pub(crate) fn check_team(team: &str, robots: &[&str], speed: f64) -> Result<(), String> {
+    if let Some(bad) = std::iter::once(team)
+        .chain(robots.iter().copied())
+        .find(|n| !valid_chunk(n))
+    {
+        return Err(format!(
+            "`{bad}`: team and robot names are letters, digits, `-`, `_` or `.`"
+        ));
+    }
+    if !(speed.is_finite() && (0.01..=100.0).contains(&speed)) {
+        return Err("--speed must be between 0.01 and 100".into());
+    }
+    Ok(())
+}
+
+/// A JSON-lines log file, its directory made if need be.
+pub(crate) fn create_log(
+    p: &std::path::Path,
+) -> std::io::Result<std::io::BufWriter<std::fs::File>> {
+    if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(d)?;
+    }
+    Ok(std::io::BufWriter::new(std::fs::File::create(p)?))
+}
+
 /// Is `name` usable as a key-expression chunk (team or robot name)?
 pub fn valid_chunk(name: &str) -> bool {
     !name.is_empty()

@@ -119,6 +119,12 @@ impl Clock {
         Time::from_secs_f64(wall * self.speed)
     }
 
+    /// The wall time (µs since the Unix epoch) at which team time `t` comes.
+    pub fn wall_at(&self, t: Time) -> u64 {
+        let after = (t.as_secs_f64() / self.speed * 1e6) as u64;
+        self.origin_us.saturating_add(after)
+    }
+
     /// The wall duration of `d` of team time.
     pub fn wall(&self, d: Duration) -> Duration {
         Duration::from_secs_f64(d.as_secs_f64() / self.speed)

@@ -22,7 +22,7 @@ use bite_core::graph::BehaviorGraph;
 use bite_core::ids::RobotId;
 use bite_core::mission::Mission;
 use bite_core::time::Time;
-use bite_sim::agent::{Agent, AgentOutput, beliefs_by_name};
+use bite_sim::agent::{Agent, AgentOutput};
 use bite_sim::log::Namer;
 use bite_sim::physics::Sensed;
 use bite_sim::scenario::{FailureDetector, Scenario};
@@ -175,17 +175,7 @@ pub fn run(
     loader: Loader,
     stop: Arc<AtomicBool>,
 ) -> Result<Outcome, RobotError> {
-    if !crate::valid_chunk(&opts.team) || !crate::valid_chunk(&opts.name) {
-        return Err(RobotError::Options(format!(
-            "team `{}` and robot `{}` must be letters, digits, `-`, `_` or `.`",
-            opts.team, opts.name
-        )));
-    }
-    if !(opts.speed.is_finite() && (0.01..=100.0).contains(&opts.speed)) {
-        return Err(RobotError::Options(
-            "--speed must be between 0.01 and 100".into(),
-        ));
-    }
+    crate::check_team(&opts.team, &[&opts.name], opts.speed).map_err(RobotError::Options)?;
     let keys = Keys::new(&opts.team);
     let session = opts.net.open()?;
     let (tx, rx) = std::sync::mpsc::sync_channel::<Input>(QUEUE);
@@ -254,16 +244,9 @@ pub fn run(
             .map_err(z)?
     };
     drop(tx);
-    let mut log = match &opts.log {
-        Some(p) => {
-            if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(d).map_err(|e| RobotError::Log(p.clone(), e))?;
-            }
-            let f = std::fs::File::create(p).map_err(|e| RobotError::Log(p.clone(), e))?;
-            Some(std::io::BufWriter::new(f))
-        }
-        None => None,
-    };
+    let mut log = (opts.log.as_deref().map(crate::create_log))
+        .transpose()
+        .map_err(|e| RobotError::Log(opts.log.clone().unwrap_or_default(), e))?;
     let mut node = Node {
         keys,
         session: &session,
@@ -571,11 +554,7 @@ impl Node<'_> {
             return wake;
         };
         if !r.agent.has_body() {
-            wake = wake.min(
-                r.clock
-                    .origin_us
-                    .saturating_add(wall_us(&r.clock, r.next_control)),
-            );
+            wake = wake.min(r.clock.wall_at(r.next_control));
         }
         if let Some(t) = r.agent.poll_timeout() {
             if t <= now {
@@ -583,7 +562,7 @@ impl Node<'_> {
                 self.flush_agent();
                 return now_us;
             }
-            wake = wake.min(r.clock.origin_us.saturating_add(wall_us(&r.clock, t)));
+            wake = wake.min(r.clock.wall_at(t));
         }
         self.check_finished();
         wake
@@ -903,9 +882,12 @@ impl Node<'_> {
             .into();
             s.phase = Some(k.phase_name().to_string());
             (s.stack, s.subteam) = Status::of_kernel(k, &r.graph);
-            s.beliefs = beliefs_by_name(k, &r.graph)
-                .into_iter()
-                .filter_map(|(n, v)| serde_json::to_value(v).ok().map(|v| (n, v)))
+            s.beliefs = (k.beliefs().iter())
+                .filter_map(|(n, b)| {
+                    serde_json::to_value(&b.value)
+                        .ok()
+                        .map(|v| (n.to_string(), v))
+                })
                 .collect();
             s.lost = r
                 .suspected
@@ -991,11 +973,6 @@ pub fn mission_tag(id: Option<&str>, graph: &BehaviorGraph, start_at_us: Option<
         }
     }
     h.finish()
-}
-
-/// Wall microseconds after the origin at which team time `t` comes.
-fn wall_us(c: &Clock, t: Time) -> u64 {
-    (t.as_secs_f64() / c.speed * 1e6) as u64
 }
 
 /// How long a robot that completed stays at least (its last heartbeats

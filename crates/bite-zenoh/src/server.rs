@@ -92,17 +92,7 @@ pub fn serve(
             scenario.name
         )));
     };
-    if !crate::valid_chunk(&opts.team) {
-        return Err(ServeError::Options(format!(
-            "team `{}` must be letters, digits, `-`, `_` or `.`",
-            opts.team
-        )));
-    }
-    if !(opts.speed.is_finite() && (0.01..=100.0).contains(&opts.speed)) {
-        return Err(ServeError::Options(
-            "--speed must be between 0.01 and 100".into(),
-        ));
-    }
+    crate::check_team(&opts.team, &[], opts.speed).map_err(ServeError::Options)?;
     let n = graph.roster().len();
     let names: Vec<String> = (0..n as u32)
         .map(|r| graph.roster().name(RobotId(r)))
@@ -141,16 +131,9 @@ pub fn serve(
             .wait()
             .map_err(z)?
     };
-    let mut log = match &opts.log {
-        Some(p) => {
-            if let Some(d) = p.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(d).map_err(|e| ServeError::Log(p.clone(), e))?;
-            }
-            let f = std::fs::File::create(p).map_err(|e| ServeError::Log(p.clone(), e))?;
-            Some(std::io::BufWriter::new(f))
-        }
-        None => None,
-    };
+    let mut log = (opts.log.as_deref().map(crate::create_log))
+        .transpose()
+        .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
     let clock = Clock {
         origin_us: opts.start_at_us.unwrap_or_else(unix_micros),
         speed: opts.speed,
@@ -203,23 +186,7 @@ pub fn serve(
             }
             if now >= next_world {
                 next_world = now + Duration::from_secs(1);
-                let robots: Vec<[f64; 3]> = (0..n)
-                    .map(|i| {
-                        let p = world.pose(i);
-                        [
-                            round3(p.pos.x),
-                            round3(p.pos.y),
-                            round3(p.heading.to_degrees()),
-                        ]
-                    })
-                    .collect();
-                let objects: BTreeMap<String, [f64; 2]> = (world.spec().objects.iter())
-                    .enumerate()
-                    .filter_map(|(k, o)| {
-                        let p = world.object_pos(k);
-                        o.name.clone().map(|n| (n, [round3(p.x), round3(p.y)]))
-                    })
-                    .collect();
+                let (robots, objects) = world.poses();
                 let rec = json!({"t": now.as_secs_f64(), "event": "poses", "robots": robots,
                                  "objects": objects, "stopped": stopped});
                 write(&mut log, rec)
@@ -269,8 +236,4 @@ pub fn serve(
         rejected,
         world,
     })
-}
-
-fn round3(x: f64) -> f64 {
-    (x * 1000.0).round() / 1000.0
 }

@@ -526,6 +526,26 @@ impl World {
         }
     }
 
+    /// Where everything is, for logs (mm precision): each robot's
+    /// `[x, y, heading in degrees]`, and each named object's `[x, y]`.
+    pub fn poses(&self) -> (Vec<[f64; 3]>, BTreeMap<String, [f64; 2]>) {
+        let mm = |x: f64| (x * 1000.0).round() / 1000.0;
+        let robots = (0..self.robots.len())
+            .map(|i| {
+                let p = self.pose(i);
+                [mm(p.pos.x), mm(p.pos.y), mm(p.heading.to_degrees())]
+            })
+            .collect();
+        let objects = (self.spec.objects.iter())
+            .enumerate()
+            .filter_map(|(k, o)| {
+                let p = self.object_pos(k);
+                o.name.clone().map(|n| (n, [mm(p.x), mm(p.y)]))
+            })
+            .collect();
+        (robots, objects)
+    }
+
     /// Robot `i` starts the skill of a new leaf behavior (or none).
     pub fn leaf_changed(&mut self, i: usize, leaf: Option<BehaviorId>, skill: Arc<[Weighted]>) {
         let odometer = self.robots[i].odometer;
