@@ -23,6 +23,11 @@ pub enum Via {
     Decision,
     /// Returned by a termination protocol as the next behavior under the parent.
     Replacement,
+    /// Joined the successor its team converged on after a split (the
+    /// healing leader's choice, or the same successor at a higher epoch).
+    Converged,
+    /// Joined where the team was, after this robot's process restarted.
+    Rejoined,
 }
 
 /// Why a behavior ended.
@@ -42,6 +47,9 @@ pub enum EndReason {
     Ancestor(BehaviorId),
     /// The allocation of this ancestor is redone (teammates were lost).
     Reallocation(BehaviorId),
+    /// Left for the successor the team converged on after a split: the
+    /// execution is burned (its epoch is never used again).
+    Converged,
 }
 
 /// Why an incoming message was dropped.
@@ -146,6 +154,15 @@ impl OutcomeLog {
     }
 }
 
+/// A behavior and one of its epochs, in events.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct FrameRef {
+    /// The behavior.
+    pub behavior: BehaviorId,
+    /// The team's execution count of it.
+    pub epoch: u32,
+}
+
 /// Something that happened in a kernel.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 #[serde(rename_all = "snake_case", tag = "event")]
@@ -162,6 +179,10 @@ pub enum Event {
         depth: u32,
         /// How it was selected.
         via: Via,
+        /// The execution before it in its chain (`None`: the first of a
+        /// chain).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        after: Option<FrameRef>,
     },
     /// A behavior was popped.
     Terminated {
@@ -193,6 +214,20 @@ pub enum Event {
         /// the teammate that started a re-allocation).
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         excluded: Vec<RobotId>,
+        /// What this robot saw it could choose: the enabled successors of a
+        /// synchronization, the enabled children of an allocation (what a
+        /// silent rule decides from).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        options: Vec<BehaviorId>,
+    },
+    /// A running instance decides without these teammates from now on:
+    /// presumed lost, or known to have left the behavior above it (or this
+    /// one, for a barrier that counted them arrived).
+    LeftOut {
+        /// The instance.
+        instance: InstanceKey,
+        /// Who.
+        members: Vec<RobotId>,
     },
     /// This robot stopped waiting for the termination protocol of a
     /// behavior it had finished, because the behavior's `urgent` condition
@@ -286,6 +321,35 @@ pub enum Event {
         epoch: u32,
         /// The new allocation round.
         round: u32,
+    },
+    /// The team split at a synchronization point: after `after`, this robot
+    /// runs `mine` while teammate `member` runs `theirs` (heard with its
+    /// heartbeat). With `follows`, this robot leaves `mine` for `theirs`
+    /// (the healing leader's choice, or the same behavior at a higher
+    /// epoch); without, this robot is the healing leader and the teammate
+    /// will converge on its choice.
+    Split {
+        /// The team.
+        team: TeamId,
+        /// The point whose successors diverged.
+        after: FrameRef,
+        /// What this robot ran.
+        mine: FrameRef,
+        /// What the teammate runs.
+        theirs: FrameRef,
+        /// The teammate.
+        member: RobotId,
+        /// This robot converges on `theirs`.
+        follows: bool,
+    },
+    /// This robot's process restarted with a fresh mind and joined its team
+    /// where teammate `member`'s position said the team was, `depth` frames
+    /// deep (0: nothing in common: it starts from the beginning).
+    Rejoined {
+        /// Whose position it followed.
+        member: RobotId,
+        /// How many frames it joined.
+        depth: u32,
     },
     /// The stack emptied: the mission is over for this robot.
     MissionCompleted,

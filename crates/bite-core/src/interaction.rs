@@ -555,12 +555,17 @@ impl<'a> Cx<'a> {
             self.fx.sends.push((Recipients::One(to), body));
         }
     }
-    /// Send `body` to every other member of the team.
+    /// Send `body` to every other member of the team that the instance
+    /// has not left out (teammates presumed lost or known to have left the
+    /// behavior above are not told: they take no part, and a lost one that
+    /// comes back is told how the instance ended).
     pub fn broadcast(&mut self, body: Body) {
         if self.team.size > 1 {
-            self.fx
-                .sends
-                .push((Recipients::Team(self.team.members.clone()), body));
+            let to = match self.excluded {
+                Some(x) if !self.team.members.is_disjoint(x) => Arc::new(self.live_set()),
+                _ => self.team.members.clone(),
+            };
+            self.fx.sends.push((Recipients::Team(to), body));
         }
     }
     /// Ask to be called back (`on_timer`) at `t`.

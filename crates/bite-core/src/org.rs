@@ -368,6 +368,12 @@ impl Organization {
         *n = n.saturating_add(1);
         *n
     }
+    /// Make the count of `t`'s executions of `b` at least `n` (an execution
+    /// burned or adopted to converge with teammates is never started again).
+    pub fn runs_at_least(&mut self, t: TeamId, b: BehaviorId, n: u32) {
+        let c = self.runs.entry((t, b)).or_insert(0);
+        *c = (*c).max(n);
+    }
     /// How many times `t` has started `b`.
     pub fn runs(&self, t: TeamId, b: BehaviorId) -> u32 {
         self.runs.get(&(t, b)).copied().unwrap_or(0)

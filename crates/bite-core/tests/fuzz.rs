@@ -133,7 +133,7 @@ proptest! {
     #[test]
     fn kernel_survives_arbitrary_messages(msgs in proptest::collection::vec(envelope(), 0..80)) {
         let g = load_str(&Arc::from("formation.yaml"), FORMATION).map_err(|d| TestCaseError::fail(d.to_string()))?;
-        let cfg = Config::load_str(&Arc::from("c.yaml"), "defaults: { terminate: term.local }")
+        let cfg = Config::load_str(&Arc::from("c.yaml"), "defaults: { terminate: term.local }\nbindings: { formation.terminate: term.local }")
             .map_err(|d| TestCaseError::fail(d.to_string()))?;
         let g = g.with_config(&cfg).map_err(|d| TestCaseError::fail(d.to_string()))?;
         let m = Arc::new(Mission::new(g, &Registry::core()).map_err(|d| TestCaseError::fail(d.to_string()))?);

@@ -197,9 +197,35 @@ impl Protocol for WaitAllStandIn {
     }
 }
 
+/// Stand-in for `term.first-wins`, as [`WaitAllStandIn`] is for wait-all.
+struct FirstWinsStandIn;
+
+impl Protocol for FirstWinsStandIn {
+    fn name(&self) -> &'static str {
+        "term.first-wins"
+    }
+    fn kind(&self) -> Kind {
+        Kind::Terminate
+    }
+    fn communicates(&self) -> bool {
+        true
+    }
+    fn summary(&self) -> &'static str {
+        "test stand-in for term.first-wins"
+    }
+    fn configure(
+        &self,
+        params: &Params,
+        setup: &mut bite_core::interaction::Setup<'_>,
+    ) -> Result<Factory, String> {
+        bite_core::rules::TermLocal.configure(params, setup)
+    }
+}
+
 fn registry() -> Registry {
     let mut r = Registry::core();
     r.register(Arc::new(WaitAllStandIn));
+    r.register(Arc::new(FirstWinsStandIn));
     r
 }
 
@@ -989,8 +1015,13 @@ fn config_table2_binds_points_a_to_e() {
         (Duration::from_secs(90), Duration::from_millis(250))
     );
     assert_eq!(bound("walk", Kind::Terminate).protocol.name(), "term.local");
+    // The graph's own binding stands; unbound points take the defaults.
     assert_eq!(
         bound("formation", Kind::Terminate).protocol.name(),
+        "term.first-wins"
+    );
+    assert_eq!(
+        bound("triangle", Kind::Terminate).protocol.name(),
         "term.wait-all"
     );
 }

@@ -230,6 +230,23 @@ impl BehaviorGraph {
         g
     }
 
+    /// True when `b` can run directly under `parent`: it heads one of its
+    /// execution chains, or follows one along sequential edges.
+    pub fn runs_under(&self, parent: BehaviorId, b: BehaviorId) -> bool {
+        let mut seen = vec![false; self.behaviors.len()];
+        let mut todo: Vec<BehaviorId> = self.behavior(parent).children.clone();
+        while let Some(x) = todo.pop() {
+            if x == b {
+                return true;
+            }
+            if std::mem::replace(&mut seen[x.index()], true) {
+                continue;
+            }
+            todo.extend(self.behavior(x).next.iter().copied());
+        }
+        false
+    }
+
     /// Synchronization point: two or more sequential successors are team
     /// behaviors.
     pub fn is_sync_point(&self, b: BehaviorId) -> bool {

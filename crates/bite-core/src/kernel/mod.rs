@@ -26,7 +26,7 @@
 
 use crate::belief::{BeliefEnv, BeliefStore, Source};
 use crate::cond::Expr;
-use crate::event::{DropReason, EndReason, Event, OutcomeLog, Via};
+use crate::event::{DropReason, EndReason, Event, FrameRef, OutcomeLog, Via};
 use crate::graph::BehaviorGraph;
 use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
 use crate::interaction::{
@@ -44,6 +44,9 @@ use serde::Serialize;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::Duration;
+
+mod position;
+pub use position::{Anchor, Ended, FrameId, FrameState, PosFrame, Position};
 
 /// How long accepted `(sender, seq)` pairs are remembered to drop
 /// duplicates (far longer than any network delay; a copy older than this
@@ -145,6 +148,10 @@ pub struct Frame {
     /// instance below it.
     #[serde(skip)]
     departed: Option<MemberSet>,
+    /// What it follows: the execution before it in its chain, or the
+    /// parent it is the first of a chain under (`None`: b0).
+    #[serde(skip)]
+    anchor: Option<Anchor>,
 }
 
 impl Frame {
@@ -212,6 +219,8 @@ pub enum Input<'a> {
     MemberLost(RobotId),
     /// A teammate presumed lost is heard again.
     MemberBack(RobotId),
+    /// A teammate's position, heard with its heartbeat.
+    Peer(RobotId, &'a Position),
 }
 
 /// Counters of one kernel.
@@ -231,6 +240,11 @@ pub struct Stats {
     pub selections: u64,
     /// Instances that hit their deadline.
     pub timeouts: u64,
+    /// Teammates' positions heard.
+    pub positions: u64,
+    /// Deadlines re-armed because a teammate waited for was heard still
+    /// working on the behavior.
+    pub deadlines_rearmed: u64,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -363,6 +377,17 @@ pub struct Kernel {
     gc_at: Time,
     limits: Limits,
     stats: Stats,
+    /// Executions this robot ended recently (for its heartbeats).
+    recent_ended: VecDeque<Ended>,
+    /// Executions burned recently, here or by teammates.
+    recent_burned: VecDeque<FrameId>,
+    /// Splits this robot, as healing leader, has already recorded.
+    splits_seen: std::collections::BTreeSet<(RobotId, FrameId)>,
+    /// A restarted process: since when it waits to hear where its team is.
+    rejoin_since: Option<Time>,
+    /// The executions each teammate is engaged in (its position's frames),
+    /// from its last heartbeat, and when it was heard.
+    peers: BTreeMap<RobotId, (Time, Vec<(FrameId, FrameState)>)>,
 }
 
 impl Kernel {
@@ -406,12 +431,25 @@ impl Kernel {
             gc_at: Time::ZERO,
             limits: Limits::for_team(n),
             stats: Stats::default(),
+            recent_ended: VecDeque::new(),
+            recent_burned: VecDeque::new(),
+            splits_seen: std::collections::BTreeSet::new(),
+            rejoin_since: None,
+            peers: BTreeMap::new(),
         }
     }
 
     /// Replace the limits.
     pub fn set_limits(&mut self, limits: Limits) {
         self.limits = limits;
+    }
+
+    /// Number this kernel's messages from `first` on (a restarted process
+    /// passes the time in microseconds, so that it never reuses a sequence
+    /// number its previous incarnation sent: teammates would drop them as
+    /// duplicates).
+    pub fn set_first_seq(&mut self, first: u64) {
+        self.next_seq = self.next_seq.max(first).max(1);
     }
 
     // ----- inputs -------------------------------------------------------
@@ -424,6 +462,7 @@ impl Kernel {
             Input::Timer => self.timer(now),
             Input::MemberLost(r) => self.member_lost(now, r),
             Input::MemberBack(r) => self.member_back(now, r),
+            Input::Peer(r, pos) => self.peer(now, r, pos),
         }
     }
 
@@ -449,7 +488,7 @@ impl Kernel {
     /// A teammate's message.
     pub fn message(&mut self, now: Time, env: Envelope) {
         self.set_now(now);
-        if matches!(self.phase, Phase::NotStarted) {
+        if matches!(self.phase, Phase::NotStarted) && !self.awaiting_rejoin() {
             self.begin();
         }
         self.route(env);
@@ -662,7 +701,7 @@ impl Kernel {
             self.beliefs
                 .set_named(name, v.clone(), self.now, Source::Given);
         }
-        self.push(graph.start(), TeamId::ROOT, Via::Start);
+        self.push(graph.start(), TeamId::ROOT, Via::Start, None);
     }
 
     fn versions(&self) -> (u64, u64) {
@@ -679,6 +718,7 @@ impl Kernel {
                 continue;
             }
             let progressed = match &self.phase {
+                Phase::NotStarted if self.awaiting_rejoin() => false,
                 Phase::NotStarted => {
                     self.begin();
                     true
@@ -840,6 +880,10 @@ impl Kernel {
     /// Bookkeeping for a popped frame: links, subteams, event.
     fn retire(&mut self, f: &Frame, reason: EndReason) {
         self.stack_version += 1;
+        if reason != EndReason::Converged {
+            let parent = self.stack.last().map(Frame::id);
+            self.note_ended(f.id(), parent);
+        }
         self.org.unlink(f.behavior, f.team);
         self.dissolve(&f.subteams);
         self.emit(Event::Terminated {
@@ -940,16 +984,36 @@ impl Kernel {
 
     /// An ancestor ended while an interaction was in flight: abandon it.
     fn abort_phase(&mut self) {
+        self.abort_phase_with(true);
+    }
+
+    /// Abandon the interaction in flight without telling the team (its
+    /// execution is being burned).
+    fn abort_phase_quietly(&mut self) {
+        self.abort_phase_with(false);
+    }
+
+    fn abort_phase_with(&mut self, tell: bool) {
         match std::mem::replace(&mut self.phase, Phase::Run) {
-            Phase::Allocating(k) => self.abort(k),
+            Phase::Allocating(k) => self.abort_with(k, tell),
             Phase::Terminating { key: Some(k), .. } | Phase::Selecting { key: Some(k), .. } => {
-                self.abort(k)
+                self.abort_with(k, tell)
             }
             _ => {}
         }
     }
 
     fn abort(&mut self, key: InstanceKey) {
+        self.abort_with(key, true);
+    }
+
+    fn abort_quietly(&mut self, key: InstanceKey) {
+        self.abort_with(key, false);
+    }
+
+    /// Leave instance `key` before it decided; `tell`: let the protocol tell
+    /// the teammates what they need to go on without this robot.
+    fn abort_with(&mut self, key: InstanceKey, tell: bool) {
         let Some(inst) = self.instances.get_mut(&key) else {
             return;
         };
@@ -967,7 +1031,9 @@ impl Kernel {
         // Let the protocol tell its teammates, then keep it lingering so
         // that it can answer them (a barrier leader that leaves releases
         // whoever arrives later).
-        self.call(key, |imp, cx| imp.on_abort(cx));
+        if tell {
+            self.call(key, |imp, cx| imp.on_abort(cx));
+        }
         if let Some(inst) = self.instances.get_mut(&key) {
             inst.state = State::Aborted;
             inst.wake = None;
@@ -999,7 +1065,25 @@ impl Kernel {
 
     /// Push `b` for `team`, arming its termination protocol if it is a team
     /// behavior.
-    fn push(&mut self, b: BehaviorId, team: TeamId, via: Via) {
+    /// `after`: the execution before it in its chain (`None`: the first
+    /// of a chain under the top frame).
+    fn push(&mut self, b: BehaviorId, team: TeamId, via: Via, after: Option<(BehaviorId, u32)>) {
+        let anchor = match after {
+            Some((behavior, epoch)) => Some(Anchor {
+                behavior,
+                epoch,
+                first: false,
+            }),
+            None => self.stack.last().map(|p| Anchor {
+                behavior: p.behavior,
+                epoch: p.epoch,
+                first: true,
+            }),
+        };
+        self.push_anchored(b, team, via, anchor);
+    }
+
+    fn push_anchored(&mut self, b: BehaviorId, team: TeamId, via: Via, anchor: Option<Anchor>) {
         let parent_runs = match self.stack.last_mut() {
             Some(p) => &mut p.runs,
             None => &mut self.root_runs,
@@ -1022,15 +1106,21 @@ impl Kernel {
             born: self.ticks,
             runs: BTreeMap::new(),
             departed: None,
+            anchor,
         });
         self.stack_version += 1;
         self.stats.selections += 1;
+        let after = anchor.filter(|a| !a.first).map(|a| FrameRef {
+            behavior: a.behavior,
+            epoch: a.epoch,
+        });
         self.emit(Event::Selected {
             behavior: b,
             team,
             epoch,
             depth,
             via,
+            after,
         });
         if self.graph().is_term_point(b) {
             let key = InstanceKey {
@@ -1114,7 +1204,7 @@ impl Kernel {
             self.start_allocation((team, b, epoch, round), enabled, &[]);
             return true;
         }
-        self.push(enabled[0].behavior, team, Via::Expansion);
+        self.push(enabled[0].behavior, team, Via::Expansion, None);
         true
     }
 
@@ -1170,7 +1260,7 @@ impl Kernel {
             top.subteams = created;
         }
         match mine {
-            Some((child, tid)) => self.push(child, tid, Via::Allocation),
+            Some((child, tid)) => self.push(child, tid, Via::Allocation, None),
             None => {
                 // No place for this robot: its part of the allocating
                 // behavior is empty. It idles under it until the behavior
@@ -1229,7 +1319,8 @@ impl Kernel {
             .unwrap_or_default();
         match outcome {
             Outcome::Terminate(Some(next)) if parent_children.contains(&next) => {
-                self.push(next, frame.team, Via::Replacement);
+                let prev = Some((frame.behavior, frame.epoch));
+                self.push(next, frame.team, Via::Replacement, prev);
             }
             Outcome::Terminate(Some(next)) => {
                 if let Some(k) = key {
@@ -1339,7 +1430,7 @@ impl Kernel {
                             self.emit(e);
                         }
                         self.phase = Phase::Run;
-                        self.push(s, team, Via::Sequence);
+                        self.push(s, team, Via::Sequence, Some((b, epoch)));
                         true
                     }
                     None => self.chain_end(),
@@ -1352,7 +1443,7 @@ impl Kernel {
                 match outcome {
                     Outcome::Sync(Some(s)) => {
                         self.phase = Phase::Run;
-                        self.push(s, team, Via::Decision);
+                        self.push(s, team, Via::Decision, Some((b, epoch)));
                         true
                     }
                     _ => self.chain_end(),
@@ -1385,26 +1476,25 @@ impl Kernel {
             return;
         };
         // Lost teammates are left out of every instance (every robot learns
-        // of them within a heartbeat). Teammates that left an ancestor are
-        // known to that barrier's leader only, so only protocols that wait
-        // on teammates leave them out: a silent rule must compute from what
-        // every member shares.
+        // of them within a heartbeat), and so are teammates that left an
+        // ancestor: every member learns that from the same heartbeats (the
+        // leaver's, relayed by the team's leader), so silent rules leave
+        // them out alike — an allocation does not give a role to a teammate
+        // that is done with the behavior.
         let mut gone = self.lost.clone();
         for r in told {
             gone.insert(*r);
         }
-        if bound.protocol.communicates() {
-            // An allocation at the top frame is not below it: teammates
-            // idle under it take part in a re-allocation (those that left
-            // it answer `Done`).
-            let below = match key.kind {
-                Kind::Allocate => self.stack.len().saturating_sub(1),
-                _ => self.stack.len(),
-            };
-            for f in &self.stack[..below] {
-                if let Some(d) = &f.departed {
-                    gone.union_with(d);
-                }
+        // An allocation at the top frame is not below it: teammates idle
+        // under it take part in a re-allocation (those that left it answer
+        // `Done`).
+        let below = match key.kind {
+            Kind::Allocate => self.stack.len().saturating_sub(1),
+            _ => self.stack.len(),
+        };
+        for f in &self.stack[..below] {
+            if let Some(d) = &f.departed {
+                gone.union_with(d);
             }
         }
         let excluded = (!gone.is_empty() && !team.members.is_disjoint(&gone)).then_some(gone);
@@ -1435,10 +1525,16 @@ impl Kernel {
         self.instances.insert(key, inst);
         if !armed {
             let excluded = self.instances[&key].excluded_members();
+            let options = match &self.instances[&key].input {
+                PointInput::Sync { candidates, .. } => candidates.clone(),
+                PointInput::Allocate { children } => children.iter().map(|c| c.behavior).collect(),
+                PointInput::Terminate => Vec::new(),
+            };
             self.emit(Event::InteractionStarted {
                 instance: key,
                 protocol,
                 excluded,
+                options,
             });
         }
         self.call(key, |imp, cx| imp.start(cx));
@@ -1469,6 +1565,7 @@ impl Kernel {
             instance: key,
             protocol,
             excluded,
+            options: Vec::new(),
         });
         self.call(key, |imp, cx| imp.local_done(cx, why));
         self.refresh_due();
@@ -1517,10 +1614,19 @@ impl Kernel {
     /// Instance `k` decides without `who` from now on.
     fn exclude(&mut self, k: InstanceKey, who: &[RobotId]) {
         let n = self.org.roster_len();
+        let mut new = Vec::new();
         if let Some(inst) = self.instances.get_mut(&k) {
             let ex = inst.excluded.get_or_insert_with(|| MemberSet::empty(n));
             for r in who {
-                ex.insert(*r);
+                if inst.team.contains(*r) && ex.insert(*r) {
+                    new.push(*r);
+                }
+            }
+            if !new.is_empty() && inst.state == State::Active {
+                self.out.push_back(Output::Event(Event::LeftOut {
+                    instance: k,
+                    members: new,
+                }));
             }
         }
         self.call(k, |imp, cx| imp.on_members_changed(cx));
@@ -1529,9 +1635,32 @@ impl Kernel {
     /// Teammates done with the behavior of termination instance `key`:
     /// leave them out of every instance below that behavior.
     fn departures(&mut self, key: InstanceKey, who: &[RobotId]) {
-        let Some(i) = self.stack.iter().position(|f| f.term_key() == key) else {
-            return;
-        };
+        if let Some(i) = self.stack.iter().position(|f| f.term_key() == key) {
+            self.depart(i, who);
+        } else {
+            self.depart_popped(key, who);
+        }
+    }
+
+    /// Teammates done with the behavior this robot ended and waits to
+    /// terminate: nothing of it runs here any more, but a leader relays
+    /// who is done with its heartbeats.
+    fn depart_popped(&mut self, key: InstanceKey, who: &[RobotId]) {
+        let n = self.org.roster_len();
+        if let Phase::Terminating { frame, .. } | Phase::Selecting { frame, .. } = &mut self.phase
+            && frame.term_key() == key
+        {
+            let set = frame.departed.get_or_insert_with(|| MemberSet::empty(n));
+            for r in who {
+                set.insert(*r);
+            }
+        }
+    }
+
+    /// Teammates done with the behavior of stack frame `i` (they arrived at
+    /// its termination, or left it): leave them out of every instance below
+    /// it, as if presumed lost.
+    fn depart(&mut self, i: usize, who: &[RobotId]) {
         let n = self.org.roster_len();
         let set = self.stack[i]
             .departed
@@ -1571,6 +1700,7 @@ impl Kernel {
         for k in below {
             self.exclude(k, who);
         }
+        self.refresh_due();
     }
 
     fn apply_effects(&mut self, key: InstanceKey, inst: &mut Instance, fx: Effects) {
@@ -1756,6 +1886,15 @@ impl Kernel {
             .map(|(k, _)| *k)
             .collect();
         for k in expired {
+            if self.awaited_at_work(k) {
+                // A teammate this instance waits for is heard working on
+                // the behavior: not silent, only slower. Wait on.
+                if let Some(i) = self.instances.get_mut(&k) {
+                    i.deadline = now + i.deadline_len;
+                }
+                self.stats.deadlines_rearmed += 1;
+                continue;
+            }
             if let Some(i) = self.instances.get_mut(&k) {
                 i.timed_out = true;
             }

@@ -1,0 +1,789 @@
+//! What each teammate runs: the *team view* a kernel keeps from its
+//! teammates' heartbeats.
+//!
+//! Algorithm 1 runs on every robot separately; nothing in it tells a robot
+//! where its teammates are. Two things go wrong without that knowledge:
+//!
+//! - **Waiting across levels.** A robot that ended an ancestor (its
+//!   condition held, or it waits in the ancestor's termination protocol)
+//!   will never take part in anything below it again, yet a teammate still
+//!   below may wait for it there — in a barrier it leads, a vote it
+//!   counts — while it waits for that teammate at the ancestor: each waits
+//!   for the other until a deadline.
+//! - **Silent splits.** A silent rule decides from what each member
+//!   perceives; members that perceive differently choose different
+//!   successors at the same synchronization point, and each part then
+//!   waits for the other at its barrier.
+//!
+//! The runtime sends each robot's [`Position`] with its heartbeats (the
+//! messages robots already send for failure detection) to the teams it is
+//! in: to every member of a team it leads, to the leader of the others
+//! ([`Kernel::beacon_audience`]). A kernel that hears one
+//! ([`Kernel::peer`]):
+//!
+//! 1. **departures**: marks the teammate *departed* from every frame of its
+//!    own stack that the teammate has ended (it shows it ending or ended,
+//!    or lists it among the frames it recently left), and every teammate a
+//!    team leader reports departed. A departed teammate is left out of
+//!    every instance below that frame, exactly like a teammate presumed
+//!    lost: no protocol of a descendant ever waits for it. The frame's own
+//!    termination still counts it (it waits there);
+//! 2. **splits**: compares each of its frames that followed a decision
+//!    (the frame has a chain predecessor) with the teammate's frame after
+//!    the same predecessor. Another successor is a split: the member
+//!    follows the choice of the team's *healing leader* (the lowest-id
+//!    member neither presumed lost nor departed from an ancestor), which
+//!    every member computes alike, and a `split` event is recorded. The
+//!    same successor at another epoch (histories that diverged before)
+//!    converges on the higher epoch;
+//! 3. **burns**: an execution a member left to converge is *burned*: its
+//!    epoch is never used again, by anyone (the burn travels with the
+//!    positions), so that no message sent for it can count in a later
+//!    execution.
+//!
+//! Silent protocols keep their zero-message decisions; healing sends no
+//! message of its own (it rides on the heartbeats).
+
+use super::{Frame, Kernel, Phase};
+use crate::event::{EndReason, Event, FrameRef, Via};
+use crate::ids::{BehaviorId, Fnv1a, RobotId, TeamId};
+use crate::msg::{InstanceKey, Kind};
+use crate::org::MemberSet;
+use crate::time::Time;
+use serde::{Deserialize, Serialize};
+
+/// How many recently ended (and burned) executions a position lists.
+pub const RECENT: usize = 8;
+
+/// How long a restarted process waits to hear where its team is before it
+/// starts the mission from the beginning on its own.
+pub const REJOIN_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// How recent a teammate's heartbeat must be for the kernel to count on
+/// what it said (that the teammate is still at work on a behavior).
+pub const FRESH: std::time::Duration = std::time::Duration::from_secs(3);
+
+/// Identity of one execution of a behavior by a team.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct FrameId {
+    /// The team.
+    pub team: TeamId,
+    /// The behavior.
+    pub behavior: BehaviorId,
+    /// The team's execution count of it.
+    pub epoch: u32,
+}
+
+/// Where a frame of a position is in its life.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum FrameState {
+    /// On the stack: it runs (or runs something below it).
+    Running,
+    /// Ended here; the robot waits for its termination protocol.
+    Ending,
+    /// Ended; the robot chooses what follows it.
+    Ended,
+}
+
+/// What a frame follows: the execution before it in its chain, or, for
+/// the first of a chain, the parent execution it runs under. Two members'
+/// frames with the same team and anchor are the same step of the mission:
+/// they must be the same execution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct Anchor {
+    /// The behavior before it, or its parent.
+    pub behavior: BehaviorId,
+    /// That behavior's epoch.
+    pub epoch: u32,
+    /// True when it is the first of a chain under `behavior`.
+    pub first: bool,
+}
+
+/// One frame of a position.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct PosFrame {
+    /// Which execution.
+    pub id: FrameId,
+    /// What it follows (`None`: the mission's first behavior).
+    pub anchor: Option<Anchor>,
+    /// Where it is.
+    pub state: FrameState,
+    /// Its allocation: round and a fingerprint of the subteams it made.
+    pub alloc: Option<(u32, u64)>,
+    /// Teammates the sender knows to be done with it (sent by the team's
+    /// leader, so that every member learns what only the leader hears).
+    pub departed: Vec<RobotId>,
+}
+
+/// An execution a robot ended, and the execution it ran under.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Ended {
+    /// The execution.
+    pub id: FrameId,
+    /// Its parent (`None`: the mission's first behavior).
+    pub parent: Option<FrameId>,
+}
+
+/// What a robot runs, as its teammates learn it from its heartbeats.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Position {
+    /// Its frames, root first; the last may be one it ended.
+    pub frames: Vec<PosFrame>,
+    /// Executions it ended recently, oldest first.
+    pub ended: Vec<Ended>,
+    /// Executions it (or a teammate it heard) burned recently.
+    pub burned: Vec<FrameId>,
+}
+
+impl Position {
+    /// Its size on the wire, bytes.
+    pub fn encoded_len(&self) -> usize {
+        postcard::experimental::serialized_size(self).unwrap_or(0)
+    }
+    /// Its wire form.
+    pub fn encode(&self) -> Vec<u8> {
+        postcard::to_allocvec(self).unwrap_or_default()
+    }
+    /// Decode a wire form; `None` if malformed or larger than
+    /// [`crate::msg::MAX_WIRE_BYTES`]. Never panics.
+    pub fn decode(bytes: &[u8]) -> Option<Position> {
+        if bytes.len() > crate::msg::MAX_WIRE_BYTES {
+            return None;
+        }
+        postcard::from_bytes(bytes).ok()
+    }
+    /// True when the position is within the bounds a kernel accepts from
+    /// the network (a forged or corrupted one is dropped and counted).
+    pub fn is_bounded(&self, roster_len: usize, behaviors: usize) -> bool {
+        let ok_id = |id: &FrameId| id.behavior.index() < behaviors && id.epoch > 0;
+        self.frames.len() <= crate::graph::MAX_DEPTH + 1
+            && self.ended.len() <= RECENT
+            && self.burned.len() <= RECENT
+            && self
+                .ended
+                .iter()
+                .all(|e| ok_id(&e.id) && e.parent.as_ref().is_none_or(ok_id))
+            && self.burned.iter().all(ok_id)
+            && self.frames.iter().all(|f| {
+                ok_id(&f.id)
+                    && f.anchor
+                        .is_none_or(|a| a.behavior.index() < behaviors && a.epoch > 0)
+                    && f.departed.len() <= roster_len
+                    && f.departed.iter().all(|r| r.index() < roster_len)
+            })
+    }
+}
+
+impl Frame {
+    /// The identity of this execution.
+    pub fn id(&self) -> FrameId {
+        FrameId {
+            team: self.team,
+            behavior: self.behavior,
+            epoch: self.epoch,
+        }
+    }
+
+    fn step_ref(&self) -> FrameRef {
+        FrameRef {
+            behavior: self.behavior,
+            epoch: self.epoch,
+        }
+    }
+
+    /// Round and fingerprint of the allocation this frame applied.
+    fn alloc_print(&self) -> Option<(u32, u64)> {
+        (!self.subteams.is_empty()).then(|| {
+            let mut h = Fnv1a::new();
+            for t in &self.subteams {
+                h.write(&t.0.to_le_bytes());
+            }
+            (self.round, h.finish())
+        })
+    }
+}
+
+/// Where one of this robot's frames is: on the stack, or the one it ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Slot {
+    Stack(usize),
+    Popped,
+}
+
+fn push_recent<T: PartialEq>(ring: &mut std::collections::VecDeque<T>, id: T) {
+    if ring.contains(&id) {
+        return;
+    }
+    if ring.len() >= RECENT {
+        ring.pop_front();
+    }
+    ring.push_back(id);
+}
+
+impl Kernel {
+    /// This robot's position, for its heartbeats.
+    pub fn position(&self) -> Position {
+        // A robot idle under its top frame (an allocation gave it no part,
+        // or it rejoined there after a restart) has ended its part of it:
+        // it waits in that frame's termination, and takes no part below.
+        let idle = matches!(self.phase, Phase::Idle { .. });
+        let top = self.stack.len().saturating_sub(1);
+        let mut frames: Vec<PosFrame> = self
+            .stack
+            .iter()
+            .enumerate()
+            .map(|(i, f)| {
+                let state = if idle && i == top {
+                    FrameState::Ending
+                } else {
+                    FrameState::Running
+                };
+                self.pos_frame(f, i, state)
+            })
+            .collect();
+        if let Some((f, state)) = self.popped() {
+            frames.push(self.pos_frame(f, self.stack.len(), state));
+        }
+        Position {
+            frames,
+            ended: self.recent_ended.iter().copied().collect(),
+            burned: self.recent_burned.iter().copied().collect(),
+        }
+    }
+
+    fn pos_frame(&self, f: &Frame, depth: usize, state: FrameState) -> PosFrame {
+        let leads = self.heal_leader(f.team, depth) == Some(self.me);
+        PosFrame {
+            id: f.id(),
+            anchor: f.anchor,
+            state,
+            alloc: f.alloc_print(),
+            departed: match (&f.departed, leads) {
+                (Some(d), true) => d.iter().collect(),
+                _ => Vec::new(),
+            },
+        }
+    }
+
+    /// The frame this robot ended and is terminating or choosing a
+    /// successor for, if any.
+    fn popped(&self) -> Option<(&Frame, FrameState)> {
+        match &self.phase {
+            Phase::Terminating { frame, .. } => Some((frame, FrameState::Ending)),
+            Phase::Selecting { frame, .. } => Some((frame, FrameState::Ended)),
+            _ => None,
+        }
+    }
+
+    /// Who this robot's heartbeats go to: every member of the teams it
+    /// leads, and the leader of each other team it is in.
+    pub fn beacon_audience(&self) -> MemberSet {
+        let mut to = MemberSet::empty(self.org.roster_len());
+        let teams = self
+            .stack
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (f.team, i))
+            .chain(self.popped().map(|(f, _)| (f.team, self.stack.len())));
+        for (t, depth) in teams {
+            let Some(team) = self.org.team(t) else {
+                continue;
+            };
+            match self.heal_leader(t, depth) {
+                Some(l) if l == self.me => to.union_with(&team.members),
+                Some(l) => {
+                    to.insert(l);
+                }
+                None => {}
+            }
+        }
+        to.remove(self.me);
+        to
+    }
+
+    /// The member of team `t` whose choice a split at stack depth `depth`
+    /// follows: the lowest-id member neither presumed lost nor departed
+    /// from a frame above that depth.
+    fn heal_leader(&self, t: TeamId, depth: usize) -> Option<RobotId> {
+        let team = self.org.team(t)?;
+        let above = &self.stack[..depth.min(self.stack.len())];
+        team.members.iter().find(|r| {
+            *r == self.me
+                || (!self.lost.contains(*r)
+                    && !above
+                        .iter()
+                        .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(*r))))
+        })
+    }
+
+    /// A teammate's position, heard with its heartbeat: learn who departed
+    /// what, heal splits, honour burns (see the module documentation).
+    pub fn peer(&mut self, now: Time, from: RobotId, pos: &Position) {
+        self.set_now(now);
+        if from == self.me {
+            return;
+        }
+        let graph = self.mission.graph();
+        if from.index() >= self.org.roster_len()
+            || !pos.is_bounded(self.org.roster_len(), graph.behaviors().len())
+        {
+            return self.drop_msg(from, crate::event::DropReason::Malformed);
+        }
+        if self.awaiting_rejoin() {
+            self.adopt(from, pos);
+            self.step();
+            return;
+        }
+        if matches!(self.phase, Phase::NotStarted | Phase::Finished) {
+            return;
+        }
+        self.stats.positions += 1;
+        let engaged = pos.frames.iter().map(|f| (f.id, f.state)).collect();
+        self.peers.insert(from, (self.now, engaged));
+        self.apply_burns(pos);
+        self.count_past(pos);
+        self.learn_departures(from, pos);
+        self.reconcile(from, pos);
+        self.step();
+    }
+
+    /// This robot's process restarted with nothing kept (its previous
+    /// incarnation's state is gone): instead of starting the mission from
+    /// the beginning, it waits (up to [`REJOIN_WAIT`]) to hear a teammate's
+    /// heartbeat and joins the team where the team is.
+    pub fn rejoin(&mut self, now: Time) {
+        self.set_now(now);
+        if matches!(self.phase, Phase::NotStarted) {
+            self.rejoin_since = Some(self.now);
+        }
+    }
+
+    /// True while a restarted process waits to hear where its team is.
+    pub(super) fn awaiting_rejoin(&self) -> bool {
+        matches!(self.phase, Phase::NotStarted)
+            && self
+                .rejoin_since
+                .is_some_and(|t| self.now - t < REJOIN_WAIT)
+    }
+
+    /// Join the team where a teammate's position says it is: the frames it
+    /// runs for teams this robot knows (the root team and its executions,
+    /// with their epochs), down to the first subteam an allocation made
+    /// while this robot was away. It takes no part in what was allocated
+    /// without it: it idles under the deepest frame it joined until that
+    /// frame ends (by its team, or by its own condition), and goes on with
+    /// the team from there.
+    fn adopt(&mut self, from: RobotId, pos: &Position) {
+        let graph = self.mission.graph().clone();
+        for (name, v) in graph.initial_beliefs() {
+            self.beliefs
+                .set_named(name, v.clone(), self.now, crate::belief::Source::Given);
+        }
+        // Epochs the team has used: never reuse them.
+        for id in pos.ended.iter().map(|e| &e.id).chain(&pos.burned) {
+            self.org.runs_at_least(id.team, id.behavior, id.epoch);
+        }
+        for f in &pos.frames {
+            self.org
+                .runs_at_least(f.id.team, f.id.behavior, f.id.epoch - 1);
+        }
+        self.rejoin_since = None;
+        let mut joined = 0;
+        for f in pos.frames.iter().filter(|f| f.state == FrameState::Running) {
+            let ok = self
+                .org
+                .team(f.id.team)
+                .is_some_and(|t| t.contains(self.me))
+                && match self.stack.last() {
+                    None => f.anchor.is_none() && f.id.behavior == graph.start(),
+                    Some(p) => graph.runs_under(p.behavior, f.id.behavior),
+                };
+            if !ok {
+                break;
+            }
+            self.org
+                .runs_at_least(f.id.team, f.id.behavior, f.id.epoch - 1);
+            self.push_anchored(f.id.behavior, f.id.team, Via::Rejoined, f.anchor);
+            joined += 1;
+        }
+        self.emit(Event::Rejoined {
+            member: from,
+            depth: joined,
+        });
+        if joined == 0 {
+            // Nothing in common yet (the team has not started, or is done):
+            // start from the beginning.
+            self.phase = Phase::NotStarted;
+            return;
+        }
+        // Idle under the deepest frame joined: tell its termination that
+        // this robot has no part to wait for.
+        let Some(top) = self.stack.last() else {
+            return;
+        };
+        let key = top.term_key();
+        let communicates = self
+            .mission
+            .bound(top.behavior, Kind::Terminate)
+            .is_some_and(|x| x.protocol.communicates());
+        self.phase = Phase::Idle {
+            since: self.ticks,
+            silent: !communicates,
+        };
+        if communicates {
+            self.term_local_done(key, crate::interaction::LocalEnd::Idle);
+        }
+    }
+
+    /// True when instance `key` (a termination or a synchronization) waits
+    /// on teammates that are slow, not silent: then the deadline — which
+    /// bounds waiting on silent teammates — is re-armed.
+    ///
+    /// - The instance's leader (its lowest live member) hears every member:
+    ///   it waits on if every member it still counts was heard within
+    ///   [`FRESH`] and one of them is still *running* the behavior (it has
+    ///   not reached the point yet).
+    /// - A member waits on its leader: it waits on while the leader was
+    ///   heard within [`FRESH`] engaged in the execution (running it, or
+    ///   waiting at its point).
+    ///
+    /// Allocations are not re-armed: a team reaches an allocation together,
+    /// and a protocol may count on its deadline to recover what a crash
+    /// took with it (a token).
+    pub(super) fn awaited_at_work(&self, key: InstanceKey) -> bool {
+        if key.kind == Kind::Allocate {
+            return false;
+        }
+        let Some(inst) = self.instances.get(&key) else {
+            return false;
+        };
+        let id = FrameId {
+            team: key.team,
+            behavior: key.behavior,
+            epoch: key.epoch,
+        };
+        let counted = |r: RobotId| {
+            !self.lost.contains(r) && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
+        };
+        let heard = |r: RobotId| {
+            self.peers
+                .get(&r)
+                .filter(|(at, _)| self.now - *at <= FRESH)
+                .map(|(_, frames)| frames)
+        };
+        let leader = inst
+            .team
+            .members
+            .iter()
+            .find(|r| *r == self.me || counted(*r));
+        if leader != Some(self.me) {
+            return leader
+                .and_then(heard)
+                .is_some_and(|frames| frames.iter().any(|(f, _)| *f == id));
+        }
+        let mut running = false;
+        for r in inst
+            .team
+            .members
+            .iter()
+            .filter(|r| *r != self.me && counted(*r))
+        {
+            match heard(r) {
+                Some(frames) => {
+                    running |= frames
+                        .iter()
+                        .any(|(f, st)| *f == id && *st == FrameState::Running);
+                }
+                None => return false,
+            }
+        }
+        running
+    }
+
+    /// Executions a teammate burned are never used here either (unless
+    /// this robot runs one now: it converges like its teammates did).
+    fn apply_burns(&mut self, pos: &Position) {
+        for id in &pos.burned {
+            let mine = self.stack.iter().any(|f| f.id() == *id)
+                || self.popped().is_some_and(|(f, _)| f.id() == *id);
+            if !mine && !self.recent_burned.contains(id) {
+                self.burn(*id);
+            }
+        }
+    }
+
+    /// Never use execution `id` again: its instances are closed, the
+    /// team's count of the behavior is past it, messages buffered for it
+    /// are dropped, and teammates are told with the next heartbeats.
+    pub(super) fn burn(&mut self, id: FrameId) {
+        for kind in Kind::ALL {
+            let key = InstanceKey {
+                team: id.team,
+                behavior: id.behavior,
+                kind,
+                epoch: id.epoch,
+                round: u32::MAX,
+            };
+            self.mark_closed(key);
+        }
+        self.org.runs_at_least(id.team, id.behavior, id.epoch);
+        let stale: Vec<InstanceKey> = self
+            .pending
+            .keys()
+            .filter(|k| (k.team, k.behavior, k.epoch) == (id.team, id.behavior, id.epoch))
+            .copied()
+            .collect();
+        for k in stale {
+            self.drop_pending(k);
+        }
+        push_recent(&mut self.recent_burned, id);
+    }
+
+    /// Record an execution this robot ended (for its heartbeats).
+    pub(super) fn note_ended(&mut self, id: FrameId, parent: Option<FrameId>) {
+        push_recent(&mut self.recent_ended, Ended { id, parent });
+    }
+
+    /// Executions a teammate runs (or ran) under a frame this robot has
+    /// ended are executions it will never join: a teammate that goes on
+    /// alone below a behavior its team is waiting to end (wait-all waits
+    /// for every member's chain) counts executions the others never see.
+    /// Count past them, as past an epoch seen on a clock, so that the team
+    /// numbers its next executions alike instead of splitting over ids.
+    fn count_past(&mut self, pos: &Position) {
+        let mut gone: Vec<FrameId> = self.recent_ended.iter().map(|e| e.id).collect();
+        if let Some((f, _)) = self.popped() {
+            gone.push(f.id());
+        }
+        if gone.is_empty() {
+            return;
+        }
+        let mut never: Vec<FrameId> = Vec::new();
+        for w in pos.frames.windows(2) {
+            if gone.contains(&w[0].id) || never.contains(&w[0].id) {
+                never.push(w[1].id);
+            }
+        }
+        for e in &pos.ended {
+            if e.parent
+                .is_some_and(|p| gone.contains(&p) || never.contains(&p))
+            {
+                never.push(e.id);
+            }
+        }
+        for id in never {
+            self.org.runs_at_least(id.team, id.behavior, id.epoch);
+        }
+    }
+
+    /// Mark `from` (and whom it reports) departed from the frames of this
+    /// robot's stack (and the one it ended) that it has ended.
+    fn learn_departures(&mut self, from: RobotId, pos: &Position) {
+        let popped = self.popped().map(|(f, _)| f.term_key());
+        let slots = (0..self.stack.len())
+            .map(|i| (Some(i), self.stack[i].term_key()))
+            .chain(popped.map(|k| (None, k)))
+            .collect::<Vec<_>>();
+        for (slot, key) in slots {
+            let f = match slot {
+                Some(i) => &self.stack[i],
+                None => match self.popped() {
+                    Some((f, _)) => f,
+                    None => continue,
+                },
+            };
+            let id = f.id();
+            let Some(team) = self.org.team(f.team) else {
+                continue;
+            };
+            let mut who: Vec<RobotId> = Vec::new();
+            let ended = pos.ended.iter().any(|e| e.id == id)
+                || pos.burned.contains(&id)
+                || pos
+                    .frames
+                    .iter()
+                    .any(|g| g.id == id && g.state != FrameState::Running);
+            if ended {
+                who.push(from);
+            }
+            if let Some(g) = pos.frames.iter().find(|g| g.id == id) {
+                who.extend(g.departed.iter().copied());
+            }
+            who.retain(|r| {
+                *r != self.me
+                    && team.contains(*r)
+                    && !f.departed.as_ref().is_some_and(|d| d.contains(*r))
+            });
+            who.sort_unstable();
+            who.dedup();
+            if who.is_empty() {
+                continue;
+            }
+            match slot {
+                Some(i) => self.depart(i, &who),
+                None => self.depart_popped(key, &who),
+            }
+        }
+    }
+
+    /// This robot's anchored frames, root first.
+    fn anchored(&self) -> Vec<(Slot, FrameId, Anchor)> {
+        let mut out: Vec<(Slot, FrameId, Anchor)> = self
+            .stack
+            .iter()
+            .enumerate()
+            .filter_map(|(i, f)| f.anchor.map(|a| (Slot::Stack(i), f.id(), a)))
+            .collect();
+        if let Some((f, _)) = self.popped()
+            && let Some(a) = f.anchor
+        {
+            out.push((Slot::Popped, f.id(), a));
+        }
+        out
+    }
+
+    /// Compare this robot's frames with a teammate's after the same
+    /// predecessor; converge on one execution (at most one change per
+    /// heartbeat: what lies below a changed frame is gone).
+    fn reconcile(&mut self, from: RobotId, pos: &Position) {
+        for (slot, id, prev) in self.anchored() {
+            let Some(g) = pos
+                .frames
+                .iter()
+                .find(|g| g.id.team == id.team && g.anchor == Some(prev))
+            else {
+                continue;
+            };
+            if g.id == id {
+                continue;
+            }
+            let depth = match slot {
+                Slot::Stack(i) => i,
+                Slot::Popped => self.stack.len(),
+            };
+            let leader = self.heal_leader(id.team, depth);
+            let follow = if g.id.behavior == id.behavior {
+                // The same successor, counted differently (an earlier split
+                // burned an epoch on one side): the higher epoch wins.
+                g.id.epoch > id.epoch
+            } else {
+                leader == Some(from)
+            };
+            if !follow {
+                if leader == Some(self.me) && g.id.behavior != id.behavior {
+                    self.split_seen(from, id, g.id, prev);
+                }
+                continue;
+            }
+            self.converge(slot, from, id, g.id, prev);
+            return;
+        }
+    }
+
+    /// The healing leader saw a member on another successor: record it
+    /// once (the member converges by itself).
+    fn split_seen(&mut self, from: RobotId, mine: FrameId, theirs: FrameId, prev: Anchor) {
+        if !self.splits_seen.insert((from, theirs)) {
+            return;
+        }
+        if self.splits_seen.len() > 4 * RECENT {
+            self.splits_seen.pop_first();
+        }
+        self.emit(Event::Split {
+            team: mine.team,
+            after: FrameRef {
+                behavior: prev.behavior,
+                epoch: prev.epoch,
+            },
+            mine: FrameRef {
+                behavior: mine.behavior,
+                epoch: mine.epoch,
+            },
+            theirs: FrameRef {
+                behavior: theirs.behavior,
+                epoch: theirs.epoch,
+            },
+            member: from,
+            follows: false,
+        });
+    }
+
+    /// Leave execution `mine` (and all below it) for `theirs`, the
+    /// successor the team converges on after `prev`.
+    fn converge(
+        &mut self,
+        slot: Slot,
+        from: RobotId,
+        mine: FrameId,
+        theirs: FrameId,
+        prev: Anchor,
+    ) {
+        let team = mine.team;
+        match slot {
+            Slot::Stack(i) => {
+                let old = self.stack[i].step_ref();
+                self.emit(self.split_event(mine, theirs, prev, from, old));
+                self.retract(i);
+            }
+            Slot::Popped => {
+                let old = FrameRef {
+                    behavior: mine.behavior,
+                    epoch: mine.epoch,
+                };
+                self.emit(self.split_event(mine, theirs, prev, from, old));
+                // Its termination (or the choice after it) is abandoned
+                // without a word: the execution did not happen for the team.
+                self.abort_phase_quietly();
+            }
+        }
+        self.burn(mine);
+        // The parent's run counts forget the abandoned start.
+        let parent_runs = match self.stack.last_mut() {
+            Some(p) => &mut p.runs,
+            None => &mut self.root_runs,
+        };
+        if let Some(n) = parent_runs.get_mut(&mine.behavior) {
+            *n = n.saturating_sub(1);
+        }
+        self.org
+            .runs_at_least(team, theirs.behavior, theirs.epoch.saturating_sub(1));
+        self.phase = Phase::Run;
+        self.push_anchored(theirs.behavior, team, Via::Converged, Some(prev));
+    }
+
+    fn split_event(
+        &self,
+        mine: FrameId,
+        theirs: FrameId,
+        prev: Anchor,
+        from: RobotId,
+        old: FrameRef,
+    ) -> Event {
+        Event::Split {
+            team: mine.team,
+            after: FrameRef {
+                behavior: prev.behavior,
+                epoch: prev.epoch,
+            },
+            mine: old,
+            theirs: FrameRef {
+                behavior: theirs.behavior,
+                epoch: theirs.epoch,
+            },
+            member: from,
+            follows: true,
+        }
+    }
+
+    /// Pop frame `i` and everything above it without a word to the team:
+    /// their instances close quietly (the executions are being burned).
+    fn retract(&mut self, i: usize) {
+        self.abort_phase_quietly();
+        while self.stack.len() > i {
+            if let Some(f) = self.stack.pop() {
+                self.abort_quietly(f.term_key());
+                self.retire(&f, EndReason::Converged);
+            }
+        }
+    }
+}
