@@ -4,8 +4,12 @@
 //!   waits until every member of the subteam has finished too, then all go
 //!   on together.
 //! - `term.majority`: the behavior ends for everyone once more than half of
-//!   the members have finished (a majority that believes the goal reached,
-//!   or is done); the others are stopped.
+//!   the members of the subteam have finished (a majority that believes the
+//!   goal reached, or is done); the others are stopped. The majority is of
+//!   the whole subteam: teammates presumed lost count as not arrived, so a
+//!   minority cut off by a partition (an isolated leader: a "majority of
+//!   one") never decides; it ends the behavior only at its deadline, and the
+//!   kernel reports the timeout.
 //! - `term.first-wins`: the first member whose termination condition holds
 //!   (it sees the goal: the target found, the box delivered) ends the
 //!   behavior for everyone at once. A member whose part merely ran out
@@ -20,7 +24,12 @@
 //! released (a lost `Release` is recovered because the leader answers a
 //! late `Done` with `Release`). Members released while still working
 //! (majority, first-wins, or the leader's deadline) are told until they
-//! acknowledge, at most 8 times with backoff. In first-wins the member
+//! acknowledge, every 1, 2, 4, 4, 4… retry intervals, at most 40 times (a
+//! member at work waits for nothing, so nothing else would tell it; a
+//! steady interval keeps heavy loss from delaying the news by minutes). A
+//! leader that leaves the barrier before everyone arrived releases no one:
+//! the members learn from its heartbeats that it left and report to the
+//! next leader. In first-wins the member
 //! that sees the goal multicasts `Release` itself, decides at once, and
 //! retransmits to those that have not acknowledged.
 //!
@@ -122,9 +131,11 @@ barrier_protocol!(
 
 fn late_reply(closed: &Closed, body: &Body) -> Option<Body> {
     match (closed, body) {
-        // Whoever arrives at a barrier that is over (released, or left by
-        // this robot) may go on.
-        (Closed::Terminated(_) | Closed::Left, Body::Done) => Some(Body::Release { next: None }),
+        // Whoever arrives at a barrier that is over may go on. A barrier
+        // this robot left before it decided says nothing: the member learns
+        // from the heartbeats that this robot left, and reports to the next
+        // leader.
+        (Closed::Terminated(_), Body::Done) => Some(Body::Release { next: None }),
         // A release repeated to a robot that already ended the behavior:
         // confirm, so that its sender stops.
         (Closed::Terminated(_), Body::Release { .. }) => Some(Body::Ack),
@@ -146,10 +157,17 @@ struct Barrier {
     stragglers: Vec<RobotId>,
     /// The leader this robot last reported to (to notice a new leader).
     reported_to: Option<RobotId>,
+    /// This leader left with every member arrived, and released them.
+    released_on_leave: bool,
 }
 
-/// How many times a release is repeated to a member still working.
-const STRAGGLER_TRIES: u32 = 8;
+/// How many times a release is repeated to a member still working (it is
+/// not waiting for anything, so nothing else will tell it).
+const STRAGGLER_TRIES: u32 = 40;
+/// The longest pause between two releases to a member still working, in
+/// retry intervals: a short, steady interval, so that heavy loss delays the
+/// news by seconds, not minutes.
+const STRAGGLER_CAP: u32 = 4;
 
 impl Barrier {
     fn new(mode: Mode) -> Self {
@@ -161,6 +179,7 @@ impl Barrier {
             resends: 0,
             stragglers: Vec::new(),
             reported_to: None,
+            released_on_leave: false,
         }
     }
 
@@ -179,7 +198,20 @@ impl Barrier {
         let live_arrived = cx.members().filter(|m| arrived.contains(*m)).count();
         let release = match self.mode {
             Mode::All | Mode::FirstWins => self.me_done && live_arrived >= size,
-            Mode::Majority => live_arrived > size / 2,
+            // A majority of the whole subteam: teammates presumed lost count
+            // as not arrived, so a robot cut off from the others (or left
+            // with too few survivors) is never a majority of one. It ends
+            // the behavior at its deadline, reported as a timeout.
+            Mode::Majority => {
+                let whole = cx.team().size as usize;
+                let all_arrived = cx
+                    .team()
+                    .members
+                    .iter()
+                    .filter(|m| arrived.contains(*m))
+                    .count();
+                all_arrived > whole / 2
+            }
         };
         if release {
             self.release(cx, &arrived);
@@ -234,11 +266,14 @@ impl Interaction for Barrier {
         match body {
             Body::Done if cx.is_leader() => {
                 if cx.is_decided() || cx.is_aborted() {
-                    // A member missed the release, or this leader has left
-                    // the behavior: it may go on (and, done, it needs no
-                    // more telling).
+                    // A member missed the release: it may go on (and, done,
+                    // it needs no more telling). A leader that left before
+                    // everyone arrived stays silent: the member will report
+                    // to the next leader.
                     self.stragglers.retain(|r| *r != from);
-                    cx.send(from, Body::Release { next: None });
+                    if cx.is_decided() || self.released_on_leave {
+                        cx.send(from, Body::Release { next: None });
+                    }
                     return;
                 }
                 self.arrived(cx).insert(from);
@@ -293,7 +328,7 @@ impl Interaction for Barrier {
             }
             self.resends += 1;
             if self.resends < STRAGGLER_TRIES {
-                let t = cx.now() + backoff(cx, self.resends);
+                let t = cx.now() + cx.retry() * (1u32 << self.resends.min(2)).min(STRAGGLER_CAP);
                 cx.wake_at(t);
             } else {
                 self.stragglers.clear();
@@ -353,14 +388,21 @@ impl Interaction for Barrier {
 
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
         if cx.is_leader() {
-            // Whoever already arrived waits only for this leader: release them.
-            let waiting: Vec<RobotId> = self
-                .arrived
-                .as_ref()
-                .map(|a| a.iter().filter(|r| *r != cx.me()).collect())
-                .unwrap_or_default();
-            for r in waiting {
-                cx.send(r, Body::Release { next: None });
+            // This leader leaves (an ancestor ended here): it is done with
+            // the behavior. If everyone else has arrived, the barrier is
+            // complete: release them. Otherwise the members still working
+            // are waited for by the next leader — the members learn from
+            // this robot's heartbeats that it left, leave it out, and report
+            // to the next lowest member.
+            self.me_done = true;
+            let me = cx.me();
+            self.arrived(cx).insert(me);
+            let arrived = self.arrived(cx).clone();
+            if cx.members().all(|m| arrived.contains(m)) {
+                self.released_on_leave = true;
+                for r in arrived.iter().filter(|r| *r != me) {
+                    cx.send(r, Body::Release { next: None });
+                }
             }
         } else if !self.me_done {
             // This member leaves the behavior: it will not arrive later, so
