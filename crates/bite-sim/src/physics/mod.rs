@@ -25,6 +25,7 @@
 //! Everything is seeded: a run is a pure function of its inputs.
 
 pub mod pilot;
+pub mod plan;
 pub mod schema;
 pub mod spec;
 pub mod svg;
@@ -556,6 +557,19 @@ impl World {
     /// and its rank among the robots running its behavior (rank, count).
     pub fn set_roles(&mut self, i: usize, roles: BTreeMap<String, u32>, rank: (u32, u32)) {
         self.pilots[i].set_roles(roles, rank);
+    }
+
+    /// Robot `i`'s process restarted: its pilot starts afresh (what it
+    /// remembered of teammates and objects is gone; the body stays).
+    pub fn restart_pilot(&mut self, i: usize) {
+        let fresh = Pilot::new(self.spec.clone(), self.tables.clone());
+        self.pilots[i] = fresh;
+    }
+
+    /// The teammates robot `i`'s kernel presumes lost (their bodies are
+    /// obstacles its pilot routes around).
+    pub fn set_lost(&mut self, i: usize, lost: impl IntoIterator<Item = u32>) {
+        self.pilots[i].set_lost(lost);
     }
 
     /// Can `a` reach `b` by radio?

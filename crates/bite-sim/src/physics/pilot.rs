@@ -355,6 +355,10 @@ pub struct Pilot {
     view: View,
     /// The percepts of the last reading, by percept id.
     values: Vec<Option<Value>>,
+    /// Teammates presumed lost (their bodies are obstacles).
+    lost: std::collections::BTreeSet<u32>,
+    /// The arena as this robot knows it, built when first needed.
+    map: Option<Arc<super::plan::Map>>,
 }
 
 impl Pilot {
@@ -377,6 +381,8 @@ impl Pilot {
             anchor: None,
             view: View::default(),
             values,
+            lost: std::collections::BTreeSet::new(),
+            map: None,
         }
     }
 
@@ -465,6 +471,16 @@ impl Pilot {
         self.states.clear();
         self.skill_started = t;
         self.skill_odometer = odometer;
+    }
+
+    /// The teammates its kernel presumes lost: their bodies (where it last
+    /// saw them) become obstacles it routes around.
+    pub fn set_lost(&mut self, lost: impl IntoIterator<Item = u32>) {
+        self.lost.clear();
+        self.lost.extend(lost);
+        if !self.lost.is_empty() && self.map.is_none() {
+            self.map = Some(Arc::new(super::plan::Map::new(&self.spec)));
+        }
     }
 
     /// Who holds each sibling role (behavior name → robot), and its rank
@@ -587,9 +603,10 @@ impl Pilot {
             // stale sighting repels from where a teammate no longer is).
             mates: (self.mates.iter())
                 .filter(|(k, (_, at))| {
-                    t - at <= MATE_MEMORY
-                        || self.anchor == Some(**k)
-                        || self.roles.values().any(|v| v == *k)
+                    !self.lost.contains(k)
+                        && (t - at <= MATE_MEMORY
+                            || self.anchor == Some(**k)
+                            || self.roles.values().any(|v| v == *k))
                 })
                 .map(|(k, (m, _))| (*k, *m))
                 .collect(),
@@ -597,6 +614,11 @@ impl Pilot {
             skill_time: 0.0,
             max_speed: self.spec.robot.max_speed,
             rank: self.view.rank,
+            radius: self.spec.robot.radius,
+            bodies: (self.lost.iter())
+                .filter_map(|k| self.mates.get(k).map(|(m, _)| m.pos))
+                .collect(),
+            map: self.map.clone(),
         };
     }
 

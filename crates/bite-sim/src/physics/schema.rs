@@ -121,6 +121,10 @@ pub enum Schema {
         /// Split the region among the robots running the skill: each
         /// sweeps its own cell of a near-square grid, by rank.
         split: bool,
+        /// Per-waypoint budget, seconds: a waypoint the robot has got no
+        /// closer to for this long (a pillar, a wall or a parked teammate
+        /// in the way) is given up, so that the sweep always ends.
+        patience: f64,
     },
     /// Turn to face a target (no translation).
     Face {
@@ -208,6 +212,13 @@ pub struct View {
     /// This robot's rank among the robots running its behavior (0-based),
     /// and how many they are.
     pub rank: (u32, u32),
+    /// Its body's radius, m.
+    pub radius: f64,
+    /// Where it last saw teammates presumed lost: bodies that do not move
+    /// out of the way (obstacles to route around, not teammates to avoid).
+    pub bodies: Vec<DVec2>,
+    /// The arena as it knows it, to route around those bodies.
+    pub map: Option<std::sync::Arc<super::plan::Map>>,
 }
 
 /// A fused command: a desired velocity in the world frame, and a heading
@@ -421,9 +432,16 @@ pub struct State {
     waypoint: usize,
     /// Scan: all waypoints visited.
     pub finished: bool,
+    /// Scan: the closest the robot has come to the current waypoint, and
+    /// when it last came closer.
+    approach: Option<(f64, f64)>,
+    /// Scan: waypoints given up (out of reach).
+    pub skipped: u32,
     /// Push: when it started looking round for an object that was not
     /// where it was last seen.
     search: Option<f64>,
+    /// A detour around a lost teammate's body it is following.
+    route: Option<super::plan::Route>,
 }
 
 /// One schema's output, before fusion.
@@ -446,6 +464,19 @@ fn target_point(view: &View, t: &Target) -> Option<DVec2> {
         Target::Direction(d) => Some(view.pose.pos + d.normalize_or_zero()),
         Target::Object(name) => view.objects.get(name).copied(),
     }
+}
+
+/// Where to steer to reach `to`: `to`, or the next point of a detour round
+/// a lost teammate's body in the way (see [`super::plan`]).
+fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
+    super::plan::aim(
+        view.map.as_deref(),
+        &view.bodies,
+        &mut state.route,
+        view.skill_time,
+        view.pose.pos,
+        to,
+    )
 }
 
 /// Where a formation slot is, behind a reference at `pos` heading `heading`.
@@ -532,9 +563,9 @@ pub fn evaluate(
             Target::Direction(d) => out(d.normalize_or_zero() * *speed),
             _ => {
                 let p = target_point(view, goal)?;
-                let to = p - pose.pos;
                 // Arrive: slow down over the last 0.3 m.
-                let s = speed * (to.length() / 0.3).min(1.0);
+                let s = speed * ((p - pose.pos).length() / 0.3).min(1.0);
+                let to = aim(view, state, p) - pose.pos;
                 out(to.normalize_or_zero() * s)
             }
         },
@@ -542,7 +573,18 @@ pub fn evaluate(
             let mut v = DVec2::ZERO;
             for (angle, d) in &view.rays {
                 if *d < *range {
-                    let away = -DVec2::from_angle(pose.heading + angle);
+                    let dir = DVec2::from_angle(pose.heading + angle);
+                    // A ray that ends on a teammate in sight hit that
+                    // teammate: avoid-teammate answers for it.
+                    let hit = pose.pos + dir * (d + view.radius);
+                    if view
+                        .mates
+                        .values()
+                        .any(|m| m.pos.distance(hit) < view.radius + 0.06)
+                    {
+                        continue;
+                    }
+                    let away = -dir;
                     v += away * ((range - d) / range) * view.max_speed;
                 }
             }
@@ -570,6 +612,7 @@ pub fn evaluate(
             let h = m.heading.unwrap_or(pose.heading);
             let fwd = DVec2::from_angle(h);
             let slot = slot_position(m.pos, h, *side, *distance);
+            let slot = aim(view, state, slot);
             // Proportional to the slot error, plus the reference's pace.
             let v = (slot - pose.pos) * 1.5 + fwd * speed * 0.8;
             out(clamp_len(v, speed * 1.5))
@@ -581,8 +624,8 @@ pub fn evaluate(
         } => {
             let r = view.roles.get(of)?;
             let m = view.mates.get(r)?;
-            let to = m.pos - pose.pos;
-            let gap = to.length() - distance;
+            let gap = (m.pos - pose.pos).length() - distance;
+            let to = aim(view, state, m.pos) - pose.pos;
             let v = to.normalize_or_zero() * (gap * 1.5).clamp(-*speed, *speed * 1.5);
             out(v)
         }
@@ -602,6 +645,7 @@ pub fn evaluate(
             spacing,
             speed,
             split,
+            patience,
         } => {
             let region = if *split {
                 split_cell(*region, view.rank.0, view.rank.1)
@@ -610,8 +654,23 @@ pub fn evaluate(
             };
             let pts = scan_waypoints(region, *spacing);
             while let Some(p) = pts.get(state.waypoint) {
-                if p.distance(pose.pos) < 0.2 {
+                let d = p.distance(pose.pos);
+                let stuck = match state.approach {
+                    // Closer by 5 cm: progress.
+                    Some((best, _)) if d < best - 0.05 => {
+                        state.approach = Some((d, view.skill_time));
+                        false
+                    }
+                    Some((_, since)) => view.skill_time - since > *patience,
+                    None => {
+                        state.approach = Some((d, view.skill_time));
+                        false
+                    }
+                };
+                if d < 0.2 || stuck {
+                    state.skipped += u32::from(stuck && d >= 0.2);
                     state.waypoint += 1;
+                    state.approach = None;
                 } else {
                     break;
                 }
@@ -742,11 +801,52 @@ pub fn command(
     rng: &mut impl FnMut() -> f64,
 ) -> Command {
     states.resize_with(skill.len(), State::default);
-    let outputs: Vec<(u8, f64, Option<Output>)> = skill
+    let mut outputs: Vec<(u8, f64, Option<Output>)> = skill
         .iter()
         .zip(states.iter_mut())
         .map(|(w, s)| (w.layer, w.gain, evaluate(&w.schema, view, s, rng)))
         .collect();
+    // A schema following a planned detour round a lost teammate's body
+    // keeps its clearance by the plan: obstacle avoidance is superposed on
+    // it in its layer instead of overriding it (a reading at the edge of
+    // the avoidance range would otherwise stop the robot in the gap).
+    if let Some(layer) = skill
+        .iter()
+        .zip(states.iter())
+        .find(|(_, s)| s.route.is_some())
+        .map(|(w, _)| w.layer)
+    {
+        for (w, o) in skill.iter().zip(outputs.iter_mut()) {
+            if matches!(w.schema, Schema::AvoidObstacle { .. }) {
+                o.0 = o.0.min(layer);
+            }
+        }
+    }
+    // Obstacle avoidance overrides the layers below it by *constraining*
+    // what they want: the robot keeps the part of their motion that does
+    // not drive into the obstacle (it slides along it) and is pushed away.
+    // A plain override makes a robot at a corner dither for ever between
+    // avoiding and seeking.
+    for i in 0..skill.len() {
+        let (layer, _, Some(o)) = outputs[i] else {
+            continue;
+        };
+        if !matches!(skill[i].schema, Schema::AvoidObstacle { .. }) {
+            continue;
+        }
+        let below: Vec<(u8, f64, Option<Output>)> = outputs
+            .iter()
+            .filter(|(l, _, _)| *l < layer)
+            .cloned()
+            .collect();
+        let want = fuse(&below).v;
+        let n = o.v.normalize_or_zero();
+        let into = want.dot(n).min(0.0);
+        outputs[i].2 = Some(Output {
+            v: o.v + (want - n * into),
+            face: o.face,
+        });
+    }
     fuse(&outputs)
 }
 
@@ -1012,6 +1112,7 @@ mod tests {
             spacing: 0.5,
             speed: 0.3,
             split: false,
+            patience: 10.0,
         };
         let mut st = State::default();
         let mut rng = || 0.5;
@@ -1075,6 +1176,7 @@ mod tests {
             spacing: 0.5,
             speed: 0.3,
             split: true,
+            patience: 10.0,
         };
         let view = View {
             rank: (1, 2),

@@ -521,7 +521,7 @@ fn params_of(schema: &str) -> &'static [&'static str] {
         "keep-slot" => &["of", "side", "distance", "speed"],
         "follow" => &["of", "distance", "speed"],
         "wander" => &["speed", "period"],
-        "scan" => &["region", "spacing", "speed", "split"],
+        "scan" => &["region", "spacing", "speed", "split", "patience"],
         "face" => &["target"],
         "push" => &["object", "goal", "offset", "speed"],
         _ => &[],
@@ -728,6 +728,7 @@ impl SchemaSpec {
                             return Err(format!("schema `{name}`: `split` is true or false"));
                         }
                     },
+                    patience: num("patience", Some(10.0))?,
                 }
             }
             "look-around" => Schema::LookAround,

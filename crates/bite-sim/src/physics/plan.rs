@@ -1,0 +1,367 @@
+//! Routing around what motor schemas alone cannot: a robot's own small
+//! path planner (A* on an occupancy grid of the arena it knows), used only
+//! when the body of a teammate presumed lost — crashed, out of power —
+//! blocks the straight way to where a schema steers.
+//!
+//! Motor schemas are reactive: attraction to the goal plus repulsion from
+//! what the rays see. A body parked in a doorway makes a local minimum (the
+//! two cancel, the robot pushes against it for ever). The pilot knows the
+//! arena's walls and static obstacles (from the scenario, as a robot knows
+//! its map) and where it last saw each lost teammate; it plans over that
+//! map, inflated by its own radius, and steers to the next point of the
+//! path. Healthy teammates are not obstacles here: they move, and
+//! `avoid-teammate` handles them.
+
+use super::spec::{PhysicsSpec, Shape};
+use glam::DVec2;
+use std::collections::BinaryHeap;
+
+/// Clearance kept beyond the robot's radius, m.
+const MARGIN: f64 = 0.02;
+/// How near a lost body keeps a robot on its planned detour, m.
+const NEAR: f64 = 1.0;
+/// Most cells a grid may have (the cell grows for large arenas).
+const MAX_CELLS: f64 = 60_000.0;
+
+/// The static map a pilot plans on: the arena's cells, with those its
+/// centre cannot enter (walls and obstacles, inflated by its radius).
+#[derive(Debug)]
+pub struct Map {
+    cell: f64,
+    w: usize,
+    h: usize,
+    blocked: Vec<bool>,
+    /// Robot radius plus margin: how close the centre may get to things.
+    inflate: f64,
+    /// Radius of a robot body.
+    body: f64,
+}
+
+impl Map {
+    /// The map of a scenario's arena for its robots.
+    pub fn new(spec: &PhysicsSpec) -> Map {
+        let area = (spec.arena.x * spec.arena.y).max(1e-6);
+        let cell = (area / MAX_CELLS).sqrt().max(0.02);
+        let w = ((spec.arena.x / cell).ceil() as usize).max(1);
+        let h = ((spec.arena.y / cell).ceil() as usize).max(1);
+        let inflate = spec.robot.radius + MARGIN;
+        let mut blocked = vec![false; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let p = DVec2::new((x as f64 + 0.5) * cell, (y as f64 + 0.5) * cell);
+                let wall = p.x < inflate
+                    || p.y < inflate
+                    || p.x > spec.arena.x - inflate
+                    || p.y > spec.arena.y - inflate;
+                let hit = spec.obstacles.iter().any(|o| {
+                    let local = DVec2::from_angle(-o.angle).rotate(p - o.at);
+                    match o.shape {
+                        Shape::Disc(r) => local.length() < r + inflate,
+                        Shape::Box(size) => {
+                            let d = (local.abs() - size / 2.0).max(DVec2::ZERO);
+                            d.length() < inflate
+                        }
+                    }
+                });
+                blocked[y * w + x] = wall || hit;
+            }
+        }
+        Map {
+            cell,
+            w,
+            h,
+            blocked,
+            inflate,
+            body: spec.robot.radius,
+        }
+    }
+
+    fn cell_of(&self, p: DVec2) -> (usize, usize) {
+        let x = (p.x / self.cell).floor().clamp(0.0, (self.w - 1) as f64) as usize;
+        let y = (p.y / self.cell).floor().clamp(0.0, (self.h - 1) as f64) as usize;
+        (x, y)
+    }
+
+    fn centre(&self, (x, y): (usize, usize)) -> DVec2 {
+        DVec2::new((x as f64 + 0.5) * self.cell, (y as f64 + 0.5) * self.cell)
+    }
+
+    fn is_blocked(&self, p: DVec2) -> bool {
+        let (x, y) = self.cell_of(p);
+        self.blocked[y * self.w + x]
+    }
+
+    /// True when the straight way from `a` to `b` is not clear: a robot's
+    /// centre on it would come closer to one of `bodies` than two radii and
+    /// the margin, or into a wall or obstacle (the robot may have been
+    /// pushed against one by a body in its way).
+    pub fn body_in_the_way(&self, a: DVec2, b: DVec2, bodies: &[DVec2]) -> bool {
+        let clear = self.body + self.inflate;
+        if bodies.iter().any(|c| segment_distance(a, b, *c) < clear) {
+            return true;
+        }
+        // Near a body, a blocked straight way is a trap for reactive
+        // schemas: plan. Far from any, leave static obstacles to them.
+        let near = bodies.iter().any(|c| c.distance(a) < NEAR);
+        let steps = (a.distance(b) / (self.cell / 2.0)).ceil().min(10_000.0) as usize;
+        near && (1..=steps).any(|k| self.is_blocked(a.lerp(b, k as f64 / steps as f64)))
+    }
+
+    /// A path from `from` to `to` around the map's obstacles and `bodies`
+    /// (points to drive through, `to` last), or `None` if there is none.
+    pub fn route(&self, from: DVec2, to: DVec2, bodies: &[DVec2]) -> Option<Vec<DVec2>> {
+        let n = self.w * self.h;
+        let clear = self.body + self.inflate;
+        let mut blocked = self.blocked.clone();
+        for b in bodies {
+            let (cx, cy) = self.cell_of(*b);
+            let r = (clear / self.cell).ceil() as isize + 1;
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    let (x, y) = (cx as isize + dx, cy as isize + dy);
+                    if x < 0 || y < 0 || x >= self.w as isize || y >= self.h as isize {
+                        continue;
+                    }
+                    let c = (x as usize, y as usize);
+                    if self.centre(c).distance(*b) < clear {
+                        blocked[c.1 * self.w + c.0] = true;
+                    }
+                }
+            }
+        }
+        let start = self.cell_of(from);
+        // A goal inside an inflated obstacle: aim at the nearest free cell.
+        let goal = {
+            let g = self.cell_of(to);
+            if blocked[g.1 * self.w + g.0] {
+                (0..n)
+                    .filter(|i| !blocked[*i])
+                    .map(|i| (i % self.w, i / self.w))
+                    .min_by(|a, b| {
+                        self.centre(*a)
+                            .distance_squared(to)
+                            .total_cmp(&self.centre(*b).distance_squared(to))
+                    })?
+            } else {
+                g
+            }
+        };
+        let idx = |(x, y): (usize, usize)| y * self.w + x;
+        let h = |(x, y): (usize, usize)| {
+            let dx = x.abs_diff(goal.0) as f64;
+            let dy = y.abs_diff(goal.1) as f64;
+            dx.max(dy) + (std::f64::consts::SQRT_2 - 1.0) * dx.min(dy)
+        };
+        let mut g = vec![f64::INFINITY; n];
+        let mut came = vec![usize::MAX; n];
+        let mut heap = BinaryHeap::new();
+        g[idx(start)] = 0.0;
+        heap.push(Open(h(start), 0.0, idx(start)));
+        while let Some(Open(_, cost, i)) = heap.pop() {
+            if cost > g[i] {
+                continue;
+            }
+            let here = (i % self.w, i / self.w);
+            if here == goal {
+                let mut path = vec![to];
+                let mut c = came[i];
+                while c != usize::MAX && c != idx(start) {
+                    path.push(self.centre((c % self.w, c / self.w)));
+                    c = came[c];
+                }
+                path.reverse();
+                return Some(path);
+            }
+            for (dx, dy) in [
+                (1, 0),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (1, -1),
+                (-1, 1),
+                (-1, -1),
+            ] {
+                let (x, y) = (here.0 as isize + dx, here.1 as isize + dy);
+                if x < 0 || y < 0 || x >= self.w as isize || y >= self.h as isize {
+                    continue;
+                }
+                let next = (x as usize, y as usize);
+                let j = idx(next);
+                // The start cell may be inside an inflated zone (the robot
+                // is pressed against something): it may always leave it.
+                if blocked[j] && next != goal {
+                    continue;
+                }
+                // No cutting corners between two blocked cells.
+                if dx != 0
+                    && dy != 0
+                    && (blocked[idx((next.0, here.1))] || blocked[idx((here.0, next.1))])
+                {
+                    continue;
+                }
+                let step = if dx != 0 && dy != 0 {
+                    std::f64::consts::SQRT_2
+                } else {
+                    1.0
+                };
+                let c = cost + step;
+                if c < g[j] {
+                    g[j] = c;
+                    came[j] = i;
+                    heap.push(Open(c + h(next), c, j));
+                }
+            }
+        }
+        None
+    }
+}
+
+/// An A* frontier entry: estimate, cost so far, cell (a min-heap by
+/// estimate, ties by cell for determinism).
+struct Open(f64, f64, usize);
+
+impl PartialEq for Open {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == std::cmp::Ordering::Equal
+    }
+}
+impl Eq for Open {}
+impl PartialOrd for Open {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Open {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        o.0.total_cmp(&self.0).then(o.2.cmp(&self.2))
+    }
+}
+
+fn segment_distance(a: DVec2, b: DVec2, p: DVec2) -> f64 {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    if len2 < 1e-12 {
+        return p.distance(a);
+    }
+    let t = ((p - a).dot(ab) / len2).clamp(0.0, 1.0);
+    p.distance(a + ab * t)
+}
+
+/// A planned detour a schema is following.
+#[derive(Clone, Debug, Default)]
+pub struct Route {
+    /// Where it leads.
+    goal: DVec2,
+    /// The bodies it avoids.
+    bodies: Vec<DVec2>,
+    /// When it was planned (skill time).
+    at: f64,
+    /// Points still ahead.
+    path: Vec<DVec2>,
+}
+
+/// Where to steer, from `from`, to get to `to`: `to` itself, unless a lost
+/// teammate's body is in the way — then the next point of a path around
+/// it (re-planned when the goal or the bodies move, and every 2 s). Once
+/// on a detour, the robot keeps to it while a body is within a metre: the
+/// straight way may look clear from inside a tight gap, where reactive
+/// avoidance would push it back out.
+pub fn aim(
+    map: Option<&Map>,
+    bodies: &[DVec2],
+    route: &mut Option<Route>,
+    now: f64,
+    from: DVec2,
+    to: DVec2,
+) -> DVec2 {
+    let Some(map) = map.filter(|_| !bodies.is_empty()) else {
+        *route = None;
+        return to;
+    };
+    let near = bodies.iter().any(|b| b.distance(from) < NEAR);
+    let keep = route.is_some() && near;
+    if !keep && !map.body_in_the_way(from, to, bodies) {
+        *route = None;
+        return to;
+    }
+    let stale = route.as_ref().is_none_or(|r| {
+        r.goal.distance(to) > 0.3 || r.bodies != bodies || now - r.at > 2.0 || now < r.at
+    });
+    if stale {
+        *route = map.route(from, to, bodies).map(|path| Route {
+            goal: to,
+            bodies: bodies.to_vec(),
+            at: now,
+            path,
+        });
+    }
+    let Some(r) = route.as_mut() else {
+        return to;
+    };
+    // Drop the points reached; aim at the next.
+    while r.path.len() > 1 && r.path[0].distance(from) < map.cell.max(0.15) {
+        r.path.remove(0);
+    }
+    r.path.first().copied().unwrap_or(to)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn corridor() -> PhysicsSpec {
+        // The formation scenario: a hall narrowing into a 0.8 m corridor.
+        let text = "scenario: t\nworld: physics\nphysics:\n  arena: [8, 3]\n  robot: { radius: 0.12 }\n  obstacles:\n    - { box: [3, 1.1], at: [6.5, 0.55] }\n    - { box: [3, 1.1], at: [6.5, 2.45] }\n";
+        let sc = crate::Scenario::load_str(&std::sync::Arc::from("t.yaml"), text)
+            .unwrap_or_else(|d| panic!("{d}"));
+        (*sc.physics.expect("physics")).clone()
+    }
+
+    #[test]
+    fn a_body_in_the_doorway_is_routed_around_through_the_gap() {
+        let map = Map::new(&corridor());
+        // The crashed leader of the formation example, in the corridor
+        // entrance; the gap below it is 0.34 m wide.
+        let body = [DVec2::new(4.87, 1.56)];
+        let (from, to) = (DVec2::new(4.76, 1.93), DVec2::new(7.8, 1.5));
+        assert!(map.body_in_the_way(from, to, &body));
+        let path = map.route(from, to, &body).expect("a way round");
+        assert_eq!(path.last(), Some(&to));
+        for p in &path {
+            assert!(p.distance(body[0]) >= 0.2, "{p} too close to the body");
+        }
+        // It enters the corridor below the body.
+        assert!(
+            path.iter().any(|p| (4.8..5.0).contains(&p.x) && p.y < 1.4),
+            "{path:?}"
+        );
+    }
+
+    #[test]
+    fn nothing_in_the_way_means_straight_on() {
+        let map = Map::new(&corridor());
+        let mut route = None;
+        let to = DVec2::new(7.0, 1.5);
+        let aim_at = aim(
+            Some(&map),
+            &[DVec2::new(2.0, 2.5)],
+            &mut route,
+            0.0,
+            DVec2::new(1.0, 1.5),
+            to,
+        );
+        assert_eq!(aim_at, to);
+        assert!(route.is_none());
+    }
+
+    #[test]
+    fn a_blocked_corridor_has_no_route() {
+        let map = Map::new(&corridor());
+        let bodies = [DVec2::new(5.5, 1.3), DVec2::new(5.5, 1.7)];
+        assert!(
+            map.route(DVec2::new(2.0, 1.5), DVec2::new(7.5, 1.5), &bodies)
+                .is_none()
+        );
+    }
+}
