@@ -196,6 +196,7 @@ impl Agent {
                 .leaf()
                 .and_then(|f| k.org().team(f.team))
                 .map_or((0, 1), |t| (t.members.rank(k.me()) as u32, t.size));
+            p.set_lost(k.lost().iter().map(|r| r.0));
             p.set_roles(roles, rank);
             let rng = &mut self.rng;
             let mut draw = || {

@@ -2,9 +2,14 @@
 //! robustness tests do). Every scenario and property test runs these.
 //!
 //! - **agreement**: all members that decided a synchronization instance
-//!   normally (not by timeout) chose the same successor — members that could
-//!   talk (neither presumed the other lost), and under a silent rule members
-//!   whose instances left out the same teammates;
+//!   normally (not by timeout) chose the same successor, among members that
+//!   could talk (neither presumed the other lost). A protocol guarantees it
+//!   *always* when it communicates; a silent rule only *when perceptions
+//!   agree* — among members whose instances saw the same options and left
+//!   out the same teammates (`docs/protocols.md`);
+//! - **splits healed**: members that could talk never run two successors
+//!   of the same point side by side for longer than [`SPLIT_BOUND`] (a
+//!   silent rule's split is healed through the heartbeats);
 //! - **allocation**: all members that decided an allocation instance
 //!   normally hold the same assignment; no robot is given two children; no
 //!   child is left without members while another child has more than its
@@ -13,19 +18,60 @@
 //!   decided that the team ended a behavior, every member running it ends it
 //!   (unless it crashed, or the run stopped within the grace period);
 //! - **epochs**: a robot's executions of a behavior by a team are numbered
-//!   1, 2, 3… with no repeat;
+//!   1, 2, 3…, strictly increasing (an execution burned to converge with
+//!   the team is skipped, never repeated);
 //! - **stack**: every termination matches an earlier selection;
 //! - **organization**: every robot's hierarchy is structurally sound.
 
-use crate::runner::RunReport;
+use crate::runner::{FinalRobot, RunReport};
 use bite_core::event::{Event, MembersLog, OutcomeLog};
 use bite_core::ids::{BehaviorId, RobotId, TeamId};
 use bite_core::mission::Mission;
 use bite_core::msg::{InstanceKey, Kind};
 use bite_core::time::Time;
+use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
+use std::sync::Arc;
 use std::time::Duration;
+
+/// Longest two members that could talk may run different successors of
+/// one point side by side before the split counts as unhealed (healing
+/// takes a heartbeat or two; a lossy network may need a few).
+pub const SPLIT_BOUND: Duration = Duration::from_secs(5);
+
+/// The invariants [`Checker`] checks, by name.
+pub const CHECKED: [&str; 7] = [
+    "agreement",
+    "allocation",
+    "splits-healed",
+    "team-termination",
+    "epochs",
+    "stack",
+    "organization",
+];
+
+/// What the checker found, for summaries.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct Invariants {
+    /// The invariants checked.
+    pub checked: Vec<&'static str>,
+    /// Violations found.
+    pub violations: usize,
+    /// The first one, if any.
+    pub first: Option<String>,
+}
+
+impl Invariants {
+    /// The summary of a list of violations.
+    pub fn of(v: &[Violation]) -> Self {
+        Invariants {
+            checked: CHECKED.to_vec(),
+            violations: v.len(),
+            first: v.first().map(ToString::to_string),
+        }
+    }
+}
 
 /// A broken invariant.
 #[derive(Clone, Debug, PartialEq)]
@@ -42,56 +88,150 @@ impl fmt::Display for Violation {
     }
 }
 
-/// Check every invariant over a recorded run.
-pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
-    let mut v = Vec::new();
-    let graph = mission.graph();
-    let name = |b: BehaviorId| graph.name_of(b).to_string();
-    let mut sync: BTreeMap<InstanceKey, BTreeMap<RobotId, Option<BehaviorId>>> = BTreeMap::new();
-    let mut alloc: BTreeMap<InstanceKey, BTreeMap<RobotId, Vec<(BehaviorId, MembersLog)>>> =
-        BTreeMap::new();
-    let mut ended: BTreeMap<InstanceKey, Time> = BTreeMap::new();
-    // Who each robot presumes lost, as the run goes (for "could talk").
-    let mut lost_now: BTreeMap<RobotId, BTreeSet<RobotId>> = BTreeMap::new();
-    let mut view_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
-    // Whom each robot's instance left out from its start, and whom it
-    // presumed lost while the instance ran.
-    let mut left_out_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
-    let mut lost_during: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>> = BTreeMap::new();
-    let mut open: BTreeMap<RobotId, BTreeSet<InstanceKey>> = BTreeMap::new();
-    let mut timed_out_at: BTreeSet<InstanceKey> = BTreeSet::new();
-
-    let mut selected: BTreeMap<(TeamId, BehaviorId, u32), BTreeSet<RobotId>> = BTreeMap::new();
-    let mut terminated: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
-    let mut started: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time> = BTreeMap::new();
-
-    let mut last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32> = BTreeMap::new();
+/// Check every invariant over a recorded run (`record: true`), from its
+/// history: the same checks every run makes as it goes (its
+/// [`RunReport::violations`]).
+pub fn check(report: &RunReport, mission: &Arc<Mission>) -> Vec<Violation> {
+    let mut c = Checker::new(mission.clone());
     for rec in &report.history {
+        c.observe(rec.t, rec.robot, &rec.event);
+    }
+    c.finish(report.end, &report.crashes, &report.finals)
+}
+
+/// An execution: team, behavior, epoch.
+type Exec = (TeamId, BehaviorId, u32);
+
+/// One member's run of a successor of a point.
+#[derive(Clone, Copy, Debug)]
+struct Leg {
+    behavior: BehaviorId,
+    epoch: u32,
+    from: Time,
+    until: Option<Time>,
+}
+
+/// Checks invariants as a run goes: fed every event in order
+/// ([`Checker::observe`]), it keeps only what later checks need, then
+/// [`Checker::finish`] reports the violations. Every simulated run (`bite
+/// run`, `bite sweep`, the tests) runs one.
+pub struct Checker {
+    mission: Arc<Mission>,
+    v: Vec<Violation>,
+    sync: BTreeMap<InstanceKey, BTreeMap<RobotId, Option<BehaviorId>>>,
+    alloc: BTreeMap<InstanceKey, BTreeMap<RobotId, Vec<(BehaviorId, MembersLog)>>>,
+    ended: BTreeMap<InstanceKey, Time>,
+    /// Who each robot presumes lost, as the run goes (for "could talk").
+    lost_now: BTreeMap<RobotId, BTreeSet<RobotId>>,
+    /// Whom each robot ever presumed lost.
+    ever_lost: BTreeMap<RobotId, BTreeSet<RobotId>>,
+    view_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
+    /// Whom each robot's instance left out from its start, and whom it
+    /// presumed lost while the instance ran.
+    left_out_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
+    lost_during: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
+    /// What each robot's instance saw it could choose.
+    options_at: BTreeMap<(InstanceKey, RobotId), Vec<BehaviorId>>,
+    open: BTreeMap<RobotId, BTreeSet<InstanceKey>>,
+    timed_out_at: BTreeSet<InstanceKey>,
+    selected: BTreeMap<Exec, BTreeSet<RobotId>>,
+    terminated: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time>,
+    started: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time>,
+    last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32>,
+    /// After each point (team, behavior, epoch), what each member ran.
+    legs: BTreeMap<Exec, BTreeMap<RobotId, Vec<Leg>>>,
+    /// Where each robot's legs are, to close them when they end.
+    running_leg: BTreeMap<(RobotId, TeamId, BehaviorId, u32), Exec>,
+}
+
+impl Checker {
+    /// A checker for runs of `mission`.
+    pub fn new(mission: Arc<Mission>) -> Self {
+        Checker {
+            mission,
+            v: Vec::new(),
+            sync: BTreeMap::new(),
+            alloc: BTreeMap::new(),
+            ended: BTreeMap::new(),
+            lost_now: BTreeMap::new(),
+            ever_lost: BTreeMap::new(),
+            view_at: BTreeMap::new(),
+            left_out_at: BTreeMap::new(),
+            lost_during: BTreeMap::new(),
+            options_at: BTreeMap::new(),
+            open: BTreeMap::new(),
+            timed_out_at: BTreeSet::new(),
+            selected: BTreeMap::new(),
+            terminated: BTreeMap::new(),
+            started: BTreeMap::new(),
+            last_epoch: BTreeMap::new(),
+            legs: BTreeMap::new(),
+            running_leg: BTreeMap::new(),
+        }
+    }
+
+    /// Robot `r`'s process restarted with a fresh mind: it is held to
+    /// nothing its previous incarnation started, and its epochs count on
+    /// from where it rejoins.
+    pub fn restarted(&mut self, r: RobotId) {
+        for members in self.selected.values_mut() {
+            members.remove(&r);
+        }
+        self.last_epoch.retain(|(robot, _, _), _| *robot != r);
+        self.running_leg.retain(|(robot, _, _, _), _| *robot != r);
+        self.open.remove(&r);
+    }
+
+    /// Violations found so far that can be told before the run ends.
+    pub fn early(&self) -> &[Violation] {
+        &self.v
+    }
+
+    fn name(&self, b: BehaviorId) -> String {
+        self.mission.graph().name_of(b).to_string()
+    }
+
+    /// One event of robot `robot` at `t`.
+    pub fn observe(&mut self, t: Time, robot: RobotId, event: &Event) {
         if let Event::InteractionDecided { instance, .. }
-        | Event::InteractionAborted { instance, .. } = &rec.event
-            && let Some(o) = open.get_mut(&rec.robot)
+        | Event::InteractionAborted { instance, .. } = event
+            && let Some(o) = self.open.get_mut(&robot)
         {
             o.remove(instance);
         }
-        match &rec.event {
+        match event {
             Event::MemberLost { member } => {
-                lost_now.entry(rec.robot).or_default().insert(*member);
+                self.lost_now.entry(robot).or_default().insert(*member);
+                self.ever_lost.entry(robot).or_default().insert(*member);
                 // Running instances decide without it from now on.
-                for key in open.get(&rec.robot).into_iter().flatten() {
-                    lost_during
-                        .entry((*key, rec.robot))
+                for key in self.open.get(&robot).into_iter().flatten() {
+                    self.lost_during
+                        .entry((*key, robot))
                         .or_default()
                         .insert(*member);
                 }
             }
             Event::MemberBack { member } => {
-                lost_now.entry(rec.robot).or_default().remove(member);
+                self.lost_now.entry(robot).or_default().remove(member);
+            }
+            Event::LeftOut { instance, members } => {
+                self.lost_during
+                    .entry((*instance, robot))
+                    .or_default()
+                    .extend(members.iter().copied());
             }
             Event::InteractionStarted {
-                instance, excluded, ..
+                instance,
+                excluded,
+                options,
+                ..
             } => {
-                left_out_at.insert((*instance, rec.robot), excluded.iter().copied().collect());
-                open.entry(rec.robot).or_default().insert(*instance);
+                self.left_out_at
+                    .insert((*instance, robot), excluded.iter().copied().collect());
+                if instance.kind != Kind::Terminate {
+                    self.options_at.insert((*instance, robot), options.clone());
+                }
+                self.open.entry(robot).or_default().insert(*instance);
             }
             Event::InteractionDecided {
                 instance,
@@ -99,28 +239,28 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 ..
             } if matches!(instance.kind, Kind::Sync | Kind::Allocate) => {
                 if *timed_out {
-                    timed_out_at.insert(*instance);
+                    self.timed_out_at.insert(*instance);
                 }
-                let mut view = lost_now.get(&rec.robot).cloned().unwrap_or_default();
-                for x in [&left_out_at, &lost_during] {
-                    if let Some(x) = x.get(&(*instance, rec.robot)) {
+                let mut view = self.lost_now.get(&robot).cloned().unwrap_or_default();
+                for x in [&self.left_out_at, &self.lost_during] {
+                    if let Some(x) = x.get(&(*instance, robot)) {
                         view.extend(x.iter().copied());
                     }
                 }
-                view_at.insert((*instance, rec.robot), view);
+                self.view_at.insert((*instance, robot), view);
             }
             _ => {}
         }
-        match &rec.event {
+        match event {
             // Decided while leaving (the protocol's last word to its
             // teammates as an ancestor ended or a re-allocation began):
             // this robot never applied it.
             Event::InteractionAborted { instance, .. } => {
-                if let Some(m) = sync.get_mut(instance) {
-                    m.remove(&rec.robot);
+                if let Some(m) = self.sync.get_mut(instance) {
+                    m.remove(&robot);
                 }
-                if let Some(m) = alloc.get_mut(instance) {
-                    m.remove(&rec.robot);
+                if let Some(m) = self.alloc.get_mut(instance) {
+                    m.remove(&robot);
                 }
             }
             Event::InteractionDecided {
@@ -130,22 +270,24 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 ..
             } => match outcome {
                 OutcomeLog::Sync { choice } => {
-                    sync.entry(*instance)
-                        .or_default()
-                        .insert(rec.robot, *choice);
-                }
-                OutcomeLog::Allocate { assignment } => {
-                    alloc
+                    self.sync
                         .entry(*instance)
                         .or_default()
-                        .insert(rec.robot, assignment.clone());
+                        .insert(robot, *choice);
+                }
+                OutcomeLog::Allocate { assignment } => {
+                    self.alloc
+                        .entry(*instance)
+                        .or_default()
+                        .insert(robot, assignment.clone());
                 }
                 OutcomeLog::Terminate { .. } => {
-                    let communicates = mission
+                    let communicates = self
+                        .mission
                         .bound(instance.behavior, Kind::Terminate)
                         .is_some_and(|b| b.protocol.communicates());
                     if communicates {
-                        ended.entry(*instance).or_insert(rec.t);
+                        self.ended.entry(*instance).or_insert(t);
                     }
                 }
             },
@@ -153,26 +295,49 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 behavior,
                 team,
                 epoch,
+                after,
                 ..
             } => {
-                selected
+                self.selected
                     .entry((*team, *behavior, *epoch))
                     .or_default()
-                    .insert(rec.robot);
-                started.insert((*team, *behavior, *epoch, rec.robot), rec.t);
-
-                let last = last_epoch.entry((rec.robot, *team, *behavior)).or_insert(0);
-                if *epoch != *last + 1 {
-                    v.push(Violation {
+                    .insert(robot);
+                self.started.insert((*team, *behavior, *epoch, robot), t);
+                let last = self
+                    .last_epoch
+                    .entry((robot, *team, *behavior))
+                    .or_insert(0);
+                if *epoch <= *last {
+                    let last = *last;
+                    self.v.push(Violation {
                         invariant: "epochs",
                         detail: format!(
-                            "{} started `{}` for team {team} with epoch {epoch} after epoch {last}",
-                            rec.robot,
-                            name(*behavior)
+                            "{robot} started `{}` for team {team} with epoch {epoch} after epoch {last}",
+                            self.name(*behavior)
                         ),
                     });
                 }
-                *last = *epoch;
+                let last = self
+                    .last_epoch
+                    .entry((robot, *team, *behavior))
+                    .or_insert(0);
+                *last = (*last).max(*epoch);
+                if let Some(a) = after {
+                    let point = (*team, a.behavior, a.epoch);
+                    self.legs
+                        .entry(point)
+                        .or_default()
+                        .entry(robot)
+                        .or_default()
+                        .push(Leg {
+                            behavior: *behavior,
+                            epoch: *epoch,
+                            from: t,
+                            until: None,
+                        });
+                    self.running_leg
+                        .insert((robot, *team, *behavior, *epoch), point);
+                }
             }
             Event::Terminated {
                 behavior,
@@ -180,95 +345,144 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 epoch,
                 ..
             } => {
-                if !selected
+                if !self
+                    .selected
                     .get(&(*team, *behavior, *epoch))
-                    .is_some_and(|s| s.contains(&rec.robot))
+                    .is_some_and(|s| s.contains(&robot))
                 {
-                    v.push(Violation {
+                    self.v.push(Violation {
                         invariant: "stack",
                         detail: format!(
-                            "{} terminated `{}` #{epoch} without selecting it",
-                            rec.robot,
-                            name(*behavior)
+                            "{robot} terminated `{}` #{epoch} without selecting it",
+                            self.name(*behavior)
                         ),
                     });
                 }
-                terminated.insert((*team, *behavior, *epoch, rec.robot), rec.t);
+                self.terminated.insert((*team, *behavior, *epoch, robot), t);
+                if let Some(point) = self.running_leg.remove(&(robot, *team, *behavior, *epoch))
+                    && let Some(legs) = self.legs.get_mut(&point).and_then(|m| m.get_mut(&robot))
+                    && let Some(l) = legs
+                        .iter_mut()
+                        .rev()
+                        .find(|l| (l.behavior, l.epoch) == (*behavior, *epoch))
+                {
+                    l.until = Some(t);
+                }
             }
             _ => {}
         }
     }
-    // Two robots that could talk (neither presumed the other lost when it
-    // decided) must agree; robots on two sides of a partition may not.
-    // (Robots whose views of an allocation diverged after a timeout are in
-    // different teams: a team id includes its members.)
-    // A silent rule computes from what each robot knows alone, so two
-    // robots that presumed different teammates lost may differ; so may two
-    // robots with different views of who is alive after a teammate timed
-    // out (each learnt the outcome from a different side).
-    let could_talk = |key: &InstanceKey, a: RobotId, b: RobotId| {
-        let va = view_at.get(&(*key, a));
-        let vb = view_at.get(&(*key, b));
-        let silent = mission
+
+    /// The run ended at `end`: run the checks that need the whole run.
+    pub fn finish(
+        mut self,
+        end: Time,
+        crashes: &[(RobotId, Time, Option<Time>)],
+        finals: &[FinalRobot],
+    ) -> Vec<Violation> {
+        self.check_decisions();
+        self.check_splits(end, crashes);
+        self.check_termination(end, crashes);
+        for f in finals {
+            if let Err(e) = &f.org_check {
+                self.v.push(Violation {
+                    invariant: "organization",
+                    detail: format!("{}: {e}", f.robot),
+                });
+            }
+        }
+        self.v
+    }
+
+    /// Two robots that could talk (neither presumed the other lost when it
+    /// decided) must agree; robots on two sides of a partition may not.
+    /// (Robots whose views of an allocation diverged after a timeout are in
+    /// different teams: a team id includes its members.) A silent rule
+    /// computes from what each robot perceives and knows alone, so robots
+    /// that saw different options, or presumed different teammates lost,
+    /// may differ; so may two robots with different views of who is alive
+    /// after a teammate timed out (each learnt the outcome from a
+    /// different side).
+    fn could_talk(&self, key: &InstanceKey, a: RobotId, b: RobotId) -> bool {
+        let va = self.view_at.get(&(*key, a));
+        let vb = self.view_at.get(&(*key, b));
+        let silent = self
+            .mission
             .bound(key.behavior, key.kind)
             .is_some_and(|x| !x.protocol.communicates());
         !va.is_some_and(|v| v.contains(&b))
             && !vb.is_some_and(|v| v.contains(&a))
-            && (!silent || left_out_at.get(&(*key, a)) == left_out_at.get(&(*key, b)))
-            && (!timed_out_at.contains(key) || va == vb)
-    };
-    fn split<T: PartialEq>(
-        m: &BTreeMap<RobotId, T>,
-        talk: &dyn Fn(RobotId, RobotId) -> bool,
-    ) -> bool {
-        // Usually everyone agrees: one linear pass settles it.
-        let mut values = m.values();
-        let first = values.next();
-        if values.all(|x| Some(x) == first) {
-            return false;
-        }
-        m.iter()
-            .any(|(a, x)| m.iter().any(|(b, y)| a < b && x != y && talk(*a, *b)))
+            && (!silent
+                || (self.left_out_at.get(&(*key, a)) == self.left_out_at.get(&(*key, b))
+                    && self.options_at.get(&(*key, a)) == self.options_at.get(&(*key, b))))
+            && (!self.timed_out_at.contains(key) || va == vb)
     }
-    for (key, choices) in &sync {
-        if split(choices, &|a, b| could_talk(key, a, b)) {
-            v.push(Violation {
-                invariant: "agreement",
-                detail: format!(
-                    "members chose different successors after `{}` ({key}): {}",
-                    name(key.behavior),
-                    choices
-                        .iter()
-                        .map(|(r, c)| format!("{r}→{}", c.map_or("end".to_string(), name)))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
-            });
-        }
-    }
-    for (key, views) in &alloc {
-        if split(views, &|a, b| could_talk(key, a, b)) {
-            v.push(Violation {
-                invariant: "allocation",
-                detail: format!(
-                    "members hold different allocations at `{}` ({key})",
-                    name(key.behavior)
-                ),
-            });
-            continue;
-        }
-        // Each distinct assignment (one per view of the team) must be sound,
-        // and each robot must hold a child in its own view when one had room.
-        let slots = mission.child_slots(key.behavior);
-        let distinct: Vec<&Vec<(BehaviorId, MembersLog)>> = {
-            let mut d: Vec<&Vec<(BehaviorId, MembersLog)>> = Vec::new();
-            for a in views.values() {
-                if !d.contains(&a) {
-                    d.push(a);
-                }
+
+    fn check_decisions(&mut self) {
+        fn split<T: PartialEq>(
+            m: &BTreeMap<RobotId, T>,
+            talk: &dyn Fn(RobotId, RobotId) -> bool,
+        ) -> bool {
+            // Usually everyone agrees: one linear pass settles it.
+            let mut values = m.values();
+            let first = values.next();
+            if values.all(|x| Some(x) == first) {
+                return false;
             }
-            d
-        };
+            m.iter()
+                .any(|(a, x)| m.iter().any(|(b, y)| a < b && x != y && talk(*a, *b)))
+        }
+        let mut v = Vec::new();
+        for (key, choices) in &self.sync {
+            if split(choices, &|a, b| self.could_talk(key, a, b)) {
+                v.push(Violation {
+                    invariant: "agreement",
+                    detail: format!(
+                        "members chose different successors after `{}` ({key}): {}",
+                        self.name(key.behavior),
+                        choices
+                            .iter()
+                            .map(|(r, c)| format!(
+                                "{r}→{}",
+                                c.map_or("end".to_string(), |c| self.name(c))
+                            ))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                });
+            }
+        }
+        for (key, views) in &self.alloc {
+            if split(views, &|a, b| self.could_talk(key, a, b)) {
+                v.push(Violation {
+                    invariant: "allocation",
+                    detail: format!(
+                        "members hold different allocations at `{}` ({key})",
+                        self.name(key.behavior)
+                    ),
+                });
+                continue;
+            }
+            self.check_assignments(key, views, &mut v);
+        }
+        self.v.extend(v);
+    }
+
+    /// Each distinct assignment (one per view of the team) must be sound,
+    /// and each robot must hold a child in its own view when one had room.
+    fn check_assignments(
+        &self,
+        key: &InstanceKey,
+        views: &BTreeMap<RobotId, Vec<(BehaviorId, MembersLog)>>,
+        v: &mut Vec<Violation>,
+    ) {
+        let slots = self.mission.child_slots(key.behavior);
+        let mut distinct: Vec<&Vec<(BehaviorId, MembersLog)>> = Vec::new();
+        for a in views.values() {
+            if !distinct.contains(&a) {
+                distinct.push(a);
+            }
+        }
         for asg in distinct {
             // Member lists are logged for subteams up to 64 robots; larger
             // ones are compared by fingerprint above and counted here.
@@ -283,7 +497,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                                     invariant: "allocation",
                                     detail: format!(
                                         "{m} got two children at `{}` ({key})",
-                                        name(key.behavior)
+                                        self.name(key.behavior)
                                     ),
                                 });
                             }
@@ -308,8 +522,8 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                         invariant: "allocation",
                         detail: format!(
                             "child `{}` left without members at `{}` ({key}) while another child has more than it needs",
-                            name(*b),
-                            name(key.behavior)
+                            self.name(*b),
+                            self.name(key.behavior)
                         ),
                     });
                 }
@@ -322,7 +536,6 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                 .filter(|(_, a)| *a == asg)
                 .map(|(r, _)| *r)
                 .collect();
-
             if !listed {
                 let assigned: usize = asg.iter().map(|(_, m)| m.len()).sum();
                 if assigned < holders.len() && room {
@@ -332,7 +545,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                             "{} of {} members got no child at `{}` ({key}) although a child had room",
                             holders.len() - assigned,
                             holders.len(),
-                            name(key.behavior)
+                            self.name(key.behavior)
                         ),
                     });
                 }
@@ -342,7 +555,7 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
             // its start or before it decided) was left out on purpose, even
             // if it came back meanwhile: it rejoins at the next point.
             let left_out = |r: RobotId| {
-                view_at
+                self.view_at
                     .range((*key, RobotId(0))..=(*key, RobotId(u32::MAX)))
                     .any(|(_, v)| v.contains(&r))
             };
@@ -352,76 +565,119 @@ pub fn check(report: &RunReport, mission: &Mission) -> Vec<Violation> {
                         invariant: "allocation",
                         detail: format!(
                             "{r} got no child at `{}` ({key}) although a child had room",
-                            name(key.behavior)
+                            self.name(key.behavior)
                         ),
                     });
                 }
             }
         }
     }
-    // Robots that crashed for good are not held to anything after their
-    // crash; a paused robot is held to it from its resumption on.
-    let crashed: BTreeSet<RobotId> = report
-        .crashes
-        .iter()
-        .filter(|(_, t, until)| *t <= report.end && until.is_none_or(|u| u > report.end))
-        .map(|(r, _, _)| *r)
-        .collect();
-    let resumed: BTreeMap<RobotId, Time> = report
-        .crashes
-        .iter()
-        .filter_map(|(r, _, until)| until.filter(|u| *u <= report.end).map(|u| (*r, u)))
-        .collect();
-    // A member must end a behavior its team ended within a grace period:
-    // two deadlines of the termination binding (time to hear it, with
-    // retries) and a second.
-    for (key, t) in &ended {
-        let grace = mission
-            .bound(key.behavior, Kind::Terminate)
-            .map_or(Duration::from_secs(10), |b| {
-                b.deadline * 2 + Duration::from_secs(1)
-            });
-        let limit = *t + grace;
-        for r in selected
-            .get(&(key.team, key.behavior, key.epoch))
-            .into_iter()
-            .flatten()
-        {
-            if crashed.contains(r) {
-                continue;
-            }
 
-            // A member that started this epoch after the team ended it gets
-            // the same grace from its own start.
-            let start = started
-                .get(&(key.team, key.behavior, key.epoch, *r))
-                .copied();
-            let limit = start.map_or(limit, |s| limit.max(s + grace));
-            let limit = resumed.get(r).map_or(limit, |u| limit.max(*u + grace));
-            let late = match terminated.get(&(key.team, key.behavior, key.epoch, *r)) {
-                Some(at) => *at > limit,
-                None => report.end > limit,
-            };
-            if late {
-                v.push(Violation {
-                    invariant: "team-termination",
-                    detail: format!(
-                        "{r} ran `{}` #{} more than {:.1} s after its team ended it at {t}",
-                        name(key.behavior),
-                        key.epoch,
-                        grace.as_secs_f64()
-                    ),
-                });
+    /// Members that could talk must not run different successors of one
+    /// point side by side for longer than [`SPLIT_BOUND`].
+    fn check_splits(&mut self, end: Time, crashes: &[(RobotId, Time, Option<Time>)]) {
+        let crashed = |r: RobotId| crashes.iter().any(|(c, _, _)| *c == r);
+        let talked = |a: RobotId, b: RobotId| {
+            !self.ever_lost.get(&a).is_some_and(|s| s.contains(&b))
+                && !self.ever_lost.get(&b).is_some_and(|s| s.contains(&a))
+        };
+        let mut v = Vec::new();
+        for ((team, point, epoch), members) in &self.legs {
+            let robots: Vec<&RobotId> = members.keys().collect();
+            'pairs: for (i, a) in robots.iter().enumerate() {
+                for b in &robots[i + 1..] {
+                    if crashed(**a) || crashed(**b) || !talked(**a, **b) {
+                        continue;
+                    }
+                    for la in &members[*a] {
+                        for lb in &members[*b] {
+                            if la.behavior == lb.behavior {
+                                continue;
+                            }
+                            let from = la.from.max(lb.from);
+                            let until = la.until.unwrap_or(end).min(lb.until.unwrap_or(end));
+                            if until > from && until - from > SPLIT_BOUND {
+                                v.push(Violation {
+                                    invariant: "splits-healed",
+                                    detail: format!(
+                                        "after `{}` #{epoch} (team {team}) {a} ran `{}` and {b} ran `{}` side by side for {:.1} s from {from}",
+                                        self.name(*point),
+                                        self.name(la.behavior),
+                                        self.name(lb.behavior),
+                                        (until - from).as_secs_f64()
+                                    ),
+                                });
+                                break 'pairs;
+                            }
+                        }
+                    }
+                }
             }
         }
+        self.v.extend(v);
     }
-    for f in &report.finals {
-        if let Err(e) = &f.org_check {
-            v.push(Violation {
-                invariant: "organization",
-                detail: format!("{}: {e}", f.robot),
-            });
+
+    /// A member must end a behavior its team ended within a grace period:
+    /// two deadlines of the termination binding (time to hear it, with
+    /// retries) and a second.
+    fn check_termination(&mut self, end: Time, crashes: &[(RobotId, Time, Option<Time>)]) {
+        // Robots that crashed for good are not held to anything after their
+        // crash; a paused robot is held to it from its resumption on.
+        let crashed: BTreeSet<RobotId> = crashes
+            .iter()
+            .filter(|(_, t, until)| *t <= end && until.is_none_or(|u| u > end))
+            .map(|(r, _, _)| *r)
+            .collect();
+        let resumed: BTreeMap<RobotId, Time> = crashes
+            .iter()
+            .filter_map(|(r, _, until)| until.filter(|u| *u <= end).map(|u| (*r, u)))
+            .collect();
+        let mut v = Vec::new();
+        for (key, t) in &self.ended {
+            let grace = self
+                .mission
+                .bound(key.behavior, Kind::Terminate)
+                .map_or(Duration::from_secs(10), |b| {
+                    b.deadline * 2 + Duration::from_secs(1)
+                });
+            let limit = *t + grace;
+            for r in self
+                .selected
+                .get(&(key.team, key.behavior, key.epoch))
+                .into_iter()
+                .flatten()
+            {
+                if crashed.contains(r) {
+                    continue;
+                }
+                // A member that started this epoch after the team ended it
+                // gets the same grace from its own start.
+                let start = self
+                    .started
+                    .get(&(key.team, key.behavior, key.epoch, *r))
+                    .copied();
+                let limit = start.map_or(limit, |s| limit.max(s + grace));
+                let limit = resumed.get(r).map_or(limit, |u| limit.max(*u + grace));
+                let late = match self
+                    .terminated
+                    .get(&(key.team, key.behavior, key.epoch, *r))
+                {
+                    Some(at) => *at > limit,
+                    None => end > limit,
+                };
+                if late {
+                    v.push(Violation {
+                        invariant: "team-termination",
+                        detail: format!(
+                            "{r} ran `{}` #{} more than {:.1} s after its team ended it at {t}",
+                            self.name(key.behavior),
+                            key.epoch,
+                            grace.as_secs_f64()
+                        ),
+                    });
+                }
+            }
         }
+        self.v.extend(v);
     }
-    v
 }

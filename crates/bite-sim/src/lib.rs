@@ -13,20 +13,26 @@
 //! - [`world`]: the timed-skill world;
 //! - [`runner`]: the event loop, run logs and reports;
 //! - [`summary`]: what a run cost;
-//! - [`check`]: invariants checked over a recorded run;
+//! - [`check`]: invariants checked as a run goes, on every run;
+//! - [`fault`]: faults as one-line specs laid over a scenario;
+//! - [`sweep`]: the fault matrix as a plan of independent runs;
+//! - [`stall`]: runs that make no progress or go round in circles;
 //! - [`probe`]: one coordination point under one protocol, measured.
 
 #![warn(missing_docs)]
 
 pub mod agent;
 pub mod check;
+pub mod fault;
 pub mod log;
 pub mod net;
 pub mod physics;
 pub mod probe;
 pub mod runner;
 pub mod scenario;
+pub mod stall;
 pub mod summary;
+pub mod sweep;
 pub mod world;
 
 pub use runner::{RunOptions, RunReport, prepare, run};

@@ -52,6 +52,16 @@ impl<'g> Namer<'g> {
                     *v = self.team(TeamId(i));
                 }
             }
+            ("members" | "excluded", J::Array(rs)) => {
+                for r in rs {
+                    self.rename("from", r);
+                }
+            }
+            ("options", J::Array(bs)) => {
+                for b in bs {
+                    self.rename("behavior", b);
+                }
+            }
             ("from" | "member" | "winner", J::Number(n)) => {
                 if let Some(i) = n.as_u64() {
                     *v = self.robot(RobotId(i as u32));

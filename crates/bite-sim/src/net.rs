@@ -25,6 +25,9 @@ pub struct NetModel {
     pub duplicate: f64,
     /// Partitions in force during given intervals.
     pub partitions: Vec<Partition>,
+    /// Windows `[from, until)` in which every message sent is held, then
+    /// delivered as a burst when the window closes (a stalled switch).
+    pub holds: Vec<(Time, Time)>,
 }
 
 impl Default for NetModel {
@@ -35,6 +38,7 @@ impl Default for NetModel {
             loss: 0.0,
             duplicate: 0.0,
             partitions: Vec::new(),
+            holds: Vec::new(),
         }
     }
 }
@@ -93,6 +97,8 @@ pub struct NetStats {
     pub partitioned: u64,
     /// Copies dropped because the robots were out of radio range.
     pub out_of_range: u64,
+    /// Copies held and delivered in a burst.
+    pub held: u64,
 }
 
 /// The network of one simulated run.
@@ -161,7 +167,13 @@ impl SimNet {
             } else {
                 0
             };
-            out.push(now + self.model.latency + Duration::from_micros(extra));
+            let mut at = now + self.model.latency + Duration::from_micros(extra);
+            // Held in a stalled switch: released at the end of the window.
+            if let Some((_, until)) = self.model.holds.iter().find(|(f, u)| *f <= now && now < *u) {
+                at = at.max(*until + Duration::from_micros(extra));
+                self.stats.held += 1;
+            }
+            out.push(at);
             self.stats.delivered += 1;
         }
     }

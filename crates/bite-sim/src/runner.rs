@@ -23,6 +23,7 @@ use bite_core::msg::Envelope;
 use bite_core::org::MemberSet;
 use bite_core::time::Time;
 use bite_core::value::Value;
+use rand::SeedableRng;
 use serde_json::json;
 use std::cmp::{Ordering, Reverse};
 use std::collections::{BTreeMap, BinaryHeap};
@@ -129,6 +130,8 @@ pub struct RunReport {
     pub end: Time,
     /// The physical world at the end (`world: physics`), for pictures.
     pub world: Option<crate::physics::World>,
+    /// Invariants the run broke (checked on every run).
+    pub violations: Vec<crate::check::Violation>,
 }
 
 enum What {
@@ -157,6 +160,16 @@ enum What {
         observer: RobotId,
         subject: RobotId,
     },
+    /// Robot's heartbeat: its position goes to its audience.
+    Beacon(RobotId),
+    /// A heartbeat arrives.
+    Peer {
+        to: RobotId,
+        from: RobotId,
+        pos: Arc<bite_core::kernel::Position>,
+    },
+    /// A forged, replayed or malformed message is injected.
+    Inject,
 }
 
 struct Scheduled {
@@ -217,6 +230,30 @@ struct Sim<'a, 'w> {
     own: Vec<(BeliefId, Value)>,
     told: Vec<(BeliefId, Value, Source)>,
     next_poses: Time,
+    /// Heartbeat period (positions travel with heartbeats).
+    beacon_period: Duration,
+    /// Heartbeat copies sent, and their bytes.
+    beacons: (u64, u64),
+    /// The invariant checker, fed every event.
+    checker: crate::check::Checker,
+    /// The stall watch, fed every event.
+    stall: crate::stall::StallWatch,
+    /// The mission (to give a restarted robot a fresh mind).
+    mission: Arc<Mission>,
+    root: Arc<MemberSet>,
+    /// How each robot's fresh world model is made, if the team shares.
+    wm_setup: Option<(usize, bite_core::wm::Sharing, Arc<[bool]>)>,
+    /// Each robot's process incarnation (restarts).
+    incarnation: Vec<u32>,
+    /// Recent genuine messages and heartbeats, for replay injection.
+    captured: std::collections::VecDeque<Arc<Envelope>>,
+    captured_pos: std::collections::VecDeque<Arc<bite_core::kernel::Position>>,
+    /// The injector's own generator.
+    inject_rng: bite_core::interaction::Rng,
+    /// Messages injected, and by kind.
+    injected: BTreeMap<&'static str, u64>,
+    /// How often a message is injected (`None`: never).
+    inject: Option<Duration>,
 }
 
 /// Who holds each sibling role of robot `k`'s leaf behavior: the leader of
@@ -256,6 +293,32 @@ impl Sim<'_, '_> {
         }));
     }
 
+    /// Robot `i`'s clock at simulated time `t` (its rate and offset; a
+    /// robot's mind sees only its own clock).
+    fn local(&self, i: usize, t: Time) -> Time {
+        let (rate, off) = self.resolved.clocks.get(i).copied().unwrap_or((1.0, 0.0));
+        if rate == 1.0 && off == 0.0 {
+            return t;
+        }
+        Time::from_secs_f64(t.as_secs_f64() * rate + off)
+    }
+
+    /// The simulated time at which robot `i`'s clock reads `t` (rounded up,
+    /// so that a timer set for `t` finds the clock at or past it).
+    fn global(&self, i: usize, t: Time) -> Time {
+        let (rate, off) = self.resolved.clocks.get(i).copied().unwrap_or((1.0, 0.0));
+        if rate == 1.0 && off == 0.0 {
+            return t;
+        }
+        let g = (t.as_secs_f64() - off) / rate;
+        Time((g * 1e6).ceil().max(0.0) as u64 + 1)
+    }
+
+    /// Robot `i`'s clock now.
+    fn clock(&self, i: usize) -> Time {
+        self.local(i, self.now)
+    }
+
     fn drain(&mut self, r: RobotId) {
         let i = r.index();
         while let Some(o) = self.kernels[i].poll_output() {
@@ -264,6 +327,12 @@ impl Sim<'_, '_> {
                     let key = out.envelope.instance;
                     self.agg.sent(key.behavior, key.kind, out.bytes);
                     let env = Arc::new(out.envelope);
+                    if self.inject.is_some() {
+                        if self.captured.len() >= 64 {
+                            self.captured.pop_front();
+                        }
+                        self.captured.push_back(env.clone());
+                    }
                     match &out.to {
                         Recipients::One(x) => self.transmit(r, *x, &env),
                         Recipients::Team(set) => {
@@ -277,6 +346,8 @@ impl Sim<'_, '_> {
                 }
                 Output::Event(e) => {
                     self.agg.event(self.now, r, &e);
+                    self.checker.observe(self.now, r, &e);
+                    self.stall.observe(self.now, r, &e, &self.graph);
                     if self.log.is_writing() {
                         let rec = Namer::new(&self.graph).record(self.now, r, &e);
                         self.log.write(&rec);
@@ -316,12 +387,13 @@ impl Sim<'_, '_> {
                 w.leaf_changed(i, leaf, skill);
             }
         }
-        if let Some(t) = self.kernels[i].poll_timeout()
-            && self.timers[i].is_none_or(|s| t < s || s < self.now)
-        {
-            self.timers[i] = Some(t);
-            let at = t.max(self.now);
-            self.schedule(at, What::Timer(r));
+        if let Some(t) = self.kernels[i].poll_timeout() {
+            let t = self.global(i, t);
+            if self.timers[i].is_none_or(|s| t < s || s < self.now) {
+                self.timers[i] = Some(t);
+                let at = t.max(self.now);
+                self.schedule(at, What::Timer(r));
+            }
         }
     }
 
@@ -368,8 +440,9 @@ impl Sim<'_, '_> {
         own.clear();
         told.clear();
         feed(&mut self.wms[i], &mut own, &mut told);
+        let now = self.clock(i);
         let k = &mut self.kernels[i];
-        k.observe(self.now, &own);
+        k.observe(now, &own);
         for (id, v, src) in told.drain(..) {
             k.set_belief(id, v, src);
         }
@@ -383,10 +456,11 @@ impl Sim<'_, '_> {
         if i >= self.wms.len() {
             return;
         }
-        if self.wms[i].due(self.now) {
-            self.wms[i].share(self.now, &self.kernels[i]);
+        let now = self.clock(i);
+        if self.wms[i].due(now) {
+            self.wms[i].share(now, &self.kernels[i]);
         }
-        while let Some(o) = self.wms[i].poll(self.now) {
+        while let Some(o) = self.wms[i].poll(now) {
             if self.log.is_writing() {
                 let rec = json!({
                     "t": self.now.as_secs_f64(),
@@ -408,6 +482,144 @@ impl Sim<'_, '_> {
                     msg: msg.clone(),
                 });
             }
+        }
+    }
+
+    /// Robot `r`'s process restarts: a fresh mind (kernel, world model,
+    /// skills, pilot) with nothing of its previous incarnation, which
+    /// rejoins the team where the team is (see `Kernel::rejoin`). Its
+    /// sequence numbers start from the clock, so that no teammate drops its
+    /// messages as duplicates of the old incarnation's.
+    fn restart(&mut self, r: RobotId) {
+        let i = r.index();
+        self.incarnation[i] += 1;
+        let seed = derive_seed(self.seed, "kernel", r.0 ^ (self.incarnation[i] << 20));
+        let mut k = Kernel::with_root(self.mission.clone(), r, seed, self.root.clone());
+        let now = self.clock(i);
+        k.set_first_seq(now.as_micros().max(1));
+        k.rejoin(now);
+        self.kernels[i] = k;
+        self.worlds[i] = RobotWorld::new(derive_seed(
+            self.seed,
+            "world",
+            r.0 ^ (self.incarnation[i] << 20),
+        ));
+        if let Some((len, sharing, private)) = &self.wm_setup {
+            self.wms[i] = bite_core::wm::WorldModel::new(r, *len, *sharing, private.clone());
+        }
+        if let Some(w) = self.physics.as_mut() {
+            w.restart_pilot(i);
+        }
+        self.versions[i] = u64::MAX;
+        self.timers[i] = None;
+        self.checker.restarted(r);
+        if self.log.is_writing() {
+            let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "restarted", "incarnation": self.incarnation[i]});
+            self.log.write(&rec);
+        }
+        self.drain(r);
+    }
+
+    /// Deliver one forged, replayed or malformed message to a random live
+    /// robot: what gets past authentication (replays of genuine messages
+    /// and heartbeats, which dedup and epochs must neutralise) and what a
+    /// broken or hostile peer sends (unknown senders, malformed instance
+    /// keys, garbage positions). Every one must be dropped and counted, or
+    /// be harmless.
+    fn inject_one(&mut self) {
+        use rand::RngExt;
+        let n = self.kernels.len();
+        let live: Vec<usize> = (0..n).filter(|i| !self.crashed[*i]).collect();
+        if live.is_empty() {
+            return;
+        }
+        let i = live[self.inject_rng.random_range(0..live.len())];
+        let to = RobotId(i as u32);
+        let now = self.clock(i);
+        let kind = self.inject_rng.random_range(0..5u32);
+        let graph = self.graph.clone();
+        let nb = graph.behaviors().len() as u32;
+        let what = match kind {
+            // A replay of a genuine message (same sender, same sequence
+            // number), possibly to another robot.
+            0 if !self.captured.is_empty() => {
+                let k = self.inject_rng.random_range(0..self.captured.len());
+                let env = (*self.captured[k]).clone();
+                self.kernels[i].message(now, env);
+                "replayed message"
+            }
+            // A replay of a genuine heartbeat, as from another robot.
+            1 if !self.captured_pos.is_empty() => {
+                let k = self.inject_rng.random_range(0..self.captured_pos.len());
+                let pos = self.captured_pos[k].clone();
+                let from = RobotId(self.inject_rng.random_range(0..n as u32));
+                self.kernels[i].peer(now, from, &pos);
+                "replayed heartbeat"
+            }
+            // A garbage position.
+            2 => {
+                let mut pos = bite_core::kernel::Position::default();
+                for _ in 0..self.inject_rng.random_range(0..200u32) {
+                    pos.ended.push(bite_core::kernel::Ended {
+                        id: bite_core::kernel::FrameId {
+                            team: bite_core::ids::TeamId(self.inject_rng.random()),
+                            behavior: bite_core::ids::BehaviorId(
+                                self.inject_rng.random_range(0..nb * 2 + 1),
+                            ),
+                            epoch: self.inject_rng.random(),
+                        },
+                        parent: None,
+                    });
+                }
+                let from = RobotId(self.inject_rng.random_range(0..n as u32 + 2));
+                self.kernels[i].peer(now, from, &pos);
+                "garbage heartbeat"
+            }
+            // A message from a robot that is not on the roster.
+            3 => {
+                let sender = n as u32 + self.inject_rng.random_range(0..100u32);
+                let env = self.forged(sender, nb);
+                self.kernels[i].message(now, env);
+                "unknown sender"
+            }
+            // A malformed instance key from a teammate: a behavior or kind
+            // that is no point, epoch 0.
+            _ => {
+                let sender = RobotId(self.inject_rng.random_range(0..n as u32));
+                let mut env = self.forged(sender.0, nb);
+                match self.inject_rng.random_range(0..3u32) {
+                    0 => env.instance.epoch = 0,
+                    1 => env.instance.behavior = bite_core::ids::BehaviorId(nb + 7),
+                    _ => env.seq = 0,
+                }
+                self.kernels[i].message(now, env);
+                "malformed key"
+            }
+        };
+        *self.injected.entry(what).or_insert(0) += 1;
+        self.drain(to);
+    }
+
+    /// A message with a random instance key and body, from `sender`.
+    fn forged(&mut self, sender: u32, nb: u32) -> Envelope {
+        use rand::RngExt;
+        let kinds = bite_core::msg::Kind::ALL;
+        Envelope {
+            instance: bite_core::msg::InstanceKey {
+                team: bite_core::ids::TeamId::ROOT,
+                behavior: bite_core::ids::BehaviorId(self.inject_rng.random_range(0..nb.max(1))),
+                kind: kinds[self.inject_rng.random_range(0..kinds.len())],
+                epoch: self.inject_rng.random_range(1..50u32),
+                round: 0,
+            },
+            sender: RobotId(sender),
+            seq: self.inject_rng.random_range(1..u64::MAX),
+            body: match self.inject_rng.random_range(0..4u32) {
+                0 => bite_core::msg::Body::Done,
+                1 => bite_core::msg::Body::Release { next: None },
+                2 => bite_core::msg::Body::Vote { choice: None },
+                _ => bite_core::msg::Body::Ack,
+            },
         }
     }
 
@@ -485,6 +697,17 @@ impl Sim<'_, '_> {
             }
         }
         let n = self.kernels.len();
+        let period_us = self.beacon_period.as_micros().max(1) as u64;
+        for r in 0..n as u32 {
+            let phase = derive_seed(self.seed, "beacon", r) % period_us;
+            self.schedule(
+                Time::ZERO + Duration::from_micros(phase),
+                What::Beacon(RobotId(r)),
+            );
+        }
+        if let Some(every) = self.inject {
+            self.schedule(Time::ZERO + every, What::Inject);
+        }
         let mut next_progress = Time::ZERO;
         while let Some(Reverse(s)) = self.queue.pop() {
             if s.at > limit {
@@ -506,12 +729,12 @@ impl Sim<'_, '_> {
                         if let Some(w) = self.physics.as_mut() {
                             w.sense(i, &mut percepts);
                         }
+                        let now = self.clock(i);
                         if self.wms.is_empty() {
-                            self.kernels[i].tick(self.now, &percepts);
+                            self.kernels[i].tick(now, &percepts);
                         } else {
                             // The world model between perception and the
                             // kernel: fused with what teammates said.
-                            let now = self.now;
                             self.through_world_model(i, |wm, own, told| {
                                 wm.perceive(now, &percepts, own, told);
                             });
@@ -519,7 +742,7 @@ impl Sim<'_, '_> {
                             // before the kernel acts on it (and, say,
                             // dissolves the subteams it would inform).
                             self.share(RobotId(i as u32));
-                            self.kernels[i].tick(self.now, &[]);
+                            self.kernels[i].tick(now, &[]);
                         }
                         self.percepts = percepts;
                         self.drain(RobotId(i as u32));
@@ -532,7 +755,9 @@ impl Sim<'_, '_> {
                                 .map_or((0, 1), |t| {
                                     (t.members.rank(RobotId(i as u32)) as u32, t.size)
                                 });
+                            let lost = k.lost().iter().map(|r| r.0);
                             if let Some(w) = self.physics.as_mut() {
+                                w.set_lost(i, lost);
                                 w.set_roles(i, roles, rank);
                                 w.control(i);
                             }
@@ -551,6 +776,16 @@ impl Sim<'_, '_> {
                     if self.live_all_finished() {
                         return self.now;
                     }
+                    self.stall.idle_check(self.now);
+                    if let Some(w) = &self.physics {
+                        let at: Vec<Option<glam::DVec2>> = (0..n)
+                            .map(|i| (!self.crashed[i]).then(|| w.pose(i).pos))
+                            .collect();
+                        self.stall.motion(self.now, &at);
+                    }
+                    if self.stall.stalled().is_some() {
+                        return self.now;
+                    }
                     if self.now >= next_progress {
                         next_progress = self.now + Duration::from_secs(1);
                         let finished = self.kernels.iter().filter(|k| k.is_finished()).count();
@@ -567,7 +802,8 @@ impl Sim<'_, '_> {
                 }
                 What::Deliver { to, env } => {
                     if !self.crashed[to.index()] {
-                        self.kernels[to.index()].message(self.now, (*env).clone());
+                        let now = self.clock(to.index());
+                        self.kernels[to.index()].message(now, (*env).clone());
                         self.drain(to);
                     }
                 }
@@ -581,13 +817,11 @@ impl Sim<'_, '_> {
                 }
                 What::Timer(r) => {
                     let i = r.index();
-                    if !self.crashed[i]
-                        && self.kernels[i]
-                            .poll_timeout()
-                            .is_some_and(|t| t <= self.now)
+                    let now = self.clock(i);
+                    if !self.crashed[i] && self.kernels[i].poll_timeout().is_some_and(|t| t <= now)
                     {
                         self.timers[i] = None;
-                        self.kernels[i].timer(self.now);
+                        self.kernels[i].timer(now);
                         self.drain(r);
                     }
                 }
@@ -606,7 +840,8 @@ impl Sim<'_, '_> {
                         && !self.hears(observer, subject)
                         && self.suspected.insert((observer, subject))
                     {
-                        self.kernels[o].member_lost(self.now, subject);
+                        let now = self.clock(o);
+                        self.kernels[o].member_lost(now, subject);
                         self.drain(observer);
                     }
                 }
@@ -616,12 +851,58 @@ impl Sim<'_, '_> {
                         && self.hears(observer, subject)
                         && self.suspected.remove(&(observer, subject))
                     {
-                        self.kernels[o].member_back(self.now, subject);
+                        let now = self.clock(o);
+                        self.kernels[o].member_back(now, subject);
                         self.drain(observer);
+                    }
+                }
+                What::Beacon(r) => {
+                    if !self.crashed[r.index()] {
+                        let k = &self.kernels[r.index()];
+                        let audience = k.beacon_audience();
+                        if !audience.is_empty() {
+                            let pos = Arc::new(k.position());
+                            if self.inject.is_some() {
+                                if self.captured_pos.len() >= 16 {
+                                    self.captured_pos.pop_front();
+                                }
+                                self.captured_pos.push_back(pos.clone());
+                            }
+                            let bytes = pos.encoded_len() as u64;
+                            for to in audience.iter() {
+                                self.beacons.0 += 1;
+                                self.beacons.1 += bytes;
+                                let pos = pos.clone();
+                                self.send(r, to, move || What::Peer {
+                                    to,
+                                    from: r,
+                                    pos: pos.clone(),
+                                });
+                            }
+                        }
+                    }
+                    let next = self.now + self.beacon_period;
+                    self.schedule(next, What::Beacon(r));
+                }
+                What::Peer { to, from, pos } => {
+                    if !self.crashed[to.index()] {
+                        let now = self.clock(to.index());
+                        self.kernels[to.index()].peer(now, from, &pos);
+                        self.drain(to);
+                    }
+                }
+                What::Inject => {
+                    self.inject_one();
+                    if let Some(every) = self.inject {
+                        let next = self.now + every;
+                        self.schedule(next, What::Inject);
                     }
                 }
                 What::Resume(r) => {
                     self.crashed[r.index()] = false;
+                    if self.resolved.restarts.contains(&(r, self.now)) {
+                        self.restart(r);
+                    }
                     if self.log.is_writing() {
                         let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "resumed"});
                         self.log.write(&rec);
@@ -736,6 +1017,7 @@ pub fn run(
     };
     let motor = resolved.motor.clone();
     let sharing = graph.sharing();
+    let mut wm_setup = None;
     let wms = if sharing.policy == bite_core::wm::Policy::None {
         Vec::new()
     } else {
@@ -750,6 +1032,7 @@ pub fn run(
             }
         }
         let private: Arc<[bool]> = Arc::from(private);
+        wm_setup = Some((sym.len(), sharing, private.clone()));
         (0..n as u32)
             .map(|r| {
                 bite_core::wm::WorldModel::new(RobotId(r), sym.len(), sharing, private.clone())
@@ -786,6 +1069,23 @@ pub fn run(
         own: Vec::new(),
         told: Vec::new(),
         next_poses: Time::ZERO,
+        beacon_period: scenario
+            .failure_detector
+            .map_or(crate::scenario::FailureDetector::default().heartbeat, |d| {
+                d.heartbeat
+            }),
+        beacons: (0, 0),
+        checker: crate::check::Checker::new(mission.clone()),
+        stall: crate::stall::StallWatch::new(scenario.stall),
+        mission: mission.clone(),
+        root: root.clone(),
+        wm_setup,
+        incarnation: vec![0; n],
+        captured: std::collections::VecDeque::new(),
+        captured_pos: std::collections::VecDeque::new(),
+        inject_rng: bite_core::interaction::Rng::seed_from_u64(derive_seed(seed, "inject", 0)),
+        injected: BTreeMap::new(),
+        inject: scenario.inject,
     };
     let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);
     let period = Duration::from_secs_f64(1.0 / scenario.control_hz);
@@ -797,7 +1097,7 @@ pub fn run(
             *dropped.entry(*r).or_insert(0) += c;
         }
     }
-    let finals = sim
+    let finals: Vec<FinalRobot> = sim
         .kernels
         .iter()
         .enumerate()
@@ -811,6 +1111,12 @@ pub fn run(
         })
         .collect();
     let crashes = sim.resolved.crashes.clone();
+    let stalled = sim.stall.stalled().cloned();
+    let checker = std::mem::replace(
+        &mut sim.checker,
+        crate::check::Checker::new(mission.clone()),
+    );
+    let violations = checker.finish(end, &crashes, &finals);
     let fingerprint = sim.log.fingerprint();
     let mut summary = std::mem::take(&mut sim.agg).finish(
         &mission,
@@ -822,7 +1128,22 @@ pub fn run(
         dropped,
         fingerprint,
     );
+    summary.invariants = crate::check::Invariants::of(&violations);
+    if let Some((_, why)) = stalled
+        && !summary.completed
+    {
+        summary.outcome = crate::summary::Outcome::Stalled;
+        summary.stall = Some(why);
+    }
     summary.world = sim.physics.as_ref().map(crate::physics::summary);
+    summary.heartbeats = crate::summary::Heartbeats {
+        messages: sim.beacons.0,
+        bytes: sim.beacons.1,
+    };
+    summary.injected = std::mem::take(&mut sim.injected)
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
     summary.sharing = (!sim.wms.is_empty()).then(|| {
         bite_core::wm::SharingTotals::of(graph.sharing().policy, sim.wms.iter().map(|w| w.stats()))
     });
@@ -847,5 +1168,6 @@ pub fn run(
         crashes,
         end,
         world: sim.physics.take(),
+        violations,
     })
 }

@@ -151,6 +151,10 @@ struct ScenarioSpec {
     #[serde(default)]
     crashes: Vec<Spanned<CrashSpec>>,
     failure_detector: Option<Spanned<DetectorSpec>>,
+    stall: Option<Spanned<StallSpec>>,
+    #[serde(default)]
+    clocks: Ordered<ClockSpec>,
+    inject: Option<Spanned<InjectSpec>>,
     #[serde(default)]
     sensed: Vec<String>,
     physics: Option<Spanned<crate::physics::spec::PhysicsRaw>>,
@@ -186,6 +190,15 @@ struct NetSpec {
     duplicate: f64,
     #[serde(default)]
     partitions: Vec<Spanned<PartitionSpec>>,
+    #[serde(default)]
+    holds: Vec<Spanned<HoldSpec>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct HoldSpec {
+    from: DurationText,
+    until: DurationText,
 }
 
 #[derive(Deserialize)]
@@ -263,6 +276,26 @@ struct CrashSpec {
     robot: RobotRef,
     at: DurationText,
     until: Option<DurationText>,
+    #[serde(default)]
+    restart: bool,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClockSpec {
+    #[serde(default = "one")]
+    rate: f64,
+    offset: Option<DurationText>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InjectSpec {
+    every: DurationText,
 }
 
 #[derive(Deserialize)]
@@ -276,6 +309,16 @@ struct DetectorSpec {
 
 fn yes() -> bool {
     true
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct StallSpec {
+    /// No progress for this long ends the run as stalled (`never`: off).
+    after: Option<DurationText>,
+    /// A behavior started more than this many times within one execution
+    /// of its parent ends the run as stalled (`0`: off).
+    repeats: Option<u32>,
 }
 
 /// What a skill does in the timed world.
@@ -321,6 +364,9 @@ pub struct Crash {
     pub at: Time,
     /// When it resumes, with its state intact (`None`: never).
     pub until: Option<Time>,
+    /// It resumes as a restarted process: a fresh mind (no state kept)
+    /// that rejoins the team where the team is.
+    pub restart: bool,
     /// Where it is written.
     pub loc: Loc,
 }
@@ -360,6 +406,10 @@ pub struct Resolved {
     pub events: Vec<TimedFact>,
     /// Crashes: who, when, and when it resumes (`None`: never).
     pub crashes: Vec<(RobotId, Time, Option<Time>)>,
+    /// Robots whose resumption is a restart with a fresh mind.
+    pub restarts: Vec<(RobotId, Time)>,
+    /// Each robot's clock: rate and offset (seconds).
+    pub clocks: Vec<(f64, f64)>,
     /// Warnings (beliefs nobody reads, skills the scenario does not describe).
     pub warnings: Vec<Diagnostic>,
     /// In the physical world: each behavior's motor schemas, with its skill
@@ -394,8 +444,14 @@ pub struct Scenario {
     pub events: Vec<WorldEvent>,
     /// Robot crashes.
     pub crashes: Vec<Crash>,
+    /// Robots whose clocks run fast, slow or ahead: robot, rate, offset (s).
+    pub clocks: Vec<(RobotRef, f64, f64, Loc)>,
+    /// Forged, replayed or malformed messages injected this often.
+    pub inject: Option<Duration>,
     /// Lost-teammate detection (`None`: off).
     pub failure_detector: Option<FailureDetector>,
+    /// When a run counts as stalled.
+    pub stall: crate::stall::StallLimits,
     /// Beliefs the world provides whether or not the graph reads them
     /// (protocol parameters of some configurations may): not warned about.
     pub sensed: Vec<String>,
@@ -418,7 +474,10 @@ impl Default for Scenario {
             skills: BTreeMap::new(),
             events: Vec::new(),
             crashes: Vec::new(),
+            clocks: Vec::new(),
+            inject: None,
             failure_detector: Some(FailureDetector::default()),
+            stall: crate::stall::StallLimits::default(),
             sensed: Vec::new(),
             physics: None,
         }
@@ -694,6 +753,24 @@ impl Scenario {
                     loss: n.loss,
                     duplicate: n.duplicate,
                     partitions: Vec::new(),
+                    holds: n
+                        .holds
+                        .iter()
+                        .map(|h| {
+                            let hloc = Loc::from(h.referenced);
+                            let from = Time::ZERO + dur(file, hloc, &h.value.from, &mut d);
+                            let until = Time::ZERO + dur(file, hloc, &h.value.until, &mut d);
+                            if until <= from {
+                                d.push(Diagnostic::error(
+                                    file,
+                                    hloc,
+                                    "bad-value",
+                                    "a hold must end (`until`) after it starts (`from`)",
+                                ));
+                            }
+                            (from, until)
+                        })
+                        .collect(),
                 }
             }
         };
@@ -789,13 +866,56 @@ impl Scenario {
                     "a crash must end (`until`) after it starts (`at`)",
                 ));
             }
+            if c.value.restart && until.is_none() {
+                d.push(
+                    Diagnostic::error(
+                        file,
+                        loc,
+                        "bad-value",
+                        "a restart needs `until`: when the process comes back",
+                    )
+                    .with_hint("`{ robot: r1, at: 10s, until: 12s, restart: true }`"),
+                );
+            }
             crashes.push(Crash {
                 robot: c.value.robot.clone(),
                 at,
                 until,
+                restart: c.value.restart,
                 loc,
             });
         }
+        let mut clocks = Vec::new();
+        for (k, c) in &spec.clocks.0 {
+            let loc = Loc::from(k.referenced);
+            if !(c.value.rate.is_finite() && c.value.rate > 0.0 && c.value.rate <= 100.0) {
+                d.push(Diagnostic::error(
+                    file,
+                    loc,
+                    "bad-value",
+                    format!(
+                        "clock of `{}`: `rate` is a positive number (1 = true time)",
+                        k.value
+                    ),
+                ));
+            }
+            let offset = c.value.offset.as_ref().map_or(0.0, |o| {
+                let (neg, text) = match o.0.trim().strip_prefix('-') {
+                    Some(t) => (true, t.to_string()),
+                    None => (false, o.0.clone()),
+                };
+                let v = dur(file, loc, &DurationText(text), &mut d).as_secs_f64();
+                if neg { -v } else { v }
+            });
+            let robot = match k.value.parse::<u64>() {
+                Ok(i) => RobotRef::Index(i),
+                Err(_) => RobotRef::Name(k.value.clone()),
+            };
+            clocks.push((robot, c.value.rate, offset, loc));
+        }
+        let inject = spec.inject.as_ref().map(|i| {
+            dur(file, Loc::from(i.referenced), &i.value.every, &mut d).max(Duration::from_millis(1))
+        });
         let failure_detector = match &spec.failure_detector {
             None => Some(FailureDetector::default()),
             Some(f) if !f.value.enabled => None,
@@ -816,11 +936,28 @@ impl Scenario {
                 })
             }
         };
+        let mut stall = crate::stall::StallLimits::default();
+        if let Some(st) = &spec.stall {
+            let loc = Loc::from(st.referenced);
+            if let Some(a) = &st.value.after {
+                stall.after = if a.0.trim() == "never" {
+                    None
+                } else {
+                    Some(dur(file, loc, a, &mut d))
+                };
+            }
+            if let Some(r) = st.value.repeats {
+                stall.repeats = r;
+            }
+        }
         if d.iter().any(Diagnostic::is_error) {
             return Err(Diagnostics(d));
         }
         Ok(Scenario {
             failure_detector,
+            stall,
+            clocks,
+            inject,
             sensed: spec.sensed,
             physics,
             name: spec.scenario.unwrap_or_else(|| {
@@ -897,9 +1034,21 @@ impl Scenario {
             })
             .collect();
         let mut crashes = Vec::new();
+        let mut restarts = Vec::new();
         for c in &self.crashes {
             if let Some(r) = one(&c.robot, c.loc) {
                 crashes.push((r, c.at, c.until));
+                if c.restart
+                    && let Some(u) = c.until
+                {
+                    restarts.push((r, u));
+                }
+            }
+        }
+        let mut clocks = vec![(1.0, 0.0); roster.len()];
+        for (r, rate, offset, loc) in &self.clocks {
+            if let Some(r) = one(r, *loc) {
+                clocks[r.index()] = (*rate, *offset);
             }
         }
         if !errors.is_empty() {
@@ -995,6 +1144,8 @@ impl Scenario {
             network,
             events,
             crashes,
+            restarts,
+            clocks,
             warnings,
             motor,
         })

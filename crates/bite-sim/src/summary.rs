@@ -71,15 +71,48 @@ pub struct PointSummary {
     pub timeouts: u64,
 }
 
-/// How a run ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+/// How a run ended. Each has its own exit code (`bite run`, `bite
+/// robot`, `bite launch`; see the README).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum Ending {
-    /// Every robot that did not crash completed the mission.
+pub enum Outcome {
+    /// Every live robot completed the mission, and no protocol instance
+    /// needed its deadline.
     Completed,
+    /// Every live robot completed, but some protocol instance decided only
+    /// at its deadline (a teammate was silent, or something stalled for a
+    /// while).
+    CompletedWithTimeouts,
+    /// The run made no progress for too long, or went round in circles
+    /// (see `stall`).
+    Stalled,
     /// The time limit came first.
-    TimeLimit,
+    NotCompleted,
 }
+
+impl Outcome {
+    /// The outcome as printed in summaries.
+    pub fn label(self) -> &'static str {
+        match self {
+            Outcome::Completed => "COMPLETED",
+            Outcome::CompletedWithTimeouts => "COMPLETED WITH TIMEOUTS",
+            Outcome::Stalled => "STALLED",
+            Outcome::NotCompleted => "NOT COMPLETED",
+        }
+    }
+    /// The exit code of a run that ended so (with no invariant violated).
+    pub fn exit_code(self) -> u8 {
+        match self {
+            Outcome::Completed => 0,
+            Outcome::NotCompleted => 1,
+            Outcome::CompletedWithTimeouts => 4,
+            Outcome::Stalled => 5,
+        }
+    }
+}
+
+/// Exit code of a run that broke an invariant, whatever its outcome.
+pub const EXIT_VIOLATION: u8 = 6;
 
 /// The summary of a run.
 #[derive(Clone, Debug, Serialize)]
@@ -95,8 +128,12 @@ pub struct Summary {
     /// Team size.
     pub robots: usize,
     /// How the run ended.
-    pub ending: Ending,
-    /// True when every live robot completed the mission.
+    pub outcome: Outcome,
+    /// What stalled, when the outcome is `stalled`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub stall: Option<String>,
+    /// True when every live robot completed the mission (with or without
+    /// timeouts).
     pub completed: bool,
     /// Robots that completed.
     pub completed_robots: usize,
@@ -119,12 +156,22 @@ pub struct Summary {
     pub messages: PerKind<u64>,
     /// Bytes sent.
     pub bytes: PerKind<u64>,
-    /// What the network did.
+    /// What the network did (heartbeats included).
     pub network: NetStats,
+    /// Heartbeats sent (positions for the team view; not coordination
+    /// messages).
+    pub heartbeats: Heartbeats,
+    /// Forged, replayed or malformed messages injected, by kind (scenario
+    /// `inject:`).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub injected: BTreeMap<String, u64>,
     /// Messages dropped by kernels, by reason.
     pub dropped: BTreeMap<DropReason, u64>,
-    /// Protocol violations reported.
+    /// Protocol violations reported (a teammate's message broke a
+    /// protocol's rules; it was ignored).
     pub violations: u64,
+    /// The invariants checked over the run, and what broke.
+    pub invariants: crate::check::Invariants,
     /// Per point.
     pub points: Vec<PointSummary>,
     /// Fingerprint of the run log (equal logs have equal fingerprints).
@@ -135,6 +182,15 @@ pub struct Summary {
     /// The world models' messages (when the team shares beliefs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sharing: Option<bite_core::wm::SharingTotals>,
+}
+
+/// Heartbeat copies sent and their bytes.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Heartbeats {
+    /// Copies sent (one per recipient).
+    pub messages: u64,
+    /// Bytes of the positions they carried.
+    pub bytes: u64,
 }
 
 /// What happened in the physical world.
@@ -309,11 +365,12 @@ impl Aggregator {
             scenario: scenario.to_string(),
             seed,
             robots: n,
-            ending: if completed {
-                Ending::Completed
-            } else {
-                Ending::TimeLimit
+            outcome: match (completed, self.timeouts) {
+                (true, 0) => Outcome::Completed,
+                (true, _) => Outcome::CompletedWithTimeouts,
+                (false, _) => Outcome::NotCompleted,
             },
+            stall: None,
             completed,
             completed_robots,
             crashed_robots: n - live.len(),
@@ -326,8 +383,11 @@ impl Aggregator {
             messages: self.messages,
             bytes: self.bytes,
             network,
+            heartbeats: Heartbeats::default(),
+            injected: BTreeMap::new(),
             dropped,
             violations: self.violations,
+            invariants: crate::check::Invariants::default(),
             points,
             log_fingerprint: format!("{log_fingerprint:016x}"),
             world: None,
@@ -354,10 +414,9 @@ impl fmt::Display for Summary {
         writeln!(
             f,
             "  outcome          {}  ({} of {} completed{})",
-            if self.completed {
-                "COMPLETED"
-            } else {
-                "NOT COMPLETED (time limit)"
+            match self.outcome {
+                Outcome::NotCompleted => "NOT COMPLETED (time limit)",
+                o => o.label(),
             },
             self.completed_robots,
             plural(self.robots - self.crashed_robots, "live robot"),
@@ -365,6 +424,17 @@ impl fmt::Display for Summary {
                 format!(", {} crashed", self.crashed_robots)
             } else {
                 String::new()
+            }
+        )?;
+        if let Some(st) = &self.stall {
+            writeln!(f, "  stalled          {st}")?;
+        }
+        writeln!(
+            f,
+            "  invariants       {}",
+            match (&self.invariants.first, self.invariants.violations) {
+                (Some(first), n) => format!("{n} VIOLATED; first: {first}"),
+                (None, _) => format!("{} checked, none violated", self.invariants.checked.len()),
             }
         )?;
         writeln!(f, "  task time        {:.2} s", self.task_time)?;
@@ -423,11 +493,13 @@ impl fmt::Display for Summary {
         )?;
         writeln!(
             f,
-            "  network          {} deliveries, {} lost, {} duplicated, {} cut by partitions",
+            "  network          {} deliveries, {} lost, {} duplicated, {} cut by partitions; {} heartbeats ({} bytes)",
             self.network.delivered,
             self.network.lost,
             self.network.duplicated,
-            self.network.partitioned
+            self.network.partitioned,
+            self.heartbeats.messages,
+            self.heartbeats.bytes
         )?;
         if self.timeouts > 0 || self.violations > 0 || !self.dropped.is_empty() {
             let dropped: Vec<String> = self

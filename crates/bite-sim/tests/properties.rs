@@ -42,6 +42,12 @@ struct Gen {
     facts: usize,
     events: Vec<String>,
     next_id: usize,
+    /// Team size.
+    robots: usize,
+    /// Divergent mode: termination conditions become true for random
+    /// subsets of the members, at random times, and facts that
+    /// preconditions read differ from robot to robot.
+    divergent: bool,
 }
 
 impl Gen {
@@ -212,12 +218,28 @@ impl Gen {
             let a = self.alloc();
             let _ = writeln!(b, "    allocate: {a}");
         }
-        if self.rng.random_bool(0.25) {
-            // Sometimes the parent ends on a global fact, cutting its chains short.
+        if self
+            .rng
+            .random_bool(if self.divergent { 0.5 } else { 0.25 })
+        {
+            // Sometimes the parent ends on a global fact, cutting its chains
+            // short; in divergent mode it becomes true for some members
+            // only, each at its own time.
             let g = self.events.len();
-            let at = self.rng.random_range(3.0..60.0);
-            self.events
-                .push(format!("  - {{ at: {at:.1}s, set: {{ g{g}: true }} }}"));
+            if self.divergent {
+                for r in 0..self.robots {
+                    if self.rng.random_bool(0.5) {
+                        let at = self.rng.random_range(1.0..60.0);
+                        self.events.push(format!(
+                            "  - {{ at: {at:.1}s, robots: [r{r}], set: {{ g{g}: true }} }}"
+                        ));
+                    }
+                }
+            } else {
+                let at = self.rng.random_range(3.0..60.0);
+                self.events
+                    .push(format!("  - {{ at: {at:.1}s, set: {{ g{g}: true }} }}"));
+            }
             let _ = writeln!(b, "    until: g{g}");
         }
         self.finish(&mut b, pre, next, members);
@@ -226,6 +248,17 @@ impl Gen {
 }
 
 fn generate(seed: u64, robots: usize, loss: f64, dup: f64, jitter_ms: u64) -> Generated {
+    generate_with(seed, robots, loss, dup, jitter_ms, false)
+}
+
+fn generate_with(
+    seed: u64,
+    robots: usize,
+    loss: f64,
+    dup: f64,
+    jitter_ms: u64,
+    divergent: bool,
+) -> Generated {
     let mut g = Gen {
         rng: Rng::seed_from_u64(seed),
         behaviors: Vec::new(),
@@ -233,6 +266,8 @@ fn generate(seed: u64, robots: usize, loss: f64, dup: f64, jitter_ms: u64) -> Ge
         facts: 3,
         events: Vec::new(),
         next_id: 0,
+        robots,
+        divergent,
     };
     let sync = g.sync();
     let term = g.term();
@@ -240,6 +275,26 @@ fn generate(seed: u64, robots: usize, loss: f64, dup: f64, jitter_ms: u64) -> Ge
         .map(|i| format!("f{i}: {}", g.rng.random_bool(0.5)))
         .collect();
     g.composite("root", 0, None, &[], None);
+    if divergent {
+        // Each robot perceives the facts its own way from the start, and
+        // some perceptions change later, robot by robot: silent rules split
+        // and the team must heal.
+        for r in 0..robots {
+            for f in 0..g.facts {
+                if g.rng.random_bool(0.3) {
+                    let at = if g.rng.random_bool(0.5) {
+                        0.0
+                    } else {
+                        g.rng.random_range(1.0..40.0)
+                    };
+                    let v = g.rng.random_bool(0.5);
+                    g.events.push(format!(
+                        "  - {{ at: {at:.1}s, robots: [r{r}], set: {{ f{f}: {v} }} }}"
+                    ));
+                }
+            }
+        }
+    }
     let graph = format!(
         "graph: random-{seed}\nteam: {{ robots: {robots} }}\nstart: root\n\
          defaults: {{ sync: {sync}, allocate: alloc.by-id, terminate: {term} }}\n\
@@ -251,7 +306,7 @@ fn generate(seed: u64, robots: usize, loss: f64, dup: f64, jitter_ms: u64) -> Ge
     // failure detector's bound. (Long pauses, where a robot presumed lost
     // comes back, are covered by the scenario tests: with random graphs
     // they still have known failure modes, see docs/protocols.md.)
-    let crash = if robots >= 2 && g.rng.random_bool(0.3) {
+    let crash = if !divergent && robots >= 2 && g.rng.random_bool(0.3) {
         let r = g.rng.random_range(0..robots);
         let at = g.rng.random_range(0.5..60.0);
         let until = if g.rng.random_bool(0.5) {
@@ -295,7 +350,18 @@ fn run_case(
     dup: f64,
     jitter_ms: u64,
 ) -> Result<(), TestCaseError> {
-    let case = generate(seed, robots, loss, dup, jitter_ms);
+    run_generated(seed, robots, loss, dup, jitter_ms, false)
+}
+
+fn run_generated(
+    seed: u64,
+    robots: usize,
+    loss: f64,
+    dup: f64,
+    jitter_ms: u64,
+    divergent: bool,
+) -> Result<(), TestCaseError> {
+    let case = generate_with(seed, robots, loss, dup, jitter_ms, divergent);
     let graph = match load_str(&Arc::from(format!("random-{seed}.yaml")), &case.graph) {
         Ok(g) => g,
         Err(d) => {
@@ -323,7 +389,10 @@ fn run_case(
     // Every mission completes within the time limit, faults or not: a
     // timeout is a decision, never a hang; faults may only cost time.
     let ended = s.completed;
-    if !violations.is_empty() || !ended || s.violations > 0 {
+    // Without faults, no protocol instance ever needs its deadline: nobody
+    // waits across levels, and splits heal.
+    let clean = !divergent || s.timeouts == 0;
+    if !violations.is_empty() || !ended || s.violations > 0 || !clean {
         let cmd = save_failure(seed, &case);
         return Err(TestCaseError::fail(format!(
             "seed {seed}, {robots} robots, loss {loss}, dup {dup}, jitter {jitter_ms}ms\n{s}\n\
@@ -340,6 +409,16 @@ fn run_case(
 
 proptest! {
     #![proptest_config(common::config(64))]
+
+    /// No faults, but termination conditions that become true for random
+    /// subsets of the members at random times, and perceptions that differ
+    /// from robot to robot: no instance ever reaches its deadline (nobody
+    /// waits across levels, splits heal), every invariant holds, every run
+    /// completes.
+    #[test]
+    fn no_waiting_across_levels(seed in any::<u64>(), robots in 1usize..=8) {
+        run_generated(seed, robots, 0.0, 0.0, 3, true)?;
+    }
 
     /// Fault-free network: every invariant holds and every run completes.
     #[test]
