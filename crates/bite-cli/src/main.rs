@@ -47,6 +47,8 @@ macro_rules! out {
     }};
 }
 
+mod sweep;
+
 /// The formation example, built in so that `bite run` works anywhere.
 const FORMATION_GRAPH: &str = include_str!("../../../examples/formation.yaml");
 const FORMATION_SCENARIO: &str = include_str!("../../../examples/scenarios/formation.yaml");
@@ -144,6 +146,10 @@ enum Cmd {
         #[arg(short, long)]
         output: Option<PathBuf>,
     },
+    /// The fault matrix: graphs × configurations × worlds × fault classes ×
+    /// seeds, the invariant checker on every run, on every core; a table
+    /// per fault class and the command that replays every failing run.
+    Sweep(sweep::SweepArgs),
     /// Whole-system benchmarks.
     Bench {
         #[command(subcommand)]
@@ -208,6 +214,17 @@ struct RunArgs {
     /// Seconds of simulated time between frames.
     #[arg(long, default_value_t = 1.0)]
     every: f64,
+    /// A fault laid over the scenario (repeatable): `loss=0.2`, `dup=0.3`,
+    /// `jitter=200ms`, `partition=r0|r1,r2@10s+15s`, `oneway=r0>r1@5s+3s`,
+    /// `hold=12s+2s`, `pause=r1@12s+5s`, `crash=r2@20s`,
+    /// `restart=r1@15s+2s`, `skew=r1:1.1:2s`, `inject=100ms`. What `bite
+    /// sweep` prints to replay a run.
+    #[arg(long = "fault", value_parser = parse_fault)]
+    faults: Vec<bite_sim::fault::Fault>,
+}
+
+fn parse_fault(s: &str) -> Result<bite_sim::fault::Fault, String> {
+    bite_sim::fault::Fault::parse(s)
 }
 
 #[derive(Subcommand)]
@@ -490,7 +507,7 @@ fn load_team(
 }
 
 fn cmd_run(a: RunArgs) -> Result<ExitCode> {
-    let (graph, scenario) = load_team(
+    let (graph, mut scenario) = load_team(
         a.graph.as_deref(),
         a.library.as_deref(),
         a.config.as_deref(),
@@ -498,6 +515,11 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         a.robots,
         a.timed,
     )?;
+    if !a.faults.is_empty() {
+        scenario = bite_sim::fault::apply_all(&scenario, &a.faults);
+        // A fault that names a robot the team lacks is an input error.
+        scenario.resolve(&graph).map_err(bad_input)?;
+    }
     if (a.svg.is_some() || a.frames.is_some() || a.gif.is_some()) && scenario.physics.is_none() {
         eprintln!(
             "error: --svg, --frames and --gif draw the physical world, and scenario `{}` is a timed world",
@@ -559,7 +581,9 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         for p in &pictures {
             outln!("  picture          {p}");
         }
-        if !report.summary.completed {
+        if report.summary.outcome != bite_sim::summary::Outcome::Completed
+            || !report.violations.is_empty()
+        {
             let mut extra = String::new();
             if let Some(c) = &a.config {
                 extra.push_str(&format!(" --config {}", c.display()));
@@ -567,17 +591,29 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
             if let Some(t) = a.time_limit {
                 extra.push_str(&format!(" --time-limit {}s", t.as_secs_f64()));
             }
+            for f in &a.faults {
+                extra.push_str(&format!(" --fault '{f}'"));
+            }
             outln!(
                 "  replay           bite run {}{extra} --seed {seed}",
                 describe_inputs(&mission, &scenario)
             );
         }
+        for v in &report.violations {
+            outln!("  VIOLATION        {v}");
+        }
     }
-    Ok(if report.summary.completed {
-        ExitCode::SUCCESS
+    Ok(ExitCode::from(run_exit_code(&report)))
+}
+
+/// The exit code of a simulated run: its outcome's, or
+/// [`bite_sim::summary::EXIT_VIOLATION`] if it broke an invariant.
+fn run_exit_code(report: &bite_sim::runner::RunReport) -> u8 {
+    if report.violations.is_empty() {
+        report.summary.outcome.exit_code()
     } else {
-        ExitCode::from(1)
-    })
+        bite_sim::summary::EXIT_VIOLATION
+    }
 }
 
 /// Write the run's pictures; returns what was written.
@@ -1070,6 +1106,7 @@ fn main() -> ExitCode {
     let result = match cli.cmd {
         Cmd::Run(a) => cmd_run(a),
         Cmd::Check { graph, config } => cmd_check(&graph, config.as_deref()),
+        Cmd::Sweep(a) => sweep::cmd_sweep(a),
         Cmd::Graph {
             graph,
             config,
