@@ -363,6 +363,13 @@ fn bad_input(d: Diagnostics) -> anyhow::Error {
     anyhow::Error::new(Reported(2))
 }
 
+/// Read a user file as every input is read (bounded, invalid UTF-8
+/// located); a failure is printed as a diagnostic and exits 2.
+fn read_input(path: &Path) -> Result<String> {
+    let file: Arc<str> = Arc::from(path.display().to_string());
+    bite_core::yaml::read_text(&file, path).map_err(bad_input)
+}
+
 fn load_graph(path: Option<&Path>, config: Option<&Path>) -> Result<BehaviorGraph> {
     let graph = match path {
         Some(p) => bite_core::graph::load(p).map_err(bad_input)?,

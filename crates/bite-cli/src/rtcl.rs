@@ -2,7 +2,7 @@
 //! behavior graph and the world parts (skills, beliefs, targets) that a
 //! physical-world scenario takes.
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use bite_core::graph::BehaviorGraph;
 use bite_rtcl::{CompileOptions, Compiled, Library};
 use bite_sim::physics::spec::TargetSpec;
@@ -28,9 +28,8 @@ pub fn library(path: Option<&Path>) -> Result<Library> {
 
 /// Compile a mission file.
 pub fn compile(path: &Path, lib: &Library, opts: &CompileOptions) -> Result<Compiled> {
-    let source =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let file = path.display().to_string();
+    // Read as every user file is: bounded, and UTF-8 located.
+    let (file, source) = bite_core::yaml::read_file(path).map_err(bad_input)?;
     let compiled = bite_rtcl::compile(&file, &source, lib, opts).map_err(bad_input)?;
     print_diags(&compiled.warnings);
     Ok(compiled)

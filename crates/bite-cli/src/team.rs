@@ -242,8 +242,7 @@ pub struct SubmitArgs {
 /// The team key: `--key FILE`, else `BITE_TEAM_KEY`. Fails closed.
 fn team_key(path: Option<&Path>) -> Result<TeamKey> {
     let text = match path {
-        Some(p) => std::fs::read_to_string(p)
-            .with_context(|| format!("reading the team key {}", p.display()))?,
+        Some(p) => crate::read_input(p)?,
         None => match std::env::var("BITE_TEAM_KEY") {
             Ok(k) => k,
             Err(_) => bail!(
@@ -252,9 +251,18 @@ fn team_key(path: Option<&Path>) -> Result<TeamKey> {
             ),
         },
     };
-    TeamKey::from_hex(&text).map_err(|e| match path {
-        Some(p) => anyhow::anyhow!("{}: {e}", p.display()),
-        None => anyhow::anyhow!("BITE_TEAM_KEY: {e}"),
+    TeamKey::from_hex(&text).map_err(|e| {
+        let file: Arc<str> =
+            Arc::from(path.map_or("BITE_TEAM_KEY".into(), |p| p.display().to_string()));
+        crate::bad_input(bite_core::diag::Diagnostics(vec![
+            bite_core::diag::Diagnostic::error(
+                &file,
+                bite_core::diag::Loc::UNKNOWN,
+                "bad-key",
+                format!("not a team key: {e}"),
+            )
+            .with_hint("make one with `bite keygen`"),
+        ]))
     })
 }
 
@@ -474,8 +482,7 @@ pub fn cmd_serve(a: ServeArgs) -> Result<ExitCode> {
 pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
     use bite_zenoh::zenoh::Wait;
     let key = team_key(a.key.as_deref())?;
-    let read =
-        |p: &Path| std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()));
+    let read = |p: &Path| crate::read_input(p);
     let text = read(&a.graph)?;
     let id = match a.id {
         Some(id) => id,

@@ -274,3 +274,167 @@ fn the_formation_and_coverage_missions_complete_in_their_worlds() {
     let covered = summary["world"]["coverage"].as_f64().unwrap_or(0.0);
     assert!(covered >= 0.9, "covered {covered}");
 }
+
+/// Run `bite` with these arguments: exit code and standard error.
+fn bite_err(args: &[&std::ffi::OsStr]) -> (Option<i32>, String) {
+    let out = bite().args(args).output().expect("bite runs");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn devices_and_endless_fifos_are_refused_at_the_size_cap() {
+    let zero = std::ffi::OsStr::new("/dev/zero");
+    let formation = root().join("examples/formation.yaml");
+    let cases: Vec<Vec<&std::ffi::OsStr>> = vec![
+        vec!["check".as_ref(), zero],
+        vec!["compile".as_ref(), zero],
+        vec![
+            "check".as_ref(),
+            formation.as_ref(),
+            "--config".as_ref(),
+            zero,
+        ],
+        vec![
+            "run".as_ref(),
+            formation.as_ref(),
+            "--timed".as_ref(),
+            "--scenario".as_ref(),
+            zero,
+        ],
+    ];
+    for args in cases {
+        let (code, err) = bite_err(&args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("/dev/zero: error[too-large]") && err.contains("16777216"),
+            "{args:?}: {err}"
+        );
+    }
+    // A FIFO fed without end.
+    let d = scratch("fifo");
+    let fifo = d.join("endless.yaml");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("no mkfifo here: FIFO case skipped");
+        return;
+    }
+    let writer = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || {
+            use std::io::Write as _;
+            let Ok(mut f) = std::fs::OpenOptions::new().write(true).open(&fifo) else {
+                return;
+            };
+            let chunk = [b'#'; 65536];
+            // Until the reader hangs up (EPIPE).
+            while f.write_all(&chunk).is_ok() {}
+        })
+    };
+    let (code, err) = bite_err(&["check".as_ref(), fifo.as_os_str()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("error[too-large]"), "{err}");
+    writer.join().expect("writer ends");
+}
+
+#[test]
+fn invalid_utf8_is_located_in_every_input() {
+    let d = scratch("utf8");
+    let formation = root().join("examples/formation.yaml");
+    let graph = d.join("g.yaml");
+    std::fs::write(
+        &graph,
+        b"graph: g\nstart: a\nbehaviors:\n  a: {description: \"caf\xe9\"}\n",
+    )
+    .expect("write");
+    let config = d.join("c.yaml");
+    std::fs::write(&config, b"bindings:\n  \xff: {}\n").expect("write");
+    let scenario = d.join("s.yaml");
+    std::fs::write(&scenario, b"scenario: s\r\nseed: 1\r\n  \xc3\x28\r\n").expect("write");
+    let mission = d.join("m.rtcl");
+    std::fs::write(
+        &mission,
+        "find:box\nmove:ü\u{1}"
+            .bytes()
+            .chain([0x80])
+            .collect::<Vec<u8>>(),
+    )
+    .expect("write");
+    let cases: Vec<(Vec<&std::ffi::OsStr>, String)> = vec![
+        (
+            vec!["check".as_ref(), graph.as_ref()],
+            format!("{}:4:24: error[invalid-utf8]", graph.display()),
+        ),
+        (
+            vec![
+                "check".as_ref(),
+                formation.as_ref(),
+                "--config".as_ref(),
+                config.as_ref(),
+            ],
+            format!("{}:2:3: error[invalid-utf8]", config.display()),
+        ),
+        (
+            vec![
+                "run".as_ref(),
+                formation.as_ref(),
+                "--timed".as_ref(),
+                "--scenario".as_ref(),
+                scenario.as_ref(),
+            ],
+            format!("{}:3:3: error[invalid-utf8]", scenario.display()),
+        ),
+        (
+            vec!["compile".as_ref(), mission.as_ref()],
+            format!("{}:2:8: error[invalid-utf8]", mission.display()),
+        ),
+    ];
+    for (args, want) in cases {
+        let (code, err) = bite_err(&args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(err.contains(&want), "want {want:?} in:\n{err}");
+    }
+}
+
+#[test]
+fn garbage_missions_exit_2_with_a_code() {
+    let d = scratch("garbage");
+    // Bytes from a fixed generator (xorshift), as a random file would be;
+    // once as they are, once made printable ASCII.
+    let mut x: u64 = 0x9e37_79b9_7f4a_7c15;
+    let bytes: Vec<u8> = (0..4096)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 24) as u8
+        })
+        .collect();
+    let ascii: Vec<u8> = bytes.iter().map(|b| b' ' + b % 95).collect();
+    for (name, content) in [("raw.rtcl", bytes), ("ascii.rtcl", ascii)] {
+        let p = d.join(name);
+        std::fs::write(&p, content).expect("write");
+        for cmd in ["check", "compile"] {
+            let (code, err) = bite_err(&[cmd.as_ref(), p.as_os_str()]);
+            assert_eq!(code, Some(2), "{cmd} {name}: {err}");
+            assert!(
+                err.contains(&format!("{}:", p.display())) && err.contains("error["),
+                "{cmd} {name}: a located diagnostic with a code:\n{err}"
+            );
+        }
+    }
+}
+
+#[test]
+fn check_refuses_a_loop_back_to_an_ancestor() {
+    let g = root().join("crates/bite-core/tests/fixtures/loop-to-ancestor.yaml");
+    let (code, err) = bite_err(&["check".as_ref(), g.as_os_str()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains(&format!("{}:8:12: error[loop-to-ancestor]", g.display()))
+            && err.contains("(mission > work)"),
+        "{err}"
+    );
+}

@@ -22,10 +22,118 @@ pub fn read_file(path: &Path) -> Result<(Arc<str>, String), Diagnostics> {
 }
 
 /// Read a user file with a size limit, as a diagnostic on failure.
+///
+/// The file is read through a reader that stops one byte past
+/// [`MAX_FILE_BYTES`], whatever the file is: a regular file, a device
+/// (`/dev/zero`), a FIFO or a pipe that never ends are all refused at the
+/// cap (`too-large`) rather than read without bound. Text that is not
+/// UTF-8 is refused with the line and column of its first bad byte
+/// (`invalid-utf8`).
 pub fn read_text(file: &Arc<str>, path: &Path) -> Result<String, Diagnostics> {
-    let meta = std::fs::metadata(path).map_err(|e| io_error(file, &e))?;
-    check_size(file, meta.len())?;
-    std::fs::read_to_string(path).map_err(|e| io_error(file, &e))
+    let bytes = read_bytes(file, path)?;
+    utf8(file, bytes)
+}
+
+/// Read at most [`MAX_FILE_BYTES`] of a user file, as bytes; larger files
+/// and endless streams are a `too-large` diagnostic.
+pub fn read_bytes(file: &Arc<str>, path: &Path) -> Result<Vec<u8>, Diagnostics> {
+    use std::io::Read as _;
+    let f = std::fs::File::open(path).map_err(|e| io_error(file, &e))?;
+    // A regular file says its size: refuse a large one before reading it.
+    if let Ok(meta) = f.metadata()
+        && meta.is_file()
+    {
+        check_size(file, meta.len())?;
+    }
+    let cap = MAX_FILE_BYTES as u64 + 1;
+    let mut bytes = Vec::new();
+    f.take(cap)
+        .read_to_end(&mut bytes)
+        .map_err(|e| io_error(file, &e))?;
+    if bytes.len() > MAX_FILE_BYTES {
+        return Err(Diagnostics(vec![
+            Diagnostic::error(
+                file,
+                Loc::UNKNOWN,
+                "too-large",
+                format!(
+                    "file is more than {MAX_FILE_BYTES} bytes (reading stopped there); the limit is {MAX_FILE_BYTES}"
+                ),
+            )
+            .with_hint("a device, a FIFO or a stream that does not end is read up to the limit only"),
+        ]));
+    }
+    Ok(bytes)
+}
+
+/// Bytes as text, or an `invalid-utf8` diagnostic at the first bad byte.
+pub fn utf8(file: &Arc<str>, bytes: Vec<u8>) -> Result<String, Diagnostics> {
+    String::from_utf8(bytes).map_err(|e| {
+        let bytes = e.as_bytes();
+        let bad = e.utf8_error().valid_up_to();
+        Diagnostics(vec![utf8_diagnostic(file, bytes, bad)])
+    })
+}
+
+/// The diagnostic for text whose first invalid UTF-8 byte is at `bad`.
+pub fn utf8_diagnostic(file: &Arc<str>, bytes: &[u8], bad: usize) -> Diagnostic {
+    // Everything before `bad` is valid UTF-8.
+    let valid = std::str::from_utf8(&bytes[..bad]).unwrap_or_default();
+    let loc = loc_at(valid, valid.len());
+    let line_start = valid.rfind(['\n', '\r']).map_or(0, |i| i + 1);
+    let byte = bytes.get(bad).copied().unwrap_or(0);
+    // The line up to the bad byte (its last 60 characters), with control
+    // characters (a random file may hold terminal escapes) shown as spaces.
+    let line = &valid[line_start..];
+    let n = line.chars().count();
+    let mut shown: String = if n > 60 { "…".into() } else { String::new() };
+    shown.extend(
+        line.chars()
+            .skip(n.saturating_sub(60))
+            .map(|c| if c.is_control() && c != '\t' { ' ' } else { c }),
+    );
+    let width = loc.line.to_string().len();
+    Diagnostic::error(
+        file,
+        loc,
+        "invalid-utf8",
+        format!("the file is not valid UTF-8 (its first bad byte is 0x{byte:02x})"),
+    )
+    .with_detail(format!(
+        "{} | {shown}\n{:>width$} | {}^",
+        loc.line,
+        "",
+        " ".repeat(shown.chars().count())
+    ))
+    .with_hint("save the file as UTF-8 text")
+}
+
+/// The 1-based line and column (in characters) of byte `at` of `text`,
+/// counting lines as [`lines`] does (`\n`, `\r\n` or a lone `\r`).
+pub fn loc_at(text: &str, at: usize) -> Loc {
+    let at = at.min(text.len());
+    let before = text.get(..at).unwrap_or(text);
+    let b = before.as_bytes();
+    let mut line = 1u32;
+    let mut start = 0;
+    let mut i = 0;
+    while i < b.len() {
+        match b[i] {
+            b'\r' if b.get(i + 1) == Some(&b'\n') => {
+                line = line.saturating_add(1);
+                i += 1;
+                start = i + 1;
+            }
+            b'\n' | b'\r' => {
+                line = line.saturating_add(1);
+                start = i + 1;
+            }
+            _ => {}
+        }
+        i += 1;
+    }
+    let col = before[start.min(before.len())..].chars().count();
+    Loc::new(line, u32::try_from(col + 1).unwrap_or(u32::MAX))
 }
 
 /// Reject a file over [`MAX_FILE_BYTES`] before doing any work on it.
@@ -229,5 +337,31 @@ mod tests {
         assert_eq!(lines("x\n").collect::<Vec<_>>(), ["x"]);
         assert_eq!(lines("").count(), 0);
         assert_eq!(lines("\r\r").collect::<Vec<_>>(), ["", ""]);
+    }
+
+    #[test]
+    fn the_first_bad_utf8_byte_is_located() {
+        let f: Arc<str> = Arc::from("m.yaml");
+        // Line ends of every kind; columns count characters.
+        let bytes = b"a: 1\r\nb: 2\rc: \xc3\xa9\xe2\x82\n".to_vec();
+        let e = utf8(&f, bytes).expect_err("truncated sequence");
+        let d = &e.0[0];
+        assert_eq!((d.code, d.loc), ("invalid-utf8", Loc::new(3, 5)), "{d}");
+        assert!(d.message.contains("0xe2"), "{d}");
+        assert!(d.to_string().starts_with("m.yaml:3:5: error[invalid-utf8]"));
+        let e = utf8(&f, vec![0xff]).expect_err("bad first byte");
+        assert_eq!(e.0[0].loc, Loc::new(1, 1));
+        assert_eq!(utf8(&f, "ok ✓".into()).as_deref(), Ok("ok ✓"));
+        assert_eq!(loc_at("ab\ncd", 4), Loc::new(2, 2));
+    }
+
+    #[test]
+    fn endless_files_are_read_up_to_the_cap_only() {
+        let f: Arc<str> = Arc::from("/dev/zero");
+        let e = read_text(&f, Path::new("/dev/zero")).expect_err("refused");
+        assert_eq!(e.0[0].code, "too-large", "{e}");
+        let f: Arc<str> = Arc::from("nowhere");
+        let e = read_text(&f, Path::new("/no/such/file.yaml")).expect_err("missing");
+        assert_eq!(e.0[0].code, "io");
     }
 }

@@ -476,6 +476,94 @@ fn decomposition_self_cycle() {
 }
 
 #[test]
+fn loop_back_to_an_ancestor_is_refused_at_the_next_entry() {
+    let e = fixture_err(fixture!("loop-to-ancestor.yaml"));
+    let d = one(&e.0, "loop-to-ancestor");
+    // The `next` entry that closes the loop, in `work`:
+    //     next: [mission]
+    //            ^ column 12
+    at(d, 8, 12);
+    says(
+        d,
+        &[
+            "`work` -> `mission` loops back to an ancestor",
+            "`mission` is an ancestor of `work` (mission > work)",
+            "1 level deeper",
+        ],
+    );
+    hints(d, &["same level"]);
+}
+
+#[test]
+fn loop_to_an_ancestor_names_the_whole_loop() {
+    // Two levels down, through a sibling's chain: `a > b -> c > d`, then
+    // `d -> a`.
+    let e = graph_err(
+        "deep-loop.yaml",
+        "start: a\nbehaviors:\n  a:\n    children: [b]\n  b:\n    next: [c]\n  c:\n    children: [d]\n  d:\n    next: [e, a]\n  e: {}\n",
+    );
+    let d = one(&e.0, "loop-to-ancestor");
+    at(d, 10, 15);
+    says(d, &["`d` -> `a`", "(a > b -> c > d)", "2 levels deeper"]);
+    // The loop closes at a behavior's own level: legal.
+    graph_ok(
+        "level-loop.yaml",
+        "start: a\nbehaviors:\n  a:\n    children: [b]\n    next: [a]\n  b:\n    next: [c]\n  c:\n    next: [b]\n",
+    );
+}
+
+#[test]
+fn sequential_cycles_among_siblings_stay_legal() {
+    graph_ok(
+        "patrol-loop.yaml",
+        "start: mission\nbehaviors:\n  mission:\n    team: true\n    children: [a]\n  a:\n    next: [b]\n  b:\n    next: [a, c]\n  c: {}\n",
+    );
+}
+
+#[test]
+fn a_long_loop_to_an_ancestor_is_found_and_shown_by_its_ends() {
+    // 100,000 behaviors: `top > c0 -> c1 -> ... -> c99998 -> top`.
+    let n = 99_999;
+    let mut text = String::from("start: top\nbehaviors:\n  top:\n    children: [c0]\n");
+    for i in 0..n - 1 {
+        text.push_str(&format!("  c{i}: {{next: [c{}]}}\n", i + 1));
+    }
+    text.push_str(&format!("  c{}: {{next: [top]}}\n", n - 1));
+    let e = graph_err("long-loop.yaml", &text);
+    let d = one(&e.0, "loop-to-ancestor");
+    says(
+        d,
+        &[
+            &format!("`c{}` -> `top`", n - 1),
+            "(top > c0 -> c1",
+            &format!("({} more)", n - 12),
+            &format!("-> c{})", n - 1),
+        ],
+    );
+}
+
+#[test]
+fn depth_counts_levels_reached_through_next() {
+    // `top > x -> y`, and 64 levels of decomposition below `y`: `y` runs
+    // one level below `top`, so the stack can be 65 levels deep.
+    let mut text = String::from(
+        "start: top\nbehaviors:\n  top:\n    children: [x]\n  x:\n    next: [y]\n  y:\n    children: [b0]\n",
+    );
+    let chain = nested_chain(63);
+    text.push_str(chain.split_once("behaviors:\n").map_or("", |(_, b)| b));
+    let e = graph_err("deep-via-next.yaml", &text);
+    let d = one(&e.0, "too-deep");
+    at(d, 3, 3);
+    says(
+        d,
+        &[
+            "decomposition below `top` is 65 levels deep",
+            "the limit is 64",
+        ],
+    );
+}
+
+#[test]
 fn child_entered_from_a_sibling_chain() {
     let e = fixture_err(fixture!("child-not-chain-head.yaml"));
     let d = one(&e.0, "child-not-chain-head");
@@ -1298,6 +1386,7 @@ const ERROR_FIXTURES: &[Src] = &[
     fixture!("sequential-and-decomposition.yaml"),
     fixture!("missing-start.yaml"),
     fixture!("decomposition-cycle.yaml"),
+    fixture!("loop-to-ancestor.yaml"),
     fixture!("child-not-chain-head.yaml"),
     fixture!("bad-condition-plain.yaml"),
     fixture!("bad-condition-quoted.yaml"),

@@ -137,13 +137,14 @@ impl Builder<'_> {
         let mut symbols = Symbols::new();
         let mut out: Vec<Behavior> = Vec::with_capacity(entries.len());
         let mut child_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(entries.len());
+        let mut next_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(entries.len());
         let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(entries.len());
         for (i, (name, body)) in entries.into_iter().enumerate() {
             let id = BehaviorId(i as u32);
             let loc = Loc::from(name.referenced);
             let spec = body.value;
             let (children, crefs) = self.edges(&spec.children, &by_name, &name.value, "child");
-            let (next, _) = self.edges(&spec.next, &by_name, &name.value, "successor");
+            let (next, nrefs) = self.edges(&spec.next, &by_name, &name.value, "successor");
             for c in &spec.children {
                 if spec.next.iter().any(|n| n.value == c.value) {
                     self.err(
@@ -178,6 +179,7 @@ impl Builder<'_> {
                 params: s.value.params,
             });
             child_refs.push(crefs);
+            next_refs.push(nrefs);
             out.push(Behavior {
                 id,
                 name: name.value,
@@ -233,6 +235,7 @@ impl Builder<'_> {
         };
 
         self.check_decomposition(&out, &child_refs);
+        self.check_loops_and_depth(&out, &next_refs);
         self.check_chain_heads(&out, &child_refs);
         self.check_bindings_fit(&out);
         self.check_members(&out, &member_locs);
@@ -342,10 +345,11 @@ impl Builder<'_> {
     ) -> (Vec<BehaviorId>, Vec<(BehaviorId, Loc)>) {
         let mut ids = Vec::new();
         let mut locs = Vec::new();
+        let mut listed = BTreeSet::new();
         for r in refs {
             let loc = Loc::from(r.referenced);
             match by_name.get(&r.value) {
-                Some(id) if ids.contains(id) => {
+                Some(id) if !listed.insert(*id) => {
                     self.err(
                         loc,
                         "duplicate-edge",
@@ -518,13 +522,11 @@ impl Builder<'_> {
         out
     }
 
-    /// V must be acyclic (a behavior cannot be its own ancestor) and not
-    /// deeper than [`MAX_DEPTH`].
+    /// V must be acyclic (a behavior cannot be its own ancestor).
     fn check_decomposition(&mut self, bs: &[Behavior], child_refs: &[Vec<(BehaviorId, Loc)>]) {
         // Iterative DFS with colours: 0 new, 1 on the path, 2 done.
         let n = bs.len();
         let mut colour = vec![0u8; n];
-        let mut depth = vec![0usize; n];
         let mut reported = BTreeSet::new();
         for root in 0..n {
             if colour[root] != 0 {
@@ -571,34 +573,164 @@ impl Builder<'_> {
                     }
                 } else {
                     colour[v] = 2;
-                    depth[v] = 1 + bs[v]
-                        .children
-                        .iter()
-                        .map(|c| {
-                            if colour[c.index()] == 2 {
-                                depth[c.index()]
-                            } else {
-                                0
-                            }
-                        })
-                        .max()
-                        .unwrap_or(0);
                     stack.pop();
                 }
             }
         }
-        // `depth` counts the behaviors on the longest decomposition path from
-        // a behavior (a leaf has depth 1); the levels below it are one fewer.
-        if let Some((i, d)) = depth.iter().enumerate().max_by_key(|(_, d)| **d)
-            && d.saturating_sub(1) > MAX_DEPTH
+    }
+
+    /// A `next` edge must not lead back to an ancestor, and the stack must
+    /// not grow deeper than [`MAX_DEPTH`].
+    ///
+    /// Descending (`children`) pushes a level onto the stack; a sequential
+    /// edge (`next`) replaces the top at the same level. A cycle of edges
+    /// that descends at least once would therefore grow the stack on every
+    /// pass, without bound: `mission: {children: [work]}` with
+    /// `work: {next: [mission]}` runs `mission` again *under* `mission`.
+    /// Such a cycle is refused (`loop-to-ancestor`) at the `next` entry that
+    /// closes it; cycles of `next` edges alone (a patrol `a -> b -> a`) stay
+    /// legal. Without them, the deepest stack is the largest number of
+    /// descents on any path, which is checked against [`MAX_DEPTH`]
+    /// (`too-deep`).
+    ///
+    /// Linear in the size of the graph: strongly connected components of
+    /// the `children` + `next` edges, one search per component that holds
+    /// both kinds of edge, and levels over the components' DAG.
+    fn check_loops_and_depth(&mut self, bs: &[Behavior], next_refs: &[Vec<(BehaviorId, Loc)>]) {
+        let n = bs.len();
+        let (comp, ncomp) = components(bs);
+        // Nodes of each component, in graph order (a counting sort).
+        let mut start = vec![0usize; ncomp + 1];
+        for &c in &comp {
+            start[c as usize + 1] += 1;
+        }
+        for c in 0..ncomp {
+            start[c + 1] += start[c];
+        }
+        let mut fill = start.clone();
+        let mut nodes = vec![0u32; n];
+        for (v, &c) in comp.iter().enumerate() {
+            nodes[fill[c as usize]] = v as u32;
+            fill[c as usize] += 1;
+        }
+        // Layered search state, reused across components (they are
+        // disjoint): for (node, descended), the step that reached it.
+        let mut prev: Vec<Option<(u32, bool, bool)>> = vec![None; 2 * n];
+        let mut level = vec![0usize; ncomp];
+        for c in 0..ncomp {
+            let members = &nodes[start[c]..start[c + 1]];
+            let inside = |v: usize| comp[v] as usize == c;
+            let mut descends = false;
+            let mut closing: Option<(usize, usize)> = None;
+            let mut deepest = 0usize;
+            for &v in members {
+                let v = v as usize;
+                for ch in &bs[v].children {
+                    if inside(ch.index()) {
+                        descends = true;
+                    } else {
+                        deepest = deepest.max(1 + level[comp[ch.index()] as usize]);
+                    }
+                }
+                for nx in &bs[v].next {
+                    if inside(nx.index()) {
+                        closing = closing.or(Some((v, nx.index())));
+                    } else {
+                        deepest = deepest.max(level[comp[nx.index()] as usize]);
+                    }
+                }
+            }
+            level[c] = deepest;
+            let (true, Some((s, t))) = (descends, closing) else {
+                continue;
+            };
+            // A walk t ~> s inside the component that descends at least
+            // once; with s -> t it closes a loop. Breadth first over
+            // (node, descended yet).
+            let slot = |v: usize, d: bool| 2 * v + usize::from(d);
+            let mut queue = VecDeque::from([(t, false)]);
+            prev[slot(t, false)] = Some((t as u32, false, false));
+            let mut found = false;
+            while let Some((v, d)) = queue.pop_front() {
+                if v == s && d {
+                    found = true;
+                    break;
+                }
+                let edges = (bs[v].children.iter().map(|x| (x.index(), true)))
+                    .chain(bs[v].next.iter().map(|x| (x.index(), false)));
+                for (w, down) in edges {
+                    let dw = d || down;
+                    if inside(w) && prev[slot(w, dw)].is_none() {
+                        prev[slot(w, dw)] = Some((v as u32, d, down));
+                        queue.push_back((w, dw));
+                    }
+                }
+            }
+            if !found {
+                continue;
+            }
+            // The loop as edges (from, to, descends), ending with s -> t.
+            let mut walk = vec![(s, t, false)];
+            let (mut v, mut d) = (s, true);
+            while v != t || d {
+                let Some((u, du, down)) = prev[slot(v, d)] else {
+                    break;
+                };
+                walk.push((u as usize, v, down));
+                (v, d) = (u as usize, du);
+            }
+            walk.reverse();
+            // Start it where a `next` edge leads into a descent: the end
+            // of that `next` edge is an ancestor of its start.
+            let m = walk.len();
+            let Some(i) = (0..m).find(|&i| !walk[i].2 && walk[(i + 1) % m].2) else {
+                continue;
+            };
+            walk.rotate_left((i + 1) % m);
+            let &(from, to, _) = walk.last().unwrap_or(&(s, t, false));
+            // `a > b -> c`: `>` descends, `->` follows a `next`; a long
+            // loop is shown by its ends.
+            let mut path = bs[to].name.clone();
+            let steps = &walk[..m - 1];
+            for (k, &(_, w, down)) in steps.iter().enumerate() {
+                if steps.len() > 12 && (6..steps.len() - 6).contains(&k) {
+                    if k == 6 {
+                        path.push_str(&format!(" … ({} more)", steps.len() - 12));
+                    }
+                    continue;
+                }
+                path.push_str(if down { " > " } else { " -> " });
+                path.push_str(&bs[w].name);
+            }
+            let levels = walk.iter().filter(|e| e.2).count();
+            let loc = next_refs[from]
+                .iter()
+                .find(|(id, _)| id.index() == to)
+                .map_or(bs[from].loc, |(_, l)| *l);
+            let (f, a) = (&bs[from].name, &bs[to].name);
+            let d = self.err(
+                loc,
+                "loop-to-ancestor",
+                format!(
+                    "`{f}` -> `{a}` loops back to an ancestor: `{a}` is an ancestor of `{f}` ({path}), so every pass would run `{a}` {levels} level{} deeper, without bound",
+                    if levels == 1 { "" } else { "s" }
+                ),
+            );
+            d.hint = Some(format!(
+                "`next` runs a behavior at the same level of the stack: to run `{a}` again, loop at its own level (`next: [{a}]` on `{a}`, or on a behavior after it), or loop among its children"
+            ));
+        }
+        // The deepest stack below any behavior: descents on the longest path.
+        if let Some(deepest) = level.iter().copied().max()
+            && deepest > MAX_DEPTH
+            && let Some(i) = (0..n).find(|&v| level[comp[v] as usize] == deepest)
         {
             self.err(
                 bs[i].loc,
                 "too-deep",
                 format!(
-                    "decomposition below `{}` is {} levels deep; the limit is {MAX_DEPTH}",
-                    bs[i].name,
-                    d - 1
+                    "decomposition below `{}` is {deepest} levels deep; the limit is {MAX_DEPTH}",
+                    bs[i].name
                 ),
             );
         }
@@ -680,12 +812,15 @@ impl Builder<'_> {
     }
 
     fn check_members(&mut self, bs: &[Behavior], locs: &[Option<Loc>]) {
+        let mut allocated = vec![false; bs.len()];
+        for p in bs.iter().filter(|p| p.children.len() >= 2) {
+            for c in &p.children {
+                allocated[c.index()] = true;
+            }
+        }
         for (i, loc) in locs.iter().enumerate() {
             let Some(loc) = loc else { continue };
-            let allocated = bs
-                .iter()
-                .any(|p| p.children.len() >= 2 && p.children.contains(&BehaviorId(i as u32)));
-            if !allocated {
+            if !allocated[i] {
                 self.warn(
                     *loc,
                     "members-unused",
@@ -797,6 +932,73 @@ pub(crate) fn make_binding(
         file: file.clone(),
         loc,
     }
+}
+
+/// Strongly connected components of the `children` + `next` edges
+/// (iterative Tarjan): each behavior's component, and how many there are.
+/// Components are numbered in the order they complete, so every edge
+/// leaving a component leads to one with a lower number.
+fn components(bs: &[Behavior]) -> (Vec<u32>, usize) {
+    const NEW: u32 = u32::MAX;
+    let n = bs.len();
+    // The i-th edge of v: its children, then its successors.
+    let edge = |v: usize, i: usize| -> Option<usize> {
+        let b = &bs[v];
+        match i.checked_sub(b.children.len()) {
+            None => Some(b.children[i].index()),
+            Some(j) => b.next.get(j).map(|x| x.index()),
+        }
+    };
+    let mut index = vec![NEW; n];
+    let mut low = vec![0u32; n];
+    let mut on_stack = vec![false; n];
+    let mut comp = vec![NEW; n];
+    let mut stack: Vec<usize> = Vec::new();
+    let mut calls: Vec<(usize, usize)> = Vec::new();
+    let mut counter = 0u32;
+    let mut ncomp = 0usize;
+    for root in 0..n {
+        if index[root] != NEW {
+            continue;
+        }
+        index[root] = counter;
+        low[root] = counter;
+        counter += 1;
+        stack.push(root);
+        on_stack[root] = true;
+        calls.push((root, 0));
+        while let Some(&mut (v, ref mut i)) = calls.last_mut() {
+            if let Some(w) = edge(v, *i) {
+                *i += 1;
+                if index[w] == NEW {
+                    index[w] = counter;
+                    low[w] = counter;
+                    counter += 1;
+                    stack.push(w);
+                    on_stack[w] = true;
+                    calls.push((w, 0));
+                } else if on_stack[w] {
+                    low[v] = low[v].min(index[w]);
+                }
+                continue;
+            }
+            calls.pop();
+            if let Some(&(u, _)) = calls.last() {
+                low[u] = low[u].min(low[v]);
+            }
+            if low[v] == index[v] {
+                while let Some(x) = stack.pop() {
+                    on_stack[x] = false;
+                    comp[x] = ncomp as u32;
+                    if x == v {
+                        break;
+                    }
+                }
+                ncomp += 1;
+            }
+        }
+    }
+    (comp, ncomp)
 }
 
 /// Behaviors reachable from `b` along sequential edges, `b` included.
