@@ -145,6 +145,65 @@ fn collider_of(shape: &Shape) -> rp::ColliderBuilder {
     }
 }
 
+/// Distance from `p` to the edge of body `b` (negative inside).
+fn distance_to(b: &spec::Body, p: DVec2) -> f64 {
+    let d = p - b.at;
+    match b.shape {
+        Shape::Disc(r) => d.length() - r,
+        Shape::Box(size) => {
+            // In the box's own frame.
+            let local = DVec2::from_angle(-b.angle).rotate(d);
+            let q = local.abs() - size / 2.0;
+            q.max(DVec2::ZERO).length() + q.x.max(q.y).min(0.0)
+        }
+    }
+}
+
+/// Where each robot of the team starts: its `start` entry, or, for a
+/// robot the scenario does not place, the next free spot of columns at the
+/// left of the arena (spots three radii apart, facing +x), skipping spots
+/// that a placed robot, an obstacle or an object takes or that lie beyond
+/// the arena. `None`: no free spot is left.
+fn start_poses(spec: &PhysicsSpec, names: &[String]) -> Vec<Option<(DVec2, f64)>> {
+    let r = spec.robot.radius;
+    let gap = r * 3.0;
+    let rows = ((spec.arena.y - gap) / gap).floor().max(1.0) as usize;
+    // Spots keep a radius of clearance from the right wall too.
+    let spots = rows.saturating_mul(((spec.arena.x - 2.0 * r) / gap).floor().max(0.0) as usize);
+    let placed: Vec<DVec2> = spec.start.values().map(|s| s.0).collect();
+    // A spot keeps a radius of clearance, as the spots keep from each
+    // other.
+    let free = |p: DVec2| {
+        placed.iter().all(|q| p.distance(*q) >= gap)
+            && spec
+                .obstacles
+                .iter()
+                .chain(&spec.objects)
+                .all(|b| distance_to(b, p) >= 2.0 * r)
+    };
+    let mut next = 0usize;
+    names
+        .iter()
+        .map(|name| {
+            if let Some((p, h, _)) = spec.start.get(name) {
+                return Some((*p, *h));
+            }
+            while next < spots {
+                let k = next;
+                next += 1;
+                let p = DVec2::new(
+                    gap * (1.0 + (k / rows) as f64),
+                    gap * (1.0 + (k % rows) as f64),
+                );
+                if free(p) {
+                    return Some((p, 0.0));
+                }
+            }
+            None
+        })
+        .collect()
+}
+
 impl World {
     /// Build the world for a team of `n` robots named `names`; `graph` is
     /// the symbol table of the beliefs the graph reads.
@@ -228,23 +287,24 @@ impl World {
                 ));
             }
         }
+        let poses = start_poses(&spec, names);
         for (i, name) in names.iter().enumerate() {
-            // Robots the scenario does not place stand in a column at the
-            // left, facing +x.
-            let (at, heading) = spec.start.get(name).map_or_else(
-                || {
-                    let gap = spec.robot.radius * 3.0;
-                    let rows = ((spec.arena.y - gap) / gap).floor().max(1.0) as usize;
-                    (
-                        DVec2::new(
-                            gap * (1.0 + (i / rows) as f64),
-                            gap * (1.0 + (i % rows) as f64),
+            let Some((at, heading)) = poses[i] else {
+                errors.push(
+                    Diagnostic::error(
+                        file,
+                        spec.loc,
+                        "bad-start",
+                        format!(
+                            "no room for robot `{name}`: the scenario does not place it under \
+                             `start`, and no free spot is left in the columns at the left of \
+                             the arena"
                         ),
-                        0.0,
                     )
-                },
-                |(p, h, _)| (*p, *h),
-            );
+                    .with_hint("place it under `physics.start`, or use a larger arena"),
+                );
+                continue;
+            };
             let (b, c) = rw.insert(
                 rp::RigidBodyBuilder::dynamic()
                     .translation(v32(at))
@@ -308,16 +368,32 @@ impl World {
                     Some(Kind::Robot(j)) => format!("robot `{}`", names[j]),
                     None => "something".to_string(),
                 };
-                let loc = spec
-                    .start
-                    .get(&names[i])
-                    .map_or(bite_core::diag::Loc::UNKNOWN, |s| s.2);
-                errors.push(Diagnostic::error(
+                // The position of the offending `start` entry: the
+                // robot's own, else (a robot the scenario does not place)
+                // the teammate's it overlaps, else the `physics:` section.
+                let entry = |j: usize| spec.start.get(&names[j]).map(|s| s.2);
+                let placed = entry(i);
+                let loc = placed
+                    .or_else(|| match kinds.get(other.into_raw_parts().0 as usize) {
+                        Some(Some(Kind::Robot(j))) => entry(*j),
+                        _ => None,
+                    })
+                    .unwrap_or(spec.loc);
+                let mut e = Diagnostic::error(
                     file,
                     loc,
                     "bad-start",
                     format!("robot `{}` starts inside {what}", names[i]),
-                ));
+                );
+                if placed.is_none() {
+                    let at = poses[i].map_or(DVec2::ZERO, |p| p.0);
+                    e = e.with_hint(format!(
+                        "`{}` is not placed under `start`, so it stands in a column at the \
+                         left, at ({:.2}, {:.2}); place it under `physics.start`",
+                        names[i], at.x, at.y
+                    ));
+                }
+                errors.push(e);
             }
         }
         if !errors.is_empty() {
@@ -1076,5 +1152,72 @@ mod tests {
             err.to_string().contains("`r0` starts inside an obstacle"),
             "{err}"
         );
+    }
+
+    /// A scenario in an 8 × 3 m hall with `start` entries and obstacles.
+    fn hall(start: &str, obstacles: &str) -> (bite_core::graph::BehaviorGraph, Arc<PhysicsSpec>) {
+        let g = "graph: g\nteam: { robots: 3 }\nstart: a\nbehaviors:\n  a: { team: true }\n";
+        let g = bite_core::graph::load_str(&Arc::from("g.yaml"), g).expect("graph");
+        let s = format!(
+            "scenario: s\nworld: physics\nphysics:\n  arena: [8, 3]\n  robot: {{ radius: 0.12 }}\n  \
+             start:\n{start}  obstacles:\n{obstacles}"
+        );
+        let sc =
+            crate::Scenario::load_str(&Arc::from("s.yaml"), &s).unwrap_or_else(|d| panic!("{d}"));
+        (g, sc.physics.clone().expect("physical"))
+    }
+
+    #[test]
+    fn robots_the_scenario_does_not_place_start_clear_of_those_it_does() {
+        // The formation scenario's triangle, and obstacles across the
+        // left column: five and twenty robots all find a free spot.
+        let (g, spec) = hall(
+            "    r0: { at: [0.9, 1.5], heading: 0 }\n    r1: { at: [0.5, 1.9], heading: 0 }\n    \
+             r2: { at: [0.5, 1.1], heading: 0 }\n",
+            "    - { disc: 0.2, at: [0.36, 0.5] }\n    - { box: [0.3, 0.3], at: [0.72, 2.5], angle: 30 }\n",
+        );
+        for n in [5, 20] {
+            let names: Vec<String> = (0..n).map(|i| format!("r{i}")).collect();
+            let w = World::new(spec.clone(), &names, g.symbols(), &Arc::from("s.yaml"), 1)
+                .unwrap_or_else(|d| panic!("{n} robots: {d}"));
+            for i in 0..n {
+                let p = w.pose(i).pos;
+                for j in 0..i {
+                    let d = p.distance(w.pose(j).pos);
+                    assert!(d >= 0.36 - 1e-6, "{n} robots: r{i} {p} is {d} m from r{j}");
+                }
+                for b in &spec.obstacles {
+                    assert!(distance_to(b, p) >= 0.24 - 1e-6, "r{i} {p} too near {b:?}");
+                }
+                assert!(p.x + 0.12 < 8.0 && p.y + 0.12 < 3.0, "r{i} {p} outside");
+            }
+        }
+    }
+
+    #[test]
+    fn start_overlaps_are_located_at_the_start_entry() {
+        // Two placed robots inside each other: both errors at their
+        // entries (line 7 and 8).
+        let (g, spec) = hall(
+            "    r0: { at: [1.0, 1.5] }\n    r1: { at: [1.1, 1.5] }\n",
+            "    - { disc: 0.2, at: [5, 1] }\n",
+        );
+        let names: Vec<String> = (0..3).map(|i| format!("r{i}")).collect();
+        let err = World::new(spec, &names, g.symbols(), &Arc::from("s.yaml"), 1)
+            .expect_err("rejected")
+            .to_string();
+        assert!(err.contains("s.yaml:7:"), "{err}");
+        assert!(err.contains("s.yaml:8:"), "{err}");
+        assert!(err.contains("`r0` starts inside robot `r1`"), "{err}");
+        // No room left: the error is at the `physics:` section.
+        let (g, spec) = hall(
+            "    r0: { at: [1.0, 1.5] }\n",
+            "    - { box: [8, 3], at: [4, 1.5] }\n",
+        );
+        let err = World::new(spec, &names, g.symbols(), &Arc::from("s.yaml"), 1)
+            .expect_err("rejected")
+            .to_string();
+        assert!(err.contains("s.yaml:4:"), "{err}");
+        assert!(err.contains("no room for robot `r1`"), "{err}");
     }
 }

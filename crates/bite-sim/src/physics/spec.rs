@@ -204,8 +204,11 @@ pub struct PhysicsSpec {
     pub arena: DVec2,
     /// Robots' body and limits.
     pub robot: RobotModel,
-    /// Start poses by robot name: position, heading (radians).
+    /// Start poses by robot name: position, heading (radians), where the
+    /// entry is.
     pub start: BTreeMap<String, (DVec2, f64, Loc)>,
+    /// Where the `physics:` section is (errors about the world as a whole).
+    pub loc: Loc,
     /// Static obstacles.
     pub obstacles: Vec<Body>,
     /// Movable objects.
@@ -443,6 +446,7 @@ impl PhysicsSpec {
             arena,
             robot,
             start,
+            loc,
             obstacles,
             objects,
             zones: raw.zones,
