@@ -593,13 +593,28 @@ pub fn cmd_launch(a: LaunchArgs) -> Result<ExitCode> {
         for d in &dis {
             println!("    {}", d.as_str().unwrap_or("?"));
         }
+        println!(
+            "  invariants: {} checked over {} records, {} violations",
+            summary["invariants"]["checked"]
+                .as_array()
+                .map_or(0, Vec::len),
+            summary["records_checked"],
+            summary["invariants"]["violations"]
+        );
+        for v in summary["violations"].as_array().into_iter().flatten() {
+            println!("    VIOLATION {}", v.as_str().unwrap_or("?"));
+        }
         println!("  logs: {}", summary["logs"].as_str().unwrap_or("?"));
     }
-    Ok(if ok {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(Reported(1).0)
-    })
+    Ok(
+        if summary["invariants"]["violations"].as_u64().unwrap_or(0) > 0 {
+            ExitCode::from(bite_sim::summary::EXIT_VIOLATION)
+        } else if ok {
+            ExitCode::SUCCESS
+        } else {
+            ExitCode::from(Reported(1).0)
+        },
+    )
 }
 
 /// Run a team on this machine until its robots end; the summary (also
@@ -814,7 +829,17 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         .iter()
         .map(|n| Ok((n.clone(), read_jsonl(&a.out.join(format!("{n}.jsonl")))?)))
         .collect::<Result<_>>()?;
-    let agreement = bite_zenoh::agreement::check(&logs);
+    let registry = crate::registry();
+    let agreement =
+        bite_zenoh::agreement::check(&logs, |p| registry.get(p).is_some_and(|p| p.communicates()));
+    // The same invariants every simulated run is held to, over the logs.
+    let stopped: Vec<&str> = procs
+        .iter()
+        .filter(|p| p.killed_at.is_some())
+        .map(|p| p.name.as_str())
+        .collect();
+    let (violations, records_checked) = bite_sim::check::check_logs(&mission, &logs, &stopped);
+    let invariants = bite_sim::check::Invariants::of(&violations);
     let robots: Vec<serde_json::Value> = procs
         .iter()
         .map(|p| {
@@ -856,13 +881,17 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         "completed": survivors_completed,
         "joint_decisions": agreement.decisions,
         "disagreements": agreement.disagreements,
+        "silent_splits": agreement.splits,
+        "invariants": invariants,
+        "records_checked": records_checked,
+        "violations": violations.iter().map(ToString::to_string).collect::<Vec<_>>(),
         "logs": a.out.display().to_string(),
     });
     std::fs::write(
         a.out.join("summary.json"),
         serde_json::to_string_pretty(&summary)?,
     )?;
-    let ok = survivors_completed && agreement.disagreements.is_empty();
+    let ok = survivors_completed && agreement.disagreements.is_empty() && violations.is_empty();
     Ok((summary, ok))
 }
 

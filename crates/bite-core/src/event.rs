@@ -5,10 +5,11 @@ use crate::ids::{BehaviorId, RobotId, TeamId};
 use crate::interaction::Assignment;
 use crate::msg::InstanceKey;
 use crate::value::Value;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+use std::sync::{Arc, OnceLock};
 
 /// How a behavior came to be selected.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Via {
     /// The start behavior b0.
@@ -31,7 +32,7 @@ pub enum Via {
 }
 
 /// Why a behavior ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "kind", content = "behavior")]
 pub enum EndReason {
     /// Its termination condition held on this robot.
@@ -81,7 +82,7 @@ pub const LOG_MEMBERS_LIMIT: usize = 64;
 /// The members of a child in a logged allocation: the list for small
 /// subteams, a count and fingerprint for large ones (10,000 robots each
 /// logging 10,000 ids would be 10⁸ entries per allocation).
-#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum MembersLog {
     /// Every member.
@@ -110,7 +111,7 @@ impl MembersLog {
 }
 
 /// The decision of an instance, for the log.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case", tag = "kind")]
 pub enum OutcomeLog {
     /// Selected successor (`None`: chain ended).
@@ -120,8 +121,11 @@ pub enum OutcomeLog {
     },
     /// Allocation: each child with its members.
     Allocate {
-        /// `(child, members)`.
-        assignment: Vec<(BehaviorId, MembersLog)>,
+        /// `(child, members)`, shared by the robots that applied the same
+        /// allocation. Logged in full up to [`LOG_CHILDREN_LIMIT`]
+        /// children; a larger allocation is logged as a summary
+        /// (`{"children": 10000, "assigned": 10000, "fingerprint": ...}`).
+        assignment: LogList<(BehaviorId, MembersLog)>,
     },
     /// Termination, with an optional replacement.
     Terminate {
@@ -134,28 +138,215 @@ impl OutcomeLog {
     /// The log form of an allocation.
     pub fn allocation(a: &Assignment) -> Self {
         OutcomeLog::Allocate {
-            assignment: a
-                .0
-                .iter()
-                .map(|(b, m)| {
-                    let n = m.len();
-                    let log = if n <= LOG_MEMBERS_LIMIT {
-                        MembersLog::List(m.to_vec())
-                    } else {
-                        MembersLog::Summary {
-                            count: n as u32,
-                            fingerprint: format!("{:016x}", m.fingerprint()),
-                        }
-                    };
-                    (*b, log)
-                })
-                .collect(),
+            assignment: Self::members_log(a),
         }
+    }
+    /// Each child of an allocation with its members as the log shows them.
+    pub fn members_log(a: &Assignment) -> LogList<(BehaviorId, MembersLog)> {
+        a.0.iter()
+            .map(|(b, m)| {
+                let n = m.len();
+                let log = if n <= LOG_MEMBERS_LIMIT {
+                    MembersLog::List(m.to_vec())
+                } else {
+                    MembersLog::Summary {
+                        count: n as u32,
+                        fingerprint: format!("{:016x}", m.fingerprint()),
+                    }
+                };
+                (*b, log)
+            })
+            .collect()
     }
 }
 
+/// Allocations of more children than this are logged as a summary, and so
+/// are options lists longer than this: 10,000 robots each logging 10,000
+/// children would be 10⁸ entries.
+pub const LOG_CHILDREN_LIMIT: usize = 64;
+
+/// A stable 64-bit mix of words (for log fingerprints of long lists).
+fn mix(h: u64, x: u64) -> u64 {
+    (h ^ x).wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(31)
+}
+
+/// A list in events that many robots report alike (the children of an
+/// allocation point, an allocation): shared rather than copied, compared
+/// by address first, and logged in full up to [`LOG_CHILDREN_LIMIT`]
+/// entries, as a count and a fingerprint (computed once) beyond.
+pub struct LogList<T>(Arc<ListInner<T>>);
+
+struct ListInner<T> {
+    items: Vec<T>,
+    /// (total weight, fingerprint), for the summary.
+    summary: OnceLock<(u64, u64)>,
+}
+
+/// An entry of a [`LogList`]: how it feeds the list's fingerprint, and
+/// how much it counts (members, for an allocation).
+pub trait LogItem {
+    /// Mix the entry into a fingerprint.
+    fn mix(&self, h: u64) -> u64;
+    /// Its weight in the summary's total.
+    fn weight(&self) -> u64 {
+        1
+    }
+}
+
+impl LogItem for BehaviorId {
+    fn mix(&self, h: u64) -> u64 {
+        mix(h, u64::from(self.0))
+    }
+}
+
+impl LogItem for (BehaviorId, MembersLog) {
+    fn mix(&self, h: u64) -> u64 {
+        let mut h = mix(h, u64::from(self.0.0));
+        match &self.1 {
+            MembersLog::List(v) => {
+                h = mix(h, v.len() as u64);
+                for r in v {
+                    h = mix(h, u64::from(r.0));
+                }
+            }
+            MembersLog::Summary { count, fingerprint } => {
+                h = mix(h, u64::from(*count));
+                h = mix(h, u64::from_str_radix(fingerprint, 16).unwrap_or(0));
+            }
+        }
+        h
+    }
+    fn weight(&self) -> u64 {
+        self.1.len() as u64
+    }
+}
+
+impl<T> LogList<T> {
+    /// True when both are the same list (not just equal ones).
+    pub fn ptr_eq(&self, other: &Self) -> bool {
+        Arc::ptr_eq(&self.0, &other.0)
+    }
+}
+
+impl<T: LogItem> LogList<T> {
+    /// Total weight and fingerprint of the entries.
+    fn summary(&self) -> (u64, u64) {
+        *self.0.summary.get_or_init(|| {
+            let items = &self.0.items;
+            (
+                items.iter().map(LogItem::weight).sum(),
+                items.iter().fold(0, |h, x| x.mix(h)),
+            )
+        })
+    }
+}
+
+impl<T> From<Vec<T>> for LogList<T> {
+    fn from(items: Vec<T>) -> Self {
+        LogList(Arc::new(ListInner {
+            items,
+            summary: OnceLock::new(),
+        }))
+    }
+}
+
+impl<T: Clone> From<&[T]> for LogList<T> {
+    fn from(items: &[T]) -> Self {
+        items.to_vec().into()
+    }
+}
+
+impl<T> FromIterator<T> for LogList<T> {
+    fn from_iter<I: IntoIterator<Item = T>>(it: I) -> Self {
+        it.into_iter().collect::<Vec<T>>().into()
+    }
+}
+
+impl<T> Default for LogList<T> {
+    fn default() -> Self {
+        Vec::new().into()
+    }
+}
+
+impl<T> Clone for LogList<T> {
+    fn clone(&self) -> Self {
+        LogList(self.0.clone())
+    }
+}
+
+impl<T> std::ops::Deref for LogList<T> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
+        &self.0.items
+    }
+}
+
+impl<T: PartialEq> PartialEq for LogList<T> {
+    fn eq(&self, other: &Self) -> bool {
+        self.ptr_eq(other) || self.0.items == other.0.items
+    }
+}
+
+impl<T: Eq> Eq for LogList<T> {}
+
+impl<T: std::fmt::Debug> std::fmt::Debug for LogList<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        self.0.items.fmt(f)
+    }
+}
+
+impl Serialize for LogList<BehaviorId> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if self.len() <= LOG_CHILDREN_LIMIT {
+            return self.0.items.serialize(s);
+        }
+        #[derive(Serialize)]
+        struct Summary {
+            count: usize,
+            fingerprint: String,
+        }
+        Summary {
+            count: self.len(),
+            fingerprint: format!("{:016x}", self.summary().1),
+        }
+        .serialize(s)
+    }
+}
+
+impl Serialize for LogList<(BehaviorId, MembersLog)> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        if self.len() <= LOG_CHILDREN_LIMIT {
+            return self.0.items.serialize(s);
+        }
+        #[derive(Serialize)]
+        struct Summary {
+            children: usize,
+            assigned: u64,
+            fingerprint: String,
+        }
+        let (assigned, fingerprint) = self.summary();
+        Summary {
+            children: self.len(),
+            assigned,
+            fingerprint: format!("{fingerprint:016x}"),
+        }
+        .serialize(s)
+    }
+}
+
+/// The full form only (a summary cannot be read back into a list).
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for LogList<T> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Vec::<T>::deserialize(d).map(Into::into)
+    }
+}
+
+fn no_options(o: &LogList<BehaviorId>) -> bool {
+    o.is_empty()
+}
+
 /// A behavior and one of its epochs, in events.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct FrameRef {
     /// The behavior.
     pub behavior: BehaviorId,
@@ -216,9 +407,11 @@ pub enum Event {
         excluded: Vec<RobotId>,
         /// What this robot saw it could choose: the enabled successors of a
         /// synchronization, the enabled children of an allocation (what a
-        /// silent rule decides from).
-        #[serde(default, skip_serializing_if = "Vec::is_empty")]
-        options: Vec<BehaviorId>,
+        /// silent rule decides from). Shared with the mission when it is
+        /// every child; logged as a count and fingerprint when longer than
+        /// [`LOG_CHILDREN_LIMIT`].
+        #[serde(default, skip_serializing_if = "no_options")]
+        options: LogList<BehaviorId>,
     },
     /// A running instance decides without these teammates from now on:
     /// presumed lost, or known to have left the behavior above it (or this
@@ -341,6 +534,26 @@ pub enum Event {
         member: RobotId,
         /// This robot converges on `theirs`.
         follows: bool,
+    },
+    /// A teammate under the same execution of an allocation point holds
+    /// another allocation of it (views diverged: a partition healed, or a
+    /// deadline decided on each side): this robot allocates again, in
+    /// round `round`, with everyone it hears.
+    AllocationSplit {
+        /// The allocation point.
+        behavior: BehaviorId,
+        /// The team allocating.
+        team: TeamId,
+        /// The execution.
+        epoch: u32,
+        /// The round this robot held.
+        mine: u32,
+        /// The round the teammate holds.
+        theirs: u32,
+        /// The teammate.
+        member: RobotId,
+        /// The round it allocates in now.
+        round: u32,
     },
     /// This robot's process restarted with a fresh mind and joined its team
     /// where teammate `member`'s position said the team was, `depth` frames

@@ -124,6 +124,21 @@ impl Fnv1a {
             self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
         }
     }
+    /// Feed `n` zero bytes, in O(log n): a zero byte only multiplies the
+    /// state by the FNV prime, so `n` of them multiply it by its `n`-th
+    /// power (a sparse bit set hashes as its dense form would, without
+    /// walking its empty words).
+    pub fn write_zeros(&mut self, n: u64) {
+        let (mut p, mut k, mut acc) = (0x0000_0100_0000_01b3u64, n, 1u64);
+        while k > 0 {
+            if k & 1 == 1 {
+                acc = acc.wrapping_mul(p);
+            }
+            p = p.wrapping_mul(p);
+            k >>= 1;
+        }
+        self.0 = self.0.wrapping_mul(acc);
+    }
     /// The hash so far.
     pub const fn finish(&self) -> u64 {
         self.0

@@ -247,8 +247,9 @@ pub enum PointInput {
     },
     /// Split the team among the point behavior's children.
     Allocate {
-        /// Children whose preconditions hold for this robot, graph order.
-        children: Vec<ChildSlot>,
+        /// Children whose preconditions hold for this robot, graph order
+        /// (shared with the mission when they all do).
+        children: Arc<[ChildSlot]>,
     },
     /// End the point behavior together.
     Terminate,
@@ -266,7 +267,7 @@ pub struct ChildSlot {
 }
 
 /// An allocation: each child with the members assigned to it.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Assignment(pub Vec<(BehaviorId, MemberSet)>);
 
 impl Assignment {
@@ -285,8 +286,9 @@ impl Assignment {
 pub enum Outcome {
     /// The selected successor (`None`: end of the execution chain).
     Sync(Option<BehaviorId>),
-    /// The allocation.
-    Allocate(Assignment),
+    /// The allocation (shared: the silent rule's is computed once for a
+    /// process's robots that see the same team and children).
+    Allocate(Arc<Assignment>),
     /// The behavior is over; optionally a new behavior to run under the
     /// same parent.
     Terminate(Option<BehaviorId>),
@@ -327,10 +329,12 @@ pub struct Cx<'a> {
     key: InstanceKey,
     team: &'a Team,
     excluded: Option<&'a MemberSet>,
+    lost: Option<&'a MemberSet>,
     live: u32,
     org: &'a Organization,
     runs: &'a BTreeMap<BehaviorId, u32>,
     graph: &'a BehaviorGraph,
+    mission: Option<&'a crate::mission::Mission>,
     roster: &'a Roster,
     beliefs: &'a BeliefStore,
     rng: &'a mut Rng,
@@ -352,14 +356,21 @@ pub struct CxParts<'a> {
     pub key: InstanceKey,
     /// The team running it.
     pub team: &'a Team,
-    /// Members presumed lost (left out of [`Cx::members`]).
+    /// Members left out (presumed lost, or known to have ended an
+    /// ancestor of the point): left out of [`Cx::members`].
     pub excluded: Option<&'a MemberSet>,
+    /// Of those, the teammates this robot presumes lost now (the others
+    /// left on their own: they are done with the behavior).
+    pub lost: Option<&'a MemberSet>,
     /// This robot's organization hierarchy.
     pub org: &'a Organization,
     /// Run counts of the candidates' parent execution (what `runs` reads).
     pub runs: &'a BTreeMap<BehaviorId, u32>,
     /// The behavior graph.
     pub graph: &'a BehaviorGraph,
+    /// The mission, when the runtime has one (shares work between the
+    /// robots of a process, see [`Cx::assign_by_id`]).
+    pub mission: Option<&'a crate::mission::Mission>,
     /// The roster.
     pub roster: &'a Roster,
     /// This robot's beliefs.
@@ -389,6 +400,7 @@ impl<'a> Cx<'a> {
             key: p.key,
             team: p.team,
             excluded: p.excluded,
+            lost: p.lost,
             live: match p.excluded {
                 Some(x) => p.team.members.iter().filter(|r| !x.contains(*r)).count() as u32,
                 None => p.team.size,
@@ -396,6 +408,7 @@ impl<'a> Cx<'a> {
             org: p.org,
             runs: p.runs,
             graph: p.graph,
+            mission: p.mission,
             roster: p.roster,
             beliefs: p.beliefs,
             rng: p.rng,
@@ -435,12 +448,30 @@ impl<'a> Cx<'a> {
             .iter()
             .filter(move |r| excluded.is_none_or(|x| !x.contains(*r)))
     }
+    /// The allocation by id ([`crate::rules::assign_by_id`]) of the
+    /// members not presumed lost to `children`. With no member left out,
+    /// robots of one process that see the same team and children share one
+    /// (10,000 robots splitting among 10,000 children compute it once).
+    pub fn assign_by_id(&self, children: &Arc<[ChildSlot]>) -> Arc<Assignment> {
+        match (self.excluded, self.mission) {
+            (None, Some(m)) => m.assign_by_id(&self.team.members, children),
+            _ => Arc::new(crate::rules::assign_by_id(&self.live_set(), children)),
+        }
+    }
     /// The members not presumed lost, as a set.
     pub fn live_set(&self) -> MemberSet {
         match self.excluded {
             None => (*self.team.members).clone(),
             Some(_) => MemberSet::from_iter(self.team.members.roster_len(), self.members()),
         }
+    }
+    /// True when member `r` is left out because it is presumed lost (not
+    /// because it left the behavior: it ended an ancestor, and will never
+    /// take part below it again — it is done with the behavior).
+    pub fn is_presumed_lost(&self, r: RobotId) -> bool {
+        self.team.contains(r)
+            && self.excluded.is_some_and(|x| x.contains(r))
+            && self.lost.is_none_or(|l| l.contains(r))
     }
     /// True when `r` is a member not presumed lost.
     pub fn is_live(&self, r: RobotId) -> bool {

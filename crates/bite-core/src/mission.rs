@@ -3,12 +3,16 @@
 //! team running in one process.
 
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
+use crate::event::LogList;
 use crate::graph::{BehaviorGraph, Binding};
-use crate::ids::BehaviorId;
-use crate::interaction::{ChildSlot, Factory, Params, Protocol, Registry, Setup};
+use crate::ids::{BehaviorId, TeamId};
+use crate::interaction::{Assignment, ChildSlot, Factory, Params, Protocol, Registry, Setup};
 use crate::msg::Kind;
+use crate::org::{MemberSet, Split};
+use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Arc;
+use std::sync::{Mutex, Weak};
 use std::time::Duration;
 
 /// Retransmission interval when a binding does not give one.
@@ -47,7 +51,89 @@ impl fmt::Debug for Bound {
 pub struct Mission {
     graph: Arc<BehaviorGraph>,
     bound: Vec<[Option<Bound>; 3]>,
-    slots: Vec<Vec<ChildSlot>>,
+    slots: Vec<Arc<[ChildSlot]>>,
+    /// The children of each behavior, as ids (shared by every robot's
+    /// record of an allocation that saw them all enabled).
+    child_ids: Vec<LogList<BehaviorId>>,
+    /// The children of each behavior with their positions, by id.
+    child_index: Vec<Vec<(BehaviorId, u32)>>,
+    /// Behaviors none of whose children has a precondition.
+    unconditional: Vec<bool>,
+    /// The allocations applied by the kernels of this process.
+    splits: Splits,
+    /// Recent allocations by id, by the (shared) team and children they
+    /// split.
+    by_id: Mutex<Vec<ById>>,
+}
+
+/// An allocation by id, and what it was computed from.
+#[derive(Debug)]
+struct ById {
+    members: Weak<MemberSet>,
+    children: Weak<[ChildSlot]>,
+    assignment: Weak<Assignment>,
+}
+
+/// How many allocations by id are remembered.
+const BY_ID_REMEMBERED: usize = 64;
+
+/// The subteams made by allocations, shared between the kernels of one
+/// process (see [`Mission::split`]): equal allocations of the same
+/// execution make one [`Split`], held by every robot that applied it and
+/// freed when the last one dissolves it.
+#[derive(Debug, Default)]
+struct Splits {
+    table: Mutex<SplitTable>,
+}
+
+type Execution = (TeamId, BehaviorId, (u32, u32));
+
+#[derive(Debug, Default)]
+struct SplitTable {
+    by_execution: BTreeMap<Execution, Vec<Weak<Split>>>,
+    /// Insertions since dead entries were last swept.
+    inserted: usize,
+}
+
+impl Splits {
+    fn lock(&self) -> std::sync::MutexGuard<'_, SplitTable> {
+        self.table
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+impl SplitTable {
+    fn find(
+        &self,
+        parent: TeamId,
+        point: BehaviorId,
+        stamp: (u32, u32),
+        assignment: &Arc<Assignment>,
+    ) -> Option<Arc<Split>> {
+        let found = self.by_execution.get(&(parent, point, stamp))?;
+        let live = || found.iter().filter_map(Weak::upgrade);
+        // The same allocation (the silent rule's, shared), else an equal one.
+        live()
+            .find(|s| Arc::ptr_eq(s.assignment(), assignment))
+            .or_else(|| live().find(|s| **s.assignment() == **assignment))
+    }
+
+    fn insert(&mut self, split: &Arc<Split>) {
+        self.by_execution
+            .entry((split.parent(), split.point(), split.stamp()))
+            .or_default()
+            .push(Arc::downgrade(split));
+        self.inserted += 1;
+        if self.inserted >= 1024.max(self.by_execution.len()) {
+            // Forget the splits every robot has dissolved.
+            self.inserted = 0;
+            self.by_execution.retain(|_, v| {
+                v.retain(|w| w.strong_count() > 0);
+                !v.is_empty()
+            });
+        }
+    }
 }
 
 impl Mission {
@@ -106,10 +192,37 @@ impl Mission {
                     .collect()
             })
             .collect();
+        let child_ids = graph
+            .behaviors()
+            .iter()
+            .map(|b| LogList::from(b.children.as_slice()))
+            .collect();
+        let child_index = graph
+            .behaviors()
+            .iter()
+            .map(|b| {
+                let mut v: Vec<(BehaviorId, u32)> = (b.children.iter())
+                    .enumerate()
+                    .map(|(i, c)| (*c, i as u32))
+                    .collect();
+                v.sort_unstable();
+                v
+            })
+            .collect();
+        let unconditional = graph
+            .behaviors()
+            .iter()
+            .map(|b| b.children.iter().all(|c| graph.behavior(*c).pre.is_none()))
+            .collect();
         Ok(Mission {
             graph: Arc::new(graph),
             bound,
             slots,
+            child_ids,
+            child_index,
+            unconditional,
+            splits: Splits::default(),
+            by_id: Mutex::new(Vec::new()),
         })
     }
 
@@ -125,7 +238,107 @@ impl Mission {
     }
     /// The children of `b` with their member counts.
     pub fn child_slots(&self, b: BehaviorId) -> &[ChildSlot] {
-        self.slots.get(b.index()).map_or(&[], Vec::as_slice)
+        self.slots.get(b.index()).map_or(&[], |s| s)
+    }
+    /// [`Mission::child_slots`], shared.
+    pub fn child_slots_shared(&self, b: BehaviorId) -> Option<&Arc<[ChildSlot]>> {
+        self.slots.get(b.index())
+    }
+    /// True when no child of `b` has a precondition: they are all enabled,
+    /// whatever a robot believes.
+    pub fn children_unconditional(&self, b: BehaviorId) -> bool {
+        self.unconditional.get(b.index()).copied().unwrap_or(true)
+    }
+    /// The children of `b`, shared.
+    pub fn child_ids(&self, b: BehaviorId) -> Option<&LogList<BehaviorId>> {
+        self.child_ids.get(b.index())
+    }
+    /// The position of `child` among the children of `b`.
+    pub fn child_index(&self, b: BehaviorId, child: BehaviorId) -> Option<u32> {
+        let v = self.child_index.get(b.index())?;
+        v.binary_search_by_key(&child, |(c, _)| *c)
+            .ok()
+            .map(|k| v[k].1)
+    }
+
+    /// [`crate::rules::assign_by_id`] of `members` to `children`, computed
+    /// once for the robots of this process that pass the same (shared)
+    /// sets: the assignment depends on nothing else.
+    pub fn assign_by_id(
+        &self,
+        members: &Arc<MemberSet>,
+        children: &Arc<[ChildSlot]>,
+    ) -> Arc<Assignment> {
+        let mut memo = self
+            .by_id
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
+        // A weak pointer that still upgrades points at the live value, so
+        // equal addresses mean the same sets.
+        let same = |e: &ById| {
+            std::ptr::eq(e.members.as_ptr(), Arc::as_ptr(members))
+                && std::ptr::eq(e.children.as_ptr(), Arc::as_ptr(children))
+                && e.members.strong_count() > 0
+                && e.children.strong_count() > 0
+        };
+        if let Some(a) = memo
+            .iter()
+            .filter(|e| same(e))
+            .find_map(|e| e.assignment.upgrade())
+        {
+            return a;
+        }
+        let a = Arc::new(crate::rules::assign_by_id(members, children));
+        memo.retain(|e| {
+            !same(e) && e.assignment.strong_count() > 0 && e.members.strong_count() > 0
+        });
+        if memo.len() >= BY_ID_REMEMBERED {
+            memo.remove(0);
+        }
+        memo.push(ById {
+            members: Arc::downgrade(members),
+            children: Arc::downgrade(children),
+            assignment: Arc::downgrade(&a),
+        });
+        a
+    }
+
+    /// The subteams that `assignment` makes of `parent` at execution
+    /// `stamp` (epoch, round) of allocation point `point`. Every kernel of
+    /// this process that applies an equal allocation of the same execution
+    /// gets the same [`Split`] (compared in full, so a different
+    /// allocation never shares one): a team of 10,000 robots splitting
+    /// among 10,000 children stores the subteams once rather than once per
+    /// robot, and later robots only hash and compare the assignment.
+    pub fn split(
+        &self,
+        parent: TeamId,
+        point: BehaviorId,
+        stamp: (u32, u32),
+        assignment: Arc<Assignment>,
+    ) -> Arc<Split> {
+        let mut table = self.splits.lock();
+        if let Some(found) = table.find(parent, point, stamp, &assignment) {
+            return found;
+        }
+        let split = Arc::new(Split::new(parent, point, stamp, assignment, |c| {
+            self.child_index(point, c)
+        }));
+        table.insert(&split);
+        split
+    }
+
+    /// The split an equal allocation of the same execution already made in
+    /// this process, if one is alive (such an allocation was checked when
+    /// it was first applied).
+    pub fn find_split(
+        &self,
+        parent: TeamId,
+        point: BehaviorId,
+        stamp: (u32, u32),
+        assignment: &Arc<Assignment>,
+    ) -> Option<Arc<Split>> {
+        self.splits.lock().find(parent, point, stamp, assignment)
     }
     /// Every point with its bound protocol, in graph order.
     pub fn points(&self) -> Vec<(crate::graph::Point, &Bound)> {

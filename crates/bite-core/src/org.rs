@@ -8,82 +8,273 @@
 //! Singletons are implicit leaves: `{r}` is a child of the smallest stored
 //! team that contains `r`.
 
-use crate::ids::{BehaviorId, RobotId, TeamId};
+use crate::ids::{BehaviorId, Fnv1a, RobotId, TeamId};
+use crate::interaction::Assignment;
 use fixedbitset::FixedBitSet;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
-/// A set of robots, as a bitset over roster indices (10,000 robots take
-/// 1.25 KB). Cheap to test, iterate in id order, and share.
-#[derive(Clone, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
-pub struct MemberSet(FixedBitSet);
+/// Members kept in place, without a heap allocation.
+const INLINE: usize = 4;
+
+/// A set of robots of a roster.
+///
+/// Small sets are sorted lists (up to four members in place, without an
+/// allocation), large ones a bit per robot of the roster (10,000 robots
+/// take 1.25 KB): an allocation of 10,000 robots to 10,000 children is
+/// 10,000 one-member lists, not 10,000 bit sets of 10,000 bits. Which form
+/// a set takes is invisible: equality, fingerprints and the wire form are
+/// those of the bit set.
+#[derive(Clone, Debug)]
+pub struct MemberSet {
+    roster: u32,
+    repr: Repr,
+}
+
+#[derive(Clone, Debug)]
+enum Repr {
+    /// Up to [`INLINE`] members, sorted.
+    Few { n: u8, ids: [u32; INLINE] },
+    /// Sorted members.
+    List(Vec<u32>),
+    /// A bit per robot of the roster.
+    Bits(FixedBitSet),
+}
+
+/// Members in increasing id order.
+pub enum Members<'a> {
+    /// Of a list.
+    List(std::slice::Iter<'a, u32>),
+    /// Of a bit set.
+    Bits(fixedbitset::Ones<'a>),
+}
+
+impl Iterator for Members<'_> {
+    type Item = RobotId;
+    #[inline]
+    fn next(&mut self) -> Option<RobotId> {
+        match self {
+            Members::List(it) => it.next().map(|i| RobotId(*i)),
+            Members::Bits(it) => it.next().map(|i| RobotId(i as u32)),
+        }
+    }
+}
 
 impl MemberSet {
     /// The empty set over a roster of `roster_len` robots.
     pub fn empty(roster_len: usize) -> Self {
-        MemberSet(FixedBitSet::with_capacity(roster_len))
+        MemberSet {
+            roster: roster_len as u32,
+            repr: Repr::Few {
+                n: 0,
+                ids: [0; INLINE],
+            },
+        }
     }
     /// Every robot of a roster of `roster_len`.
     pub fn all(roster_len: usize) -> Self {
+        if roster_len <= INLINE {
+            return Self::from_sorted(roster_len, (0..roster_len as u32).collect());
+        }
         let mut s = FixedBitSet::with_capacity(roster_len);
         s.insert_range(..);
-        MemberSet(s)
+        MemberSet {
+            roster: roster_len as u32,
+            repr: Repr::Bits(s),
+        }
     }
     /// The set of the given robots (ids beyond `roster_len` are ignored).
     pub fn from_iter(roster_len: usize, robots: impl IntoIterator<Item = RobotId>) -> Self {
-        let mut s = Self::empty(roster_len);
-        for r in robots {
-            s.insert(r);
+        let mut v: Vec<u32> = robots
+            .into_iter()
+            .filter(|r| r.index() < roster_len)
+            .map(|r| r.0)
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        Self::from_sorted(roster_len, v)
+    }
+    /// True when a set of `n` members of a roster of `roster` is kept as a
+    /// bit set: when that takes less room than the list, or once the list
+    /// is longer than 64 (a set that grows one member at a time, such as
+    /// the teammates done with a behavior, does not shift a long list).
+    fn dense(n: usize, roster: usize) -> bool {
+        n > INLINE && n > (roster / 32).min(64)
+    }
+    /// The set of `ids`, sorted, without repeats, all in the roster.
+    fn from_sorted(roster_len: usize, ids: Vec<u32>) -> Self {
+        let repr = if ids.len() <= INLINE {
+            let mut a = [0; INLINE];
+            a[..ids.len()].copy_from_slice(&ids);
+            Repr::Few {
+                n: ids.len() as u8,
+                ids: a,
+            }
+        } else if Self::dense(ids.len(), roster_len) {
+            let mut s = FixedBitSet::with_capacity(roster_len);
+            for i in ids {
+                s.insert(i as usize);
+            }
+            Repr::Bits(s)
+        } else {
+            Repr::List(ids)
+        };
+        MemberSet {
+            roster: roster_len as u32,
+            repr,
         }
-        s
+    }
+    /// The sorted members, when the set is a list.
+    #[inline]
+    fn list(&self) -> Option<&[u32]> {
+        match &self.repr {
+            Repr::Few { n, ids } => Some(&ids[..*n as usize]),
+            Repr::List(v) => Some(v),
+            Repr::Bits(_) => None,
+        }
+    }
+    /// The set as a bit set (borrowed when it is one).
+    fn bits(&self) -> std::borrow::Cow<'_, FixedBitSet> {
+        match &self.repr {
+            Repr::Bits(b) => std::borrow::Cow::Borrowed(b),
+            _ => {
+                let mut b = FixedBitSet::with_capacity(self.roster as usize);
+                for r in self.iter() {
+                    b.insert(r.index());
+                }
+                std::borrow::Cow::Owned(b)
+            }
+        }
     }
     /// Add a robot (ignored if outside the roster). Returns whether it was new.
     pub fn insert(&mut self, r: RobotId) -> bool {
-        if r.index() >= self.0.len() {
+        if r.index() >= self.roster as usize {
             return false;
         }
-        !self.0.put(r.index())
+        let roster = self.roster as usize;
+        match &mut self.repr {
+            Repr::Bits(b) => return !b.put(r.index()),
+            Repr::Few { n, ids } => {
+                let len = *n as usize;
+                let Err(at) = ids[..len].binary_search(&r.0) else {
+                    return false;
+                };
+                if len < INLINE {
+                    ids.copy_within(at..len, at + 1);
+                    ids[at] = r.0;
+                    *n += 1;
+                    return true;
+                }
+                let mut v = Vec::with_capacity(2 * INLINE);
+                v.extend_from_slice(&ids[..at]);
+                v.push(r.0);
+                v.extend_from_slice(&ids[at..len]);
+                self.repr = Repr::List(v);
+            }
+            Repr::List(v) => {
+                if v.last().is_some_and(|l| *l < r.0) {
+                    v.push(r.0);
+                } else {
+                    let Err(at) = v.binary_search(&r.0) else {
+                        return false;
+                    };
+                    v.insert(at, r.0);
+                }
+            }
+        }
+        if let Repr::List(v) = &self.repr
+            && Self::dense(v.len(), roster)
+        {
+            let v = std::mem::take(self.list_mut());
+            *self = Self::from_sorted(roster, v);
+        }
+        true
+    }
+    fn list_mut(&mut self) -> &mut Vec<u32> {
+        match &mut self.repr {
+            Repr::List(v) => v,
+            _ => unreachable!("only called on lists"),
+        }
     }
     /// Remove a robot.
     pub fn remove(&mut self, r: RobotId) {
-        if r.index() < self.0.len() {
-            self.0.set(r.index(), false);
+        match &mut self.repr {
+            Repr::Bits(b) => {
+                if r.index() < b.len() {
+                    b.set(r.index(), false);
+                }
+            }
+            Repr::Few { n, ids } => {
+                let len = *n as usize;
+                if let Ok(at) = ids[..len].binary_search(&r.0) {
+                    ids.copy_within(at + 1..len, at);
+                    *n -= 1;
+                }
+            }
+            Repr::List(v) => {
+                if let Ok(at) = v.binary_search(&r.0) {
+                    v.remove(at);
+                }
+            }
         }
     }
     /// Membership test.
     #[inline]
     pub fn contains(&self, r: RobotId) -> bool {
-        self.0.contains(r.index())
+        match &self.repr {
+            Repr::Few { n, ids } => ids[..*n as usize].contains(&r.0),
+            Repr::List(v) => v.binary_search(&r.0).is_ok(),
+            Repr::Bits(b) => b.contains(r.index()),
+        }
     }
     /// Number of members.
     pub fn len(&self) -> usize {
-        self.0.count_ones(..)
+        match &self.repr {
+            Repr::Bits(b) => b.count_ones(..),
+            _ => self.list().map_or(0, <[u32]>::len),
+        }
     }
     /// True when empty.
     pub fn is_empty(&self) -> bool {
-        self.0.is_clear()
+        match &self.repr {
+            Repr::Bits(b) => b.is_clear(),
+            _ => self.list().is_none_or(<[u32]>::is_empty),
+        }
     }
     /// How many members have a lower id than `r` (its 0-based rank when
     /// it is a member).
     pub fn rank(&self, r: RobotId) -> usize {
-        self.0.count_ones(..r.index().min(self.0.len()))
+        match (&self.repr, self.list()) {
+            (Repr::Bits(b), _) => b.count_ones(..r.index().min(b.len())),
+            (_, Some(l)) => l.partition_point(|x| *x < r.0),
+            _ => 0,
+        }
     }
     /// Members in increasing id order.
-    pub fn iter(&self) -> impl Iterator<Item = RobotId> + '_ {
-        self.0.ones().map(|i| RobotId(i as u32))
+    pub fn iter(&self) -> Members<'_> {
+        match &self.repr {
+            Repr::Bits(b) => Members::Bits(b.ones()),
+            _ => Members::List(self.list().unwrap_or_default().iter()),
+        }
     }
     /// The lowest member.
     pub fn first(&self) -> Option<RobotId> {
-        self.0.minimum().map(|i| RobotId(i as u32))
+        match &self.repr {
+            Repr::Bits(b) => b.minimum().map(|i| RobotId(i as u32)),
+            _ => self.list().and_then(|l| l.first()).map(|i| RobotId(*i)),
+        }
     }
     /// Size of the roster this set ranges over.
     pub fn roster_len(&self) -> usize {
-        self.0.len()
+        self.roster as usize
     }
     /// True when every member of `self` is in `other`.
     pub fn is_subset(&self, other: &MemberSet) -> bool {
-        self.0.is_subset(&other.0)
+        match (&self.repr, &other.repr) {
+            (Repr::Bits(a), Repr::Bits(b)) => a.is_subset(b),
+            _ => self.iter().all(|r| other.contains(r)),
+        }
     }
     /// Members as a vector.
     pub fn to_vec(&self) -> Vec<RobotId> {
@@ -91,64 +282,155 @@ impl MemberSet {
     }
     /// True when no robot is in both sets.
     pub fn is_disjoint(&self, other: &MemberSet) -> bool {
-        self.0.is_disjoint(&other.0)
+        match (&self.repr, &other.repr) {
+            (Repr::Bits(a), Repr::Bits(b)) => a.is_disjoint(b),
+            (Repr::Bits(_), _) => other.iter().all(|r| !self.contains(r)),
+            _ => self.iter().all(|r| !other.contains(r)),
+        }
     }
     /// Add every member of `other`.
     pub fn union_with(&mut self, other: &MemberSet) {
-        self.0.union_with(&other.0);
+        match (&mut self.repr, &other.repr) {
+            (Repr::Bits(a), Repr::Bits(b)) => a.union_with(b),
+            (_, Repr::Bits(b)) => {
+                let mut bits = b.clone();
+                bits.grow(self.roster as usize);
+                for r in self.iter() {
+                    bits.insert(r.index());
+                }
+                self.repr = Repr::Bits(bits);
+            }
+            _ => {
+                for r in other.iter() {
+                    self.insert(r);
+                }
+            }
+        }
     }
-    /// A stable fingerprint of the set (equal sets, equal fingerprints).
+    /// A stable fingerprint of the set (equal sets, equal fingerprints):
+    /// FNV-1a over the roster size and the bit set's words, little-endian;
+    /// a list is hashed as its bit set would be, skipping the empty words.
     pub fn fingerprint(&self) -> u64 {
-        let mut h = crate::ids::Fnv1a::new();
-        h.write(&(self.0.len() as u64).to_le_bytes());
-        for block in self.0.as_slice() {
-            h.write(&(*block as u64).to_le_bytes());
+        let mut h = Fnv1a::new();
+        h.write(&u64::from(self.roster).to_le_bytes());
+        match &self.repr {
+            Repr::Bits(b) => {
+                for block in b.as_slice() {
+                    h.write(&(*block as u64).to_le_bytes());
+                }
+            }
+            _ => {
+                let words = (self.roster as u64).div_ceil(64);
+                let mut at = 0u64;
+                let mut members = self.list().unwrap_or_default().iter().peekable();
+                while let Some(&first) = members.next() {
+                    let w = u64::from(first) / 64;
+                    let mut word = 1u64 << (first % 64);
+                    while let Some(&&x) = members.peek() {
+                        if u64::from(x) / 64 != w {
+                            break;
+                        }
+                        word |= 1u64 << (x % 64);
+                        members.next();
+                    }
+                    h.write_zeros(8 * (w - at));
+                    h.write(&word.to_le_bytes());
+                    at = w + 1;
+                }
+                h.write_zeros(8 * (words - at));
+            }
         }
         h.finish()
     }
     /// Split the members, in increasing id order, into consecutive groups of
     /// `counts[i]` members each (members beyond the total are left out).
-    /// Works a machine word at a time: O(roster / 64 + groups · 64).
+    /// O(members + groups), plus a word per 64 robots of the roster for each
+    /// group large enough to be a bit set.
     pub fn split_by_rank(&self, counts: &[u32]) -> Vec<MemberSet> {
-        let len = self.0.len();
-        let mut out: Vec<FixedBitSet> = counts
-            .iter()
-            .map(|_| FixedBitSet::with_capacity(len))
-            .collect();
-        let mut group = 0;
-        let mut left = counts.first().copied().unwrap_or(0) as usize;
-        'blocks: for (w, &block) in self.0.as_slice().iter().enumerate() {
-            let mut rest = block;
-            while rest != 0 {
-                while left == 0 {
-                    group += 1;
-                    match counts.get(group) {
-                        Some(c) => left = *c as usize,
-                        None => break 'blocks,
-                    }
+        let roster = self.roster as usize;
+        let mut out = Vec::with_capacity(counts.len());
+        let mut members = self.iter();
+        for &c in counts {
+            let c = c as usize;
+            if Self::dense(c, roster) {
+                let mut b = FixedBitSet::with_capacity(roster);
+                for r in members.by_ref().take(c) {
+                    b.insert(r.index());
                 }
-                let ones = rest.count_ones() as usize;
-                let dst = out[group].as_mut_slice();
-                if ones <= left {
-                    dst[w] |= rest;
-                    left -= ones;
-                    rest = 0;
-                } else {
-                    // Take the lowest `left` members of this word.
-                    let mut take = 0usize;
-                    let mut r = rest;
-                    for _ in 0..left {
-                        let low = r & r.wrapping_neg();
-                        take |= low;
-                        r &= !low;
-                    }
-                    dst[w] |= take;
-                    rest &= !take;
-                    left = 0;
+                out.push(MemberSet {
+                    roster: self.roster,
+                    repr: Repr::Bits(b),
+                });
+            } else if c <= INLINE {
+                let mut ids = [0; INLINE];
+                let mut n = 0;
+                for r in members.by_ref().take(c) {
+                    ids[n] = r.0;
+                    n += 1;
                 }
+                out.push(MemberSet {
+                    roster: self.roster,
+                    repr: Repr::Few { n: n as u8, ids },
+                });
+            } else {
+                let v: Vec<u32> = members.by_ref().take(c).map(|r| r.0).collect();
+                out.push(MemberSet::from_sorted(roster, v));
             }
         }
-        out.into_iter().map(MemberSet).collect()
+        out
+    }
+}
+
+impl PartialEq for MemberSet {
+    fn eq(&self, other: &Self) -> bool {
+        if self.roster != other.roster {
+            return false;
+        }
+        match (&self.repr, &other.repr, self.list(), other.list()) {
+            (Repr::Few { n: a, ids: x }, Repr::Few { n: b, ids: y }, _, _) => {
+                a == b && x[..*a as usize] == y[..*b as usize]
+            }
+            (_, _, Some(a), Some(b)) => a == b,
+            (Repr::Bits(a), Repr::Bits(b), _, _) => a == b,
+            _ => self.len() == other.len() && self.iter().eq(other.iter()),
+        }
+    }
+}
+
+impl Eq for MemberSet {}
+
+impl std::hash::Hash for MemberSet {
+    fn hash<H: std::hash::Hasher>(&self, state: &mut H) {
+        self.roster.hash(state);
+        for r in self.iter() {
+            r.hash(state);
+        }
+    }
+}
+
+/// The wire form: the roster's bit set, whatever the set's form in memory.
+impl Serialize for MemberSet {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_newtype_struct("MemberSet", &*self.bits())
+    }
+}
+
+impl<'de> Deserialize<'de> for MemberSet {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(rename = "MemberSet")]
+        struct Wire(FixedBitSet);
+        let Wire(b) = Wire::deserialize(d)?;
+        let roster = b.len();
+        let n = b.count_ones(..);
+        Ok(if Self::dense(n, roster) {
+            MemberSet {
+                roster: roster as u32,
+                repr: Repr::Bits(b),
+            }
+        } else {
+            Self::from_sorted(roster, b.ones().map(|i| i as u32).collect())
+        })
     }
 }
 
@@ -165,8 +447,6 @@ pub struct Team {
     pub parent: Option<TeamId>,
     /// The allocation that created it: point, epoch, child index.
     pub origin: Option<(BehaviorId, u32, u32)>,
-    /// Subteams split from it that are still alive.
-    pub children: Vec<TeamId>,
 }
 
 impl Team {
@@ -181,23 +461,203 @@ impl Team {
     }
 }
 
+/// Splits with more subteams than this index their members by robot.
+const INDEXED_SPLIT: usize = 16;
+
+/// The subteams one allocation made, one per child given members, each
+/// linked to its child. Immutable, and shared (behind an `Arc`) by every
+/// robot of a process that applied the same allocation: a simulator
+/// running 10,000 kernels that split 10,000 robots among 10,000 children
+/// stores those 10,000 subteams once, not 10⁸ times (see
+/// [`crate::mission::Mission::split`]).
+#[derive(Debug)]
+pub struct Split {
+    parent: TeamId,
+    point: BehaviorId,
+    stamp: (u32, u32),
+    assignment: Arc<Assignment>,
+    /// The subteams, in the assignment's order.
+    teams: Vec<Team>,
+    /// The child each subteam was made for.
+    heads: Vec<BehaviorId>,
+    /// Indices of `teams`, by team id.
+    by_id: Vec<u32>,
+    /// Indices of `teams`, by child.
+    by_head: Vec<u32>,
+    /// For each robot of the roster, 1 + the index of its subteam (0:
+    /// none); only for splits with many subteams.
+    member_of: Vec<u32>,
+    /// FNV-1a over the subteam ids in order.
+    print: u64,
+    /// The assignment as the run log shows it (made once, when asked).
+    log: OnceLock<crate::event::LogList<(BehaviorId, crate::event::MembersLog)>>,
+}
+
+impl Split {
+    /// The subteams of `parent` that `assignment` makes at execution
+    /// `stamp` (epoch, round) of allocation point `point`: one per child
+    /// with members, its id derived from all of that ([`TeamId::derive`]);
+    /// `index` gives a child's position among the point's children.
+    pub fn new(
+        parent: TeamId,
+        point: BehaviorId,
+        stamp: (u32, u32),
+        assignment: Arc<Assignment>,
+        index: impl Fn(BehaviorId) -> Option<u32>,
+    ) -> Split {
+        let mut teams = Vec::new();
+        let mut heads = Vec::new();
+        let mut h = Fnv1a::new();
+        for (child, members) in &assignment.0 {
+            if members.is_empty() {
+                continue;
+            }
+            let Some(idx) = index(*child) else {
+                continue;
+            };
+            let id = TeamId::derive(parent, point, stamp, idx, members.fingerprint());
+            h.write(&id.0.to_le_bytes());
+            teams.push(Team {
+                id,
+                members: Arc::new(members.clone()),
+                size: members.len() as u32,
+                parent: Some(parent),
+                origin: Some((point, stamp.0, idx)),
+            });
+            heads.push(*child);
+        }
+        let mut by_id: Vec<u32> = (0..teams.len() as u32).collect();
+        by_id.sort_by_key(|i| teams[*i as usize].id);
+        let mut by_head: Vec<u32> = (0..teams.len() as u32).collect();
+        by_head.sort_by_key(|i| heads[*i as usize]);
+        let mut member_of = Vec::new();
+        if teams.len() > INDEXED_SPLIT {
+            let roster = teams.first().map_or(0, |t| t.members.roster_len());
+            member_of = vec![0; roster];
+            for (i, t) in teams.iter().enumerate() {
+                for r in t.members.iter() {
+                    if member_of[r.index()] == 0 {
+                        member_of[r.index()] = i as u32 + 1;
+                    }
+                }
+            }
+        }
+        Split {
+            parent,
+            point,
+            stamp,
+            assignment,
+            teams,
+            heads,
+            by_id,
+            by_head,
+            member_of,
+            print: h.finish(),
+            log: OnceLock::new(),
+        }
+    }
+    /// The team that was split.
+    pub fn parent(&self) -> TeamId {
+        self.parent
+    }
+    /// The allocation point.
+    pub fn point(&self) -> BehaviorId {
+        self.point
+    }
+    /// The execution of the point: (epoch, round).
+    pub fn stamp(&self) -> (u32, u32) {
+        self.stamp
+    }
+    /// The allocation applied.
+    pub fn assignment(&self) -> &Arc<Assignment> {
+        &self.assignment
+    }
+    /// The subteams, with the child each runs, in the assignment's order.
+    pub fn subteams(&self) -> impl Iterator<Item = (BehaviorId, &Team)> {
+        self.heads.iter().copied().zip(&self.teams)
+    }
+    /// Number of subteams.
+    pub fn len(&self) -> usize {
+        self.teams.len()
+    }
+    /// True when the allocation gave no child any member.
+    pub fn is_empty(&self) -> bool {
+        self.teams.is_empty()
+    }
+    /// The position of subteam `id` in the assignment's order.
+    fn index(&self, id: TeamId) -> Option<usize> {
+        self.by_id
+            .binary_search_by_key(&id, |i| self.teams[*i as usize].id)
+            .ok()
+            .map(|k| self.by_id[k] as usize)
+    }
+    /// A subteam of this split.
+    pub fn team(&self, id: TeamId) -> Option<&Team> {
+        self.index(id).map(|i| &self.teams[i])
+    }
+    /// True when `id` is one of its subteams.
+    pub fn contains(&self, id: TeamId) -> bool {
+        self.team(id).is_some()
+    }
+    /// The subteam made for child `b`.
+    fn of_head(&self, b: BehaviorId) -> Option<&Team> {
+        self.by_head
+            .binary_search_by_key(&b, |i| self.heads[*i as usize])
+            .ok()
+            .map(|k| &self.teams[self.by_head[k] as usize])
+    }
+    /// The child robot `r` was given, and its subteam.
+    pub fn subteam_of(&self, r: RobotId) -> Option<(BehaviorId, &Team)> {
+        let i = if self.member_of.is_empty() {
+            self.teams.iter().position(|t| t.contains(r))?
+        } else {
+            (*self.member_of.get(r.index())? as usize).checked_sub(1)?
+        };
+        Some((self.heads[i], &self.teams[i]))
+    }
+    /// FNV-1a over the subteam ids in order: equal for robots that applied
+    /// the same allocation (what positions carry to compare allocations).
+    pub fn print(&self) -> u64 {
+        self.print
+    }
+    /// The assignment as the run log shows it: the list of members for
+    /// subteams up to [`crate::event::LOG_MEMBERS_LIMIT`], a count and a
+    /// fingerprint for larger ones. Made once and shared.
+    pub fn log(&self) -> &crate::event::LogList<(BehaviorId, crate::event::MembersLog)> {
+        self.log
+            .get_or_init(|| crate::event::OutcomeLog::members_log(&self.assignment))
+    }
+}
+
 /// How many dissolved team ids a robot remembers, to recognise late
 /// messages addressed to them.
 const DEAD_TEAMS_REMEMBERED: usize = 4096;
+/// Splits of more subteams than this are remembered whole when dissolved
+/// (shared, so they cost a robot a pointer), the last few of them.
+const DEAD_SPLIT_SIZE: usize = 64;
+const DEAD_SPLITS_REMEMBERED: usize = 8;
 
 /// One robot's copy of the organization hierarchy.
+///
+/// The root team, and the [`Split`]s of the allocations this robot applied
+/// that are still alive (few: one per allocating behavior on its stack).
+/// Links between behaviors and subteams are those the splits made, minus
+/// the ones removed since, plus the ones added since.
 #[derive(Clone, Debug)]
 pub struct Organization {
     roster_len: usize,
-    teams: BTreeMap<TeamId, Team>,
-    /// behavior → subteams linked to it (who runs b?).
-    by_behavior: BTreeMap<BehaviorId, BTreeSet<TeamId>>,
-    /// subteam → behaviors linked to it (what does t run?).
-    by_team: BTreeMap<TeamId, BTreeSet<BehaviorId>>,
+    root: Team,
+    splits: Vec<Arc<Split>>,
+    /// Links beyond those the splits made: behavior → team, team → behavior.
+    links: BTreeSet<(BehaviorId, TeamId)>,
+    links_by_team: BTreeSet<(TeamId, BehaviorId)>,
+    /// Links a split made that were removed since.
+    unlinked: BTreeSet<(BehaviorId, TeamId)>,
     /// Execution counts: how many times team t has started behavior b.
     runs: BTreeMap<(TeamId, BehaviorId), u32>,
     dead: VecDeque<TeamId>,
     dead_set: BTreeSet<TeamId>,
+    dead_splits: VecDeque<Arc<Split>>,
 }
 
 impl Organization {
@@ -211,26 +671,23 @@ impl Organization {
     pub fn with_root(root: Arc<MemberSet>) -> Self {
         let roster_len = root.roster_len();
         let size = root.len() as u32;
-        let mut teams = BTreeMap::new();
-        teams.insert(
-            TeamId::ROOT,
-            Team {
+        Organization {
+            roster_len,
+            root: Team {
                 id: TeamId::ROOT,
                 members: root,
                 size,
                 parent: None,
                 origin: None,
-                children: Vec::new(),
             },
-        );
-        Organization {
-            roster_len,
-            teams,
-            by_behavior: BTreeMap::new(),
-            by_team: BTreeMap::new(),
+            splits: Vec::new(),
+            links: BTreeSet::new(),
+            links_by_team: BTreeSet::new(),
+            unlinked: BTreeSet::new(),
             runs: BTreeMap::new(),
             dead: VecDeque::new(),
             dead_set: BTreeSet::new(),
+            dead_splits: VecDeque::new(),
         }
     }
 
@@ -240,125 +697,172 @@ impl Organization {
     }
     /// A team, if alive.
     pub fn team(&self, id: TeamId) -> Option<&Team> {
-        self.teams.get(&id)
+        if id == TeamId::ROOT {
+            return Some(&self.root);
+        }
+        self.splits.iter().rev().find_map(|s| s.team(id))
+    }
+    /// The split that made team `id`, if alive.
+    fn split_of(&self, id: TeamId) -> Option<&Arc<Split>> {
+        self.splits.iter().rev().find(|s| s.contains(id))
     }
     /// The root team.
     pub fn root(&self) -> &Team {
-        // The root is inserted at construction and never removed.
-        &self.teams[&TeamId::ROOT]
+        &self.root
     }
-    /// Every live team, in id order.
+    /// Every live team: the root, then each allocation's subteams.
     pub fn teams(&self) -> impl Iterator<Item = &Team> {
-        self.teams.values()
+        std::iter::once(&self.root).chain(self.splits.iter().flat_map(|s| s.teams.iter()))
+    }
+    /// The live splits, oldest first.
+    pub fn splits(&self) -> &[Arc<Split>] {
+        &self.splits
+    }
+    /// The live subteams split from `id`.
+    pub fn subteams_of(&self, id: TeamId) -> impl Iterator<Item = &Team> {
+        self.splits
+            .iter()
+            .filter(move |s| s.parent == id)
+            .flat_map(|s| s.teams.iter())
     }
     /// True when `id` was a team that has since been dissolved.
     pub fn is_dead(&self, id: TeamId) -> bool {
-        self.dead_set.contains(&id)
+        self.dead_set.contains(&id) || self.dead_splits.iter().any(|s| s.contains(id))
     }
 
-    /// Record a subteam split from `parent` by an allocation. Re-adding an
-    /// existing team (same derived id) is a no-op.
-    pub fn add_subteam(
-        &mut self,
-        parent: TeamId,
-        id: TeamId,
-        members: Arc<MemberSet>,
-        origin: (BehaviorId, u32, u32),
-    ) {
-        if self.teams.contains_key(&id) {
+    /// Record the subteams of an allocation (linked to their children).
+    /// Adding a split already recorded (same parent, point and stamp) is a
+    /// no-op.
+    pub fn add_split(&mut self, split: Arc<Split>) {
+        if self.splits.iter().any(|s| {
+            Arc::ptr_eq(s, &split)
+                || (s.parent, s.point, s.stamp) == (split.parent, split.point, split.stamp)
+        }) {
             return;
         }
-        let size = members.len() as u32;
-        self.teams.insert(
-            id,
-            Team {
-                id,
-                members,
-                size,
-                parent: Some(parent),
-                origin: Some(origin),
-                children: Vec::new(),
-            },
-        );
-        if let Some(p) = self.teams.get_mut(&parent) {
-            p.children.push(id);
-        }
+        self.splits.push(split);
     }
 
     /// Dissolve every subteam below `id` (not `id` itself): used when the
     /// behavior whose allocation created them terminates.
     pub fn dissolve_children(&mut self, id: TeamId) {
-        let kids = match self.teams.get_mut(&id) {
-            Some(t) => std::mem::take(&mut t.children),
-            None => return,
-        };
-        for k in kids {
-            self.dissolve(k);
+        let below: Vec<Arc<Split>> = self
+            .splits
+            .iter()
+            .filter(|s| s.parent == id)
+            .cloned()
+            .collect();
+        for s in below {
+            self.dissolve_split(&s);
         }
     }
 
-    /// Dissolve `id` and everything below it.
+    /// Dissolve `id` with the other subteams of the allocation that made
+    /// it (they live and end together), and everything below them.
     pub fn dissolve(&mut self, id: TeamId) {
-        if id == TeamId::ROOT {
-            return;
+        if let Some(s) = self.split_of(id).cloned() {
+            self.dissolve_split(&s);
         }
-        let Some(team) = self.teams.remove(&id) else {
+    }
+
+    /// Dissolve the subteams of a split, and everything below them.
+    pub fn dissolve_split(&mut self, split: &Arc<Split>) {
+        let Some(at) = self.splits.iter().position(|s| Arc::ptr_eq(s, split)) else {
             return;
         };
-        if let Some(p) = team.parent.and_then(|p| self.teams.get_mut(&p)) {
-            p.children.retain(|c| *c != id);
+        let split = self.splits.remove(at);
+        let below: Vec<Arc<Split>> = self
+            .splits
+            .iter()
+            .filter(|s| split.contains(s.parent))
+            .cloned()
+            .collect();
+        for s in below {
+            self.dissolve_split(&s);
         }
-        for k in team.children {
-            self.dissolve(k);
+        let gone = |t: &TeamId| split.contains(*t);
+        self.links.retain(|(_, t)| !gone(t));
+        self.links_by_team.retain(|(t, _)| !gone(t));
+        self.unlinked.retain(|(_, t)| !gone(t));
+        self.runs.retain(|(t, _), _| !gone(t));
+        if split.len() > DEAD_SPLIT_SIZE {
+            self.dead_splits.push_back(split);
+            if self.dead_splits.len() > DEAD_SPLITS_REMEMBERED {
+                self.dead_splits.pop_front();
+            }
+            return;
         }
-        if let Some(bs) = self.by_team.remove(&id) {
-            for b in bs {
-                if let Some(ts) = self.by_behavior.get_mut(&b) {
-                    ts.remove(&id);
-                    if ts.is_empty() {
-                        self.by_behavior.remove(&b);
-                    }
+        for t in &split.teams {
+            if self.dead_set.insert(t.id) {
+                self.dead.push_back(t.id);
+                if self.dead.len() > DEAD_TEAMS_REMEMBERED
+                    && let Some(old) = self.dead.pop_front()
+                {
+                    self.dead_set.remove(&old);
                 }
             }
         }
-        self.runs.retain(|(t, _), _| *t != id);
-        if self.dead_set.insert(id) {
-            self.dead.push_back(id);
-            if self.dead.len() > DEAD_TEAMS_REMEMBERED
-                && let Some(old) = self.dead.pop_front()
-            {
-                self.dead_set.remove(&old);
-            }
-        }
+    }
+
+    /// True when a split made the link `b` ↔ `t` (`t` made for child `b`).
+    fn split_link(&self, b: BehaviorId, t: TeamId) -> bool {
+        self.split_of(t)
+            .and_then(|s| s.of_head(b))
+            .is_some_and(|x| x.id == t)
     }
 
     /// Link behavior `b` and team `t` both ways (t executes b).
     pub fn link(&mut self, b: BehaviorId, t: TeamId) {
-        self.by_behavior.entry(b).or_default().insert(t);
-        self.by_team.entry(t).or_default().insert(b);
+        if self.split_link(b, t) {
+            self.unlinked.remove(&(b, t));
+        } else {
+            self.links.insert((b, t));
+            self.links_by_team.insert((t, b));
+        }
     }
     /// Remove the link between `b` and `t`.
     pub fn unlink(&mut self, b: BehaviorId, t: TeamId) {
-        if let Some(ts) = self.by_behavior.get_mut(&b) {
-            ts.remove(&t);
-            if ts.is_empty() {
-                self.by_behavior.remove(&b);
-            }
-        }
-        if let Some(bs) = self.by_team.get_mut(&t) {
-            bs.remove(&b);
-            if bs.is_empty() {
-                self.by_team.remove(&t);
-            }
+        if self.split_link(b, t) {
+            self.unlinked.insert((b, t));
+        } else {
+            self.links.remove(&(b, t));
+            self.links_by_team.remove(&(t, b));
         }
     }
-    /// Who runs behavior `b`? The teams linked to it.
+    /// Who runs behavior `b`? The teams linked to it, in id order.
     pub fn teams_running(&self, b: BehaviorId) -> impl Iterator<Item = TeamId> + '_ {
-        self.by_behavior.get(&b).into_iter().flatten().copied()
+        let mut ts: Vec<TeamId> = self
+            .links
+            .range((b, TeamId(0))..=(b, TeamId(u64::MAX)))
+            .map(|(_, t)| *t)
+            .collect();
+        for s in &self.splits {
+            if let Some(t) = s.of_head(b)
+                && !self.unlinked.contains(&(b, t.id))
+            {
+                ts.push(t.id);
+            }
+        }
+        ts.sort_unstable();
+        ts.dedup();
+        ts.into_iter()
     }
-    /// What does team `t` run? The behaviors linked to it.
+    /// What does team `t` run? The behaviors linked to it, in id order.
     pub fn behaviors_of(&self, t: TeamId) -> impl Iterator<Item = BehaviorId> + '_ {
-        self.by_team.get(&t).into_iter().flatten().copied()
+        let mut bs: Vec<BehaviorId> = self
+            .links_by_team
+            .range((t, BehaviorId(0))..=(t, BehaviorId(u32::MAX)))
+            .map(|(_, b)| *b)
+            .collect();
+        if let Some(s) = self.split_of(t)
+            && let Some(b) = s.index(t).map(|i| s.heads[i])
+            && !self.unlinked.contains(&(b, t))
+        {
+            bs.push(b);
+        }
+        bs.sort_unstable();
+        bs.dedup();
+        bs.into_iter()
     }
 
     /// Count one more execution of `b` by `t`; returns the new count (the
@@ -382,46 +886,46 @@ impl Organization {
     /// The smallest live teams containing `r` (its parents in the DAG, as a
     /// singleton leaf).
     pub fn teams_of(&self, r: RobotId) -> Vec<TeamId> {
-        self.teams
-            .values()
+        self.teams()
             .filter(|t| t.contains(r))
-            .filter(|t| {
-                !t.children
-                    .iter()
-                    .any(|c| self.teams.get(c).is_some_and(|c| c.contains(r)))
-            })
+            .filter(|t| !self.subteams_of(t.id).any(|c| c.contains(r)))
             .map(|t| t.id)
             .collect()
     }
 
     /// Check the hierarchy's structural invariants: every subteam is a
-    /// subset of its parent, children lists match parent links, and every
-    /// link points at a live team. Returns the first violation.
+    /// subset of its parent, and every link points at a live team. Returns
+    /// the first violation.
     pub fn check_invariants(&self) -> Result<(), String> {
-        for t in self.teams.values() {
-            if let Some(p) = t.parent {
-                let Some(pt) = self.teams.get(&p) else {
-                    return Err(format!("team {} has dissolved parent {}", t.id, p));
-                };
+        for s in &self.splits {
+            let Some(pt) = self.team(s.parent) else {
+                return Err(format!("the subteams of {} outlive their parent", s.parent));
+            };
+            for t in &s.teams {
+                if t.parent != Some(s.parent) {
+                    return Err(format!(
+                        "team {} does not name its parent {}",
+                        t.id, s.parent
+                    ));
+                }
                 if !t.members.is_subset(&pt.members) {
-                    return Err(format!("team {} is not a subset of its parent {}", t.id, p));
+                    return Err(format!(
+                        "team {} is not a subset of its parent {}",
+                        t.id, s.parent
+                    ));
                 }
-                if !pt.children.contains(&t.id) {
-                    return Err(format!("parent {} does not list child {}", p, t.id));
-                }
-            } else if t.id != TeamId::ROOT {
-                return Err(format!("team {} has no parent", t.id));
             }
         }
-        for (b, ts) in &self.by_behavior {
-            for t in ts {
-                if !self.teams.contains_key(t) {
-                    return Err(format!("behavior b{} linked to dissolved team {}", b.0, t));
-                }
-                if !self.by_team.get(t).is_some_and(|bs| bs.contains(b)) {
-                    return Err(format!("link b{} -> {} has no inverse", b.0, t));
-                }
+        for (b, t) in &self.links {
+            if self.team(*t).is_none() {
+                return Err(format!("behavior b{} linked to dissolved team {}", b.0, t));
             }
+            if !self.links_by_team.contains(&(*t, *b)) {
+                return Err(format!("link b{} -> {} has no inverse", b.0, t));
+            }
+        }
+        if self.links.len() != self.links_by_team.len() {
+            return Err("links and their inverses differ".into());
         }
         Ok(())
     }
@@ -431,6 +935,10 @@ impl Organization {
 mod tests {
     use super::*;
 
+    fn set(n: usize, ids: &[u32]) -> MemberSet {
+        MemberSet::from_iter(n, ids.iter().map(|i| RobotId(*i)))
+    }
+
     #[test]
     fn hierarchy_links_both_ways_and_dissolves() {
         let mut org = Organization::new(4);
@@ -438,37 +946,58 @@ mod tests {
         let walk = BehaviorId(1);
         let lead = BehaviorId(2);
         let follow = BehaviorId(3);
+        let inner = BehaviorId(4);
         org.link(walk, TeamId::ROOT);
-        let t1 = TeamId::derive(TeamId::ROOT, walk, (1, 0), 0, 1);
-        let t2 = TeamId::derive(TeamId::ROOT, walk, (1, 0), 1, 2);
-        org.add_subteam(
+        let asg = Assignment(vec![(lead, set(4, &[0])), (follow, set(4, &[1, 2, 3]))]);
+        let index = |b: BehaviorId| Some(b.0 - 2);
+        let split = Arc::new(Split::new(TeamId::ROOT, walk, (1, 0), Arc::new(asg), index));
+        let t1 = TeamId::derive(TeamId::ROOT, walk, (1, 0), 0, set(4, &[0]).fingerprint());
+        let t2 = TeamId::derive(
             TeamId::ROOT,
-            t1,
-            Arc::new(MemberSet::from_iter(4, [RobotId(0)])),
-            (walk, 1, 0),
+            walk,
+            (1, 0),
+            1,
+            set(4, &[1, 2, 3]).fingerprint(),
         );
-        org.add_subteam(
-            TeamId::ROOT,
-            t2,
-            Arc::new(MemberSet::from_iter(
-                4,
-                [RobotId(1), RobotId(2), RobotId(3)],
-            )),
-            (walk, 1, 1),
+        assert_eq!(
+            split.subteam_of(RobotId(2)).map(|(b, t)| (b, t.id)),
+            Some((follow, t2))
         );
-        org.link(lead, t1);
-        org.link(follow, t2);
+        org.add_split(split.clone());
+        org.add_split(split.clone());
+        assert_eq!(org.splits().len(), 1, "added once");
         assert_eq!(org.teams_running(follow).collect::<Vec<_>>(), vec![t2]);
         assert_eq!(org.behaviors_of(t1).collect::<Vec<_>>(), vec![lead]);
         assert_eq!(org.teams_of(RobotId(2)), vec![t2]);
+        assert_eq!(org.team(t1).map(|t| t.origin), Some(Some((walk, 1, 0))));
+        // Links move as the robots' chains go on.
+        org.unlink(follow, t2);
+        org.link(inner, t2);
+        assert_eq!(org.behaviors_of(t2).collect::<Vec<_>>(), vec![inner]);
+        assert_eq!(org.teams_running(follow).count(), 0);
+        org.link(follow, t2);
+        assert_eq!(
+            org.behaviors_of(t2).collect::<Vec<_>>(),
+            vec![follow, inner]
+        );
         org.check_invariants().unwrap();
         assert_eq!(org.start_run(t2, follow), 1);
         assert_eq!(org.start_run(t2, follow), 2);
+        // A split of t2, below it: dissolved with it.
+        let sub = Assignment(vec![(inner, set(4, &[1]))]);
+        let sub = Arc::new(Split::new(t2, follow, (2, 0), Arc::new(sub), |_| Some(0)));
+        org.add_split(sub.clone());
+        let t3 = sub.subteams().next().map(|(_, t)| t.id).unwrap();
+        assert_eq!(org.teams_of(RobotId(1)), vec![t3]);
+        assert_eq!(org.subteams_of(t2).count(), 1);
+        org.check_invariants().unwrap();
         org.dissolve_children(TeamId::ROOT);
-        assert!(org.team(t1).is_none() && org.is_dead(t1));
+        assert!(org.team(t1).is_none() && org.is_dead(t1) && org.is_dead(t3));
         assert_eq!(org.teams_running(follow).count(), 0);
+        assert_eq!(org.behaviors_of(t2).count(), 0);
         assert_eq!(org.runs(t2, follow), 0);
         assert_eq!(org.teams_of(RobotId(2)), vec![TeamId::ROOT]);
+        assert_eq!(org.teams().count(), 1);
         org.check_invariants().unwrap();
     }
 
@@ -482,5 +1011,92 @@ mod tests {
         assert_eq!(s.to_vec(), vec![RobotId(1), RobotId(3)]);
         assert_eq!(s.first(), Some(RobotId(1)));
         assert_eq!(MemberSet::all(3).len(), 3);
+    }
+
+    /// The old form: a bit set, always.
+    fn dense(s: &MemberSet) -> FixedBitSet {
+        let mut b = FixedBitSet::with_capacity(s.roster_len());
+        for r in s.iter() {
+            b.insert(r.index());
+        }
+        b
+    }
+
+    fn dense_fingerprint(b: &FixedBitSet) -> u64 {
+        let mut h = Fnv1a::new();
+        h.write(&(b.len() as u64).to_le_bytes());
+        for block in b.as_slice() {
+            h.write(&(*block as u64).to_le_bytes());
+        }
+        h.finish()
+    }
+
+    #[test]
+    fn every_form_of_a_set_behaves_as_its_bit_set() {
+        for n in [0usize, 3, 5, 64, 65, 200, 1000, 10_000] {
+            let mut s = MemberSet::empty(n);
+            let mut shadow = FixedBitSet::with_capacity(n);
+            // Grows through every form: in place, list, bit set.
+            let mut x = 7u64;
+            for k in 0..(n / 8 + 6) {
+                x = x
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let r = RobotId(((x >> 33) % (n.max(1) as u64)) as u32);
+                let new = s.insert(r);
+                assert_eq!(new, n > 0 && !shadow.put(r.index()), "n={n} k={k}");
+                if k % 5 == 4 && n > 0 {
+                    s.remove(r);
+                    shadow.set(r.index(), false);
+                }
+                assert_eq!(dense(&s), shadow, "n={n} k={k}");
+                assert_eq!(s.len(), shadow.count_ones(..));
+                assert_eq!(s.fingerprint(), dense_fingerprint(&shadow), "n={n} k={k}");
+                let again = MemberSet::from_iter(n, s.iter());
+                assert_eq!(again, s);
+                assert_eq!(again.fingerprint(), s.fingerprint());
+                if let Some(r) = s.first() {
+                    assert_eq!(s.rank(r), 0);
+                    assert!(s.is_subset(&MemberSet::all(n)));
+                }
+                // The wire form is the bit set's, whatever the form.
+                let bytes = postcard::to_allocvec(&s).unwrap();
+                #[derive(Serialize)]
+                struct Old<'a>(&'a FixedBitSet);
+                assert_eq!(bytes, postcard::to_allocvec(&Old(&shadow)).unwrap());
+                let back: MemberSet = postcard::from_bytes(&bytes).unwrap();
+                assert_eq!(back, s);
+            }
+        }
+    }
+
+    #[test]
+    fn splitting_by_rank_keeps_small_groups_small() {
+        let all = MemberSet::all(10_000);
+        let counts: Vec<u32> = (0..10_000)
+            .map(|i| u32::from(i < 9_990))
+            .chain([3])
+            .collect();
+        let parts = all.split_by_rank(&counts);
+        assert_eq!(parts.len(), 10_001);
+        assert_eq!(parts[0].to_vec(), vec![RobotId(0)]);
+        assert_eq!(parts[9_989].to_vec(), vec![RobotId(9_989)]);
+        assert!(parts[9_990].is_empty());
+        assert_eq!(
+            parts[10_000].to_vec(),
+            vec![RobotId(9_990), RobotId(9_991), RobotId(9_992)]
+        );
+        let halves = all.split_by_rank(&[5_000, 5_000]);
+        assert_eq!(halves[1].first(), Some(RobotId(5_000)));
+        assert_eq!(halves[1].len(), 5_000);
+        assert!(halves[0].is_disjoint(&halves[1]));
+        let mut u = halves[0].clone();
+        u.union_with(&halves[1]);
+        assert_eq!(u, all);
+        let mut few = set(10_000, &[1, 2]);
+        few.union_with(&halves[1]);
+        assert_eq!(few.len(), 5_002);
+        assert!(!set(10_000, &[1, 9_999]).is_disjoint(&halves[1]));
+        assert!(set(10_000, &[1, 2]).is_disjoint(&halves[1]));
     }
 }

@@ -82,13 +82,11 @@ pub fn assign_in_order(
 /// time (a 10,000-robot team splits in microseconds).
 pub fn assign_by_id(members: &MemberSet, children: &[ChildSlot]) -> Assignment {
     let counts = member_counts(members.len(), children);
-    Assignment(
-        children
-            .iter()
-            .map(|c| c.behavior)
-            .zip(members.split_by_rank(&counts))
-            .collect(),
-    )
+    let mut out = Vec::with_capacity(children.len());
+    for (c, m) in children.iter().zip(members.split_by_rank(&counts)) {
+        out.push((c.behavior, m));
+    }
+    Assignment(out)
 }
 
 /// The outcome the kernel applies when an instance of `kind` cannot decide:
@@ -96,9 +94,7 @@ pub fn assign_by_id(members: &MemberSet, children: &[ChildSlot]) -> Assignment {
 pub fn fallback(cx: &Cx<'_>) -> Outcome {
     match cx.input() {
         PointInput::Sync { candidates, .. } => Outcome::Sync(candidates.first().copied()),
-        PointInput::Allocate { children } => {
-            Outcome::Allocate(assign_by_id(&cx.live_set(), children))
-        }
+        PointInput::Allocate { children } => Outcome::Allocate(cx.assign_by_id(children)),
         PointInput::Terminate => Outcome::Terminate(None),
     }
 }

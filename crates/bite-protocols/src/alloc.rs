@@ -187,11 +187,9 @@ impl Rule for Sorted {
             by_value.then(ra.cmp(rb))
         });
         let roster = cx.team().members.roster_len();
-        Outcome::Allocate(assign_in_order(
-            roster,
-            members.into_iter().map(|(_, r)| r),
-            cx.children(),
-        ))
+        Outcome::Allocate(
+            assign_in_order(roster, members.into_iter().map(|(_, r)| r), cx.children()).into(),
+        )
     }
 }
 
@@ -312,7 +310,7 @@ impl Rule for Matching {
             }
         }
         taken.extend(fill);
-        Outcome::Allocate(assignment_of(cx, &children, taken))
+        Outcome::Allocate(assignment_of(cx, &children, taken).into())
     }
 }
 
@@ -396,7 +394,7 @@ impl Rule for Exact {
             .iter()
             .zip(&sol.row_to_col)
             .filter_map(|(r, k)| k.map(|k| (*r, cols[k])));
-        Outcome::Allocate(assignment_of(cx, &children, pairs))
+        Outcome::Allocate(assignment_of(cx, &children, pairs).into())
     }
 }
 

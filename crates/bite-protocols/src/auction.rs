@@ -242,7 +242,7 @@ impl Market {
     /// members were lost) the places left dealt by id to the members left.
     fn finish(&mut self, cx: &mut Cx<'_>) {
         let awards: Vec<(RobotId, usize)> = self.order.clone();
-        let o = Outcome::Allocate(settle(cx, &self.children, awards));
+        let o = Outcome::Allocate(settle(cx, &self.children, awards).into());
         self.coord.adopt(cx, o, true);
     }
 

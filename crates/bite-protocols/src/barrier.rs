@@ -9,7 +9,9 @@
 //!   the whole subteam: teammates presumed lost count as not arrived, so a
 //!   minority cut off by a partition (an isolated leader: a "majority of
 //!   one") never decides; it ends the behavior only at its deadline, and the
-//!   kernel reports the timeout.
+//!   kernel reports the timeout. Teammates that left the behavior by ending
+//!   an ancestor (the kernel learns it from their heartbeats) are done with
+//!   it and count as arrived.
 //! - `term.first-wins`: the first member whose termination condition holds
 //!   (it sees the goal: the target found, the box delivered) ends the
 //!   behavior for everyone at once. A member whose part merely ran out
@@ -202,13 +204,17 @@ impl Barrier {
             // as not arrived, so a robot cut off from the others (or left
             // with too few survivors) is never a majority of one. It ends
             // the behavior at its deadline, reported as a timeout.
+            // Teammates that left it by ending an ancestor are done with
+            // it: they count as arrived.
             Mode::Majority => {
                 let whole = cx.team().size as usize;
                 let all_arrived = cx
                     .team()
                     .members
                     .iter()
-                    .filter(|m| arrived.contains(*m))
+                    .filter(|m| {
+                        arrived.contains(*m) || (!cx.is_live(*m) && !cx.is_presumed_lost(*m))
+                    })
                     .count();
                 all_arrived > whole / 2
             }

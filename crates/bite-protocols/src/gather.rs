@@ -86,7 +86,7 @@ pub(crate) fn announced(cx: &Cx<'_>, body: &Body) -> Option<Outcome> {
         (PointInput::Sync { .. }, Body::Decision { choice }) => Some(Outcome::Sync(*choice)),
         (PointInput::Allocate { .. }, Body::Assignment { .. }) => body
             .to_assignment(cx.team().members.roster_len())
-            .map(Outcome::Allocate),
+            .map(|a| Outcome::Allocate(a.into())),
         (PointInput::Terminate, Body::Release { next }) => Some(Outcome::Terminate(*next)),
         _ => None,
     }

@@ -224,7 +224,7 @@ impl Tokens {
             .iter()
             .map(|(s, r)| (*r, self.slots[*s as usize]))
             .collect();
-        let o = Outcome::Allocate(settle(cx, &self.children, awards));
+        let o = Outcome::Allocate(settle(cx, &self.children, awards).into());
         self.coord.adopt(cx, o, true);
     }
 }

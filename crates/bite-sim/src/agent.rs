@@ -229,6 +229,12 @@ impl Agent {
         }
     }
 
+    /// A teammate's team view, heard with its heartbeat.
+    pub fn peer(&mut self, now: Time, from: RobotId, pos: &bite_core::kernel::Position) {
+        self.kernel.peer(now, from, pos);
+        self.drain(now);
+    }
+
     /// The failure detector presumes `r` lost.
     pub fn member_lost(&mut self, now: Time, r: RobotId) {
         self.kernel.member_lost(now, r);

@@ -24,7 +24,7 @@
 //! - **organization**: every robot's hierarchy is structurally sound.
 
 use crate::runner::{FinalRobot, RunReport};
-use bite_core::event::{Event, MembersLog, OutcomeLog};
+use bite_core::event::{Event, LogList, MembersLog, OutcomeLog};
 use bite_core::ids::{BehaviorId, RobotId, TeamId};
 use bite_core::mission::Mission;
 use bite_core::msg::{InstanceKey, Kind};
@@ -99,6 +99,49 @@ pub fn check(report: &RunReport, mission: &Arc<Mission>) -> Vec<Violation> {
     c.finish(report.end, &report.crashes, &report.finals)
 }
 
+/// Check every invariant over the run logs of a team that ran as separate
+/// processes (`bite launch`), each as (robot name, records), as a simulated
+/// run is checked. Records are merged by their team time. A robot in
+/// `stopped` (killed, or exited before the end) counts as crashed at its
+/// last record. Returns the violations and the number of records checked.
+pub fn check_logs(
+    mission: &Arc<Mission>,
+    logs: &[(String, Vec<serde_json::Value>)],
+    stopped: &[&str],
+) -> (Vec<Violation>, usize) {
+    let graph = mission.graph();
+    let namer = crate::log::Namer::new(graph);
+    let mut events = Vec::new();
+    let mut crashes = Vec::new();
+    let mut end = Time::ZERO;
+    for (name, records) in logs {
+        let Some(robot) = graph.roster().find(name) else {
+            continue;
+        };
+        let mut last = Time::ZERO;
+        for rec in records {
+            if let Some(t) = rec.get("t").and_then(serde_json::Value::as_f64) {
+                last = last.max(Time::from_secs_f64(t.max(0.0)));
+            }
+            if let Some((t, r, e)) = namer.unrecord(mission, rec)
+                && r == robot
+            {
+                events.push((t, robot, events.len(), e));
+            }
+        }
+        end = end.max(last);
+        if stopped.contains(&name.as_str()) {
+            crashes.push((robot, last, None));
+        }
+    }
+    events.sort_by_key(|(t, r, i, _)| (*t, *r, *i));
+    let mut c = Checker::new(mission.clone());
+    for (t, r, _, e) in &events {
+        c.observe(*t, *r, e);
+    }
+    (c.finish(end, &crashes, &[]), events.len())
+}
+
 /// An execution: team, behavior, epoch.
 type Exec = (TeamId, BehaviorId, u32);
 
@@ -119,7 +162,7 @@ pub struct Checker {
     mission: Arc<Mission>,
     v: Vec<Violation>,
     sync: BTreeMap<InstanceKey, BTreeMap<RobotId, Option<BehaviorId>>>,
-    alloc: BTreeMap<InstanceKey, BTreeMap<RobotId, Vec<(BehaviorId, MembersLog)>>>,
+    alloc: BTreeMap<InstanceKey, BTreeMap<RobotId, LogList<(BehaviorId, MembersLog)>>>,
     ended: BTreeMap<InstanceKey, Time>,
     /// Who each robot presumes lost, as the run goes (for "could talk").
     lost_now: BTreeMap<RobotId, BTreeSet<RobotId>>,
@@ -131,7 +174,7 @@ pub struct Checker {
     left_out_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
     lost_during: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
     /// What each robot's instance saw it could choose.
-    options_at: BTreeMap<(InstanceKey, RobotId), Vec<BehaviorId>>,
+    options_at: BTreeMap<(InstanceKey, RobotId), LogList<BehaviorId>>,
     open: BTreeMap<RobotId, BTreeSet<InstanceKey>>,
     timed_out_at: BTreeSet<InstanceKey>,
     selected: BTreeMap<Exec, BTreeSet<RobotId>>,
@@ -473,11 +516,11 @@ impl Checker {
     fn check_assignments(
         &self,
         key: &InstanceKey,
-        views: &BTreeMap<RobotId, Vec<(BehaviorId, MembersLog)>>,
+        views: &BTreeMap<RobotId, LogList<(BehaviorId, MembersLog)>>,
         v: &mut Vec<Violation>,
     ) {
         let slots = self.mission.child_slots(key.behavior);
-        let mut distinct: Vec<&Vec<(BehaviorId, MembersLog)>> = Vec::new();
+        let mut distinct: Vec<&LogList<(BehaviorId, MembersLog)>> = Vec::new();
         for a in views.values() {
             if !distinct.contains(&a) {
                 distinct.push(a);
@@ -488,7 +531,7 @@ impl Checker {
             // ones are compared by fingerprint above and counted here.
             let mut seen = BTreeSet::new();
             let mut listed = true;
-            for (_, members) in asg {
+            for (_, members) in asg.iter() {
                 match members {
                     MembersLog::List(ms) => {
                         for m in ms {
@@ -516,7 +559,7 @@ impl Checker {
                     .iter()
                     .any(|s| s.behavior == *b && m.len() as u32 > s.min)
             });
-            for (b, members) in asg {
+            for (b, members) in asg.iter() {
                 if members.is_empty() && spare {
                     v.push(Violation {
                         invariant: "allocation",

@@ -12,6 +12,8 @@
 use bite_core::event::Event;
 use bite_core::graph::BehaviorGraph;
 use bite_core::ids::{BehaviorId, Fnv1a, RobotId, TeamId};
+use bite_core::mission::Mission;
+use bite_core::msg::InstanceKey;
 use bite_core::time::Time;
 use serde_json::{Map, Value as J};
 use std::io::{self, Write};
@@ -106,6 +108,142 @@ impl<'g> Namer<'g> {
             m.extend(ev);
         }
         J::Object(m)
+    }
+}
+
+impl Namer<'_> {
+    /// The reverse of [`Namer::record`] for the events the invariant
+    /// checker reads (selections, terminations, protocol instances,
+    /// lost and returning teammates), so that the logs of a team that ran
+    /// as separate processes are checked like a simulated run
+    /// ([`crate::check::check_logs`]). `None` for other records, and for
+    /// records that do not name this graph's behaviors and robots.
+    ///
+    /// Team ids are logged shortened (`t1234abcd`); they come back as a
+    /// stand-in id that is equal exactly when the short names are, which
+    /// is all the checker compares.
+    pub fn unrecord(&self, mission: &Mission, rec: &J) -> Option<(Time, RobotId, Event)> {
+        let t = Time::from_secs_f64(rec.get("t")?.as_f64()?.max(0.0));
+        let robot = self.graph.roster().find(rec.get("robot")?.as_str()?)?;
+        let kind = rec.get("event")?.as_str()?;
+        let mut ev = rec.as_object()?.clone();
+        for (k, v) in ev.iter_mut() {
+            if !self.unname(k, v) {
+                return None;
+            }
+        }
+        fn field<T: serde::de::DeserializeOwned>(ev: &Map<String, J>, name: &str) -> Option<T> {
+            serde_json::from_value(ev.get(name).cloned().unwrap_or(J::Null)).ok()
+        }
+        let instance = |name: &str| -> Option<(InstanceKey, &'static str)> {
+            let key: InstanceKey = field(&ev, name)?;
+            let protocol = mission.bound(key.behavior, key.kind)?.protocol.name();
+            Some((key, protocol))
+        };
+        let e = match kind {
+            "selected" => Event::Selected {
+                behavior: field(&ev, "behavior")?,
+                team: field(&ev, "team")?,
+                epoch: field(&ev, "epoch")?,
+                depth: field(&ev, "depth")?,
+                via: field(&ev, "via")?,
+                after: field(&ev, "after").unwrap_or(None),
+            },
+            "terminated" => Event::Terminated {
+                behavior: field(&ev, "behavior")?,
+                team: field(&ev, "team")?,
+                epoch: field(&ev, "epoch")?,
+                reason: field(&ev, "reason")?,
+            },
+            "interaction_started" => {
+                let (instance, protocol) = instance("instance")?;
+                Event::InteractionStarted {
+                    instance,
+                    protocol,
+                    excluded: field(&ev, "excluded").unwrap_or_default(),
+                    options: field(&ev, "options").unwrap_or_default(),
+                }
+            }
+            "left_out" => Event::LeftOut {
+                instance: instance("instance")?.0,
+                members: field(&ev, "members")?,
+            },
+            "interaction_decided" => {
+                let (instance, protocol) = instance("instance")?;
+                Event::InteractionDecided {
+                    instance,
+                    protocol,
+                    outcome: field(&ev, "outcome")?,
+                    waited_us: field(&ev, "waited_us").unwrap_or(0),
+                    sent: field(&ev, "sent").unwrap_or(0),
+                    bytes: field(&ev, "bytes").unwrap_or(0),
+                    received: field(&ev, "received").unwrap_or(0),
+                    timed_out: field(&ev, "timed_out").unwrap_or(false),
+                }
+            }
+            "interaction_aborted" => {
+                let (instance, protocol) = instance("instance")?;
+                Event::InteractionAborted { instance, protocol }
+            }
+            "member_lost" => Event::MemberLost {
+                member: field(&ev, "member")?,
+            },
+            "member_back" => Event::MemberBack {
+                member: field(&ev, "member")?,
+            },
+            _ => return None,
+        };
+        Some((t, robot, e))
+    }
+
+    /// Names back to ids, in place (the reverse of `rename`); false when a
+    /// name is not this graph's.
+    fn unname(&self, key: &str, v: &mut J) -> bool {
+        let robot = |v: &mut J| match v.as_str().map(|n| self.graph.roster().find(n)) {
+            Some(Some(r)) => {
+                *v = J::from(r.0);
+                true
+            }
+            Some(None) => false,
+            None => true,
+        };
+        match (key, &mut *v) {
+            ("behavior" | "choice" | "next", J::String(n)) => match self.graph.find(n) {
+                Some(b) => {
+                    *v = J::from(b.0);
+                    true
+                }
+                None => false,
+            },
+            ("team", J::String(n)) => {
+                let id = if n == "root" {
+                    Some(TeamId::ROOT.0)
+                } else {
+                    n.strip_prefix('t')
+                        .and_then(|h| u64::from_str_radix(h, 16).ok())
+                };
+                match id {
+                    Some(id) => {
+                        *v = J::from(id);
+                        true
+                    }
+                    None => false,
+                }
+            }
+            ("members" | "excluded", J::Array(rs)) => rs.iter_mut().all(robot),
+            ("options", J::Array(bs)) => bs.iter_mut().all(|b| self.unname("behavior", b)),
+            ("from" | "member" | "winner", _) => robot(v),
+            ("assignment", J::Array(pairs)) => pairs.iter_mut().all(|p| match p {
+                J::Array(pair) => match pair.as_mut_slice() {
+                    [b, J::Array(ms)] => self.unname("behavior", b) && ms.iter_mut().all(robot),
+                    [b, _] => self.unname("behavior", b),
+                    _ => false,
+                },
+                _ => false,
+            }),
+            (_, J::Object(m)) => m.iter_mut().all(|(k, v)| self.unname(k, v)),
+            _ => true,
+        }
     }
 }
 

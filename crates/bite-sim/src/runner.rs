@@ -263,11 +263,10 @@ pub(crate) fn roles_of(k: &Kernel, graph: &BehaviorGraph) -> BTreeMap<String, u3
     let org = k.org();
     if let Some(leaf) = k.leaf()
         && let Some(team) = org.team(leaf.team)
-        && let Some(parent) = team.parent.and_then(|p| org.team(p))
+        && let Some(parent) = team.parent
     {
-        for c in &parent.children {
-            if let Some(t) = org.team(*c)
-                && let Some((point, epoch, idx)) = t.origin
+        for t in org.subteams_of(parent) {
+            if let Some((point, epoch, idx)) = t.origin
                 && let Some(b) = graph.get(point).and_then(|p| p.children.get(idx as usize))
                 && let Some(l) = t.leader()
             {

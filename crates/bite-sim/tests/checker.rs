@@ -71,7 +71,7 @@ impl Interaction for CrowdInst {
                 (c.behavior, set)
             })
             .collect();
-        cx.decide(Outcome::Allocate(Assignment(a)));
+        cx.decide(Outcome::Allocate(Assignment(a).into()));
     }
     fn on_message(&mut self, _: &mut Cx<'_>, _: RobotId, _: &Body) {}
     fn on_deadline(&mut self, _: &mut Cx<'_>) {}
@@ -98,7 +98,12 @@ impl Protocol for Crowd {
     }
 }
 
-fn violations_with(config: &str) -> Vec<&'static str> {
+fn run_with(
+    config: &str,
+) -> (
+    bite_sim::runner::RunReport,
+    Arc<bite_core::mission::Mission>,
+) {
     let g = load_str(
         &Arc::from("formation.yaml"),
         include_str!("../../../examples/formation.yaml"),
@@ -125,10 +130,76 @@ fn violations_with(config: &str) -> Vec<&'static str> {
         },
     )
     .unwrap_or_else(|d| panic!("{d}"));
+    (report, mission)
+}
+
+fn violations_with(config: &str) -> Vec<&'static str> {
+    let (report, mission) = run_with(config);
     check(&report, &mission)
         .iter()
         .map(|v| v.invariant)
         .collect()
+}
+
+/// The run as a launched team would have logged it: one JSON-lines log
+/// per robot.
+fn logs_of(
+    report: &bite_sim::runner::RunReport,
+    mission: &bite_core::mission::Mission,
+) -> Vec<(String, Vec<serde_json::Value>)> {
+    let namer = bite_sim::log::Namer::new(mission.graph());
+    let roster = mission.graph().roster();
+    roster
+        .iter()
+        .map(|(id, info)| {
+            let recs = report
+                .history
+                .iter()
+                .filter(|r| r.robot == id)
+                .map(|r| namer.record(r.t, r.robot, &r.event))
+                .collect();
+            (info.name.clone(), recs)
+        })
+        .collect()
+}
+
+#[test]
+fn logs_read_back_as_the_events_they_record() {
+    let (report, mission) = run_with("bindings: { C: alloc.by-id }");
+    let namer = bite_sim::log::Namer::new(mission.graph());
+    let mut read = 0;
+    for r in &report.history {
+        let rec = namer.record(r.t, r.robot, &r.event);
+        if let Some((t, robot, e)) = namer.unrecord(&mission, &rec) {
+            read += 1;
+            assert_eq!(robot, r.robot);
+            // Team ids come back as their short names' stand-ins: compare
+            // what the log says.
+            assert_eq!(namer.record(t, robot, &e), rec);
+        }
+    }
+    assert!(read > 50, "only {read} events read back");
+}
+
+#[test]
+fn launched_logs_are_checked_like_a_simulated_run() {
+    for (config, broken) in [
+        (
+            "bindings: { A: sync.anarchy, B: sync.anarchy }",
+            Some("agreement"),
+        ),
+        ("bindings: { C: alloc.crowd }", Some("allocation")),
+        ("bindings: { A: sync.vote, C: alloc.by-id }", None),
+    ] {
+        let (report, mission) = run_with(config);
+        let (v, n) = bite_sim::check::check_logs(&mission, &logs_of(&report, &mission), &[]);
+        assert!(n > 0);
+        let names: Vec<_> = v.iter().map(|v| v.invariant).collect();
+        match broken {
+            Some(inv) => assert!(names.contains(&inv), "{config}: {names:?}"),
+            None => assert!(names.is_empty(), "{config}: {names:?}"),
+        }
+    }
 }
 
 #[test]

@@ -475,8 +475,13 @@ impl Node<'_> {
         let hb_us = r.clock.wall(r.detector.heartbeat).as_micros() as u64;
         if now_us >= r.next_heartbeat {
             r.next_heartbeat = now_us + hb_us.max(1000);
+            let kernel = r.agent.kernel();
             let hb = Heartbeat {
-                finished: r.agent.kernel().is_finished(),
+                finished: kernel.is_finished(),
+                // Only the team view is new per heartbeat; it is what lets
+                // teammates find and heal a split (`Kernel::peer`).
+                position: (r.ticked && !kernel.beacon_audience().is_empty())
+                    .then(|| kernel.position()),
             };
             let frame = r
                 .sealer
@@ -691,6 +696,13 @@ impl Node<'_> {
                         r.done.insert(sender);
                     } else {
                         r.done.remove(&sender);
+                    }
+                    if let Some(pos) = h.position
+                        && r.ticked
+                        && r.gather_until.is_none()
+                    {
+                        r.agent.peer(now, RobotId(sender), &pos);
+                        self.flush_agent();
                     }
                 }
                 Err(_) => *r.payload_rejects.entry("heartbeat-malformed").or_insert(0) += 1,

@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Version of the payloads inside frames.
-pub const PAYLOAD_VERSION: u8 = 1;
+pub const PAYLOAD_VERSION: u8 = 2;
 
 /// Who a kernel message is for.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -77,10 +77,14 @@ pub fn decode_inform(bytes: &[u8]) -> Result<(Vec<u32>, Inform), WireError> {
 }
 
 /// A heartbeat's payload.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Heartbeat {
     /// The sender has completed the mission.
     pub finished: bool,
+    /// What the sender runs in each of its subteams (its team view), so
+    /// that teammates detect and heal splits (`Kernel::peer`). `None`
+    /// before its mission starts.
+    pub position: Option<bite_core::kernel::Position>,
 }
 
 /// Encode a heartbeat.
@@ -91,7 +95,12 @@ pub fn encode_heartbeat(h: &Heartbeat) -> Vec<u8> {
 /// Decode a heartbeat.
 pub fn decode_heartbeat(bytes: &[u8]) -> Result<Heartbeat, WireError> {
     let rest = version(bytes)?;
-    postcard::from_bytes(rest).map_err(|e| WireError::Malformed(e.to_string()))
+    let (h, tail): (Heartbeat, &[u8]) =
+        postcard::take_from_bytes(rest).map_err(|e| WireError::Malformed(e.to_string()))?;
+    if !tail.is_empty() {
+        return Err(WireError::Malformed("trailing bytes".into()));
+    }
+    Ok(h)
 }
 
 fn version(bytes: &[u8]) -> Result<&[u8], WireError> {
@@ -310,6 +319,41 @@ mod tests {
         let mut v = bytes.clone();
         v[0] = 9;
         assert_eq!(decode_kernel(&v), Err(WireError::Version(9)));
+    }
+
+    #[test]
+    fn heartbeat_carries_the_team_view() {
+        use bite_core::ids::{BehaviorId, TeamId};
+        use bite_core::kernel::{FrameId, FrameState, PosFrame, Position};
+        let pos = Position {
+            frames: vec![PosFrame {
+                id: FrameId {
+                    team: TeamId(0),
+                    behavior: BehaviorId(2),
+                    epoch: 3,
+                },
+                anchor: None,
+                state: FrameState::Running,
+                alloc: None,
+                departed: vec![RobotId(1)],
+            }],
+            ended: vec![],
+            burned: vec![],
+        };
+        let h = Heartbeat {
+            finished: false,
+            position: Some(pos),
+        };
+        let bytes = encode_heartbeat(&h);
+        assert_eq!(decode_heartbeat(&bytes), Ok(h));
+        // Truncated, trailing or empty payloads are errors, never panics.
+        for cut in 0..bytes.len() {
+            let _ = decode_heartbeat(&bytes[..cut]);
+        }
+        let mut long = bytes.clone();
+        long.push(0);
+        assert!(decode_heartbeat(&long).is_err());
+        assert!(decode_heartbeat(&[]).is_err());
     }
 
     #[test]

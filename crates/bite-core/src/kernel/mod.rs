@@ -26,7 +26,7 @@
 
 use crate::belief::{BeliefEnv, BeliefStore, Source};
 use crate::cond::Expr;
-use crate::event::{DropReason, EndReason, Event, FrameRef, OutcomeLog, Via};
+use crate::event::{DropReason, EndReason, Event, FrameRef, LogList, OutcomeLog, Via};
 use crate::graph::BehaviorGraph;
 use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
 use crate::interaction::{
@@ -35,7 +35,7 @@ use crate::interaction::{
 };
 use crate::mission::Mission;
 use crate::msg::{Body, Envelope, InstanceKey, Kind, encoded_len};
-use crate::org::{MemberSet, Organization};
+use crate::org::{MemberSet, Organization, Split};
 use crate::rules;
 use crate::time::Time;
 use crate::value::Value;
@@ -115,9 +115,10 @@ pub struct Frame {
     pub epoch: u32,
     /// When this robot started it.
     pub started: Time,
-    /// The subteams its allocation created (dissolved when it ends).
+    /// The subteams its allocation created (dissolved when it ends),
+    /// shared with the teammates that applied the same allocation.
     #[serde(skip)]
-    subteams: Vec<TeamId>,
+    subteams: Option<Arc<Split>>,
     /// Its allocation round: 0, then one more for every re-allocation
     /// after teammates were lost.
     #[serde(skip)]
@@ -126,7 +127,7 @@ pub struct Frame {
     /// splits the survivors among the same ones, whatever each robot's
     /// preconditions say by then).
     #[serde(skip)]
-    allotted: Vec<ChildSlot>,
+    allotted: Arc<[ChildSlot]>,
     /// Its termination protocol decided while it was still running here.
     #[serde(skip)]
     team_ended: bool,
@@ -152,6 +153,10 @@ pub struct Frame {
     /// parent it is the first of a chain under (`None`: b0).
     #[serde(skip)]
     anchor: Option<Anchor>,
+    /// Times its allocation was redone because a teammate held another
+    /// one (bounded: [`position::ALLOC_HEALS`]).
+    #[serde(skip)]
+    alloc_heals: u8,
 }
 
 impl Frame {
@@ -269,6 +274,8 @@ struct Instance {
     team: crate::org::Team,
     /// What it ended with, once over (kept after the outcome is applied).
     closed: Option<Closed>,
+    /// The subteams an allocation it decided makes (shared).
+    split: Option<Arc<Split>>,
     imp: Box<dyn Interaction>,
     input: PointInput,
     retry: Duration,
@@ -388,6 +395,8 @@ pub struct Kernel {
     /// The executions each teammate is engaged in (its position's frames),
     /// from its last heartbeat, and when it was heard.
     peers: BTreeMap<RobotId, (Time, Vec<(FrameId, FrameState)>)>,
+    /// When each teammate's position last changed (it makes progress).
+    peer_moved: BTreeMap<RobotId, Time>,
 }
 
 impl Kernel {
@@ -436,6 +445,7 @@ impl Kernel {
             splits_seen: std::collections::BTreeSet::new(),
             rejoin_since: None,
             peers: BTreeMap::new(),
+            peer_moved: BTreeMap::new(),
         }
     }
 
@@ -885,7 +895,7 @@ impl Kernel {
             self.note_ended(f.id(), parent);
         }
         self.org.unlink(f.behavior, f.team);
-        self.dissolve(&f.subteams);
+        self.dissolve(f.subteams.as_ref());
         self.emit(Event::Terminated {
             behavior: f.behavior,
             team: f.team,
@@ -895,17 +905,15 @@ impl Kernel {
     }
 
     /// Dissolve subteams an allocation created.
-    fn dissolve(&mut self, gone: &[TeamId]) {
-        if gone.is_empty() {
+    fn dissolve(&mut self, gone: Option<&Arc<Split>>) {
+        let Some(gone) = gone else {
             return;
-        }
-        for t in gone {
-            self.org.dissolve(*t);
-        }
+        };
+        self.org.dissolve_split(gone);
         // Late messages for dissolved teams are recognised by the
         // organization's memory of dead teams; the per-instance records can
         // go (a repeated allocation would otherwise grow them forever).
-        self.closed.retain(|(t, _, _), _| !gone.contains(t));
+        self.closed.retain(|(t, _, _), _| !gone.contains(*t));
     }
 
     /// A child of the allocation at a frame on the stack that lost
@@ -921,23 +929,16 @@ impl Kernel {
                     .union_with(d);
             }
             let done = done.as_ref();
-            let children = &graph.behavior(f.behavior).children;
-            f.subteams.iter().any(|t| {
-                let Some(team) = self.org.team(*t) else {
-                    return false;
-                };
-                let Some(child) = team
-                    .origin
-                    .and_then(|(_, _, idx)| children.get(idx as usize))
-                else {
-                    return false;
-                };
+            let Some(split) = &f.subteams else {
+                return false;
+            };
+            split.subteams().any(|(child, team)| {
                 let live = team
                     .members
                     .iter()
                     .filter(|r| !self.lost.contains(*r) || done.is_some_and(|d| d.contains(*r)))
                     .count();
-                let min = graph.behavior(*child).members.0.max(1) as usize;
+                let min = graph.behavior(child).members.0.max(1) as usize;
                 live < team.size as usize && live < min
             })
         })
@@ -957,8 +958,8 @@ impl Kernel {
                 self.retire(&f, EndReason::Reallocation(b));
             }
         }
-        let gone = std::mem::take(&mut self.stack[i].subteams);
-        self.dissolve(&gone);
+        let gone = self.stack[i].subteams.take();
+        self.dissolve(gone.as_ref());
         let f = &mut self.stack[i];
         f.round = round;
         let (team, epoch) = (f.team, f.epoch);
@@ -1097,9 +1098,9 @@ impl Kernel {
             team,
             epoch,
             started: self.now,
-            subteams: Vec::new(),
+            subteams: None,
             round: 0,
-            allotted: Vec::new(),
+            allotted: Arc::default(),
             team_ended: false,
             urgent: false,
             until_false_at: None,
@@ -1107,6 +1108,7 @@ impl Kernel {
             runs: BTreeMap::new(),
             departed: None,
             anchor,
+            alloc_heals: 0,
         });
         self.stack_version += 1;
         self.stats.selections += 1;
@@ -1151,17 +1153,31 @@ impl Kernel {
         })
     }
 
-    fn enabled_children(&self) -> Vec<ChildSlot> {
+    /// The children of the top frame whose preconditions hold, in graph
+    /// order (shared with the mission when they all do).
+    fn enabled_children(&self) -> Arc<[ChildSlot]> {
         let Some(top) = self.stack.last() else {
-            return Vec::new();
+            return Arc::default();
         };
         let graph = self.mission.graph();
-        self.mission
-            .child_slots(top.behavior)
-            .iter()
-            .filter(|c| self.pre_holds(graph, c.behavior))
-            .copied()
-            .collect()
+        let Some(all) = self.mission.child_slots_shared(top.behavior) else {
+            return Arc::default();
+        };
+        if self.mission.children_unconditional(top.behavior) {
+            return all.clone();
+        }
+        match all.iter().position(|c| !self.pre_holds(graph, c.behavior)) {
+            None => all.clone(),
+            Some(first) => all[..first]
+                .iter()
+                .chain(
+                    all[first + 1..]
+                        .iter()
+                        .filter(|c| self.pre_holds(graph, c.behavior)),
+                )
+                .copied()
+                .collect(),
+        }
     }
 
     /// Precondition of `b`, a candidate to run directly under the current
@@ -1213,7 +1229,7 @@ impl Kernel {
     fn start_allocation(
         &mut self,
         (team, b, epoch, round): (TeamId, BehaviorId, u32, u32),
-        children: Vec<ChildSlot>,
+        children: Arc<[ChildSlot]>,
         told: &[RobotId],
     ) -> InstanceKey {
         let key = InstanceKey {
@@ -1237,27 +1253,16 @@ impl Kernel {
             return false;
         };
         let (b, team, epoch) = (key.behavior, key.team, key.epoch);
-        let children = self.graph().behavior(b).children.clone();
-        let mut mine = None;
-        let mut created = Vec::new();
-        for (child, members) in &asg.0 {
-            if members.is_empty() {
-                continue;
-            }
-            let Some(idx) = children.iter().position(|c| c == child) else {
-                continue;
-            };
-            let tid = TeamId::derive(team, b, key.stamp(), idx as u32, members.fingerprint());
-            self.org
-                .add_subteam(team, tid, Arc::new(members.clone()), (b, epoch, idx as u32));
-            created.push(tid);
-            self.org.link(*child, tid);
-            if members.contains(self.me) {
-                mine = Some((*child, tid));
-            }
-        }
+        // The subteams, shared with every teammate of this process that
+        // applied the same allocation (made when it was decided).
+        let split = match self.instances.get(&key).and_then(|i| i.split.clone()) {
+            Some(s) => s,
+            None => self.mission.split(team, b, key.stamp(), asg),
+        };
+        self.org.add_split(split.clone());
+        let mine = split.subteam_of(self.me).map(|(child, t)| (child, t.id));
         if let Some(top) = self.stack.last_mut() {
-            top.subteams = created;
+            top.subteams = Some(split);
         }
         match mine {
             Some((child, tid)) => self.push(child, tid, Via::Allocation, None),
@@ -1503,6 +1508,7 @@ impl Kernel {
             protocol: bound.protocol.name(),
             team,
             closed: None,
+            split: None,
             imp: (bound.factory)(),
             input,
             retry: bound.retry,
@@ -1525,10 +1531,18 @@ impl Kernel {
         self.instances.insert(key, inst);
         if !armed {
             let excluded = self.instances[&key].excluded_members();
-            let options = match &self.instances[&key].input {
-                PointInput::Sync { candidates, .. } => candidates.clone(),
-                PointInput::Allocate { children } => children.iter().map(|c| c.behavior).collect(),
-                PointInput::Terminate => Vec::new(),
+            let options: LogList<BehaviorId> = match &self.instances[&key].input {
+                PointInput::Sync { candidates, .. } => candidates.as_slice().into(),
+                PointInput::Allocate { children } => {
+                    match (self.mission.child_slots_shared(key.behavior))
+                        .zip(self.mission.child_ids(key.behavior))
+                    {
+                        // Every child: the mission's list, shared.
+                        Some((all, ids)) if Arc::ptr_eq(all, children) => ids.clone(),
+                        _ => children.iter().map(|c| c.behavior).collect(),
+                    }
+                }
+                PointInput::Terminate => LogList::default(),
             };
             self.emit(Event::InteractionStarted {
                 instance: key,
@@ -1565,7 +1579,7 @@ impl Kernel {
             instance: key,
             protocol,
             excluded,
-            options: Vec::new(),
+            options: LogList::default(),
         });
         self.call(key, |imp, cx| imp.local_done(cx, why));
         self.refresh_due();
@@ -1588,9 +1602,11 @@ impl Kernel {
                 key,
                 team: self.org.team(key.team).unwrap_or(&inst.team),
                 excluded: inst.excluded.as_ref(),
+                lost: Some(&self.lost),
                 org: &self.org,
                 runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
                 graph: self.mission.graph(),
+                mission: Some(&self.mission),
                 roster: self.mission.graph().roster(),
                 beliefs: &self.beliefs,
                 rng: &mut self.rng,
@@ -1742,16 +1758,39 @@ impl Kernel {
         if let Some(outcome) = fx.outcome
             && matches!(inst.state, State::Armed | State::Active)
         {
-            let outcome = self.validate(key, inst, outcome);
+            // An allocation a teammate of this process already applied
+            // (checked then) is shared as it is; any other is checked.
+            let (team, point, stamp) = (key.team, key.behavior, key.stamp());
+            let shared = match &outcome {
+                Outcome::Allocate(a) => self.mission.find_split(team, point, stamp, a),
+                _ => None,
+            };
+            let mut outcome = match shared {
+                Some(_) => outcome,
+                None => self.validate(key, inst, outcome),
+            };
             inst.state = State::Decided;
+            if let Outcome::Allocate(a) = &mut outcome {
+                // The subteams it makes, shared with the teammates of this
+                // process that decided the same (the assignment moves
+                // into them; what the kernel applies is `inst.split`).
+                let a = std::mem::take(a);
+                inst.split = Some(match shared {
+                    Some(s) => s,
+                    None => self.mission.split(team, point, stamp, a),
+                });
+            }
             let waited = inst.waiting_since.map_or(Duration::ZERO, |t| self.now - t);
             self.emit(Event::InteractionDecided {
                 instance: key,
                 protocol: inst.protocol,
-                outcome: match &outcome {
-                    Outcome::Sync(c) => OutcomeLog::Sync { choice: *c },
-                    Outcome::Allocate(a) => OutcomeLog::allocation(a),
-                    Outcome::Terminate(n) => OutcomeLog::Terminate { next: *n },
+                outcome: match (&outcome, &inst.split) {
+                    (Outcome::Sync(c), _) => OutcomeLog::Sync { choice: *c },
+                    (Outcome::Allocate(_), Some(s)) => OutcomeLog::Allocate {
+                        assignment: s.log().clone(),
+                    },
+                    (Outcome::Allocate(a), None) => OutcomeLog::allocation(a),
+                    (Outcome::Terminate(n), _) => OutcomeLog::Terminate { next: *n },
                 },
                 waited_us: waited.as_micros() as u64,
                 sent: inst.sent,
@@ -1759,10 +1798,11 @@ impl Kernel {
                 received: inst.received,
                 timed_out: inst.timed_out,
             });
-            inst.closed = Some(match &outcome {
-                Outcome::Sync(c) => Closed::Synced(*c),
-                Outcome::Allocate(a) => Closed::Allocated(Arc::new(a.clone())),
-                Outcome::Terminate(n) => Closed::Terminated(*n),
+            inst.closed = Some(match (&outcome, &inst.split) {
+                (Outcome::Sync(c), _) => Closed::Synced(*c),
+                (Outcome::Allocate(_), Some(s)) => Closed::Allocated(s.assignment().clone()),
+                (Outcome::Allocate(a), None) => Closed::Allocated(a.clone()),
+                (Outcome::Terminate(n), _) => Closed::Terminated(*n),
             });
             inst.outcome = Some(outcome);
             // Teammates presumed lost that this decision left out: told
@@ -1802,15 +1842,18 @@ impl Kernel {
     /// decision is replaced by the silent rule of its kind.
     fn validate(&mut self, key: InstanceKey, inst: &Instance, outcome: Outcome) -> Outcome {
         let graph = self.mission.graph().clone();
+        let outcome = match outcome {
+            Outcome::Allocate(a) if matches!(inst.input, PointInput::Allocate { .. }) => {
+                match self.sanitize_allocation(key, a) {
+                    Ok(clean) => return Outcome::Allocate(clean),
+                    Err(a) => Outcome::Allocate(a),
+                }
+            }
+            o => o,
+        };
         let ok = match (&outcome, &inst.input) {
             (Outcome::Sync(None), PointInput::Sync { .. }) => true,
             (Outcome::Sync(Some(s)), PointInput::Sync { successors, .. }) => successors.contains(s),
-            (Outcome::Allocate(a), PointInput::Allocate { .. }) => {
-                match self.sanitize_allocation(key, &graph, a) {
-                    Some(clean) => return Outcome::Allocate(clean),
-                    None => false,
-                }
-            }
             (Outcome::Terminate(n), PointInput::Terminate) => {
                 n.is_none_or(|n| graph.get(n).is_some())
             }
@@ -1826,8 +1869,8 @@ impl Kernel {
         match &inst.input {
             PointInput::Sync { candidates, .. } => Outcome::Sync(candidates.first().copied()),
             PointInput::Allocate { children } => match self.org.team(key.team) {
-                Some(t) => Outcome::Allocate(rules::assign_by_id(&t.members, children)),
-                None => Outcome::Allocate(Assignment(Vec::new())),
+                Some(t) => Outcome::Allocate(Arc::new(rules::assign_by_id(&t.members, children))),
+                None => Outcome::Allocate(Arc::default()),
             },
             PointInput::Terminate => Outcome::Terminate(None),
         }
@@ -1837,23 +1880,33 @@ impl Kernel {
     /// children of the point; members this robot does not know in the team
     /// are left out (a leader whose view of the team diverged after a
     /// timeout decides for the members it knows; those both know agree), and
-    /// a member listed twice keeps its first child. `None` if a child is
-    /// not a child of the point.
+    /// a member listed twice keeps its first child. `Err` (the allocation
+    /// back) if a child is not a child of the point. Linear in the size of
+    /// the allocation; one that needs no change is returned as it is.
     fn sanitize_allocation(
         &self,
         key: InstanceKey,
-        graph: &BehaviorGraph,
-        a: &Assignment,
-    ) -> Option<Assignment> {
-        let team = self.org.team(key.team)?;
-        let children = &graph.behavior(key.behavior).children;
+        a: Arc<Assignment>,
+    ) -> Result<Arc<Assignment>, Arc<Assignment>> {
+        let Some(team) = self.org.team(key.team) else {
+            return Err(a);
+        };
         let n = self.org.roster_len();
+        if a.0.iter().any(|(c, m)| {
+            self.mission.child_index(key.behavior, *c).is_none() || m.roster_len() != n
+        }) {
+            return Err(a);
+        }
+        let mut seen = fixedbitset::FixedBitSet::with_capacity(n);
+        if a.0.iter().all(|(_, m)| {
+            m.iter()
+                .all(|r| team.members.contains(r) && !seen.put(r.index()))
+        }) {
+            return Ok(a);
+        }
         let mut seen = MemberSet::empty(n);
         let mut out = Vec::with_capacity(a.0.len());
         for (c, m) in &a.0 {
-            if !children.contains(c) || m.roster_len() != n {
-                return None;
-            }
             let mut mine = MemberSet::empty(n);
             for r in m.iter() {
                 if team.members.contains(r) && seen.insert(r) {
@@ -1862,7 +1915,7 @@ impl Kernel {
             }
             out.push((*c, mine));
         }
-        Some(Assignment(out))
+        Ok(Arc::new(Assignment(out)))
     }
 
     fn fire_timers(&mut self) {
@@ -2129,7 +2182,7 @@ impl Kernel {
                 Kind::Terminate => Some(Outcome::Terminate(choice)),
                 Kind::Allocate => Body::Assignment { children, members }
                     .to_assignment(self.org.roster_len())
-                    .map(Outcome::Allocate),
+                    .map(|a| Outcome::Allocate(Arc::new(a))),
             };
             match outcome {
                 Some(o) => self.force(key, o),

@@ -33,7 +33,10 @@
 //!    the same predecessor. Another successor is a split: the member
 //!    follows the choice of the team's *healing leader* (the lowest-id
 //!    member neither presumed lost nor departed from an ancestor), which
-//!    every member computes alike, and a `split` event is recorded. The
+//!    every member computes alike, and a `split` event is recorded; a
+//!    member that sees a lower-id member on another successor follows it
+//!    too (the leader may be on neither side), so choices only move down
+//!    the id order and the split closes. The
 //!    same successor at another epoch (histories that diverged before)
 //!    converges on the higher epoch;
 //! 3. **burns**: an execution a member left to converge is *burned*: its
@@ -46,11 +49,25 @@
 
 use super::{Frame, Kernel, Phase};
 use crate::event::{EndReason, Event, FrameRef, Via};
-use crate::ids::{BehaviorId, Fnv1a, RobotId, TeamId};
+use crate::ids::{BehaviorId, RobotId, TeamId};
 use crate::msg::{InstanceKey, Kind};
 use crate::org::MemberSet;
 use crate::time::Time;
 use serde::{Deserialize, Serialize};
+
+/// How many deadlines a robot waits for a teammate heard working whose
+/// position does not change (see `Kernel::awaited_at_work`).
+pub const SLOW_WAITS: u32 = 4;
+
+/// The least a robot waits for a teammate heard working whose position does
+/// not change, whatever the deadline.
+pub const SLOW_WAIT_MIN: std::time::Duration = std::time::Duration::from_secs(120);
+
+/// How many times one execution of an allocation point is allocated again
+/// to converge with teammates that hold another allocation of it (a
+/// teammate that keeps a different view of who is alive would otherwise
+/// make the team re-allocate forever).
+pub const ALLOC_HEALS: u8 = 4;
 
 /// How many recently ended (and burned) executions a position lists.
 pub const RECENT: usize = 8;
@@ -193,13 +210,11 @@ impl Frame {
 
     /// Round and fingerprint of the allocation this frame applied.
     fn alloc_print(&self) -> Option<(u32, u64)> {
-        (!self.subteams.is_empty()).then(|| {
-            let mut h = Fnv1a::new();
-            for t in &self.subteams {
-                h.write(&t.0.to_le_bytes());
-            }
-            (self.round, h.finish())
-        })
+        // FNV-1a over the subteam ids, kept by the (shared) split.
+        self.subteams
+            .as_ref()
+            .filter(|s| !s.is_empty())
+            .map(|s| (self.round, s.print()))
     }
 }
 
@@ -297,6 +312,15 @@ impl Kernel {
                 None => {}
             }
         }
+        // A robot that finished the mission tells the whole team it did
+        // (its position lists the root behavior ended): nobody waits for it
+        // below the root any more.
+        if self.stack.is_empty()
+            && matches!(self.phase, Phase::Finished)
+            && let Some(root) = self.org.team(TeamId::ROOT)
+        {
+            to.union_with(&root.members);
+        }
         to.remove(self.me);
         to
     }
@@ -338,13 +362,73 @@ impl Kernel {
             return;
         }
         self.stats.positions += 1;
-        let engaged = pos.frames.iter().map(|f| (f.id, f.state)).collect();
+        let engaged: Vec<(FrameId, FrameState)> =
+            pos.frames.iter().map(|f| (f.id, f.state)).collect();
+        if self.peers.get(&from).is_none_or(|(_, old)| *old != engaged) {
+            self.peer_moved.insert(from, self.now);
+        }
         self.peers.insert(from, (self.now, engaged));
         self.apply_burns(pos);
         self.count_past(pos);
         self.learn_departures(from, pos);
         self.reconcile(from, pos);
+        self.reconcile_allocation(from, pos);
         self.step();
+    }
+
+    /// Allocation splits: a teammate under the same execution of an
+    /// allocation point holds another allocation of it. The newest round
+    /// wins: a robot behind joins the teammate's round; two robots in the
+    /// same round with different allocations both allocate again in the
+    /// next round, with everyone they hear — the same rule on both sides,
+    /// so they meet in one instance. Bounded by [`ALLOC_HEALS`] per
+    /// execution.
+    fn reconcile_allocation(&mut self, from: RobotId, pos: &Position) {
+        if self.lost.contains(from) || !matches!(self.phase, Phase::Run | Phase::Idle { .. }) {
+            return;
+        }
+        let idle_top = matches!(self.phase, Phase::Idle { .. }).then(|| self.stack.len() - 1);
+        for i in 0..self.stack.len() {
+            let f = &self.stack[i];
+            let Some(mine) = f.alloc_print() else {
+                continue;
+            };
+            let id = f.id();
+            let Some(theirs) = pos
+                .frames
+                .iter()
+                .find(|g| g.id == id && g.state == FrameState::Running)
+                .and_then(|g| g.alloc)
+            else {
+                continue;
+            };
+            if theirs == mine
+                || theirs.0 < mine.0
+                || f.alloc_heals >= ALLOC_HEALS
+                || idle_top == Some(i)
+                || f.departed.as_ref().is_some_and(|d| d.contains(from))
+                || !self.org.team(f.team).is_some_and(|t| t.contains(from))
+            {
+                continue;
+            }
+            let round = if theirs.0 > mine.0 {
+                theirs.0
+            } else {
+                mine.0 + 1
+            };
+            self.stack[i].alloc_heals += 1;
+            self.emit(Event::AllocationSplit {
+                behavior: id.behavior,
+                team: id.team,
+                epoch: id.epoch,
+                mine: mine.0,
+                theirs: theirs.0,
+                member: from,
+                round,
+            });
+            self.reallocate(i, round, &[]);
+            return;
+        }
     }
 
     /// This robot's process restarted with nothing kept (its previous
@@ -442,20 +526,36 @@ impl Kernel {
     /// - The instance's leader (its lowest live member) hears every member:
     ///   it waits on if every member it still counts was heard within
     ///   [`FRESH`] and one of them is still *running* the behavior (it has
-    ///   not reached the point yet).
+    ///   not reached the point yet), or the execution before one this
+    ///   robot is in (it is behind on the same path).
     /// - A member waits on its leader: it waits on while the leader was
     ///   heard within [`FRESH`] engaged in the execution (running it, or
     ///   waiting at its point).
     ///
-    /// Allocations are not re-armed: a team reaches an allocation together,
-    /// and a protocol may count on its deadline to recover what a crash
-    /// took with it (a token).
+    /// At an allocation only a teammate behind on the path counts (a team
+    /// at the point reaches it together, and a protocol may count on its
+    /// deadline to recover what a crash took with it: a token).
+    ///
+    /// A slow teammate is waited for while it makes progress: its position
+    /// changed within [`SLOW_WAITS`] deadlines (and at least
+    /// [`SLOW_WAIT_MIN`]). One whose condition never holds (it cannot see
+    /// what it looks for) is then a timeout and a decision, not a team
+    /// waiting forever. A member trusts a leader waiting at the point: the
+    /// leader's own deadline decides for the team.
     pub(super) fn awaited_at_work(&self, key: InstanceKey) -> bool {
-        if key.kind == Kind::Allocate {
-            return false;
-        }
+        // At an allocation the leader counts only teammates behind on the
+        // path: a team at the point reaches it together, and a protocol
+        // may count on its deadline to recover what a crash took with it
+        // (a token). A member trusts a leader engaged at the point.
+        let at_point_counts = key.kind != Kind::Allocate;
         let Some(inst) = self.instances.get(&key) else {
             return false;
+        };
+        let limit = (inst.deadline_len * SLOW_WAITS).max(SLOW_WAIT_MIN);
+        let progressing = |r: RobotId| {
+            self.peer_moved
+                .get(&r)
+                .is_some_and(|t| self.now - *t < limit)
         };
         let id = FrameId {
             team: key.team,
@@ -476,10 +576,31 @@ impl Kernel {
             .members
             .iter()
             .find(|r| *r == self.me || counted(*r));
+        // A teammate still running the execution before one this robot is
+        // in (in the same team) is behind on the same path: slow, not
+        // silent, it is on its way to the point.
+        // So is one running an execution this robot has already ended
+        // (under a `term.local` behavior a robot may run ahead).
+        let behind: Vec<FrameId> = self
+            .stack
+            .iter()
+            .chain(self.popped().map(|(f, _)| f))
+            .filter_map(|f| {
+                f.anchor.filter(|a| !a.first).map(|a| FrameId {
+                    team: f.team,
+                    behavior: a.behavior,
+                    epoch: a.epoch,
+                })
+            })
+            .chain(self.recent_ended.iter().map(|e| e.id))
+            .filter(|b| *b != id)
+            .collect();
         if leader != Some(self.me) {
-            return leader
-                .and_then(heard)
-                .is_some_and(|frames| frames.iter().any(|(f, _)| *f == id));
+            return leader.and_then(heard).is_some_and(|frames| {
+                frames.iter().any(|(f, _)| {
+                    *f == id || (behind.contains(f) && leader.is_some_and(progressing))
+                })
+            });
         }
         let mut running = false;
         for r in inst
@@ -490,9 +611,11 @@ impl Kernel {
         {
             match heard(r) {
                 Some(frames) => {
-                    running |= frames
-                        .iter()
-                        .any(|(f, st)| *f == id && *st == FrameState::Running);
+                    running |= frames.iter().any(|(f, st)| {
+                        ((at_point_counts && *f == id && *st == FrameState::Running)
+                            || behind.contains(f))
+                            && progressing(r)
+                    });
                 }
                 None => return false,
             }
@@ -667,7 +790,11 @@ impl Kernel {
                 // burned an epoch on one side): the higher epoch wins.
                 g.id.epoch > id.epoch
             } else {
-                leader == Some(from)
+                // The healing leader's choice; when the leader is on
+                // neither side (elsewhere, or not heard yet), the lowest-id
+                // member's, so that the split still closes — every member
+                // computes the same order.
+                leader == Some(from) || (leader != Some(self.me) && from < self.me)
             };
             if !follow {
                 if leader == Some(self.me) && g.id.behavior != id.behavior {
