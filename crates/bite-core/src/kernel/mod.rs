@@ -46,7 +46,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 mod position;
-pub use position::{Anchor, Ended, FrameId, FrameState, PosFrame, Position};
+pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position};
 
 /// How long accepted `(sender, seq)` pairs are remembered to drop
 /// duplicates (far longer than any network delay; a copy older than this

@@ -408,6 +408,12 @@ impl Kernel {
                 || idle_top == Some(i)
                 || f.departed.as_ref().is_some_and(|d| d.contains(from))
                 || !self.org.team(f.team).is_some_and(|t| t.contains(from))
+                // Views still settling (a teammate presumed lost): the
+                // round it comes back in decides first.
+                || self
+                    .org
+                    .team(f.team)
+                    .is_some_and(|t| t.members.iter().any(|r| self.lost.contains(r)))
             {
                 continue;
             }
