@@ -532,3 +532,78 @@ fn the_zenoh_benchmark_measures_every_protocol() {
         assert!(r["latency_median_us"].as_f64().unwrap() > 0.0, "{r}");
     }
 }
+
+/// A split forced by perception (r1 alone believes `narrow`, so the silent
+/// rule at `look` sends it `right` and the others `left`) is found through
+/// the heartbeats and healed across processes within about a second: every
+/// robot ends on the same successor, and the mission completes without a
+/// deadline.
+#[test]
+fn a_silent_split_heals_across_robot_processes() {
+    let _one = serial();
+    let out = tmp("split");
+    let graph = out.join("split.yaml");
+    let scenario = out.join("split-scenario.yaml");
+    std::fs::write(
+        &graph,
+        "graph: split\nteam: { robots: 3 }\nstart: mission\n\
+         defaults: { sync: sync.by-rule, terminate: term.wait-all }\nbehaviors:\n  \
+         mission: { team: true, children: [look] }\n  \
+         look: { team: true, skill: look, until: looked, next: [left, right] }\n  \
+         left: { team: true, skill: go, pre: not narrow, until: there }\n  \
+         right: { team: true, skill: go, pre: narrow, until: there }\n",
+    )
+    .unwrap();
+    std::fs::write(
+        &scenario,
+        "scenario: split\nworld: timed\nseed: 1\ncontrol_hz: 10\ntime_limit: 60s\n\
+         network: { latency: 5ms, jitter: 10ms }\nskills:\n  \
+         look: { duration: [1.0, 1.5], start: { looked: false }, done: { looked: true } }\n  \
+         go: { duration: [5.0, 6.0], start: { there: false }, done: { there: true } }\n\
+         events:\n  - { at: 0s, robots: [r1], set: { narrow: true } }\n",
+    )
+    .unwrap();
+    let run = bite()
+        .current_dir(repo())
+        .arg("launch")
+        .arg(&graph)
+        .arg("--scenario")
+        .arg(&scenario)
+        .args(["--speed", "2", "--json", "--out"])
+        .arg(&out)
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    let s: Value = serde_json::from_slice(&run.stdout)
+        .unwrap_or_else(|e| panic!("no summary ({e}): {}", String::from_utf8_lossy(&run.stderr)));
+    assert_eq!(s["completed"], true, "{s:#}");
+    assert_eq!(s["invariants"]["violations"], 0, "{s:#}");
+    let mut ends = Vec::new();
+    let mut split_times = Vec::new();
+    for r in ["r0", "r1", "r2"] {
+        let log = read_jsonl(&out.join(format!("{r}.jsonl")));
+        for e in &log {
+            if e["event"] == "split" {
+                split_times.push(e["t"].as_f64().unwrap());
+            }
+            // No termination needed its deadline.
+            if e["event"] == "interaction_decided" {
+                assert_ne!(e["timed_out"], true, "{r}: {e}");
+            }
+        }
+        let last = log
+            .iter()
+            .rev()
+            .find(|e| {
+                e["event"] == "selected"
+                    && ["left", "right"].contains(&e["behavior"].as_str().unwrap())
+            })
+            .unwrap_or_else(|| panic!("{r} never left `look`"));
+        ends.push(last["behavior"].as_str().unwrap().to_string());
+    }
+    assert!(!split_times.is_empty(), "the split was never noticed");
+    assert!(ends.iter().all(|b| *b == ends[0]), "still split: {ends:?}");
+    let first = split_times.iter().cloned().fold(f64::INFINITY, f64::min);
+    let last = split_times.iter().cloned().fold(0.0, f64::max);
+    assert!(last - first < 1.0, "healing took {:.2} s", last - first);
+}

@@ -312,14 +312,23 @@ impl Kernel {
                 None => {}
             }
         }
-        // A robot that finished the mission tells the whole team it did
-        // (its position lists the root behavior ended): nobody waits for it
-        // below the root any more.
-        if self.stack.is_empty()
-            && matches!(self.phase, Phase::Finished)
-            && let Some(root) = self.org.team(TeamId::ROOT)
-        {
-            to.union_with(&root.members);
+        // A robot that finished the mission tells that it did (its
+        // position lists the root behavior ended) to the root team's
+        // leader, which relays it to every member with its own heartbeats,
+        // and answers whoever still sends it heartbeats: a leader waiting
+        // for it, or a member whose leader it is. Nobody waits for it below
+        // the root any more, and the cost stays linear in the team (a
+        // beacon to the whole team from every finished robot would be
+        // quadratic).
+        if self.stack.is_empty() && matches!(self.phase, Phase::Finished) {
+            for (r, (at, _)) in &self.peers {
+                if self.now - *at <= FRESH {
+                    to.insert(*r);
+                }
+            }
+            if let Some(l) = self.heal_leader(TeamId::ROOT, 0) {
+                to.insert(l);
+            }
         }
         to.remove(self.me);
         to
@@ -358,7 +367,13 @@ impl Kernel {
             self.step();
             return;
         }
-        if matches!(self.phase, Phase::NotStarted | Phase::Finished) {
+        if matches!(self.phase, Phase::NotStarted) {
+            return;
+        }
+        if matches!(self.phase, Phase::Finished) {
+            // Only who still sends heartbeats matters now: they get an
+            // answer (see `beacon_audience`).
+            self.peers.insert(from, (self.now, Vec::new()));
             return;
         }
         self.stats.positions += 1;
