@@ -3,20 +3,28 @@
 //! physical world, its pilot (percepts from sensor readings, motor schemas
 //! fused into a velocity command).
 //!
-//! Sans-IO like the kernel: the runtime hands in the time with every input
-//! (a control tick with the sensor readings, a message, a world-model
-//! report, a timer, a teammate lost or back) and drains [`Agent::poll`]
-//! for what to send, what happened and what to drive. The Zenoh runtime
-//! (`bite-zenoh`) drives one per process; the order of steps inside a
-//! control tick is the simulator's (`runner.rs`), so a graph behaves the
-//! same in both.
+//! Sans-IO like the kernel: the runtime hands in the time with every
+//! [`Input`] (a control tick with the sensor readings, a message, a
+//! world-model report, a timer, a teammate's heartbeat, a teammate lost or
+//! back) to [`Agent::handle`] and drains [`Agent::poll`] for what to send,
+//! what happened and what to drive. Both runtimes drive the same `Agent`:
+//! the simulator (`runner.rs`) one per robot in one process, `bite-zenoh`
+//! one per robot process. The order of the steps inside a control tick,
+//! the duty of feeding a new skill's start beliefs when the leaf changes,
+//! the timed facts of the scenario and the random streams (one per
+//! purpose, derived from the run's seed) are all here, so a graph makes
+//! the same decisions from the same inputs whichever runtime drives it.
+//!
+//! What every robot of a run shares (the mission, the resolved skills,
+//! motor schemas, timed facts, percept tables) is built once
+//! ([`Shared`]), so ten thousand agents stay cheap.
 
-use crate::scenario::{Scenario, TimedFact};
+use crate::scenario::Scenario;
 use crate::world::{RobotWorld, SkillBook};
 use bite_core::belief::Source;
 use bite_core::event::Event;
 use bite_core::graph::BehaviorGraph;
-use bite_core::ids::{BeliefId, RobotId};
+use bite_core::ids::{BeliefId, Fnv1a, RobotId};
 use bite_core::interaction::{Recipients, Rng};
 use bite_core::kernel::{Kernel, Output};
 use bite_core::mission::Mission;
@@ -26,11 +34,169 @@ use bite_core::time::Time;
 use bite_core::value::Value;
 use bite_core::wm::{Inform, Outgoing, Policy, WorldModel};
 use rand::SeedableRng;
-use std::collections::VecDeque;
+use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
+use crate::physics::pilot::PerceptTables;
 use crate::physics::schema::{Command, Weighted};
+use crate::physics::spec::PhysicsSpec;
 use crate::physics::{Pilot, Sensed};
+
+/// A seed for one purpose of one robot, derived from the run's seed.
+pub fn derive_seed(seed: u64, purpose: &str, robot: u32) -> u64 {
+    let mut h = Fnv1a::new();
+    h.write(&seed.to_le_bytes());
+    h.write(purpose.as_bytes());
+    h.write(&robot.to_le_bytes());
+    // One SplitMix64 round to spread FNV's low-entropy high bits.
+    let mut z = h.finish().wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// Who holds each sibling role of robot `k`'s leaf behavior: the leader of
+/// each subteam its parent's allocation made, by the child's name.
+pub fn roles_of(k: &Kernel, graph: &BehaviorGraph) -> BTreeMap<String, u32> {
+    let mut roles: BTreeMap<String, (u32, u32)> = BTreeMap::new();
+    let org = k.org();
+    if let Some(leaf) = k.leaf()
+        && let Some(team) = org.team(leaf.team)
+        && let Some(parent) = team.parent
+    {
+        for t in org.subteams_of(parent) {
+            if let Some((point, epoch, idx)) = t.origin
+                && let Some(b) = graph.get(point).and_then(|p| p.children.get(idx as usize))
+                && let Some(l) = t.leader()
+            {
+                let e = roles
+                    .entry(graph.name_of(*b).to_string())
+                    .or_insert((epoch, l.0));
+                if epoch >= e.0 {
+                    *e = (epoch, l.0);
+                }
+            }
+        }
+    }
+    roles.into_iter().map(|(k, (_, r))| (k, r)).collect()
+}
+
+/// One input of a robot's mind. Every input goes through
+/// [`Agent::handle`], so a robot's whole input stream can be recorded and
+/// replayed (see [`crate::record`]).
+#[derive(Clone, Copy, Debug)]
+pub enum Input<'a> {
+    /// A control tick at world time `world` (the time the body, the
+    /// timed skills and the scenario's facts go by; the robot's own clock,
+    /// which the kernel reads, may differ), with the sensor readings in
+    /// the physical world.
+    Tick {
+        /// The world's time.
+        world: Time,
+        /// The sensor readings (physical world).
+        sensed: Option<&'a Sensed>,
+    },
+    /// A kernel message from a teammate.
+    Message(&'a Envelope),
+    /// A world-model report from a teammate.
+    Inform {
+        /// The teammate.
+        from: RobotId,
+        /// The report.
+        msg: &'a Inform,
+    },
+    /// The kernel's timer is due (see [`Agent::poll_timeout`]).
+    Timer,
+    /// A teammate's team view, heard with its heartbeat.
+    Peer {
+        /// The teammate.
+        from: RobotId,
+        /// Its position.
+        pos: &'a bite_core::kernel::Position,
+    },
+    /// The failure detector presumes a teammate lost.
+    Lost(RobotId),
+    /// The failure detector hears a teammate again.
+    Back(RobotId),
+}
+
+/// A timed fact of the scenario: when, for whom (`None`: everyone), what.
+type Fact = (Time, Option<Vec<RobotId>>, Vec<(BeliefId, Value)>);
+
+/// What every robot of a run shares, built once from the mission and the
+/// scenario.
+#[derive(Debug)]
+pub struct Shared {
+    mission: Arc<Mission>,
+    book: SkillBook,
+    motor: Vec<Arc<[Weighted]>>,
+    /// Timed facts by time: when, for whom (`None`: everyone), what.
+    facts: Vec<Fact>,
+    physics: Option<(Arc<PhysicsSpec>, Arc<PerceptTables>)>,
+    /// The world model's setup, if the team shares beliefs: belief count,
+    /// policy, which beliefs are private.
+    wm: Option<(usize, bite_core::wm::Sharing, Arc<[bool]>)>,
+    root: Arc<MemberSet>,
+}
+
+impl Shared {
+    /// The shared parts of `mission` run in `scenario`.
+    pub fn new(
+        mission: Arc<Mission>,
+        scenario: &Scenario,
+    ) -> Result<Arc<Shared>, bite_core::diag::Diagnostics> {
+        let graph = mission.graph().clone();
+        let resolved = scenario.resolve(&graph)?;
+        let n = graph.roster().len();
+        let sym = graph.symbols().clone();
+        let mut facts: Vec<Fact> = resolved
+            .events
+            .iter()
+            .map(|f| {
+                let set = (f.set.iter())
+                    .filter_map(|(name, v)| sym.get(name).map(|id| (id, v.clone())))
+                    .collect();
+                (f.at, f.robots.clone(), set)
+            })
+            .collect();
+        facts.sort_by_key(|f| f.0);
+        let physics = match &scenario.physics {
+            None => None,
+            Some(spec) => Some((
+                spec.clone(),
+                PerceptTables::new(spec, &sym, &scenario.file)?,
+            )),
+        };
+        let sharing = graph.sharing();
+        let wm = (sharing.policy != Policy::None).then(|| {
+            let mut private = vec![false; sym.len()];
+            let mut personal = SkillBook::private_beliefs(scenario, &graph);
+            if let Some((_, t)) = &physics {
+                personal.extend(t.private_beliefs());
+            }
+            for id in personal {
+                if let Some(p) = private.get_mut(id.index()) {
+                    *p = true;
+                }
+            }
+            (sym.len(), sharing, Arc::from(private))
+        });
+        Ok(Arc::new(Shared {
+            book: SkillBook::new(scenario, &graph),
+            motor: resolved.motor,
+            facts,
+            physics,
+            wm,
+            root: Arc::new(MemberSet::all(n)),
+            mission,
+        }))
+    }
+
+    /// The mission.
+    pub fn mission(&self) -> &Arc<Mission> {
+        &self.mission
+    }
+}
 
 /// What an agent asks its runtime to do.
 #[derive(Debug)]
@@ -41,6 +207,8 @@ pub enum AgentOutput {
         to: Recipients,
         /// The message.
         envelope: Envelope,
+        /// Its size on the wire.
+        bytes: u32,
     },
     /// Send a world-model report.
     Inform(Outgoing),
@@ -52,19 +220,23 @@ pub enum AgentOutput {
 
 /// One robot's mind.
 pub struct Agent {
+    shared: Arc<Shared>,
     kernel: Kernel,
-    graph: Arc<BehaviorGraph>,
-    book: SkillBook,
     world: RobotWorld,
     wm: Option<WorldModel>,
     pilot: Option<Pilot>,
-    motor: Vec<Arc<[Weighted]>>,
-    /// The scenario's timed facts for this robot, by time (injected at the
-    /// first control tick at or after their time).
-    facts: VecDeque<(Time, Vec<(BeliefId, Value)>)>,
+    /// The next of the shared timed facts (injected at the first control
+    /// tick at or after their time).
+    next_fact: usize,
     version: u64,
     /// The odometer of the last sensor readings.
     odometer: f64,
+    /// The world's time at the last control tick.
+    body_t: Time,
+    /// The latest time an input carried (time never goes back: an input
+    /// dated earlier is taken at this time, and counted).
+    last: Time,
+    backwards: u64,
     rng: Rng,
     out: VecDeque<AgentOutput>,
     percepts: Vec<(BeliefId, Value)>,
@@ -90,63 +262,78 @@ impl Agent {
         me: RobotId,
         seed: u64,
     ) -> Result<Agent, bite_core::diag::Diagnostics> {
-        let graph = mission.graph().clone();
-        let resolved = scenario.resolve(&graph)?;
-        let n = graph.roster().len();
-        let sym = graph.symbols().clone();
-        let facts = facts_for(&resolved.events, me, &sym);
+        Ok(Agent::start(Shared::new(mission, scenario)?, me, seed, 0))
+    }
+
+    /// Robot `me`'s mind in its `incarnation` (0: the first; a restarted
+    /// process is a new incarnation with streams of its own).
+    pub fn start(shared: Arc<Shared>, me: RobotId, seed: u64, incarnation: u32) -> Agent {
+        let who = me.0 ^ (incarnation << 20);
         let kernel = Kernel::with_root(
-            mission.clone(),
+            shared.mission.clone(),
             me,
-            crate::runner::derive_seed(seed, "kernel", me.0),
-            Arc::new(MemberSet::all(n)),
+            derive_seed(seed, "kernel", who),
+            shared.root.clone(),
         );
-        let pilot = match &scenario.physics {
-            None => None,
-            Some(spec) => {
-                let names: Vec<String> = (0..n as u32)
-                    .map(|r| graph.roster().name(RobotId(r)))
-                    .collect();
-                Some(Pilot::for_robot(
-                    spec.clone(),
-                    &names,
-                    &sym,
-                    &scenario.file,
-                    me.index(),
-                )?)
-            }
-        };
-        let sharing = graph.sharing();
-        let wm = (sharing.policy != Policy::None).then(|| {
-            let mut private = vec![false; sym.len()];
-            let mut personal = SkillBook::private_beliefs(scenario, &graph);
-            if let Some(p) = &pilot {
-                personal.extend(p.private_beliefs());
-            }
-            for id in personal {
-                if let Some(p) = private.get_mut(id.index()) {
-                    *p = true;
-                }
-            }
-            WorldModel::new(me, sym.len(), sharing, Arc::from(private))
-        });
-        Ok(Agent {
+        let pilot = shared
+            .physics
+            .as_ref()
+            .map(|(spec, tables)| Pilot::new(spec.clone(), tables.clone()));
+        let wm = shared
+            .wm
+            .as_ref()
+            .map(|(len, sharing, private)| WorldModel::new(me, *len, *sharing, private.clone()));
+        Agent {
             kernel,
-            book: SkillBook::new(scenario, &graph),
-            world: RobotWorld::new(crate::runner::derive_seed(seed, "world", me.0)),
-            graph,
+            world: RobotWorld::new(derive_seed(seed, "world", who)),
             wm,
             pilot,
-            motor: resolved.motor,
-            facts,
+            next_fact: 0,
             version: u64::MAX,
             odometer: 0.0,
-            rng: Rng::seed_from_u64(crate::runner::derive_seed(seed, "pilot", me.0)),
+            body_t: Time::ZERO,
+            last: Time::ZERO,
+            backwards: 0,
+            rng: Rng::seed_from_u64(derive_seed(seed, "pilot", who)),
             out: VecDeque::new(),
             percepts: Vec::new(),
             own: Vec::new(),
             told: Vec::new(),
-        })
+            shared,
+        }
+    }
+
+    /// A robot whose process restarted at `now` (its clock; `world`: the
+    /// world's time): a fresh mind with nothing
+    /// of its previous incarnation, which rejoins the team where the team
+    /// is (see `Kernel::rejoin`). Its sequence numbers start from the
+    /// clock, so that no teammate drops its messages as duplicates of the
+    /// old incarnation's.
+    pub fn restart(
+        shared: Arc<Shared>,
+        me: RobotId,
+        seed: u64,
+        incarnation: u32,
+        now: Time,
+        world: Time,
+    ) -> Agent {
+        let mut a = Agent::start(shared, me, seed, incarnation);
+        a.last = now;
+        a.body_t = world;
+        a.kernel.set_first_seq(now.as_micros().max(1));
+        a.kernel.rejoin(now);
+        a.drain(now);
+        a
+    }
+
+    /// What this agent shares with its teammates' agents.
+    pub fn shared(&self) -> &Arc<Shared> {
+        &self.shared
+    }
+
+    /// Inputs dated before an earlier one (taken at the later time).
+    pub fn time_went_back(&self) -> u64 {
+        self.backwards
     }
 
     /// The kernel (read only).
@@ -164,18 +351,103 @@ impl Agent {
         self.wm.as_ref()
     }
 
-    /// A control tick: the timed skills advance, the sensor readings (in the
-    /// physical world) become percepts, the world model fuses and shares,
-    /// the kernel runs Algorithm 1, and the pilot fuses the current skill's
-    /// schemas into a velocity command.
-    pub fn tick(&mut self, now: Time, sensed: Option<&Sensed>) {
-        let mut percepts = std::mem::take(&mut self.percepts);
-        while self.facts.front().is_some_and(|(t, _)| *t <= now) {
-            if let Some((_, set)) = self.facts.pop_front() {
-                self.world.inject(set);
+    /// Hand one input to the mind at time `now` (its own clock).
+    pub fn handle(&mut self, now: Time, input: Input<'_>) {
+        let now = if now < self.last {
+            self.backwards += 1;
+            self.last
+        } else {
+            self.last = now;
+            now
+        };
+        match input {
+            Input::Tick { world, sensed } => self.control(now, world, sensed),
+            Input::Message(env) => {
+                self.kernel.message(now, env.clone());
+                self.drain(now);
+            }
+            Input::Inform { from, msg } => {
+                if self.wm.is_some() {
+                    self.through_world_model(now, |wm, own, told| wm.receive(from, msg, own, told));
+                }
+            }
+            Input::Timer => {
+                if self.kernel.poll_timeout().is_some_and(|t| t <= now) {
+                    self.kernel.timer(now);
+                    self.drain(now);
+                }
+            }
+            Input::Peer { from, pos } => {
+                self.kernel.peer(now, from, pos);
+                self.drain(now);
+            }
+            Input::Lost(r) => {
+                self.kernel.member_lost(now, r);
+                self.drain(now);
+            }
+            Input::Back(r) => {
+                self.kernel.member_back(now, r);
+                self.drain(now);
             }
         }
-        self.world.tick(now, &mut percepts);
+    }
+
+    /// A control tick (see [`Input::Tick`]) where the robot's clock is
+    /// the world's.
+    pub fn tick(&mut self, now: Time, sensed: Option<&Sensed>) {
+        self.handle(now, Input::Tick { world: now, sensed });
+    }
+
+    /// A kernel message from a teammate.
+    pub fn message(&mut self, now: Time, env: Envelope) {
+        self.handle(now, Input::Message(&env));
+    }
+
+    /// A world-model report from a teammate.
+    pub fn inform(&mut self, now: Time, from: RobotId, msg: &Inform) {
+        self.handle(now, Input::Inform { from, msg });
+    }
+
+    /// A kernel timer fired (call at or after [`Agent::poll_timeout`]).
+    pub fn timer(&mut self, now: Time) {
+        self.handle(now, Input::Timer);
+    }
+
+    /// A teammate's team view, heard with its heartbeat.
+    pub fn peer(&mut self, now: Time, from: RobotId, pos: &bite_core::kernel::Position) {
+        self.handle(now, Input::Peer { from, pos });
+    }
+
+    /// The failure detector presumes `r` lost.
+    pub fn member_lost(&mut self, now: Time, r: RobotId) {
+        self.handle(now, Input::Lost(r));
+    }
+
+    /// The failure detector hears `r` again.
+    pub fn member_back(&mut self, now: Time, r: RobotId) {
+        self.handle(now, Input::Back(r));
+    }
+
+    /// A control tick: the scenario's timed facts due reach the robot, the
+    /// timed skills advance, the sensor readings (in the physical world)
+    /// become percepts, the world model fuses and shares, the kernel runs
+    /// Algorithm 1, and the pilot fuses the current skill's schemas into a
+    /// velocity command.
+    fn control(&mut self, now: Time, world: Time, sensed: Option<&Sensed>) {
+        let mut percepts = std::mem::take(&mut self.percepts);
+        let me = self.kernel.me();
+        let shared = self.shared.clone();
+        self.body_t = world.max(self.body_t);
+        let world = self.body_t;
+        while let Some((at, robots, set)) = shared.facts.get(self.next_fact)
+            && *at <= world
+        {
+            self.next_fact += 1;
+            if robots.as_ref().is_none_or(|rs| rs.contains(&me)) {
+                self.world.inject(set.iter().cloned());
+            }
+        }
+        self.world.tick(world, &mut percepts);
         if let (Some(p), Some(s)) = (self.pilot.as_mut(), sensed) {
             self.odometer = s.odometer;
             p.perceive(s, &mut percepts);
@@ -183,6 +455,10 @@ impl Agent {
         if self.wm.is_none() {
             self.kernel.tick(now, &percepts);
         } else {
+            // The world model between perception and the kernel: fused
+            // with what teammates said. What the new beliefs make true is
+            // shared before the kernel acts on it (and, say, dissolves the
+            // subteams it would inform).
             self.through_world_model(now, |wm, own, told| wm.perceive(now, &percepts, own, told));
             self.share(now);
             self.kernel.tick(now, &[]);
@@ -191,7 +467,7 @@ impl Agent {
         self.drain(now);
         if let Some(p) = self.pilot.as_mut() {
             let k = &self.kernel;
-            let roles = crate::runner::roles_of(k, &self.graph);
+            let roles = roles_of(k, self.shared.mission.graph());
             let rank = k
                 .leaf()
                 .and_then(|f| k.org().team(f.team))
@@ -203,48 +479,9 @@ impl Agent {
                 use rand::RngExt;
                 rng.random_range(0.0..1.0)
             };
-            let cmd = p.control(now.as_secs_f64(), &mut draw);
+            let cmd = p.control(world.as_secs_f64(), &mut draw);
             self.out.push_back(AgentOutput::Drive(cmd));
         }
-    }
-
-    /// A kernel message from a teammate.
-    pub fn message(&mut self, now: Time, env: Envelope) {
-        self.kernel.message(now, env);
-        self.drain(now);
-    }
-
-    /// A world-model report from a teammate.
-    pub fn inform(&mut self, now: Time, from: RobotId, msg: &Inform) {
-        if self.wm.is_some() {
-            self.through_world_model(now, |wm, own, told| wm.receive(from, msg, own, told));
-        }
-    }
-
-    /// A kernel timer fired (call at or after [`Agent::poll_timeout`]).
-    pub fn timer(&mut self, now: Time) {
-        if self.kernel.poll_timeout().is_some_and(|t| t <= now) {
-            self.kernel.timer(now);
-            self.drain(now);
-        }
-    }
-
-    /// A teammate's team view, heard with its heartbeat.
-    pub fn peer(&mut self, now: Time, from: RobotId, pos: &bite_core::kernel::Position) {
-        self.kernel.peer(now, from, pos);
-        self.drain(now);
-    }
-
-    /// The failure detector presumes `r` lost.
-    pub fn member_lost(&mut self, now: Time, r: RobotId) {
-        self.kernel.member_lost(now, r);
-        self.drain(now);
-    }
-
-    /// The failure detector hears `r` again.
-    pub fn member_back(&mut self, now: Time, r: RobotId) {
-        self.kernel.member_back(now, r);
-        self.drain(now);
     }
 
     /// When the kernel wants [`Agent::timer`].
@@ -263,6 +500,7 @@ impl Agent {
                 Output::Send(s) => AgentOutput::Send {
                     to: s.to,
                     envelope: s.envelope,
+                    bytes: s.bytes,
                 },
                 Output::Event(e) => AgentOutput::Event(e),
             });
@@ -270,8 +508,10 @@ impl Agent {
         if self.kernel.stack_version() != self.version {
             self.version = self.kernel.stack_version();
             let leaf = self.kernel.leaf().map(|f| (f.behavior, f.team, f.epoch));
-            let started: Vec<(BeliefId, Value)> =
-                self.world.leaf_changed(&self.book, leaf, now).to_vec();
+            let started: Vec<(BeliefId, Value)> = self
+                .world
+                .leaf_changed(&self.shared.book, leaf, self.body_t)
+                .to_vec();
             if self.wm.is_none() {
                 for (id, v) in started {
                     self.kernel.set_belief(id, v, Source::Percept);
@@ -284,9 +524,9 @@ impl Agent {
             if let Some(p) = self.pilot.as_mut() {
                 let leaf = leaf.map(|l| l.0);
                 let skill = leaf
-                    .and_then(|b| self.motor.get(b.index()).cloned())
+                    .and_then(|b| self.shared.motor.get(b.index()).cloned())
                     .unwrap_or_else(|| Arc::from(Vec::new()));
-                p.leaf_changed(now.as_secs_f64(), self.odometer, leaf, skill);
+                p.leaf_changed(self.body_t.as_secs_f64(), self.odometer, leaf, skill);
             }
         }
     }
@@ -319,24 +559,4 @@ impl Agent {
             self.out.push_back(AgentOutput::Inform(o));
         }
     }
-}
-
-/// The scenario's timed facts that reach robot `me`, in time order.
-fn facts_for(
-    events: &[TimedFact],
-    me: RobotId,
-    sym: &bite_core::belief::Symbols,
-) -> VecDeque<(Time, Vec<(BeliefId, Value)>)> {
-    let mut out: Vec<(Time, Vec<(BeliefId, Value)>)> = events
-        .iter()
-        .filter(|f| f.robots.as_ref().is_none_or(|rs| rs.contains(&me)))
-        .map(|f| {
-            let set = (f.set.iter())
-                .filter_map(|(name, v)| sym.get(name).map(|id| (id, v.clone())))
-                .collect();
-            (f.at, set)
-        })
-        .collect();
-    out.sort_by_key(|(t, _)| *t);
-    out.into()
 }

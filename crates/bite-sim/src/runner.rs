@@ -6,23 +6,20 @@
 //! Control ticks reach every robot at the scenario's rate; messages and
 //! kernel timers are delivered at their own times in between.
 
+use crate::agent::{Agent, AgentOutput, Input, Shared};
 use crate::log::{Namer, RunLog};
 use crate::net::SimNet;
 use crate::scenario::{Resolved, Scenario};
 use crate::summary::{Aggregator, Summary};
-use crate::world::{RobotWorld, SkillBook};
-use bite_core::belief::Source;
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::event::{DropReason, Event};
 use bite_core::graph::BehaviorGraph;
-use bite_core::ids::{BeliefId, Fnv1a, RobotId};
+use bite_core::ids::RobotId;
 use bite_core::interaction::{Recipients, Registry};
-use bite_core::kernel::{Frame, Kernel, Output, Stats};
+use bite_core::kernel::{Frame, Stats};
 use bite_core::mission::Mission;
 use bite_core::msg::Envelope;
-use bite_core::org::MemberSet;
 use bite_core::time::Time;
-use bite_core::value::Value;
 use rand::SeedableRng;
 use serde_json::json;
 use std::cmp::{Ordering, Reverse};
@@ -31,18 +28,7 @@ use std::io::Write;
 use std::sync::Arc;
 use std::time::Duration;
 
-/// A seed for one purpose of one robot, derived from the run's seed.
-pub fn derive_seed(seed: u64, purpose: &str, robot: u32) -> u64 {
-    let mut h = Fnv1a::new();
-    h.write(&seed.to_le_bytes());
-    h.write(purpose.as_bytes());
-    h.write(&robot.to_le_bytes());
-    // One SplitMix64 round to spread FNV's low-entropy high bits.
-    let mut z = h.finish().wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
-}
+pub use crate::agent::derive_seed;
 
 /// Build the mission for a run: the graph resized to the team size the
 /// caller or the scenario asks for, with protocols resolved.
@@ -147,7 +133,6 @@ enum What {
         msg: Arc<bite_core::wm::Inform>,
     },
     Timer(RobotId),
-    Fact(usize),
     Crash(RobotId),
     Resume(RobotId),
     /// `observer` has not heard from `subject` for `lost_after`.
@@ -196,11 +181,11 @@ impl Ord for Scheduled {
 }
 
 struct Sim<'a, 'w> {
-    book: SkillBook,
-    kernels: Vec<Kernel>,
-    worlds: Vec<RobotWorld>,
+    /// Each robot's mind (the same `Agent` a robot process runs).
+    agents: Vec<Agent>,
+    /// What the agents share (to give a restarted robot a fresh mind).
+    shared: Arc<Shared>,
     crashed: Vec<bool>,
-    versions: Vec<u64>,
     timers: Vec<Option<Time>>,
     net: SimNet,
     queue: BinaryHeap<Reverse<Scheduled>>,
@@ -211,8 +196,6 @@ struct Sim<'a, 'w> {
     record: bool,
     history: Vec<Record>,
     resolved: Resolved,
-    fact_ids: Vec<Vec<(BeliefId, Value)>>,
-    percepts: Vec<(BeliefId, Value)>,
     times: Vec<Time>,
     graph: Arc<BehaviorGraph>,
     progress: Option<&'a mut dyn FnMut(Progress)>,
@@ -220,15 +203,8 @@ struct Sim<'a, 'w> {
     /// (observer, subject) pairs where the observer presumes the subject lost.
     suspected: std::collections::BTreeSet<(RobotId, RobotId)>,
     seed: u64,
-    /// The physical world, if the scenario has one.
+    /// The physical world (the robots' bodies), if the scenario has one.
     physics: Option<crate::physics::World>,
-    /// Each behavior's motor schemas (empty: none).
-    motor: Vec<Arc<[crate::physics::schema::Weighted]>>,
-    /// Each robot's world model (empty when the team shares nothing).
-    wms: Vec<bite_core::wm::WorldModel>,
-    /// Scratch for the world model's outputs.
-    own: Vec<(BeliefId, Value)>,
-    told: Vec<(BeliefId, Value, Source)>,
     next_poses: Time,
     /// Heartbeat period (positions travel with heartbeats).
     beacon_period: Duration,
@@ -238,11 +214,6 @@ struct Sim<'a, 'w> {
     checker: crate::check::Checker,
     /// The stall watch, fed every event.
     stall: crate::stall::StallWatch,
-    /// The mission (to give a restarted robot a fresh mind).
-    mission: Arc<Mission>,
-    root: Arc<MemberSet>,
-    /// How each robot's fresh world model is made, if the team shares.
-    wm_setup: Option<(usize, bite_core::wm::Sharing, Arc<[bool]>)>,
     /// Each robot's process incarnation (restarts).
     incarnation: Vec<u32>,
     /// Recent genuine messages and heartbeats, for replay injection.
@@ -254,32 +225,6 @@ struct Sim<'a, 'w> {
     injected: BTreeMap<&'static str, u64>,
     /// How often a message is injected (`None`: never).
     inject: Option<Duration>,
-}
-
-/// Who holds each sibling role of robot `k`'s leaf behavior: the leader of
-/// each subteam its parent's allocation made, by the child's name.
-pub(crate) fn roles_of(k: &Kernel, graph: &BehaviorGraph) -> BTreeMap<String, u32> {
-    let mut roles: BTreeMap<String, (u32, u32)> = BTreeMap::new();
-    let org = k.org();
-    if let Some(leaf) = k.leaf()
-        && let Some(team) = org.team(leaf.team)
-        && let Some(parent) = team.parent
-    {
-        for t in org.subteams_of(parent) {
-            if let Some((point, epoch, idx)) = t.origin
-                && let Some(b) = graph.get(point).and_then(|p| p.children.get(idx as usize))
-                && let Some(l) = t.leader()
-            {
-                let e = roles
-                    .entry(graph.name_of(*b).to_string())
-                    .or_insert((epoch, l.0));
-                if epoch >= e.0 {
-                    *e = (epoch, l.0);
-                }
-            }
-        }
-    }
-    roles.into_iter().map(|(k, (_, r))| (k, r)).collect()
 }
 
 impl Sim<'_, '_> {
@@ -318,21 +263,36 @@ impl Sim<'_, '_> {
         self.local(i, self.now)
     }
 
+    /// Hand robot `r` one input at its own clock, then carry out what
+    /// its mind asks.
+    fn input(&mut self, r: RobotId, input: Input<'_>) {
+        let now = self.clock(r.index());
+        self.agents[r.index()].handle(now, input);
+        self.drain(r);
+    }
+
+    /// Carry out what robot `r`'s mind asks: messages onto the simulated
+    /// network, events into the aggregator, checker, stall watch and log,
+    /// commands to its body; and keep its timer scheduled.
     fn drain(&mut self, r: RobotId) {
         let i = r.index();
-        while let Some(o) = self.kernels[i].poll_output() {
+        while let Some(o) = self.agents[i].poll() {
             match o {
-                Output::Send(out) => {
-                    let key = out.envelope.instance;
-                    self.agg.sent(key.behavior, key.kind, out.bytes);
-                    let env = Arc::new(out.envelope);
+                AgentOutput::Send {
+                    to,
+                    envelope,
+                    bytes,
+                } => {
+                    let key = envelope.instance;
+                    self.agg.sent(key.behavior, key.kind, bytes);
+                    let env = Arc::new(envelope);
                     if self.inject.is_some() {
                         if self.captured.len() >= 64 {
                             self.captured.pop_front();
                         }
                         self.captured.push_back(env.clone());
                     }
-                    match &out.to {
+                    match &to {
                         Recipients::One(x) => self.transmit(r, *x, &env),
                         Recipients::Team(set) => {
                             for x in set.iter() {
@@ -343,7 +303,7 @@ impl Sim<'_, '_> {
                         }
                     }
                 }
-                Output::Event(e) => {
+                AgentOutput::Event(e) => {
                     self.agg.event(self.now, r, &e);
                     self.checker.observe(self.now, r, &e);
                     self.stall.observe(self.now, r, &e, &self.graph);
@@ -359,34 +319,37 @@ impl Sim<'_, '_> {
                         });
                     }
                 }
-            }
-        }
-        let k = &self.kernels[i];
-        if k.stack_version() != self.versions[i] {
-            self.versions[i] = k.stack_version();
-            let leaf = k.leaf().map(|f| (f.behavior, f.team, f.epoch));
-            let started: Vec<(BeliefId, Value)> = self.worlds[i]
-                .leaf_changed(&self.book, leaf, self.now)
-                .to_vec();
-            if self.wms.is_empty() {
-                for (id, v) in started {
-                    self.kernels[i].set_belief(id, v, Source::Percept);
+                AgentOutput::Inform(o) => {
+                    if self.log.is_writing() {
+                        let rec = json!({
+                            "t": self.now.as_secs_f64(),
+                            "robot": self.graph.roster().name(r),
+                            "event": "inform",
+                            "reason": o.msg.reason,
+                            "about": o.msg.about.map(|b| self.graph.name_of(b).to_string()),
+                            "to": o.to.iter().map(|x| self.graph.roster().name(*x)).collect::<Vec<_>>(),
+                            "beliefs": bite_core::wm::belief_names(&self.graph, &o.msg),
+                        });
+                        self.log.write(&rec);
+                    }
+                    let msg = Arc::new(o.msg);
+                    for to in o.to {
+                        let msg = msg.clone();
+                        self.send(r, to, move || What::Inform {
+                            from: r,
+                            to,
+                            msg: msg.clone(),
+                        });
+                    }
                 }
-            } else {
-                let now = self.now;
-                self.through_world_model(i, |wm, own, told| {
-                    wm.perceive(now, &started, own, told);
-                });
-            }
-            if let Some(w) = self.physics.as_mut() {
-                let leaf = leaf.map(|l| l.0);
-                let skill = leaf
-                    .and_then(|b| self.motor.get(b.index()).cloned())
-                    .unwrap_or_else(|| Arc::from(Vec::new()));
-                w.leaf_changed(i, leaf, skill);
+                AgentOutput::Drive(cmd) => {
+                    if let Some(w) = self.physics.as_mut() {
+                        w.actuate(i, cmd);
+                    }
+                }
             }
         }
-        if let Some(t) = self.kernels[i].poll_timeout() {
+        if let Some(t) = self.agents[i].poll_timeout() {
             let t = self.global(i, t);
             if self.timers[i].is_none_or(|s| t < s || s < self.now) {
                 self.timers[i] = Some(t);
@@ -420,70 +383,6 @@ impl Sim<'_, '_> {
         self.times = times;
     }
 
-    /// Feed robot `i`'s world model (`feed` calls `perceive` or
-    /// `receive`), then record what it decided in the kernel, dated now,
-    /// without acting on it yet.
-    fn through_world_model(
-        &mut self,
-        i: usize,
-        feed: impl FnOnce(
-            &mut bite_core::wm::WorldModel,
-            &mut Vec<(BeliefId, Value)>,
-            &mut Vec<(BeliefId, Value, Source)>,
-        ),
-    ) {
-        let (mut own, mut told) = (
-            std::mem::take(&mut self.own),
-            std::mem::take(&mut self.told),
-        );
-        own.clear();
-        told.clear();
-        feed(&mut self.wms[i], &mut own, &mut told);
-        let now = self.clock(i);
-        let k = &mut self.kernels[i];
-        k.observe(now, &own);
-        for (id, v, src) in told.drain(..) {
-            k.set_belief(id, v, src);
-        }
-        (self.own, self.told) = (own, told);
-    }
-
-    /// Robot `r`'s world model: decide what to share when due, then send
-    /// what the budget allows.
-    fn share(&mut self, r: RobotId) {
-        let i = r.index();
-        if i >= self.wms.len() {
-            return;
-        }
-        let now = self.clock(i);
-        if self.wms[i].due(now) {
-            self.wms[i].share(now, &self.kernels[i]);
-        }
-        while let Some(o) = self.wms[i].poll(now) {
-            if self.log.is_writing() {
-                let rec = json!({
-                    "t": self.now.as_secs_f64(),
-                    "robot": self.graph.roster().name(r),
-                    "event": "inform",
-                    "reason": o.msg.reason,
-                    "about": o.msg.about.map(|b| self.graph.name_of(b).to_string()),
-                    "to": o.to.iter().map(|x| self.graph.roster().name(*x)).collect::<Vec<_>>(),
-                    "beliefs": bite_core::wm::belief_names(&self.graph, &o.msg),
-                });
-                self.log.write(&rec);
-            }
-            let msg = Arc::new(o.msg);
-            for to in o.to {
-                let msg = msg.clone();
-                self.send(r, to, move || What::Inform {
-                    from: r,
-                    to,
-                    msg: msg.clone(),
-                });
-            }
-        }
-    }
-
     /// Robot `r`'s process restarts: a fresh mind (kernel, world model,
     /// skills, pilot) with nothing of its previous incarnation, which
     /// rejoins the team where the team is (see `Kernel::rejoin`). Its
@@ -492,24 +391,15 @@ impl Sim<'_, '_> {
     fn restart(&mut self, r: RobotId) {
         let i = r.index();
         self.incarnation[i] += 1;
-        let seed = derive_seed(self.seed, "kernel", r.0 ^ (self.incarnation[i] << 20));
-        let mut k = Kernel::with_root(self.mission.clone(), r, seed, self.root.clone());
         let now = self.clock(i);
-        k.set_first_seq(now.as_micros().max(1));
-        k.rejoin(now);
-        self.kernels[i] = k;
-        self.worlds[i] = RobotWorld::new(derive_seed(
+        self.agents[i] = Agent::restart(
+            self.shared.clone(),
+            r,
             self.seed,
-            "world",
-            r.0 ^ (self.incarnation[i] << 20),
-        ));
-        if let Some((len, sharing, private)) = &self.wm_setup {
-            self.wms[i] = bite_core::wm::WorldModel::new(r, *len, *sharing, private.clone());
-        }
-        if let Some(w) = self.physics.as_mut() {
-            w.restart_pilot(i);
-        }
-        self.versions[i] = u64::MAX;
+            self.incarnation[i],
+            now,
+            self.now,
+        );
         self.timers[i] = None;
         self.checker.restarted(r);
         if self.log.is_writing() {
@@ -527,7 +417,7 @@ impl Sim<'_, '_> {
     /// be harmless.
     fn inject_one(&mut self) {
         use rand::RngExt;
-        let n = self.kernels.len();
+        let n = self.agents.len();
         let live: Vec<usize> = (0..n).filter(|i| !self.crashed[*i]).collect();
         if live.is_empty() {
             return;
@@ -543,8 +433,8 @@ impl Sim<'_, '_> {
             // number), possibly to another robot.
             0 if !self.captured.is_empty() => {
                 let k = self.inject_rng.random_range(0..self.captured.len());
-                let env = (*self.captured[k]).clone();
-                self.kernels[i].message(now, env);
+                let env = self.captured[k].clone();
+                self.agents[i].handle(now, Input::Message(&env));
                 "replayed message"
             }
             // A replay of a genuine heartbeat, as from another robot.
@@ -552,7 +442,7 @@ impl Sim<'_, '_> {
                 let k = self.inject_rng.random_range(0..self.captured_pos.len());
                 let pos = self.captured_pos[k].clone();
                 let from = RobotId(self.inject_rng.random_range(0..n as u32));
-                self.kernels[i].peer(now, from, &pos);
+                self.agents[i].handle(now, Input::Peer { from, pos: &pos });
                 "replayed heartbeat"
             }
             // A garbage position.
@@ -571,14 +461,14 @@ impl Sim<'_, '_> {
                     });
                 }
                 let from = RobotId(self.inject_rng.random_range(0..n as u32 + 2));
-                self.kernels[i].peer(now, from, &pos);
+                self.agents[i].handle(now, Input::Peer { from, pos: &pos });
                 "garbage heartbeat"
             }
             // A message from a robot that is not on the roster.
             3 => {
                 let sender = n as u32 + self.inject_rng.random_range(0..100u32);
                 let env = self.forged(sender, nb);
-                self.kernels[i].message(now, env);
+                self.agents[i].handle(now, Input::Message(&env));
                 "unknown sender"
             }
             // A malformed instance key from a teammate: a behavior or kind
@@ -591,7 +481,7 @@ impl Sim<'_, '_> {
                     1 => env.instance.behavior = bite_core::ids::BehaviorId(nb + 7),
                     _ => env.seq = 0,
                 }
-                self.kernels[i].message(now, env);
+                self.agents[i].handle(now, Input::Message(&env));
                 "malformed key"
             }
         };
@@ -643,18 +533,14 @@ impl Sim<'_, '_> {
     }
 
     fn live_all_finished(&self) -> bool {
-        self.kernels
+        self.agents
             .iter()
             .zip(&self.crashed)
-            .all(|(k, c)| *c || k.is_finished())
+            .all(|(a, c)| *c || a.kernel().is_finished())
     }
 
     fn run(&mut self, limit: Time, period: Duration) -> Time {
         self.schedule(Time::ZERO, What::Control);
-        for i in 0..self.resolved.events.len() {
-            let at = self.resolved.events[i].at;
-            self.schedule(at, What::Fact(i));
-        }
         for i in 0..self.resolved.crashes.len() {
             let (r, at, until) = self.resolved.crashes[i];
             self.schedule(at, What::Crash(r));
@@ -665,7 +551,7 @@ impl Sim<'_, '_> {
         // Partitions that outlast the detector's bound make each side
         // presume the other lost, and heal with it.
         if let Some(det) = self.detector {
-            let n = self.kernels.len() as u32;
+            let n = self.agents.len() as u32;
             let parts = self.net.model().partitions.clone();
             for p in parts {
                 if p.until - p.from <= det.lost_after {
@@ -695,7 +581,7 @@ impl Sim<'_, '_> {
                 }
             }
         }
-        let n = self.kernels.len();
+        let n = self.agents.len();
         let period_us = self.beacon_period.as_micros().max(1) as u64;
         for r in 0..n as u32 {
             let phase = derive_seed(self.seed, "beacon", r) % period_us;
@@ -723,44 +609,15 @@ impl Sim<'_, '_> {
                         if self.crashed[i] {
                             continue;
                         }
-                        let mut percepts = std::mem::take(&mut self.percepts);
-                        self.worlds[i].tick(self.now, &mut percepts);
-                        if let Some(w) = self.physics.as_mut() {
-                            w.sense(i, &mut percepts);
-                        }
-                        let now = self.clock(i);
-                        if self.wms.is_empty() {
-                            self.kernels[i].tick(now, &percepts);
-                        } else {
-                            // The world model between perception and the
-                            // kernel: fused with what teammates said.
-                            self.through_world_model(i, |wm, own, told| {
-                                wm.perceive(now, &percepts, own, told);
-                            });
-                            // What the new beliefs make true is shared
-                            // before the kernel acts on it (and, say,
-                            // dissolves the subteams it would inform).
-                            self.share(RobotId(i as u32));
-                            self.kernels[i].tick(now, &[]);
-                        }
-                        self.percepts = percepts;
-                        self.drain(RobotId(i as u32));
-                        if self.physics.is_some() {
-                            let k = &self.kernels[i];
-                            let roles = roles_of(k, &self.graph);
-                            let rank = k
-                                .leaf()
-                                .and_then(|f| k.org().team(f.team))
-                                .map_or((0, 1), |t| {
-                                    (t.members.rank(RobotId(i as u32)) as u32, t.size)
-                                });
-                            let lost = k.lost().iter().map(|r| r.0);
-                            if let Some(w) = self.physics.as_mut() {
-                                w.set_lost(i, lost);
-                                w.set_roles(i, roles, rank);
-                                w.control(i);
-                            }
-                        }
+                        let sensed = self.physics.as_mut().map(|w| w.observe(i));
+                        let world = self.now;
+                        self.input(
+                            RobotId(i as u32),
+                            Input::Tick {
+                                world,
+                                sensed: sensed.as_ref(),
+                            },
+                        );
                     }
                     if self.now >= self.next_poses
                         && let Some(w) = &self.physics
@@ -787,7 +644,9 @@ impl Sim<'_, '_> {
                     }
                     if self.now >= next_progress {
                         next_progress = self.now + Duration::from_secs(1);
-                        let finished = self.kernels.iter().filter(|k| k.is_finished()).count();
+                        let finished = (self.agents.iter())
+                            .filter(|a| a.kernel().is_finished())
+                            .count();
                         if let Some(p) = self.progress.as_mut() {
                             p(Progress {
                                 now: self.now,
@@ -801,36 +660,20 @@ impl Sim<'_, '_> {
                 }
                 What::Deliver { to, env } => {
                     if !self.crashed[to.index()] {
-                        let now = self.clock(to.index());
-                        self.kernels[to.index()].message(now, (*env).clone());
-                        self.drain(to);
+                        self.input(to, Input::Message(&env));
                     }
                 }
                 What::Inform { from, to, msg } => {
-                    let i = to.index();
-                    if !self.crashed[i] && i < self.wms.len() {
-                        self.through_world_model(i, |wm, own, told| {
-                            wm.receive(from, &msg, own, told);
-                        });
+                    if !self.crashed[to.index()] {
+                        self.input(to, Input::Inform { from, msg: &msg });
                     }
                 }
                 What::Timer(r) => {
                     let i = r.index();
                     let now = self.clock(i);
-                    if !self.crashed[i] && self.kernels[i].poll_timeout().is_some_and(|t| t <= now)
-                    {
+                    if !self.crashed[i] && self.agents[i].poll_timeout().is_some_and(|t| t <= now) {
                         self.timers[i] = None;
-                        self.kernels[i].timer(now);
-                        self.drain(r);
-                    }
-                }
-                What::Fact(idx) => {
-                    let targets: Vec<RobotId> = match &self.resolved.events[idx].robots {
-                        Some(rs) => rs.clone(),
-                        None => (0..n as u32).map(RobotId).collect(),
-                    };
-                    for r in targets {
-                        self.worlds[r.index()].inject(self.fact_ids[idx].iter().cloned());
+                        self.input(r, Input::Timer);
                     }
                 }
                 What::Lost { observer, subject } => {
@@ -839,9 +682,7 @@ impl Sim<'_, '_> {
                         && !self.hears(observer, subject)
                         && self.suspected.insert((observer, subject))
                     {
-                        let now = self.clock(o);
-                        self.kernels[o].member_lost(now, subject);
-                        self.drain(observer);
+                        self.input(observer, Input::Lost(subject));
                     }
                 }
                 What::Back { observer, subject } => {
@@ -850,14 +691,12 @@ impl Sim<'_, '_> {
                         && self.hears(observer, subject)
                         && self.suspected.remove(&(observer, subject))
                     {
-                        let now = self.clock(o);
-                        self.kernels[o].member_back(now, subject);
-                        self.drain(observer);
+                        self.input(observer, Input::Back(subject));
                     }
                 }
                 What::Beacon(r) => {
                     if !self.crashed[r.index()] {
-                        let k = &self.kernels[r.index()];
+                        let k = self.agents[r.index()].kernel();
                         let audience = k.beacon_audience();
                         if !audience.is_empty() {
                             let pos = Arc::new(k.position());
@@ -885,9 +724,7 @@ impl Sim<'_, '_> {
                 }
                 What::Peer { to, from, pos } => {
                     if !self.crashed[to.index()] {
-                        let now = self.clock(to.index());
-                        self.kernels[to.index()].peer(now, from, &pos);
-                        self.drain(to);
+                        self.input(to, Input::Peer { from, pos: &pos });
                     }
                 }
                 What::Inject => {
@@ -963,30 +800,9 @@ pub fn run(
     let warnings = resolved.warnings.clone();
     let seed = opts.seed.unwrap_or(scenario.seed);
     let n = graph.roster().len();
-    let root = Arc::new(MemberSet::all(n));
-    let kernels = (0..n as u32)
-        .map(|r| {
-            Kernel::with_root(
-                mission.clone(),
-                RobotId(r),
-                derive_seed(seed, "kernel", r),
-                root.clone(),
-            )
-        })
-        .collect();
-    let worlds = (0..n as u32)
-        .map(|r| RobotWorld::new(derive_seed(seed, "world", r)))
-        .collect();
-    let sym = graph.symbols().clone();
-    let fact_ids = resolved
-        .events
-        .iter()
-        .map(|fact| {
-            fact.set
-                .iter()
-                .filter_map(|(name, v)| sym.get(name).map(|id| (id, v.clone())))
-                .collect()
-        })
+    let shared = Shared::new(mission.clone(), scenario)?;
+    let agents = (0..n as u32)
+        .map(|r| Agent::start(shared.clone(), RobotId(r), seed, 0))
         .collect();
     let mut log = RunLog::new(opts.log);
     log.write(&json!({
@@ -1008,42 +824,16 @@ pub fn run(
             Some(crate::physics::World::new(
                 spec.clone(),
                 &names,
-                &sym,
+                graph.symbols(),
                 &scenario.file,
                 seed,
             )?)
         }
     };
-    let motor = resolved.motor.clone();
-    let sharing = graph.sharing();
-    let mut wm_setup = None;
-    let wms = if sharing.policy == bite_core::wm::Policy::None {
-        Vec::new()
-    } else {
-        let mut private = vec![false; sym.len()];
-        let mut personal = crate::world::SkillBook::private_beliefs(scenario, &graph);
-        if let Some(w) = &physics {
-            personal.extend(w.private_beliefs());
-        }
-        for id in personal {
-            if let Some(p) = private.get_mut(id.index()) {
-                *p = true;
-            }
-        }
-        let private: Arc<[bool]> = Arc::from(private);
-        wm_setup = Some((sym.len(), sharing, private.clone()));
-        (0..n as u32)
-            .map(|r| {
-                bite_core::wm::WorldModel::new(RobotId(r), sym.len(), sharing, private.clone())
-            })
-            .collect()
-    };
     let mut sim = Sim {
-        book: SkillBook::new(scenario, &graph),
-        kernels,
-        worlds,
+        agents,
+        shared,
         crashed: vec![false; n],
-        versions: vec![u64::MAX; n],
         timers: vec![None; n],
         net: SimNet::new(resolved.network.clone(), derive_seed(seed, "net", 0)),
         queue: BinaryHeap::new(),
@@ -1054,8 +844,6 @@ pub fn run(
         record: opts.record,
         history: Vec::new(),
         resolved,
-        fact_ids,
-        percepts: Vec::new(),
         times: Vec::new(),
         graph: graph.clone(),
         progress: opts.progress,
@@ -1063,10 +851,6 @@ pub fn run(
         suspected: std::collections::BTreeSet::new(),
         seed,
         physics,
-        motor,
-        wms,
-        own: Vec::new(),
-        told: Vec::new(),
         next_poses: Time::ZERO,
         beacon_period: scenario
             .failure_detector
@@ -1076,9 +860,6 @@ pub fn run(
         beacons: (0, 0),
         checker: crate::check::Checker::new(mission.clone()),
         stall: crate::stall::StallWatch::new(scenario.stall),
-        mission: mission.clone(),
-        root: root.clone(),
-        wm_setup,
         incarnation: vec![0; n],
         captured: std::collections::VecDeque::new(),
         captured_pos: std::collections::VecDeque::new(),
@@ -1091,14 +872,12 @@ pub fn run(
     let end = sim.run(limit, period);
 
     let mut dropped: BTreeMap<DropReason, u64> = BTreeMap::new();
-    for k in &sim.kernels {
-        for (r, c) in &k.stats().dropped {
+    for a in &sim.agents {
+        for (r, c) in &a.kernel().stats().dropped {
             *dropped.entry(*r).or_insert(0) += c;
         }
     }
-    let finals: Vec<FinalRobot> = sim
-        .kernels
-        .iter()
+    let finals: Vec<FinalRobot> = (sim.agents.iter().map(Agent::kernel))
         .enumerate()
         .map(|(i, k)| FinalRobot {
             robot: RobotId(i as u32),
@@ -1143,8 +922,13 @@ pub fn run(
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
         .collect();
-    summary.sharing = (!sim.wms.is_empty()).then(|| {
-        bite_core::wm::SharingTotals::of(graph.sharing().policy, sim.wms.iter().map(|w| w.stats()))
+    summary.sharing = (graph.sharing().policy != bite_core::wm::Policy::None).then(|| {
+        bite_core::wm::SharingTotals::of(
+            graph.sharing().policy,
+            sim.agents
+                .iter()
+                .filter_map(|a| a.world_model().map(|w| w.stats())),
+        )
     });
     sim.log.write(&json!({
         "t": end.as_secs_f64(),

@@ -88,7 +88,7 @@ fn run_team(
             }
             while let Some((from, o)) = queue.pop() {
                 match o {
-                    AgentOutput::Send { to, envelope } => {
+                    AgentOutput::Send { to, envelope, .. } => {
                         let targets: Vec<usize> = match &to {
                             Recipients::One(x) => vec![x.index()],
                             Recipients::Team(set) => set

@@ -793,7 +793,7 @@ impl Node<'_> {
         let mut records = Vec::new();
         while let Some(o) = r.agent.poll() {
             match o {
-                AgentOutput::Send { to, envelope } => {
+                AgentOutput::Send { to, envelope, .. } => {
                     let frame = r.sealer.seal(
                         FrameKind::Kernel,
                         &wire::encode_kernel(&to, &envelope),

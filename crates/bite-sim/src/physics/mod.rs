@@ -36,13 +36,12 @@ use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::ids::{BehaviorId, BeliefId};
 use bite_core::interaction::Rng;
 use bite_core::time::Time;
-use bite_core::value::Value;
 use glam::DVec2;
 pub use pilot::{PerceptTables, Pilot, check_beliefs};
 use rand::SeedableRng;
 use rapier2d::prelude as rp;
+use schema::Pose;
 pub use schema::{Command, Sensed};
-use schema::{Pose, Weighted};
 pub use spec::{Drive, PhysicsSpec, SchemaSpec, Shape};
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -101,8 +100,6 @@ pub struct World {
     /// When the next trajectory sample is due (`spec.trail`).
     next_trail: f64,
     robots: Vec<Robot>,
-    /// Each robot's mind.
-    pilots: Vec<Pilot>,
     objects: Vec<rp::RigidBodyHandle>,
     object_trails: Vec<Vec<(f64, DVec2)>>,
     dt: f64,
@@ -400,9 +397,6 @@ impl World {
             return Err(Diagnostics(errors));
         }
         let coverage = Coverage::new(spec.arena, robots.len());
-        let pilots = (0..robots.len())
-            .map(|_| Pilot::new(spec.clone(), tables.clone()))
-            .collect();
         Ok(World {
             dt: 1.0 / spec.hz,
             spec,
@@ -412,7 +406,6 @@ impl World {
             coverage,
             next_trail: 0.0,
             robots,
-            pilots,
             objects,
             object_trails: vec![Vec::new(); n_objects],
             t: 0.0,
@@ -557,11 +550,7 @@ impl World {
     /// Record one sample of every trajectory (called at control ticks).
     pub fn record(&mut self) {
         for i in 0..self.robots.len() {
-            let r = &self.pilots[i];
-            if self.t - r.skill_started() < 1.0 {
-                continue; // still getting into its slot
-            }
-            if let Some((l, Some((side, d)))) = r.reference()
+            if let Some((l, side, d)) = self.robots[i].cmd.label.slot
                 && (l as usize) < self.robots.len()
                 && l as usize != i
             {
@@ -586,13 +575,13 @@ impl World {
             if !keep {
                 continue;
             }
-            let pilot = &self.pilots[i];
+            let label = self.robots[i].cmd.label;
             self.robots[i].trail.push(Sample {
                 t: self.t,
                 pos: p.pos,
                 heading: p.heading,
-                behavior: pilot.leaf(),
-                link: pilot.link(),
+                behavior: label.behavior,
+                link: label.link,
             });
         }
         if keep {
@@ -621,31 +610,6 @@ impl World {
             })
             .collect();
         (robots, objects)
-    }
-
-    /// Robot `i` starts the skill of a new leaf behavior (or none).
-    pub fn leaf_changed(&mut self, i: usize, leaf: Option<BehaviorId>, skill: Arc<[Weighted]>) {
-        let odometer = self.robots[i].odometer;
-        self.pilots[i].leaf_changed(self.t, odometer, leaf, skill);
-    }
-
-    /// Who holds each sibling role for robot `i` (behavior name → robot),
-    /// and its rank among the robots running its behavior (rank, count).
-    pub fn set_roles(&mut self, i: usize, roles: BTreeMap<String, u32>, rank: (u32, u32)) {
-        self.pilots[i].set_roles(roles, rank);
-    }
-
-    /// Robot `i`'s process restarted: its pilot starts afresh (what it
-    /// remembered of teammates and objects is gone; the body stays).
-    pub fn restart_pilot(&mut self, i: usize) {
-        let fresh = Pilot::new(self.spec.clone(), self.tables.clone());
-        self.pilots[i] = fresh;
-    }
-
-    /// The teammates robot `i`'s kernel presumes lost (their bodies are
-    /// obstacles its pilot routes around).
-    pub fn set_lost(&mut self, i: usize, lost: impl IntoIterator<Item = u32>) {
-        self.pilots[i].set_lost(lost);
     }
 
     /// Can `a` reach `b` by radio?
@@ -813,37 +777,12 @@ impl World {
         self.robots[i].cmd = cmd;
     }
 
-    /// Robot `i`'s sensors now: updates what it remembers of objects and
-    /// teammates, and writes the graph beliefs its percepts give into `out`.
-    pub fn sense(&mut self, i: usize, out: &mut Vec<(BeliefId, Value)>) {
-        let s = self.observe(i);
-        self.pilots[i].perceive(&s, out);
-    }
-
     /// The graph beliefs that are about the robot itself (its pose, its
     /// skill, its odometry, the zone it is in, what it sees of teammates):
     /// computed from those percepts alone or in part. A world model never
     /// shares them: a teammate's `skill_done` says nothing about mine.
     pub fn private_beliefs(&self) -> Vec<BeliefId> {
         self.tables.private_beliefs()
-    }
-
-    /// Robot `i`'s mind.
-    pub fn pilot(&self, i: usize) -> &Pilot {
-        &self.pilots[i]
-    }
-
-    /// The behavior-selection module: fuse the schemas of robot `i`'s
-    /// current skill over what it sensed last into its velocity command.
-    pub fn control(&mut self, i: usize) {
-        let t = self.t;
-        let rng = &mut self.robots[i].rng;
-        let mut draw = || {
-            use rand::RngExt;
-            rng.random_range(0.0..1.0)
-        };
-        let cmd = self.pilots[i].control(t, &mut draw);
-        self.actuate(i, cmd);
     }
 }
 
@@ -944,6 +883,8 @@ pub fn summary(world: &World) -> crate::summary::WorldSummary {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bite_core::value::Value;
+    use schema::Weighted;
 
     /// A world of the generated coverage mission for `n` robots.
     fn world(n: usize) -> World {
@@ -993,10 +934,8 @@ mod tests {
                     assert!(got.contains(k), "step {step}, r{i}: {k:?} missed");
                 }
             }
-            let mut out = Vec::new();
             for i in 0..40 {
-                w.sense(i, &mut out);
-                w.control(i);
+                let _ = w.observe(i);
             }
             w.advance(Time::from_secs_f64((step + 1) as f64 * 0.1), &stopped);
         }
@@ -1017,12 +956,15 @@ mod tests {
         .expect("scenario");
         let names: Vec<String> = (0..3).map(|i| format!("r{i}")).collect();
         let spec = sc.physics.clone().expect("physical");
-        let mut w = World::new(spec, &names, g.symbols(), &Arc::from("s"), 1).expect("world");
+        let file: Arc<str> = Arc::from("s");
+        let mut w = World::new(spec.clone(), &names, g.symbols(), &file, 1).expect("world");
         let mut out = Vec::new();
         let seen: f64 = (0..3)
             .map(|i| {
-                w.sense(i, &mut out);
-                match w.pilot(i).percept("teammates_seen") {
+                let mut p =
+                    Pilot::for_robot(spec.clone(), &names, g.symbols(), &file, i).expect("pilot");
+                p.perceive(&w.observe(i), &mut out);
+                match p.percept("teammates_seen") {
                     Some(Value::Num(x)) => *x,
                     _ => 0.0,
                 }
@@ -1066,9 +1008,9 @@ mod tests {
         ])
     }
 
-    /// The same run twice: in process (`sense`, `control`), and split as
-    /// between a simulator server and robot processes (`observe`, JSON,
-    /// pilots of their own with draws of their own, JSON, `actuate`).
+    /// The same run twice: in process (`observe`, the pilot, `actuate`),
+    /// and split as between a simulator server and robot processes
+    /// (`observe`, JSON, the pilot, JSON, `actuate`).
     #[test]
     fn a_split_robot_perceives_and_drives_as_an_in_process_one() {
         use rand::RngExt;
@@ -1077,13 +1019,16 @@ mod tests {
         let names: Vec<String> = vec!["r0".into(), "r1".into()];
         let world = || World::new(spec.clone(), &names, g.symbols(), &file, 1).expect("world");
         let (mut inproc, mut server) = (world(), world());
-        let mut pilots: Vec<Pilot> = (0..2)
-            .map(|i| Pilot::for_robot(spec.clone(), &names, g.symbols(), &file, i).expect("pilot"))
-            .collect();
+        let pilot = |i: usize| {
+            Pilot::for_robot(spec.clone(), &names, g.symbols(), &file, i).expect("pilot")
+        };
+        let mut pilots: Vec<Pilot> = (0..2).map(pilot).collect();
+        let mut local: Vec<Pilot> = (0..2).map(pilot).collect();
         let mut draws: Vec<Rng> = (0..2).map(|i| Rng::seed_from_u64(100 + i)).collect();
+        let mut local_draws: Vec<Rng> = (0..2).map(|i| Rng::seed_from_u64(100 + i)).collect();
         let goals = [DVec2::new(2.0, 0.5), DVec2::new(2.0, 2.0)];
         for i in 0..2 {
-            inproc.leaf_changed(i, None, go_to(goals[i]));
+            local[i].leaf_changed(0.0, 0.0, None, go_to(goals[i]));
             pilots[i].leaf_changed(0.0, 0.0, None, go_to(goals[i]));
         }
         let before: Vec<f64> = (0..2)
@@ -1094,8 +1039,11 @@ mod tests {
         for tick in 0..80 {
             for i in 0..2 {
                 let mut want = Vec::new();
-                inproc.sense(i, &mut want);
-                inproc.control(i);
+                let seen = inproc.observe(i);
+                local[i].perceive(&seen, &mut want);
+                let rng = &mut local_draws[i];
+                let cmd = local[i].control(seen.t, &mut || rng.random_range(0.0..1.0));
+                inproc.actuate(i, cmd);
                 // The server's side.
                 let sensed = serde_json::to_string(&server.observe(i)).expect("json");
                 // The robot's side.

@@ -629,8 +629,17 @@ impl Pilot {
     pub fn control(&mut self, t: f64, draw: &mut impl FnMut() -> f64) -> Command {
         self.view.roles = self.roles.clone();
         self.view.skill_time = t - self.skill_started;
-        let cmd = schema::command(&self.skill, &self.view, &mut self.states, draw);
-        self.link = self.reference().map(|(l, _)| l);
+        let mut cmd = schema::command(&self.skill, &self.view, &mut self.states, draw);
+        let reference = self.reference();
+        self.link = reference.map(|(l, _)| l);
+        cmd.label = schema::Label {
+            behavior: self.leaf,
+            link: self.link,
+            // Still getting into its slot during the skill's first second.
+            slot: reference
+                .filter(|_| t - self.skill_started >= 1.0)
+                .and_then(|(l, s)| s.map(|(side, d)| (l, side, d))),
+        };
         // A robot that leads (moves to a goal on its own) is its own
         // reference; one that keeps station keeps its reference while it
         // searches.

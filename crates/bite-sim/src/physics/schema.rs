@@ -18,6 +18,7 @@
 //! Everything here is a pure function of its inputs (and, for `wander`, of
 //! a seeded random stream), so it is unit-testable without physics.
 
+use bite_core::ids::BehaviorId;
 use glam::DVec2;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -224,8 +225,12 @@ pub struct View {
 /// A fused command: a desired velocity in the world frame, and a heading
 /// to turn to when standing (from `face`). What a robot sends the world
 /// at each control tick; in JSON
-/// `{"vx": m/s, "vy": m/s, "face": radians | null, "layer": 0-3 | null}`
-/// (`face` and `layer` may be left out: null).
+/// `{"vx": m/s, "vy": m/s, "face": radians | null, "layer": 0-3 | null,
+/// "behavior": index | null, "link": robot | null,
+/// "slot": [robot, side, distance] | null}` (all but `vx`, `vy` may be left
+/// out: null). The last three are the [`Label`]: what the mind runs, for
+/// the world's records (trails coloured by behavior, formation links and
+/// error); they do not move the body.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(try_from = "CommandJson", into = "CommandJson")]
 pub struct Command {
@@ -235,6 +240,22 @@ pub struct Command {
     pub face: Option<f64>,
     /// The layer that produced it (`None`: no schema active).
     pub layer: Option<u8>,
+    /// What the mind runs as it sends it.
+    pub label: Label,
+}
+
+/// What a robot's mind runs, sent with its commands so that the world
+/// (in process, or a simulator server) records what every robot did.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Label {
+    /// The leaf behavior whose skill it runs (`None`: idle).
+    pub behavior: Option<BehaviorId>,
+    /// The teammate its schemas refer to (the one it keeps a slot on or
+    /// follows).
+    pub link: Option<u32>,
+    /// The formation slot it keeps, once settled in its skill: on robot
+    /// `of`, side, distance (m).
+    pub slot: Option<(u32, Side, f64)>,
 }
 
 #[derive(Serialize, Deserialize)]
@@ -271,6 +292,12 @@ struct CommandJson {
     face: Option<f64>,
     #[serde(default)]
     layer: Option<u8>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    behavior: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    link: Option<u32>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    slot: Option<(u32, String, f64)>,
 }
 
 impl TryFrom<CommandJson> for Command {
@@ -281,10 +308,28 @@ impl TryFrom<CommandJson> for Command {
         {
             return Err(format!("layer {l}: layers are 0 to 3"));
         }
+        let slot = match c.slot {
+            None => None,
+            Some((of, side, d)) => Some((
+                of,
+                match side.as_str() {
+                    "left" => Side::Left,
+                    "right" => Side::Right,
+                    "behind" => Side::Behind,
+                    other => return Err(format!("slot side `{other}`: left, right or behind")),
+                },
+                d,
+            )),
+        };
         Ok(Command {
             v: DVec2::new(c.vx, c.vy),
             face: c.face,
             layer: c.layer,
+            label: Label {
+                behavior: c.behavior.map(BehaviorId),
+                link: c.link,
+                slot,
+            },
         })
     }
 }
@@ -296,6 +341,16 @@ impl From<Command> for CommandJson {
             vy: c.v.y,
             face: c.face,
             layer: c.layer,
+            behavior: c.label.behavior.map(|b| b.0),
+            link: c.label.link,
+            slot: c.label.slot.map(|(of, side, d)| {
+                let side = match side {
+                    Side::Left => "left",
+                    Side::Right => "right",
+                    Side::Behind => "behind",
+                };
+                (of, side.to_string(), d)
+            }),
         }
     }
 }
@@ -790,6 +845,7 @@ pub fn fuse(outputs: &[(u8, f64, Option<Output>)]) -> Command {
         v,
         face: face.map(|(_, h)| h),
         layer: Some(top),
+        label: Label::default(),
     }
 }
 
@@ -946,11 +1002,17 @@ mod tests {
                 v: DVec2::new(0.25, -0.1),
                 face: None,
                 layer: Some(1),
+                label: Label::default(),
             },
             Command {
                 v: DVec2::ZERO,
                 face: Some(std::f64::consts::FRAC_PI_2),
                 layer: Some(3),
+                label: Label {
+                    behavior: Some(BehaviorId(4)),
+                    link: Some(1),
+                    slot: Some((1, Side::Left, 0.6)),
+                },
             },
             Command::default(),
         ] {
@@ -961,6 +1023,7 @@ mod tests {
             v: DVec2::new(0.25, -0.1),
             face: Some(1.5),
             layer: Some(2),
+            label: Label::default(),
         };
         assert_eq!(
             serde_json::to_value(c).expect("json"),
@@ -972,7 +1035,8 @@ mod tests {
             Command {
                 v: DVec2::new(0.5, 0.0),
                 face: None,
-                layer: None
+                layer: None,
+                label: Label::default(),
             }
         );
         assert!(serde_json::from_str::<Command>(r#"{"vx": 0, "vy": 0, "layer": 4}"#).is_err());
@@ -1130,6 +1194,7 @@ mod tests {
             v: DVec2::new(0.0, 0.3),
             face: None,
             layer: Some(1),
+            label: Label::default(),
         };
         let (f, t) = differential(&c, 0.0, 0.3, 2.0);
         assert!(f.abs() < 1e-9 && t > 0.0);
