@@ -150,6 +150,13 @@ enum Cmd {
     /// seeds, the invariant checker on every run, on every core; a table
     /// per fault class and the command that replays every failing run.
     Sweep(sweep::SweepArgs),
+    /// Re-run a robot's mind from the inputs `bite robot --record` (or
+    /// `bite launch --record`) wrote, and say whether every output is
+    /// identical (exit 0) or where it first differs (exit 1).
+    Replay {
+        /// The record (`<robot>.inputs`).
+        file: PathBuf,
+    },
     /// Whole-system benchmarks.
     Bench {
         #[command(subcommand)]
@@ -1120,6 +1127,7 @@ fn main() -> ExitCode {
         Cmd::Run(a) => cmd_run(a),
         Cmd::Check { graph, config } => cmd_check(&graph, config.as_deref()),
         Cmd::Sweep(a) => sweep::cmd_sweep(a),
+        Cmd::Replay { file } => team::cmd_replay(&file),
         Cmd::Graph {
             graph,
             config,

@@ -98,6 +98,38 @@ impl MissionArgs {
         )
     }
 
+    /// These arguments as JSON, with absolute paths (what a record of a
+    /// robot's inputs says its mission was made from).
+    fn origin(&self) -> serde_json::Value {
+        let abs = |p: &Option<PathBuf>| {
+            p.as_ref()
+                .map(|p| std::path::absolute(p).unwrap_or_else(|_| p.clone()))
+        };
+        serde_json::json!({
+            "graph": abs(&self.graph),
+            "library": abs(&self.library),
+            "config": abs(&self.config),
+            "scenario": abs(&self.scenario),
+            "robots": self.robots,
+            "seed": self.seed,
+            "timed": self.timed,
+        })
+    }
+
+    /// The arguments [`MissionArgs::origin`] wrote.
+    fn from_origin(v: &serde_json::Value) -> MissionArgs {
+        let path = |k: &str| v[k].as_str().map(PathBuf::from);
+        MissionArgs {
+            graph: path("graph"),
+            library: path("library"),
+            config: path("config"),
+            scenario: path("scenario"),
+            robots: v["robots"].as_u64().map(|n| n as usize),
+            seed: v["seed"].as_u64(),
+            timed: v["timed"].as_bool().unwrap_or(false),
+        }
+    }
+
     /// Arguments that give the same mission to a child process.
     fn to_args(&self) -> Vec<String> {
         let mut a = Vec::new();
@@ -158,6 +190,10 @@ pub struct RobotArgs {
     /// Exit once the mission is completed.
     #[arg(long)]
     pub exit_when_done: bool,
+    /// Record every input of the robot's mind to this file (JSON lines),
+    /// for `bite replay`.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
     /// Give up after this much team time (e.g. `300s`).
     #[arg(long, value_parser = parse_dur)]
     pub time_limit: Option<Duration>,
@@ -217,6 +253,10 @@ pub struct LaunchArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Record every robot's inputs to `<out>/<robot>.inputs` (for `bite
+    /// replay`).
+    #[arg(long)]
+    pub record: bool,
 }
 
 #[derive(clap::Args)]
@@ -364,6 +404,7 @@ fn loader(base: MissionArgs, robots: Option<usize>) -> bite_zenoh::robot::Loader
             mission,
             scenario,
             seed,
+            origin: serde_json::json!({"submitted": body, "base": base.origin(), "robots": robots}),
         })
     })
 }
@@ -382,6 +423,7 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
                 mission,
                 scenario,
                 seed,
+                origin: serde_json::json!({ "args": a.mission.origin() }),
             })
         }
         None => None,
@@ -399,6 +441,7 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
         time_limit: a.time_limit,
         gather_timeout: a.gather_timeout,
         status_period: Duration::from_millis(500),
+        record: a.record.clone(),
     };
     if first.is_none() {
         eprintln!(
@@ -736,6 +779,12 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             "--time-limit".into(),
             format!("{}s", limit.as_secs_f64()),
         ]);
+        if a.record {
+            args.extend([
+                "--record".into(),
+                a.out.join(format!("{name}.inputs")).display().to_string(),
+            ]);
+        }
         procs.push(spawn(name, args)?);
     }
     if !quiet {
@@ -923,4 +972,81 @@ pub fn read_jsonl(p: &Path) -> Result<Vec<serde_json::Value>> {
         .lines()
         .filter_map(|l| serde_json::from_str(l).ok())
         .collect())
+}
+
+/// `bite replay FILE`: re-run a robot's mind from its recorded inputs and
+/// say whether every output is identical.
+pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
+    use std::io::BufRead as _;
+    let f = std::fs::File::open(file).with_context(|| format!("reading {}", file.display()))?;
+    let mut r = std::io::BufReader::new(f);
+    let header =
+        bite_sim::record::header(&mut r).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+    let origin = &header["origin"];
+    let prepared = if origin.get("submitted").is_some() {
+        let body: MissionBody = serde_json::from_value(origin["submitted"].clone())
+            .with_context(|| format!("{}: the recorded submission", file.display()))?;
+        let base = MissionArgs::from_origin(&origin["base"]);
+        let robots = origin["robots"].as_u64().map(|n| n as usize);
+        loader(base, robots)(&body).map_err(|e| anyhow::anyhow!("{e}"))?
+    } else if origin.get("args").is_some() {
+        let args = MissionArgs::from_origin(&origin["args"]);
+        let (graph, scenario) = args.load()?;
+        let mission = bite_sim::runner::prepare(&graph, &scenario, args.robots, &crate::registry())
+            .map_err(crate::bad_input)?;
+        let seed = args.seed.unwrap_or(scenario.seed);
+        Prepared {
+            mission,
+            scenario,
+            seed,
+            origin: origin.clone(),
+        }
+    } else {
+        anyhow::bail!(
+            "{}: the record does not say what mission it ran",
+            file.display()
+        );
+    };
+    let name = header["robot"].as_str().unwrap_or_default();
+    let graph = prepared.mission.graph().clone();
+    let me = graph
+        .roster()
+        .find(name)
+        .with_context(|| format!("robot `{name}` is not on the mission's roster"))?;
+    let seed = header["seed"].as_u64().unwrap_or(prepared.seed);
+    let mut agent =
+        bite_sim::agent::Agent::new(prepared.mission.clone(), &prepared.scenario, me, seed)
+            .map_err(crate::bad_input)?;
+    let _ = r.fill_buf();
+    let out = bite_sim::record::replay(&mut r, &mut agent)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+    match out.first_difference {
+        None => {
+            println!(
+                "identical ({} inputs of robot {name}{})",
+                out.inputs,
+                if out.truncated {
+                    "; the record ends in a cut line: the robot was stopped while writing it"
+                } else {
+                    ""
+                }
+            );
+            Ok(ExitCode::SUCCESS)
+        }
+        Some(d) => {
+            println!(
+                "differs at line {} (t = {:.6} s): recorded {} outputs ({}), replayed {} ({})",
+                d.line,
+                d.t as f64 / 1e6,
+                d.recorded.0,
+                d.recorded.1,
+                d.replayed.0,
+                d.replayed.1
+            );
+            for o in d.replayed.2.iter().take(20) {
+                println!("  {o}");
+            }
+            Ok(ExitCode::from(1))
+        }
+    }
 }

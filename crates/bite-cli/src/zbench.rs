@@ -266,6 +266,7 @@ pub fn cmd_bench_zenoh(
                 kill: Vec::new(),
                 time_limit: Some(Duration::from_secs(120)),
                 json: false,
+                record: false,
             };
             let (summary, ok) = launch(&args, true)?;
             let logs: Vec<Vec<Value>> = (0..n)

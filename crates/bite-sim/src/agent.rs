@@ -239,6 +239,8 @@ pub struct Agent {
     backwards: u64,
     rng: Rng,
     out: VecDeque<AgentOutput>,
+    /// Where every input and what it produced are written, if recording.
+    recorder: Option<crate::record::Recorder>,
     percepts: Vec<(BeliefId, Value)>,
     own: Vec<(BeliefId, Value)>,
     told: Vec<(BeliefId, Value, bite_core::belief::Source)>,
@@ -296,6 +298,7 @@ impl Agent {
             backwards: 0,
             rng: Rng::seed_from_u64(derive_seed(seed, "pilot", who)),
             out: VecDeque::new(),
+            recorder: None,
             percepts: Vec::new(),
             own: Vec::new(),
             told: Vec::new(),
@@ -351,8 +354,31 @@ impl Agent {
         self.wm.as_ref()
     }
 
+    /// Record every input from now on, and what the mind produced for it
+    /// (see [`crate::record`]).
+    pub fn record(&mut self, recorder: crate::record::Recorder) {
+        self.recorder = Some(recorder);
+    }
+
+    /// The recorder, if recording.
+    pub fn recorder_mut(&mut self) -> Option<&mut crate::record::Recorder> {
+        self.recorder.as_mut()
+    }
+
     /// Hand one input to the mind at time `now` (its own clock).
     pub fn handle(&mut self, now: Time, input: Input<'_>) {
+        let recorded = self
+            .recorder
+            .as_ref()
+            .map(|_| (now, crate::record::Recorded::of(&input), self.out.len()));
+        self.take(now, input);
+        if let (Some(r), Some((t, input, before))) = (self.recorder.as_mut(), recorded) {
+            let outs: Vec<&AgentOutput> = self.out.range(before..).collect();
+            r.write(t, input, &outs);
+        }
+    }
+
+    fn take(&mut self, now: Time, input: Input<'_>) {
         let now = if now < self.last {
             self.backwards += 1;
             self.last

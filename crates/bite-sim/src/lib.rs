@@ -28,6 +28,7 @@ pub mod log;
 pub mod net;
 pub mod physics;
 pub mod probe;
+pub mod record;
 pub mod runner;
 pub mod scenario;
 pub mod stall;

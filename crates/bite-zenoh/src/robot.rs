@@ -45,6 +45,9 @@ pub struct Prepared {
     pub scenario: Scenario,
     /// The seed of the robots' random streams.
     pub seed: u64,
+    /// What the mission was made from (recorded with `record`, so that a
+    /// replay can make it again; `null`: unknown).
+    pub origin: serde_json::Value,
 }
 
 /// Turns a submitted mission into a [`Prepared`] one (the CLI compiles
@@ -77,6 +80,8 @@ pub struct RobotOptions {
     pub gather_timeout: Duration,
     /// Wall time between status reports.
     pub status_period: Duration,
+    /// Record the mind's every input here (see `bite_sim::record`).
+    pub record: Option<PathBuf>,
 }
 
 /// How a robot's run ended.
@@ -375,7 +380,7 @@ impl Node<'_> {
                     .join(", ")
             )));
         };
-        let agent = Agent::new(p.mission.clone(), &p.scenario, me, p.seed).map_err(|d| {
+        let mut agent = Agent::new(p.mission.clone(), &p.scenario, me, p.seed).map_err(|d| {
             RobotError::Options(
                 d.0.iter()
                     .map(|x| x.to_string())
@@ -383,6 +388,13 @@ impl Node<'_> {
                     .join("\n"),
             )
         })?;
+        if let Some(path) = &self.opts.record {
+            let f = std::fs::File::create(path).map_err(|e| RobotError::Log(path.clone(), e))?;
+            agent.record(bite_sim::record::Recorder::new(
+                Box::new(std::io::BufWriter::new(f)),
+                &json!({"robot": self.opts.name, "seed": p.seed, "origin": p.origin}),
+            ));
+        }
         let names: Vec<String> = (0..graph.roster().len() as u32)
             .map(|r| graph.roster().name(RobotId(r)))
             .collect();
