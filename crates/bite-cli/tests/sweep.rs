@@ -95,6 +95,36 @@ fn physical_runs_under_crashes_and_partitions_break_no_invariant() {
     assert_eq!(v["panics"], 0, "{v:#}");
 }
 
+/// Found by the sweep: during the partition r0 ran `search` twice under
+/// `triangle` and `line` while r1 and r2 ran it once; after the heal they
+/// met in the same `linewalk` execution, which followed `search` #4 for r0
+/// and #3 for the others. Numbering the next `search` differently (#5 and
+/// #4), r1 and r2 took r0's late notice that its own #4 had ended as the
+/// end of theirs and split. Teammates that meet after diverged histories
+/// now count past the executions they will never join.
+#[test]
+fn histories_that_diverged_in_a_partition_number_alike_after_it() {
+    let o = bite()
+        .args([
+            "run",
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/configs/6.yaml"),
+            "--fault",
+            "partition=r0|r1,r2@31.612s+9.691s",
+            "--seed",
+            "21",
+            "--json",
+            "--log",
+        ])
+        .arg(scratch("diverged").join("run.jsonl"))
+        .output()
+        .expect("bite runs");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("--json prints JSON");
+    assert_eq!(v["invariants"]["violations"], 0, "{v:#}");
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+    assert_eq!(v["timeouts"], 0, "{v:#}");
+}
+
 /// One thread or two: the same runs, the same results, line for line.
 #[test]
 fn results_do_not_depend_on_the_number_of_threads() {

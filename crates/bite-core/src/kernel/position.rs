@@ -42,7 +42,11 @@
 //! 3. **burns**: an execution a member left to converge is *burned*: its
 //!    epoch is never used again, by anyone (the burn travels with the
 //!    positions), so that no message sent for it can count in a later
-//!    execution.
+//!    execution;
+//! 4. **catching up**: a teammate that runs the same execution after a
+//!    later execution of its predecessor (cut off, it ran the predecessor
+//!    more times) makes the robot burn the executions between, so that
+//!    both number the next one alike.
 //!
 //! Silent protocols keep their zero-message decisions; healing sends no
 //! message of its own (it rides on the heartbeats).
@@ -385,6 +389,7 @@ impl Kernel {
         self.peers.insert(from, (self.now, engaged));
         self.apply_burns(pos);
         self.count_past(pos);
+        self.catch_up(pos);
         self.learn_departures(from, pos);
         self.reconcile(from, pos);
         self.reconcile_allocation(from, pos);
@@ -717,6 +722,41 @@ impl Kernel {
         }
         for id in never {
             self.org.runs_at_least(id.team, id.behavior, id.epoch);
+        }
+    }
+
+    /// Histories that diverged and met again: a teammate runs the same
+    /// execution as this robot, but after a later execution of the same
+    /// predecessor (cut off from the team, it ran that predecessor more
+    /// times). The executions between are ones this robot will never join:
+    /// burn them, so that the team numbers the predecessor's next execution
+    /// alike and nothing sent for the teammate's extra executions (a
+    /// termination it tells this robot it missed) ends this robot's next
+    /// one.
+    fn catch_up(&mut self, pos: &Position) {
+        let mut skip: Vec<FrameId> = Vec::new();
+        for (_, id, a) in self.anchored() {
+            if a.first {
+                continue;
+            }
+            let Some(b) = pos
+                .frames
+                .iter()
+                .find(|g| g.id == id)
+                .and_then(|g| g.anchor)
+                .filter(|b| !b.first && b.behavior == a.behavior && b.epoch > a.epoch)
+            else {
+                continue;
+            };
+            let done = self.org.runs(id.team, a.behavior);
+            skip.extend((done + 1..=b.epoch).map(|epoch| FrameId {
+                team: id.team,
+                behavior: a.behavior,
+                epoch,
+            }));
+        }
+        for id in skip {
+            self.burn(id);
         }
     }
 
