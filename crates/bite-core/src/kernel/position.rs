@@ -52,7 +52,7 @@
 //! message of its own (it rides on the heartbeats).
 
 use super::{Frame, Kernel, Phase};
-use crate::event::{EndReason, Event, FrameRef, Via};
+use crate::event::{Event, FrameRef, Via};
 use crate::ids::{BehaviorId, RobotId, TeamId};
 use crate::msg::{InstanceKey, Kind};
 use crate::org::MemberSet;
@@ -205,7 +205,7 @@ impl Frame {
         }
     }
 
-    fn step_ref(&self) -> FrameRef {
+    pub(super) fn step_ref(&self) -> FrameRef {
         FrameRef {
             behavior: self.behavior,
             epoch: self.epoch,
@@ -213,7 +213,7 @@ impl Frame {
     }
 
     /// Round and fingerprint of the allocation this frame applied.
-    fn alloc_print(&self) -> Option<(u32, u64)> {
+    pub(super) fn alloc_print(&self) -> Option<(u32, u64)> {
         // FNV-1a over the subteam ids, kept by the (shared) split.
         self.subteams
             .as_ref()
@@ -224,12 +224,12 @@ impl Frame {
 
 /// Where one of this robot's frames is: on the stack, or the one it ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Slot {
+pub(super) enum Slot {
     Stack(usize),
     Popped,
 }
 
-fn push_recent<T: PartialEq>(ring: &mut std::collections::VecDeque<T>, id: T) {
+pub(super) fn push_recent<T: PartialEq>(ring: &mut std::collections::VecDeque<T>, id: T) {
     if ring.contains(&id) {
         return;
     }
@@ -270,7 +270,7 @@ impl Kernel {
         }
     }
 
-    fn pos_frame(&self, f: &Frame, depth: usize, state: FrameState) -> PosFrame {
+    pub(super) fn pos_frame(&self, f: &Frame, depth: usize, state: FrameState) -> PosFrame {
         let leads = self.heal_leader(f.team, depth) == Some(self.me);
         PosFrame {
             id: f.id(),
@@ -286,7 +286,7 @@ impl Kernel {
 
     /// The frame this robot ended and is terminating or choosing a
     /// successor for, if any.
-    fn popped(&self) -> Option<(&Frame, FrameState)> {
+    pub(super) fn popped(&self) -> Option<(&Frame, FrameState)> {
         match &self.phase {
             Phase::Terminating { frame, .. } => Some((frame, FrameState::Ending)),
             Phase::Selecting { frame, .. } => Some((frame, FrameState::Ended)),
@@ -341,7 +341,7 @@ impl Kernel {
     /// The member of team `t` whose choice a split at stack depth `depth`
     /// follows: the lowest-id member neither presumed lost nor departed
     /// from a frame above that depth.
-    fn heal_leader(&self, t: TeamId, depth: usize) -> Option<RobotId> {
+    pub(super) fn heal_leader(&self, t: TeamId, depth: usize) -> Option<RobotId> {
         let team = self.org.team(t)?;
         let above = &self.stack[..depth.min(self.stack.len())];
         team.members.iter().find(|r| {
@@ -396,67 +396,6 @@ impl Kernel {
         self.step();
     }
 
-    /// Allocation splits: a teammate under the same execution of an
-    /// allocation point holds another allocation of it. The newest round
-    /// wins: a robot behind joins the teammate's round; two robots in the
-    /// same round with different allocations both allocate again in the
-    /// next round, with everyone they hear — the same rule on both sides,
-    /// so they meet in one instance. Bounded by [`ALLOC_HEALS`] per
-    /// execution.
-    fn reconcile_allocation(&mut self, from: RobotId, pos: &Position) {
-        if self.lost.contains(from) || !matches!(self.phase, Phase::Run | Phase::Idle { .. }) {
-            return;
-        }
-        let idle_top = matches!(self.phase, Phase::Idle { .. }).then(|| self.stack.len() - 1);
-        for i in 0..self.stack.len() {
-            let f = &self.stack[i];
-            let Some(mine) = f.alloc_print() else {
-                continue;
-            };
-            let id = f.id();
-            let Some(theirs) = pos
-                .frames
-                .iter()
-                .find(|g| g.id == id && g.state == FrameState::Running)
-                .and_then(|g| g.alloc)
-            else {
-                continue;
-            };
-            if theirs == mine
-                || theirs.0 < mine.0
-                || f.alloc_heals >= ALLOC_HEALS
-                || idle_top == Some(i)
-                || f.departed.as_ref().is_some_and(|d| d.contains(from))
-                || !self.org.team(f.team).is_some_and(|t| t.contains(from))
-                // Views still settling (a teammate presumed lost): the
-                // round it comes back in decides first.
-                || self
-                    .org
-                    .team(f.team)
-                    .is_some_and(|t| t.members.iter().any(|r| self.lost.contains(r)))
-            {
-                continue;
-            }
-            let round = if theirs.0 > mine.0 {
-                theirs.0
-            } else {
-                mine.0 + 1
-            };
-            self.stack[i].alloc_heals += 1;
-            self.emit(Event::AllocationSplit {
-                behavior: id.behavior,
-                team: id.team,
-                epoch: id.epoch,
-                mine: mine.0,
-                theirs: theirs.0,
-                member: from,
-                round,
-            });
-            self.reallocate(i, round, &[]);
-            return;
-        }
-    }
-
     /// This robot's process restarted with nothing kept (its previous
     /// incarnation's state is gone): instead of starting the mission from
     /// the beginning, it waits (up to [`REJOIN_WAIT`]) to hear a teammate's
@@ -483,7 +422,7 @@ impl Kernel {
     /// without it: it idles under the deepest frame it joined until that
     /// frame ends (by its team, or by its own condition), and goes on with
     /// the team from there.
-    fn adopt(&mut self, from: RobotId, pos: &Position) {
+    pub(super) fn adopt(&mut self, from: RobotId, pos: &Position) {
         let graph = self.mission.graph().clone();
         for (name, v) in graph.initial_beliefs() {
             self.beliefs
@@ -649,329 +588,8 @@ impl Kernel {
         running
     }
 
-    /// Executions a teammate burned are never used here either (unless
-    /// this robot runs one now: it converges like its teammates did).
-    fn apply_burns(&mut self, pos: &Position) {
-        for id in &pos.burned {
-            let mine = self.stack.iter().any(|f| f.id() == *id)
-                || self.popped().is_some_and(|(f, _)| f.id() == *id);
-            if !mine && !self.recent_burned.contains(id) {
-                self.burn(*id);
-            }
-        }
-    }
-
-    /// Never use execution `id` again: its instances are closed, the
-    /// team's count of the behavior is past it, messages buffered for it
-    /// are dropped, and teammates are told with the next heartbeats.
-    pub(super) fn burn(&mut self, id: FrameId) {
-        for kind in Kind::ALL {
-            let key = InstanceKey {
-                team: id.team,
-                behavior: id.behavior,
-                kind,
-                epoch: id.epoch,
-                round: u32::MAX,
-            };
-            self.mark_closed(key);
-        }
-        self.org.runs_at_least(id.team, id.behavior, id.epoch);
-        let stale: Vec<InstanceKey> = self
-            .pending
-            .keys()
-            .filter(|k| (k.team, k.behavior, k.epoch) == (id.team, id.behavior, id.epoch))
-            .copied()
-            .collect();
-        for k in stale {
-            self.drop_pending(k);
-        }
-        push_recent(&mut self.recent_burned, id);
-    }
-
     /// Record an execution this robot ended (for its heartbeats).
     pub(super) fn note_ended(&mut self, id: FrameId, parent: Option<FrameId>) {
         push_recent(&mut self.recent_ended, Ended { id, parent });
-    }
-
-    /// Executions a teammate runs (or ran) under a frame this robot has
-    /// ended are executions it will never join: a teammate that goes on
-    /// alone below a behavior its team is waiting to end (wait-all waits
-    /// for every member's chain) counts executions the others never see.
-    /// Count past them, as past an epoch seen on a clock, so that the team
-    /// numbers its next executions alike instead of splitting over ids.
-    fn count_past(&mut self, pos: &Position) {
-        let mut gone: Vec<FrameId> = self.recent_ended.iter().map(|e| e.id).collect();
-        if let Some((f, _)) = self.popped() {
-            gone.push(f.id());
-        }
-        if gone.is_empty() {
-            return;
-        }
-        let mut never: Vec<FrameId> = Vec::new();
-        for w in pos.frames.windows(2) {
-            if gone.contains(&w[0].id) || never.contains(&w[0].id) {
-                never.push(w[1].id);
-            }
-        }
-        for e in &pos.ended {
-            if e.parent
-                .is_some_and(|p| gone.contains(&p) || never.contains(&p))
-            {
-                never.push(e.id);
-            }
-        }
-        for id in never {
-            self.org.runs_at_least(id.team, id.behavior, id.epoch);
-        }
-    }
-
-    /// Histories that diverged and met again: a teammate runs the same
-    /// execution as this robot, but after a later execution of the same
-    /// predecessor (cut off from the team, it ran that predecessor more
-    /// times). The executions between are ones this robot will never join:
-    /// burn them, so that the team numbers the predecessor's next execution
-    /// alike and nothing sent for the teammate's extra executions (a
-    /// termination it tells this robot it missed) ends this robot's next
-    /// one.
-    fn catch_up(&mut self, pos: &Position) {
-        let mut skip: Vec<FrameId> = Vec::new();
-        for (_, id, a) in self.anchored() {
-            if a.first {
-                continue;
-            }
-            let Some(b) = pos
-                .frames
-                .iter()
-                .find(|g| g.id == id)
-                .and_then(|g| g.anchor)
-                .filter(|b| !b.first && b.behavior == a.behavior && b.epoch > a.epoch)
-            else {
-                continue;
-            };
-            let done = self.org.runs(id.team, a.behavior);
-            skip.extend((done + 1..=b.epoch).map(|epoch| FrameId {
-                team: id.team,
-                behavior: a.behavior,
-                epoch,
-            }));
-        }
-        for id in skip {
-            self.burn(id);
-        }
-    }
-
-    /// Mark `from` (and whom it reports) departed from the frames of this
-    /// robot's stack (and the one it ended) that it has ended.
-    fn learn_departures(&mut self, from: RobotId, pos: &Position) {
-        let popped = self.popped().map(|(f, _)| f.term_key());
-        let slots = (0..self.stack.len())
-            .map(|i| (Some(i), self.stack[i].term_key()))
-            .chain(popped.map(|k| (None, k)))
-            .collect::<Vec<_>>();
-        for (slot, key) in slots {
-            let f = match slot {
-                Some(i) => &self.stack[i],
-                None => match self.popped() {
-                    Some((f, _)) => f,
-                    None => continue,
-                },
-            };
-            let id = f.id();
-            let Some(team) = self.org.team(f.team) else {
-                continue;
-            };
-            let mut who: Vec<RobotId> = Vec::new();
-            let ended = pos.ended.iter().any(|e| e.id == id)
-                || pos.burned.contains(&id)
-                || pos
-                    .frames
-                    .iter()
-                    .any(|g| g.id == id && g.state != FrameState::Running);
-            if ended {
-                who.push(from);
-            }
-            if let Some(g) = pos.frames.iter().find(|g| g.id == id) {
-                who.extend(g.departed.iter().copied());
-            }
-            who.retain(|r| {
-                *r != self.me
-                    && team.contains(*r)
-                    && !f.departed.as_ref().is_some_and(|d| d.contains(*r))
-            });
-            who.sort_unstable();
-            who.dedup();
-            if who.is_empty() {
-                continue;
-            }
-            match slot {
-                Some(i) => self.depart(i, &who),
-                None => self.depart_popped(key, &who),
-            }
-        }
-    }
-
-    /// This robot's anchored frames, root first.
-    fn anchored(&self) -> Vec<(Slot, FrameId, Anchor)> {
-        let mut out: Vec<(Slot, FrameId, Anchor)> = self
-            .stack
-            .iter()
-            .enumerate()
-            .filter_map(|(i, f)| f.anchor.map(|a| (Slot::Stack(i), f.id(), a)))
-            .collect();
-        if let Some((f, _)) = self.popped()
-            && let Some(a) = f.anchor
-        {
-            out.push((Slot::Popped, f.id(), a));
-        }
-        out
-    }
-
-    /// Compare this robot's frames with a teammate's after the same
-    /// predecessor; converge on one execution (at most one change per
-    /// heartbeat: what lies below a changed frame is gone).
-    fn reconcile(&mut self, from: RobotId, pos: &Position) {
-        for (slot, id, prev) in self.anchored() {
-            let Some(g) = pos
-                .frames
-                .iter()
-                .find(|g| g.id.team == id.team && g.anchor == Some(prev))
-            else {
-                continue;
-            };
-            if g.id == id {
-                continue;
-            }
-            let depth = match slot {
-                Slot::Stack(i) => i,
-                Slot::Popped => self.stack.len(),
-            };
-            let leader = self.heal_leader(id.team, depth);
-            let follow = if g.id.behavior == id.behavior {
-                // The same successor, counted differently (an earlier split
-                // burned an epoch on one side): the higher epoch wins.
-                g.id.epoch > id.epoch
-            } else {
-                // The healing leader's choice; when the leader is on
-                // neither side (elsewhere, or not heard yet), the lowest-id
-                // member's, so that the split still closes — every member
-                // computes the same order.
-                leader == Some(from) || (leader != Some(self.me) && from < self.me)
-            };
-            if !follow {
-                if leader == Some(self.me) && g.id.behavior != id.behavior {
-                    self.split_seen(from, id, g.id, prev);
-                }
-                continue;
-            }
-            self.converge(slot, from, id, g.id, prev);
-            return;
-        }
-    }
-
-    /// The healing leader saw a member on another successor: record it
-    /// once (the member converges by itself).
-    fn split_seen(&mut self, from: RobotId, mine: FrameId, theirs: FrameId, prev: Anchor) {
-        if !self.splits_seen.insert((from, theirs)) {
-            return;
-        }
-        if self.splits_seen.len() > 4 * RECENT {
-            self.splits_seen.pop_first();
-        }
-        self.emit(Event::Split {
-            team: mine.team,
-            after: FrameRef {
-                behavior: prev.behavior,
-                epoch: prev.epoch,
-            },
-            mine: FrameRef {
-                behavior: mine.behavior,
-                epoch: mine.epoch,
-            },
-            theirs: FrameRef {
-                behavior: theirs.behavior,
-                epoch: theirs.epoch,
-            },
-            member: from,
-            follows: false,
-        });
-    }
-
-    /// Leave execution `mine` (and all below it) for `theirs`, the
-    /// successor the team converges on after `prev`.
-    fn converge(
-        &mut self,
-        slot: Slot,
-        from: RobotId,
-        mine: FrameId,
-        theirs: FrameId,
-        prev: Anchor,
-    ) {
-        let team = mine.team;
-        match slot {
-            Slot::Stack(i) => {
-                let old = self.stack[i].step_ref();
-                self.emit(self.split_event(mine, theirs, prev, from, old));
-                self.retract(i);
-            }
-            Slot::Popped => {
-                let old = FrameRef {
-                    behavior: mine.behavior,
-                    epoch: mine.epoch,
-                };
-                self.emit(self.split_event(mine, theirs, prev, from, old));
-                // Its termination (or the choice after it) is abandoned
-                // without a word: the execution did not happen for the team.
-                self.abort_phase_quietly();
-            }
-        }
-        self.burn(mine);
-        // The parent's run counts forget the abandoned start.
-        let parent_runs = match self.stack.last_mut() {
-            Some(p) => &mut p.runs,
-            None => &mut self.root_runs,
-        };
-        if let Some(n) = parent_runs.get_mut(&mine.behavior) {
-            *n = n.saturating_sub(1);
-        }
-        self.org
-            .runs_at_least(team, theirs.behavior, theirs.epoch.saturating_sub(1));
-        self.phase = Phase::Run;
-        self.push_anchored(theirs.behavior, team, Via::Converged, Some(prev));
-    }
-
-    fn split_event(
-        &self,
-        mine: FrameId,
-        theirs: FrameId,
-        prev: Anchor,
-        from: RobotId,
-        old: FrameRef,
-    ) -> Event {
-        Event::Split {
-            team: mine.team,
-            after: FrameRef {
-                behavior: prev.behavior,
-                epoch: prev.epoch,
-            },
-            mine: old,
-            theirs: FrameRef {
-                behavior: theirs.behavior,
-                epoch: theirs.epoch,
-            },
-            member: from,
-            follows: true,
-        }
-    }
-
-    /// Pop frame `i` and everything above it without a word to the team:
-    /// their instances close quietly (the executions are being burned).
-    fn retract(&mut self, i: usize) {
-        self.abort_phase_quietly();
-        while self.stack.len() > i {
-            if let Some(f) = self.stack.pop() {
-                self.abort_quietly(f.term_key());
-                self.retire(&f, EndReason::Converged);
-            }
-        }
     }
 }

@@ -1,0 +1,286 @@
+//! The inbox: messages from teammates, validated and routed to their
+//! protocol instance, answered for instances already over, or buffered
+//! for instances this robot has not reached yet.
+
+use super::{DEDUP_PER_SENDER, Kernel, Outgoing, Output};
+use crate::event::{DropReason, Event};
+use crate::ids::{BehaviorId, RobotId, TeamId};
+use crate::interaction::{Closed, Outcome, Recipients};
+use crate::msg::{Body, Envelope, InstanceKey, Kind, encoded_len};
+use crate::time::Time;
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// A buffered message for an instance not started yet.
+pub(super) struct Pending {
+    pub(super) at: Time,
+    pub(super) from: RobotId,
+    pub(super) body: Body,
+}
+
+/// Messages buffered per instance not started yet, with their count kept
+/// in one place.
+#[derive(Default)]
+pub(super) struct Inbox {
+    queues: BTreeMap<InstanceKey, Vec<Pending>>,
+    len: usize,
+}
+
+impl Inbox {
+    /// Messages buffered, over every instance.
+    pub(super) fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Buffer `p` for `key`; false (and nothing kept) when the same
+    /// message from the same sender already waits.
+    pub(super) fn push(&mut self, key: InstanceKey, p: Pending) -> bool {
+        let queue = self.queues.entry(key).or_default();
+        if queue.iter().any(|q| q.from == p.from && q.body == p.body) {
+            return false;
+        }
+        queue.push(p);
+        self.len += 1;
+        true
+    }
+
+    /// Take what waits for `key`, in arrival order.
+    pub(super) fn take(&mut self, key: InstanceKey) -> Vec<Pending> {
+        let v = self.queues.remove(&key).unwrap_or_default();
+        self.len -= v.len();
+        v
+    }
+
+    /// Drop what waits for any instance of one execution.
+    pub(super) fn drop_execution(&mut self, team: TeamId, behavior: BehaviorId, epoch: u32) {
+        let keys: Vec<InstanceKey> = self
+            .queues
+            .keys()
+            .filter(|k| (k.team, k.behavior, k.epoch) == (team, behavior, epoch))
+            .copied()
+            .collect();
+        for k in keys {
+            self.take(k);
+        }
+    }
+
+    /// Keep only what `keep` accepts; returns how many were dropped.
+    pub(super) fn retain(&mut self, mut keep: impl FnMut(&InstanceKey, &Pending) -> bool) -> usize {
+        let mut dropped = 0usize;
+        self.queues.retain(|k, v| {
+            let before = v.len();
+            v.retain(|m| keep(k, m));
+            dropped += before - v.len();
+            !v.is_empty()
+        });
+        self.len -= dropped;
+        dropped
+    }
+}
+
+impl Kernel {
+    pub(super) fn drop_msg(&mut self, from: RobotId, reason: DropReason) {
+        *self.stats.dropped.entry(reason).or_insert(0) += 1;
+        // Duplicates, stale messages and our own echoes are normal on a
+        // lossy, duplicating network: counted, not logged one by one.
+        if !matches!(
+            reason,
+            DropReason::Duplicate | DropReason::Stale | DropReason::OwnMessage
+        ) {
+            self.emit(Event::Dropped { from, reason });
+        }
+    }
+
+    /// Validate a message and hand it to its instance, or buffer it for an
+    /// instance this robot has not reached yet.
+    pub(super) fn route(&mut self, env: Envelope) {
+        let from = env.sender;
+        if from == self.me {
+            return self.drop_msg(from, DropReason::OwnMessage);
+        }
+        if from.index() >= self.org.roster_len() {
+            return self.drop_msg(from, DropReason::UnknownSender);
+        }
+        let key = env.instance;
+        let graph = self.mission.graph();
+        let well_formed = key.epoch > 0
+            && graph.get(key.behavior).is_some()
+            && graph.is_point(key.behavior, key.kind);
+        if !well_formed {
+            return self.drop_msg(from, DropReason::Malformed);
+        }
+        let seen = self.seen.entry(from).or_default();
+        if env.seq == 0 || seen.contains_key(&env.seq) {
+            return self.drop_msg(from, DropReason::Duplicate);
+        }
+        if seen.len() >= DEDUP_PER_SENDER
+            && let Some((&oldest, _)) = seen.iter().next()
+        {
+            seen.remove(&oldest);
+        }
+        seen.insert(env.seq, self.now);
+        if key.kind == Kind::Allocate && key.round > 0 && !self.instances.contains_key(&key) {
+            let frame = self
+                .stack
+                .iter()
+                .position(|f| (f.team, f.behavior, f.epoch) == (key.team, key.behavior, key.epoch));
+            let told: &[RobotId] = match &env.body {
+                Body::Reallocate { lost } => lost,
+                _ => &[],
+            };
+            match frame {
+                // A teammate re-allocates what this robot runs under: join
+                // it (this robot may not have noticed the loss yet) — unless
+                // that teammate left this robot out.
+                Some(i) if self.stack[i].round < key.round && !told.contains(&self.me) => {
+                    let told = told.to_vec();
+                    self.reallocate(i, key.round, &told);
+                }
+                Some(_) => {}
+                // This robot has left that behavior: it takes no part.
+                None if self.org.runs(key.team, key.behavior) >= key.epoch
+                    && self.org.team(key.team).is_some_and(|t| t.contains(from)) =>
+                {
+                    self.stats.received += 1;
+                    self.reply(key, from, Body::Done);
+                    return;
+                }
+                None => {}
+            }
+        }
+        if matches!(env.body, Body::Reallocate { .. }) {
+            // The kernel's own notice, handled above.
+            self.stats.received += 1;
+            return;
+        }
+        if let Some(inst) = self.instances.get(&key) {
+            let team = self.org.team(key.team).unwrap_or(&inst.team);
+            if !team.contains(from) {
+                return self.drop_msg(from, DropReason::SenderNotMember);
+            }
+            self.stats.received += 1;
+            return self.deliver(key, from, env.body);
+        }
+        if let Some(closed) = self.tombstones.get(&key).cloned() {
+            self.stats.received += 1;
+            if matches!(env.body, Body::Missed { .. }) {
+                // Decided here already: nothing to apply, nothing to answer.
+                return;
+            }
+            return self.late_reply(key, closed, from, &env.body);
+        }
+        match self.org.team(key.team) {
+            Some(t) if !t.contains(self.me) => return self.drop_msg(from, DropReason::NotMember),
+            Some(t) if !t.contains(from) => {
+                return self.drop_msg(from, DropReason::SenderNotMember);
+            }
+            Some(_) => {}
+            None if self.org.is_dead(key.team) => return self.drop_msg(from, DropReason::Stale),
+            None => {}
+        }
+        if self
+            .closed
+            .get(&(key.team, key.behavior, key.kind))
+            .is_some_and(|e| key.stamp() <= *e)
+        {
+            return self.drop_msg(from, DropReason::Stale);
+        }
+        if self.inbox.len() >= self.limits.max_pending {
+            return self.drop_msg(from, DropReason::BufferOverflow);
+        }
+        let waiting = Pending {
+            at: self.now,
+            from,
+            body: env.body,
+        };
+        if !self.inbox.push(key, waiting) {
+            // A retransmission of a message already waiting: one is enough.
+            return self.drop_msg(from, DropReason::Duplicate);
+        }
+        self.stats.received += 1;
+        self.stats.buffered += 1;
+    }
+
+    /// Answer a teammate's late message for a forgotten instance, as its
+    /// protocol says.
+    pub(super) fn late_reply(
+        &mut self,
+        key: InstanceKey,
+        closed: Closed,
+        from: RobotId,
+        body: &Body,
+    ) {
+        if let Some(reply) = self
+            .mission
+            .bound(key.behavior, key.kind)
+            .and_then(|b| b.protocol.late_reply(&closed, body))
+        {
+            self.reply(key, from, reply);
+        }
+    }
+
+    /// Send `body` to `to` for instance `key`, outside any live instance.
+    pub(super) fn reply(&mut self, key: InstanceKey, to: RobotId, body: Body) {
+        self.send_outside(key, Recipients::One(to), body);
+    }
+
+    /// Send a message of the kernel's own (not of a protocol instance).
+    pub(super) fn send_outside(&mut self, key: InstanceKey, to: Recipients, body: Body) {
+        let envelope = Envelope {
+            instance: key,
+            sender: self.me,
+            seq: self.next_seq,
+            body,
+        };
+        self.next_seq += 1;
+        let bytes = encoded_len(&envelope) as u32;
+        self.stats.sent += 1;
+        self.stats.bytes_sent += u64::from(bytes);
+        self.out.push_back(Output::Send(Outgoing {
+            to,
+            envelope,
+            bytes,
+        }));
+    }
+
+    pub(super) fn deliver(&mut self, key: InstanceKey, from: RobotId, body: Body) {
+        if let Some(i) = self.instances.get_mut(&key) {
+            i.received += 1;
+        }
+        if key.kind != Kind::Terminate && body == Body::Done {
+            // "I have left this behavior" (a re-allocation reached a
+            // teammate that is done with it): decide without it.
+            self.exclude(key, &[from]);
+            self.refresh_due();
+            return;
+        }
+        if let Body::Missed {
+            choice,
+            children,
+            members,
+        } = body
+        {
+            // The team decided without this robot while it was presumed
+            // lost: apply the team's decision, whatever this robot's own
+            // protocol instance (it may believe itself the coordinator).
+            let outcome = match key.kind {
+                Kind::Sync => Some(Outcome::Sync(choice)),
+                Kind::Terminate => Some(Outcome::Terminate(choice)),
+                Kind::Allocate => Body::Assignment { children, members }
+                    .to_assignment(self.org.roster_len())
+                    .map(|a| Outcome::Allocate(Arc::new(a))),
+            };
+            match outcome {
+                Some(o) => self.force(key, o),
+                None => self.drop_msg(from, DropReason::Malformed),
+            }
+            return;
+        }
+        self.call(key, |imp, cx| imp.on_message(cx, from, &body));
+        self.refresh_due();
+    }
+
+    pub(super) fn drop_pending(&mut self, key: InstanceKey) {
+        self.inbox.take(key);
+    }
+}

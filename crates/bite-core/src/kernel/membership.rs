@@ -1,0 +1,169 @@
+//! Membership: teammates presumed lost and back, and teammates that left
+//! a behavior (departed): protocols decide without them.
+
+use super::*;
+
+impl Kernel {
+    /// The runtime presumes teammate `r` lost (no heartbeat for longer than
+    /// its bound). Running protocol instances decide without it from now on.
+    pub fn member_lost(&mut self, now: Time, r: RobotId) {
+        self.set_now(now);
+        if r == self.me || !self.lost.insert(r) {
+            return;
+        }
+        self.ever_lost.insert(r);
+        self.emit(Event::MemberLost { member: r });
+        let affected: Vec<InstanceKey> = self
+            .instances
+            .iter()
+            .filter(|(_, i)| {
+                i.team.contains(r)
+                    && (matches!(i.state, State::Armed | State::Active) || i.wake.is_some())
+            })
+            .map(|(k, _)| *k)
+            .collect();
+        for k in affected {
+            self.exclude(k, &[r]);
+        }
+        // Children left without enough live members are re-allocated.
+        if !matches!(self.phase, Phase::NotStarted | Phase::Finished)
+            && let Some(i) = self.orphaned_frame()
+        {
+            let round = self.stack[i].round + 1;
+            self.reallocate(i, round, &[]);
+        }
+        self.refresh_due();
+        self.step();
+    }
+
+    /// The runtime hears teammate `r` again. It takes part again from the
+    /// next protocol instance on (running ones go on without it).
+    pub fn member_back(&mut self, now: Time, r: RobotId) {
+        self.set_now(now);
+        if self.lost.contains(r) {
+            self.lost.remove(r);
+            self.emit(Event::MemberBack { member: r });
+            // Tell it how what it missed was decided: it may be waiting in
+            // one of those instances, or running below a behavior its team
+            // ended meanwhile, or lead a protocol its team has moved past.
+            for key in self.missed.remove(&r).unwrap_or_default() {
+                let closed = self
+                    .instances
+                    .get(&key)
+                    .and_then(|i| i.closed.clone())
+                    .or_else(|| self.tombstones.get(&key).cloned());
+                if let Some(body) = closed.as_ref().and_then(missed_body) {
+                    self.reply(key, r, body);
+                }
+            }
+            // Barriers armed but not started take part it again (a member
+            // lost once is not left out of its ancestors' terminations for
+            // the rest of the mission).
+            let departed = self
+                .stack
+                .iter()
+                .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(r)));
+            for inst in self.instances.values_mut() {
+                if inst.state == State::Armed
+                    && !departed
+                    && let Some(x) = &mut inst.excluded
+                {
+                    x.remove(r);
+                }
+            }
+        }
+        self.step();
+    }
+
+    /// Instance `k` decides without `who` from now on.
+    pub(super) fn exclude(&mut self, k: InstanceKey, who: &[RobotId]) {
+        let n = self.org.roster_len();
+        let mut new = Vec::new();
+        if let Some(inst) = self.instances.get_mut(&k) {
+            let ex = inst.excluded.get_or_insert_with(|| MemberSet::empty(n));
+            for r in who {
+                if inst.team.contains(*r) && ex.insert(*r) {
+                    new.push(*r);
+                }
+            }
+            if !new.is_empty() && inst.state == State::Active {
+                self.out.push_back(Output::Event(Event::LeftOut {
+                    instance: k,
+                    members: new,
+                }));
+            }
+        }
+        self.call(k, |imp, cx| imp.on_members_changed(cx));
+    }
+
+    /// Teammates done with the behavior of termination instance `key`:
+    /// leave them out of every instance below that behavior.
+    pub(super) fn departures(&mut self, key: InstanceKey, who: &[RobotId]) {
+        if let Some(i) = self.stack.iter().position(|f| f.term_key() == key) {
+            self.depart(i, who);
+        } else {
+            self.depart_popped(key, who);
+        }
+    }
+
+    /// Teammates done with the behavior this robot ended and waits to
+    /// terminate: nothing of it runs here any more, but a leader relays
+    /// who is done with its heartbeats.
+    pub(super) fn depart_popped(&mut self, key: InstanceKey, who: &[RobotId]) {
+        let n = self.org.roster_len();
+        if let Phase::Terminating { frame, .. } | Phase::Selecting { frame, .. } = &mut self.phase
+            && frame.term_key() == key
+        {
+            let set = frame.departed.get_or_insert_with(|| MemberSet::empty(n));
+            for r in who {
+                set.insert(*r);
+            }
+        }
+    }
+
+    /// Teammates done with the behavior of stack frame `i` (they arrived at
+    /// its termination, or left it): leave them out of every instance below
+    /// it, as if presumed lost.
+    pub(super) fn depart(&mut self, i: usize, who: &[RobotId]) {
+        let n = self.org.roster_len();
+        let set = self.stack[i]
+            .departed
+            .get_or_insert_with(|| MemberSet::empty(n));
+        for r in who {
+            set.insert(*r);
+        }
+        // The termination instances of the frames down to this one are not
+        // below it, nor is a re-allocation at it (teammates idle under it
+        // take part); every other running instance is.
+        let here = &self.stack[i];
+        let (team, behavior, epoch) = (here.team, here.behavior, here.epoch);
+        let mut above: Vec<InstanceKey> = self.stack[..=i].iter().map(Frame::term_key).collect();
+        above.extend(
+            self.instances
+                .keys()
+                .filter(|k| {
+                    k.kind == Kind::Allocate
+                        && (k.team, k.behavior, k.epoch) == (team, behavior, epoch)
+                })
+                .copied(),
+        );
+        let below: Vec<InstanceKey> = self
+            .instances
+            .iter()
+            .filter(|(k, inst)| {
+                !above.contains(k)
+                    && matches!(inst.state, State::Armed | State::Active)
+                    && who.iter().any(|r| inst.team.contains(*r))
+                    && self
+                        .mission
+                        .bound(k.behavior, k.kind)
+                        .is_some_and(|b| b.protocol.communicates())
+            })
+            .map(|(k, _)| *k)
+            .collect();
+        for k in below {
+            self.exclude(k, who);
+        }
+        self.refresh_due();
+    }
+}
