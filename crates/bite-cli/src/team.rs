@@ -83,6 +83,11 @@ pub struct MissionArgs {
     /// Use the timed-skill world when picking the default scenario.
     #[arg(long)]
     pub timed: bool,
+    /// Run the built-in formation example (what `bite run` runs with no
+    /// graph) rather than wait for a submitted mission. `launch` and
+    /// `sim serve` run it when no graph is given; this makes a robot do so.
+    #[arg(long, conflicts_with = "graph")]
+    pub built_in: bool,
 }
 
 impl MissionArgs {
@@ -96,6 +101,19 @@ impl MissionArgs {
             self.robots,
             self.timed,
         )
+    }
+
+    /// The world a robot started with these arguments runs submitted missions
+    /// in when they carry none: its `--scenario`, or its graph's (as
+    /// [`MissionArgs::load`] resolves it); none without either.
+    fn own_scenario(&self) -> Result<Option<Scenario>> {
+        if self.graph.is_some() || self.built_in {
+            return Ok(Some(self.load()?.1));
+        }
+        match &self.scenario {
+            Some(p) => Ok(Some(Scenario::load(p).map_err(crate::bad_input)?)),
+            None => Ok(None),
+        }
     }
 
     /// These arguments as JSON, with absolute paths (what a record of a
@@ -113,6 +131,7 @@ impl MissionArgs {
             "robots": self.robots,
             "seed": self.seed,
             "timed": self.timed,
+            "built_in": self.built_in,
         })
     }
 
@@ -127,14 +146,18 @@ impl MissionArgs {
             robots: v["robots"].as_u64().map(|n| n as usize),
             seed: v["seed"].as_u64(),
             timed: v["timed"].as_bool().unwrap_or(false),
+            built_in: v["built_in"].as_bool().unwrap_or(false),
         }
     }
 
     /// Arguments that give the same mission to a child process.
+    /// Without a graph, the built-in example, said explicitly so that a
+    /// robot runs it rather than waits for a submission.
     fn to_args(&self) -> Vec<String> {
         let mut a = Vec::new();
-        if let Some(g) = &self.graph {
-            a.push(g.display().to_string());
+        match &self.graph {
+            Some(g) => a.push(g.display().to_string()),
+            None => a.push("--built-in".into()),
         }
         let mut opt = |k: &str, v: Option<String>| {
             if let Some(v) = v {
@@ -263,9 +286,14 @@ pub struct LaunchArgs {
 pub struct SubmitArgs {
     /// The behavior graph (YAML) or mission (`.rtcl`) to submit.
     pub graph: PathBuf,
-    /// A scenario to send with it (YAML).
+    /// A scenario to send with it (YAML). Default: the one next to the
+    /// graph, as `bite run` picks it (physical world first, or the timed one
+    /// with `--timed`); none when there is none.
     #[arg(long)]
     pub scenario: Option<PathBuf>,
+    /// Pick the timed-skill world when choosing the default scenario.
+    #[arg(long)]
+    pub timed: bool,
     /// A configuration to send with it (YAML).
     #[arg(long)]
     pub config: Option<PathBuf>,
@@ -357,20 +385,32 @@ fn write_secret(p: &Path, text: &str) -> Result<()> {
     Ok(())
 }
 
-/// Load a submitted mission against the robot's own scenario (or the one
-/// the submission carries).
-fn loader(base: MissionArgs, robots: Option<usize>) -> bite_zenoh::robot::Loader {
+/// Load a submitted mission against the scenario it carries, else the
+/// robot's own (the one it was started with: `--scenario`, or the one next to
+/// its graph). A submission with no scenario to a robot that has none is
+/// refused with that reason: an empty world would leave the team running
+/// for ever.
+fn loader(
+    base: MissionArgs,
+    own: Option<Scenario>,
+    robots: Option<usize>,
+) -> bite_zenoh::robot::Loader {
     Box::new(move |body: &MissionBody| {
-        let scenario = match &body.scenario {
-            Some(text) => Scenario::load_str(
+        let scenario = match (&body.scenario, &own) {
+            (Some(text), _) => Scenario::load_str(
                 &Arc::from(format!("{} (submitted scenario)", body.id)),
                 text,
             )
             .map_err(|d| d.to_string())?,
-            None => match &base.scenario {
-                Some(p) => Scenario::load(p).map_err(|d| d.to_string())?,
-                None => Scenario::default(),
-            },
+            (None, Some(s)) => s.clone(),
+            (None, None) => {
+                return Err(format!(
+                    "submission {} carries no scenario and this robot was started without one: \
+                     send one (`bite submit --scenario FILE`, or the `scenario` field) or start \
+                     the robots with `--scenario FILE`",
+                    body.id
+                ));
+            }
         };
         let label = format!("{} (submitted)", body.id);
         let (graph, scenario) = if let Some(src) = &body.rtcl {
@@ -412,21 +452,24 @@ fn loader(base: MissionArgs, robots: Option<usize>) -> bite_zenoh::robot::Loader
 /// `bite robot`.
 pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
     let key = team_key(a.key.as_deref())?;
-    let first = match &a.mission.graph {
-        Some(_) => {
-            let (graph, scenario) = a.mission.load()?;
-            let mission =
-                bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())
-                    .map_err(crate::bad_input)?;
-            let seed = a.mission.seed.unwrap_or(scenario.seed);
-            Some(Prepared {
-                mission,
-                scenario,
-                seed,
-                origin: serde_json::json!({ "args": a.mission.origin() }),
-            })
-        }
-        None => None,
+    let first = if a.mission.graph.is_some() || a.mission.built_in {
+        let (graph, scenario) = a.mission.load()?;
+        let mission =
+            bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())
+                .map_err(crate::bad_input)?;
+        let seed = a.mission.seed.unwrap_or(scenario.seed);
+        Some(Prepared {
+            mission,
+            scenario,
+            seed,
+            origin: serde_json::json!({ "args": a.mission.origin() }),
+        })
+    } else {
+        None
+    };
+    let own = match &first {
+        Some(p) => Some(p.scenario.clone()),
+        None => a.mission.own_scenario()?,
     };
     let stop = stop_flag()?;
     let opts = RobotOptions {
@@ -452,7 +495,7 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
     let out = bite_zenoh::robot::run(
         opts,
         first,
-        loader(a.mission.clone(), a.mission.robots),
+        loader(a.mission.clone(), own, a.mission.robots),
         stop,
     )?;
     eprintln!(
@@ -527,6 +570,7 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
     let key = team_key(a.key.as_deref())?;
     let read = |p: &Path| crate::read_input(p);
     let text = read(&a.graph)?;
+    let scenario = submitted_scenario(&a)?;
     let id = match a.id {
         Some(id) => id,
         None => {
@@ -542,7 +586,7 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
         graph: (!is_rtcl).then(|| text.clone()),
         rtcl: is_rtcl.then_some(text),
         config: a.config.as_deref().map(read).transpose()?,
-        scenario: a.scenario.as_deref().map(read).transpose()?,
+        scenario: scenario.as_deref().map(read).transpose()?,
         seed: None,
     };
     let sub = bite_zenoh::wire::sign_submission(&key, &a.net.team, &body);
@@ -560,6 +604,34 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
     let _ = session.close().wait();
     println!("{id}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// The scenario `bite submit` sends: the one given, else the one next to
+/// the graph (as `bite run` picks it), else none (the robots then use their
+/// own, or refuse the mission if they have none).
+fn submitted_scenario(a: &SubmitArgs) -> Result<Option<PathBuf>> {
+    if a.scenario.is_some() {
+        return Ok(a.scenario.clone());
+    }
+    let rtcl = rtcl::is_mission(&a.graph);
+    let physical = crate::sibling_scenario(&a.graph, true);
+    let timed = crate::sibling_scenario(&a.graph, false);
+    let guess = if (rtcl || !a.timed) && physical.exists() {
+        physical
+    } else {
+        timed
+    };
+    if guess.exists() {
+        eprintln!("scenario: {}", guess.display());
+        Ok(Some(guess))
+    } else {
+        eprintln!(
+            "note: no --scenario and {} does not exist: the robots run the mission in their own world \
+             (a robot started without one refuses it)",
+            guess.display()
+        );
+        Ok(None)
+    }
 }
 
 /// A free TCP port on 127.0.0.1 (the OS picks one; it is released at once,
@@ -988,7 +1060,8 @@ pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
             .with_context(|| format!("{}: the recorded submission", file.display()))?;
         let base = MissionArgs::from_origin(&origin["base"]);
         let robots = origin["robots"].as_u64().map(|n| n as usize);
-        loader(base, robots)(&body).map_err(|e| anyhow::anyhow!("{e}"))?
+        let own = base.own_scenario()?;
+        loader(base, own, robots)(&body).map_err(|e| anyhow::anyhow!("{e}"))?
     } else if origin.get("args").is_some() {
         let args = MissionArgs::from_origin(&origin["args"]);
         let (graph, scenario) = args.load()?;

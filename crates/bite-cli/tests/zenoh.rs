@@ -607,3 +607,56 @@ fn a_silent_split_heals_across_robot_processes() {
     let last = split_times.iter().cloned().fold(0.0, f64::max);
     assert!(last - first < 1.0, "healing took {:.2} s", last - first);
 }
+
+/// The README's `bite launch` commands, exactly as written (no graph: the
+/// built-in formation; and the kill with Table II row 7), run in a scratch
+/// directory whose `examples` is the repository's: each completes, exits 0
+/// and reports every surviving robot COMPLETED.
+#[test]
+fn the_readme_launch_commands_complete_as_written() {
+    let _one = serial();
+    let readme = std::fs::read_to_string(repo().join("README.md")).unwrap();
+    let cmds: Vec<Vec<String>> = readme
+        .lines()
+        .map(|l| l.split(" #").next().unwrap_or("").trim())
+        .filter(|l| l.starts_with("bite launch"))
+        .map(|l| l.split_whitespace().skip(1).map(String::from).collect())
+        .collect();
+    assert!(
+        cmds.iter().any(|c| c.len() == 1),
+        "the README shows no bare `bite launch`: {cmds:?}"
+    );
+    assert!(
+        cmds.iter().any(|c| c.iter().any(|a| a == "--kill")),
+        "the README shows no `bite launch --kill`: {cmds:?}"
+    );
+    for (i, args) in cmds.iter().enumerate() {
+        let d = tmp(&format!("readme-launch-{i}"));
+        std::os::unix::fs::symlink(repo().join("examples"), d.join("examples")).unwrap();
+        let out = bite()
+            .current_dir(&d)
+            .args(args)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        let what = format!(
+            "`bite {}` in {}:\n{text}\n{}",
+            args.join(" "),
+            d.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert_eq!(out.status.code(), Some(0), "{what}");
+        let rows: Vec<&str> = (text.lines())
+            .filter(|l| l.trim_start().starts_with('r') && l.contains(" exit "))
+            .collect();
+        assert_eq!(rows.len(), 3, "{what}");
+        let killed = args.iter().any(|a| a == "--kill");
+        for r in rows {
+            let ok = r.contains("COMPLETED") || (killed && r.contains("KILLED"));
+            assert!(ok, "{r}\n{what}");
+        }
+        assert!(text.contains(" 0 disagreements"), "{what}");
+        assert!(d.join("out/launch/r0.jsonl").exists(), "{what}");
+    }
+}

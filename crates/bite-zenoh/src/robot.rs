@@ -259,6 +259,7 @@ pub fn run(
         run: None,
         seen_missions: BTreeSet::new(),
         missions_rejected: 0,
+        last_rejection: None,
         log: log.as_mut().map(|w| w as &mut dyn Write),
         log_error: None,
         next_status: 0,
@@ -297,6 +298,7 @@ struct Node<'a> {
     run: Option<Running>,
     seen_missions: BTreeSet<String>,
     missions_rejected: u64,
+    last_rejection: Option<wire::Rejection>,
     log: Option<&'a mut dyn Write>,
     log_error: Option<std::io::Error>,
     next_status: u64,
@@ -752,49 +754,50 @@ impl Node<'_> {
     fn submission(&mut self, bytes: &[u8], loader: &Loader) {
         let body = match wire::open_submission(&self.opts.key, &self.opts.team, bytes) {
             Ok(b) => b,
-            Err(e) => {
-                self.missions_rejected += 1;
-                self.log_record(json!({"event": "mission_rejected", "reason": e.to_string()}));
-                return;
-            }
+            Err(e) => return self.reject_mission("mission_rejected", None, e.to_string()),
         };
+        let id = Some(body.id.clone());
         let now_ms = unix_micros() / 1000;
         if body.issued_at.abs_diff(now_ms) > SUBMISSION_FRESH_MS {
-            self.missions_rejected += 1;
-            self.log_record(json!({"event": "mission_rejected", "id": body.id, "reason": "stale: issued_at is more than 5 minutes from now"}));
-            return;
+            let why = "stale: issued_at is more than 5 minutes from now";
+            return self.reject_mission("mission_rejected", id, why.into());
         }
         if self.seen_missions.contains(&body.id) {
-            self.missions_rejected += 1;
-            self.log_record(
-                json!({"event": "mission_rejected", "id": body.id, "reason": "replayed id"}),
-            );
-            return;
+            return self.reject_mission("mission_rejected", id, "replayed id".into());
         }
         if let Some(r) = &self.run
             && !r.agent.kernel().is_finished()
         {
-            self.missions_rejected += 1;
-            self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": "busy: the current mission has not completed"}));
-            return;
+            let why = "busy: the current mission has not completed";
+            return self.reject_mission("mission_refused", id, why.into());
         }
-        match loader(&body) {
-            Ok(p) => {
-                match self.start(p, Some(body.id.clone()), None) {
-                    Ok(()) => {
-                        self.seen_missions.insert(body.id.clone());
-                    }
-                    Err(e) => {
-                        self.missions_rejected += 1;
-                        self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": e.to_string()}));
-                    }
-                }
+        match loader(&body).and_then(|p| {
+            self.start(p, Some(body.id.clone()), None)
+                .map_err(|e| e.to_string())
+        }) {
+            Ok(()) => {
+                self.seen_missions.insert(body.id.clone());
             }
-            Err(e) => {
-                self.missions_rejected += 1;
-                self.log_record(json!({"event": "mission_refused", "id": body.id, "reason": e}));
-            }
+            Err(e) => self.reject_mission("mission_refused", id, e),
         }
+    }
+
+    /// Count, log and report a submission not run (`event`:
+    /// `mission_rejected` or `mission_refused`).
+    fn reject_mission(&mut self, event: &str, id: Option<String>, reason: String) {
+        self.missions_rejected += 1;
+        self.log_record(json!({"event": event, "id": id, "reason": reason}));
+        eprintln!(
+            "robot {}: {} {}: {reason}",
+            self.opts.name,
+            event.replace('_', " "),
+            id.as_deref().unwrap_or("(unreadable)")
+        );
+        self.last_rejection = Some(wire::Rejection {
+            id,
+            event: event.trim_start_matches("mission_").to_string(),
+            reason,
+        });
     }
 
     /// Send and log what the agent produced.
@@ -890,6 +893,7 @@ impl Node<'_> {
             lost: Vec::new(),
             auth: self.last_auth.clone(),
             missions_rejected: self.missions_rejected,
+            last_rejection: self.last_rejection.clone(),
         };
         if let Some(r) = &self.run {
             let k = r.agent.kernel();

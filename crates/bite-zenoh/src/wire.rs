@@ -154,8 +154,25 @@ pub struct Status {
     pub lost: Vec<String>,
     /// Frames accepted and dropped, by reason.
     pub auth: AuthStats,
-    /// Mission submissions rejected (bad MAC, replayed id, malformed).
+    /// Mission submissions rejected (bad MAC, replayed id, malformed) or
+    /// refused (busy, no world to run it in, does not load).
     pub missions_rejected: u64,
+    /// The last of those: its id (when it could be read) and why, so that a
+    /// client learns what became of its submission.
+    #[serde(default)]
+    pub last_rejection: Option<Rejection>,
+}
+
+/// A submission a robot did not run, and why.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Rejection {
+    /// The submission id, when the submission could be opened.
+    pub id: Option<String>,
+    /// `rejected` (not authentic, stale, replayed) or `refused` (authentic
+    /// but not run: busy, no world, does not load).
+    pub event: String,
+    /// Why, in words.
+    pub reason: String,
 }
 
 impl Status {
