@@ -908,7 +908,7 @@ fn cmd_bench_sim(
         ),
     ];
     for n in robots {
-        let (g, s) = bite_sim::physics::swarm::coverage_mission(*n, seconds);
+        let (g, s) = bite_agent::swarm::coverage_mission(*n, seconds);
         cases.push((format!("coverage {n}"), g, s));
     }
     let at_scale = cases.len() - robots.len();

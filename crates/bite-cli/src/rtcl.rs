@@ -3,9 +3,9 @@
 //! physical-world scenario takes.
 
 use anyhow::Result;
+use bite_agent::spec::TargetSpec;
 use bite_core::graph::BehaviorGraph;
 use bite_rtcl::{CompileOptions, Compiled, Library};
-use bite_sim::physics::spec::TargetSpec;
 use bite_sim::{MissionParts, Scenario};
 use std::path::Path;
 use std::sync::Arc;

@@ -1052,8 +1052,8 @@ pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
     use std::io::BufRead as _;
     let f = std::fs::File::open(file).with_context(|| format!("reading {}", file.display()))?;
     let mut r = std::io::BufReader::new(f);
-    let header =
-        bite_sim::record::header(&mut r).map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
+    let header = bite_agent::record::header(&mut r)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
     let origin = &header["origin"];
     let prepared = if origin.get("submitted").is_some() {
         let body: MissionBody = serde_json::from_value(origin["submitted"].clone())
@@ -1088,10 +1088,10 @@ pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
         .with_context(|| format!("robot `{name}` is not on the mission's roster"))?;
     let seed = header["seed"].as_u64().unwrap_or(prepared.seed);
     let mut agent =
-        bite_sim::agent::Agent::new(prepared.mission.clone(), &prepared.scenario, me, seed)
+        bite_agent::agent::Agent::new(prepared.mission.clone(), &prepared.scenario, me, seed)
             .map_err(crate::bad_input)?;
     let _ = r.fill_buf();
-    let out = bite_sim::record::replay(&mut r, &mut agent)
+    let out = bite_agent::record::replay(&mut r, &mut agent)
         .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
     match out.first_difference {
         None => {

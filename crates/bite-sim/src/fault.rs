@@ -20,7 +20,7 @@
 //! files (`250ms`, `2s`). Specs are separated by `;` when given as one
 //! string.
 
-use crate::scenario::{Crash, PartitionRef, RobotRef, Scenario};
+use bite_agent::scenario::{Crash, PartitionRef, RobotRef, Scenario};
 use bite_core::diag::Loc;
 use bite_core::time::{Time, parse_duration};
 use std::fmt;

@@ -1,16 +1,19 @@
 //! # bite-sim
 //!
-//! Simulators that drive BITE kernels. This crate holds the
-//! coordination-only simulator: a deterministic discrete-event runner in
-//! which N kernels talk over a seeded simulated network (latency, jitter,
-//! loss, duplication, reordering, partitions) and act in a *timed-skill
-//! world*, where a skill sets its completion beliefs after a duration drawn
-//! from the scenario. No physics: this is what lets teams of thousands be
-//! studied and tested.
+//! The deterministic simulator of BITE teams: a discrete-event runner that
+//! drives one [`bite_agent::Agent`] per robot (the same mind a robot
+//! process runs) over a seeded simulated network (latency, jitter, loss,
+//! duplication, reordering, partitions), in one of two worlds: the
+//! *timed-skill world* (skills take a drawn time; no physics, so teams of
+//! thousands can be studied) or the *physical world* (a 2-D arena on
+//! rapier2d with range sensors and a camera: the robots' bodies).
 //!
-//! - [`scenario`]: scenario files;
+//! The mind (behavior selection, motor schemas, command fusion, timed
+//! skills, the scenario it reads) lives in `bite-agent`; this crate keeps
+//! the scheduler, the simulated network, the bodies and reporting.
+//!
 //! - [`net`]: the simulated network;
-//! - [`world`]: the timed-skill world;
+//! - [`physics`]: the bodies: rapier2d arena, sensors, pictures;
 //! - [`runner`]: the event loop, run logs and reports;
 //! - [`summary`]: what a run cost;
 //! - [`check`]: invariants checked as a run goes, on every run;
@@ -21,20 +24,17 @@
 
 #![warn(missing_docs)]
 
-pub mod agent;
 pub mod check;
 pub mod fault;
 pub mod log;
 pub mod net;
 pub mod physics;
 pub mod probe;
-pub mod record;
 pub mod runner;
-pub mod scenario;
 pub mod stall;
 pub mod summary;
 pub mod sweep;
-pub mod world;
 
+/// The scenario a run is made of (from `bite-agent`, where the mind reads it).
+pub use bite_agent::scenario::{MissionParts, Scenario};
 pub use runner::{RunOptions, RunReport, prepare, run};
-pub use scenario::{MissionParts, Scenario};

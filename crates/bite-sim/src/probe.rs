@@ -26,7 +26,7 @@
 
 use crate::check::{Violation, check};
 use crate::runner::{RunOptions, prepare, run};
-use crate::scenario::Scenario;
+use bite_agent::scenario::Scenario;
 use bite_core::diag::Diagnostics;
 use bite_core::event::{Event, MembersLog, OutcomeLog};
 use bite_core::graph::load_str;

@@ -6,11 +6,11 @@
 //! Control ticks reach every robot at the scenario's rate; messages and
 //! kernel timers are delivered at their own times in between.
 
-use crate::agent::{Agent, AgentOutput, Input, Shared};
 use crate::log::{Namer, RunLog};
 use crate::net::SimNet;
-use crate::scenario::{Resolved, Scenario};
 use crate::summary::{Aggregator, Summary};
+use bite_agent::agent::{Agent, AgentOutput, Input, Shared};
+use bite_agent::scenario::{Resolved, Scenario};
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::event::{DropReason, Event};
 use bite_core::graph::BehaviorGraph;
@@ -28,7 +28,7 @@ use std::io::Write;
 use std::sync::Arc;
 use std::time::Duration;
 
-pub use crate::agent::derive_seed;
+pub use bite_agent::agent::derive_seed;
 
 /// Build the mission for a run: the graph resized to the team size the
 /// caller or the scenario asks for, with protocols resolved.
@@ -199,7 +199,7 @@ struct Sim<'a, 'w> {
     times: Vec<Time>,
     graph: Arc<BehaviorGraph>,
     progress: Option<&'a mut dyn FnMut(Progress)>,
-    detector: Option<crate::scenario::FailureDetector>,
+    detector: Option<bite_agent::scenario::FailureDetector>,
     /// (observer, subject) pairs where the observer presumes the subject lost.
     suspected: std::collections::BTreeSet<(RobotId, RobotId)>,
     seed: u64,
@@ -852,11 +852,10 @@ pub fn run(
         seed,
         physics,
         next_poses: Time::ZERO,
-        beacon_period: scenario
-            .failure_detector
-            .map_or(crate::scenario::FailureDetector::default().heartbeat, |d| {
-                d.heartbeat
-            }),
+        beacon_period: scenario.failure_detector.map_or(
+            bite_agent::scenario::FailureDetector::default().heartbeat,
+            |d| d.heartbeat,
+        ),
         beacons: (0, 0),
         checker: crate::check::Checker::new(mission.clone()),
         stall: crate::stall::StallWatch::new(scenario.stall),
@@ -913,7 +912,7 @@ pub fn run(
         summary.outcome = crate::summary::Outcome::Stalled;
         summary.stall = Some(why);
     }
-    summary.world = sim.physics.as_ref().map(crate::physics::summary);
+    summary.world = sim.physics.as_ref().map(crate::summary::of_world);
     summary.heartbeats = crate::summary::Heartbeats {
         messages: sim.beacons.0,
         bytes: sim.beacons.1,

@@ -20,30 +20,12 @@ use bite_core::graph::BehaviorGraph;
 use bite_core::ids::{BehaviorId, RobotId};
 use bite_core::time::Time;
 use std::collections::BTreeMap;
-use std::time::Duration;
 
 /// How far a robot must get from where it was for the team to have moved
 /// (dithering in place does not count), m.
 pub const STEP: f64 = 0.25;
 
-/// When a run counts as stalled.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct StallLimits {
-    /// No progress for this long (`None`: never).
-    pub after: Option<Duration>,
-    /// A behavior started more than this many times within one execution
-    /// of its parent (`0`: never).
-    pub repeats: u32,
-}
-
-impl Default for StallLimits {
-    fn default() -> Self {
-        StallLimits {
-            after: Some(Duration::from_secs(120)),
-            repeats: 100,
-        }
-    }
-}
+pub use bite_agent::scenario::StallLimits;
 
 /// One frame of a robot's stack as the watch sees it: the behavior and how
 /// many times each child was started under it.

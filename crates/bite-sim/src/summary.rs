@@ -558,3 +558,24 @@ impl fmt::Display for Summary {
         Ok(())
     }
 }
+
+/// The world's part of the run summary.
+pub fn of_world(world: &crate::physics::World) -> WorldSummary {
+    WorldSummary {
+        goal: world
+            .spec()
+            .goal
+            .as_ref()
+            .map(|(o, z)| format!("{o} in {z}")),
+        goal_met_at: world.goal_met(),
+        distance: world
+            .odometers()
+            .iter()
+            .map(|d| (d * 100.0).round() / 100.0)
+            .collect(),
+        coverage: (crate::physics::coverage(world) * 1000.0).round() / 1000.0,
+        formation_error: world
+            .formation_error()
+            .map(|(m, x)| [(m * 1000.0).round() / 1000.0, (x * 1000.0).round() / 1000.0]),
+    }
+}

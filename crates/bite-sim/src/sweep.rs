@@ -9,8 +9,8 @@
 
 use crate::fault::{Fault, apply_all};
 use crate::runner::{RunOptions, derive_seed, run};
-use crate::scenario::Scenario;
 use crate::summary::Outcome;
+use bite_agent::scenario::Scenario;
 use bite_core::interaction::Rng;
 use bite_core::mission::Mission;
 use rand::{RngExt, SeedableRng};

@@ -4,12 +4,12 @@
 
 mod missions;
 
+use bite_agent::agent::{Agent, AgentOutput};
+use bite_agent::schema::Sensed;
 use bite_core::event::Event;
 use bite_core::ids::RobotId;
 use bite_core::interaction::Recipients;
 use bite_core::time::Time;
-use bite_sim::agent::{Agent, AgentOutput};
-use bite_sim::physics::Sensed;
 use bite_sim::{Scenario, prepare};
 use missions::{FORMATION, graph};
 use std::collections::BTreeMap;

@@ -253,7 +253,7 @@ fn a_behavior_parameter_a_schema_cannot_use_is_an_error_at_resolve() {
 fn a_swarm_splits_the_arena_into_cells_and_sweeps_all_of_it() {
     // The generated mission of `bite bench sim`, small enough to finish:
     // 16 robots, one cell each of a 16 m x 16 m arena with pillars.
-    let (g, s) = bite_sim::physics::swarm::coverage_mission(16, 400.0);
+    let (g, s) = bite_agent::swarm::coverage_mission(16, 400.0);
     let g = graph("coverage-16", &g);
     let sc = scenario("coverage-16 scenario", &s);
     let o = simulate(&g, &sc, 1);

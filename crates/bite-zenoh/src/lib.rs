@@ -1,6 +1,6 @@
 //! BITE robots as separate processes over Zenoh.
 //!
-//! - [`robot`]: one robot's runtime (`bite robot`): an [`bite_sim::agent::Agent`]
+//! - [`robot`]: one robot's runtime (`bite robot`): an [`bite_agent::agent::Agent`]
 //!   (kernel, world model, skills, pilot) driven by wall-clock timers and
 //!   Zenoh messages, with heartbeats for lost-teammate detection.
 //! - [`server`]: the simulator as a server (`bite sim serve`): owns the
@@ -18,6 +18,7 @@ pub mod agreement;
 pub mod auth;
 pub mod net;
 pub mod robot;
+#[cfg(feature = "sim-server")]
 pub mod server;
 pub mod wire;
 

@@ -18,14 +18,15 @@ use crate::Keys;
 use crate::auth::{AuthStats, FrameKind, Opener, Reject, Scope, Sealer, TeamKey};
 use crate::net::{Clock, NetOptions, unix_micros};
 use crate::wire::{self, Heartbeat, Membership, MissionBody, Status};
+use bite_agent::agent::{Agent, AgentOutput};
+use bite_agent::detector::{Detector, Verdict};
+use bite_agent::log::Namer;
+use bite_agent::scenario::{FailureDetector, Scenario};
+use bite_agent::schema::Sensed;
 use bite_core::graph::BehaviorGraph;
 use bite_core::ids::RobotId;
 use bite_core::mission::Mission;
 use bite_core::time::Time;
-use bite_sim::agent::{Agent, AgentOutput};
-use bite_sim::log::Namer;
-use bite_sim::physics::Sensed;
-use bite_sim::scenario::{FailureDetector, Scenario};
 use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
@@ -80,7 +81,7 @@ pub struct RobotOptions {
     pub gather_timeout: Duration,
     /// Wall time between status reports.
     pub status_period: Duration,
-    /// Record the mind's every input here (see `bite_sim::record`).
+    /// Record the mind's every input here (see `bite_agent::record`).
     pub record: Option<PathBuf>,
 }
 
@@ -151,11 +152,9 @@ struct Running {
     shared_origin: bool,
     /// Waiting for teammates until this wall time (`None`: started).
     gather_until: Option<u64>,
-    /// Wall time each teammate was last heard.
-    heard: Vec<Option<u64>>,
-    /// Teammates whose last heartbeat said they completed.
-    done: BTreeSet<u32>,
-    suspected: BTreeSet<u32>,
+    /// Who is alive: wall time of arrival each teammate was last heard,
+    /// who said it completed, who is presumed lost.
+    alive: Detector,
     detector: FailureDetector,
     period: Duration,
     next_control: Time,
@@ -330,7 +329,7 @@ impl Node<'_> {
                     && let Some(at) = r.finished_at
                 {
                     let others_done = (0..r.names.len() as u32)
-                        .all(|i| i == r.me.0 || r.done.contains(&i) || r.suspected.contains(&i));
+                        .all(|i| i == r.me.0 || r.alive.is_finished(i) || r.alive.is_suspected(i));
                     let now_us = unix_micros();
                     if (others_done && now_us >= at.saturating_add(grace_us(r)))
                         || now_us >= at.saturating_add(linger_us(r))
@@ -392,7 +391,7 @@ impl Node<'_> {
         })?;
         if let Some(path) = &self.opts.record {
             let f = std::fs::File::create(path).map_err(|e| RobotError::Log(path.clone(), e))?;
-            agent.record(bite_sim::record::Recorder::new(
+            agent.record(bite_agent::record::Recorder::new(
                 Box::new(std::io::BufWriter::new(f)),
                 &json!({"robot": self.opts.name, "seed": p.seed, "origin": p.origin}),
             ));
@@ -449,9 +448,11 @@ impl Node<'_> {
             clock,
             shared_origin: start_at.is_some(),
             gather_until: Some(gather),
-            heard: vec![None; n as usize],
-            done: BTreeSet::new(),
-            suspected: BTreeSet::new(),
+            alive: Detector::new(
+                n as usize,
+                me.0,
+                clock.wall(detector.lost_after).as_micros() as u64,
+            ),
             detector,
             period: Duration::from_secs_f64(1.0 / p.scenario.control_hz),
             next_control: Time::ZERO,
@@ -505,7 +506,7 @@ impl Node<'_> {
         }
         wake = wake.min(r.next_heartbeat);
         if let Some(until) = r.gather_until {
-            let everyone = (0..r.names.len()).all(|i| i == r.me.index() || r.heard[i].is_some());
+            let everyone = r.alive.everyone_heard();
             if !((everyone && now_us >= r.clock.origin_us) || now_us >= until) {
                 return wake.min(until).min(now_us + 10_000);
             }
@@ -515,14 +516,11 @@ impl Node<'_> {
             if !r.shared_origin {
                 r.clock.origin_us = now_us;
             }
-            let missing: Vec<String> = (0..r.names.len())
-                .filter(|i| *i != r.me.index() && r.heard[*i].is_none())
-                .map(|i| r.names[i].clone())
+            let missing: Vec<String> = (r.alive.never_heard())
+                .map(|i| r.names[i as usize].clone())
                 .collect();
-            for h in r.heard.iter_mut() {
-                // Silence is counted from the start.
-                *h = Some(h.unwrap_or(now_us).max(r.clock.origin_us));
-            }
+            // Silence is counted from the start.
+            r.alive.start(r.clock.origin_us);
             let rec = json!({"t": 0.0, "event": "gathered", "missing": missing});
             self.log_record(rec);
         }
@@ -531,28 +529,15 @@ impl Node<'_> {
         };
         let now = r.clock.now();
         // Failure detector.
-        let lost_us = r.clock.wall(r.detector.lost_after).as_micros() as u64;
         let mut lost = Vec::new();
-        for (i, h) in r.heard.iter().enumerate() {
-            let i32_ = i as u32;
-            if !r.detects
-                || i == r.me.index()
-                || r.suspected.contains(&i32_)
-                || r.done.contains(&i32_)
-            {
-                continue;
-            }
-            if let Some(h) = h {
-                if now_us >= h.saturating_add(lost_us) {
-                    lost.push(i32_);
-                } else {
-                    wake = wake.min(h.saturating_add(lost_us));
-                }
-            }
+        if r.detects
+            && let Some(next) = r.alive.poll(now_us, &mut lost)
+        {
+            wake = wake.min(next);
         }
-        for i in lost {
+        for v in lost {
+            let Verdict::Lost(i) = v else { continue };
             if let Some(r) = self.run.as_mut() {
-                r.suspected.insert(i);
                 // The kernel logs it (`member_lost`).
                 r.agent.member_lost(now, RobotId(i));
             }
@@ -697,8 +682,7 @@ impl Node<'_> {
         };
         let now = r.clock.now();
         // Heard when it arrived, not when this thread got to it.
-        r.heard[sender as usize] = Some(at_us.max(r.heard[sender as usize].unwrap_or(0)));
-        if r.suspected.remove(&sender) && r.gather_until.is_none() {
+        if let Some(Verdict::Back(_)) = r.alive.heard(sender, at_us) {
             r.agent.member_back(now, RobotId(sender));
             self.flush_agent();
         }
@@ -706,11 +690,7 @@ impl Node<'_> {
         match kind {
             FrameKind::Heartbeat => match wire::decode_heartbeat(&payload) {
                 Ok(h) => {
-                    if h.finished {
-                        r.done.insert(sender);
-                    } else {
-                        r.done.remove(&sender);
-                    }
+                    r.alive.finished(sender, h.finished);
                     if let Some(pos) = h.position
                         && r.ticked
                         && r.gather_until.is_none()
@@ -917,10 +897,8 @@ impl Node<'_> {
                         .map(|v| (n.to_string(), v))
                 })
                 .collect();
-            s.lost = r
-                .suspected
-                .iter()
-                .map(|i| r.names[*i as usize].clone())
+            s.lost = (r.alive.suspected())
+                .map(|i| r.names[i as usize].clone())
                 .collect();
             s.auth = r.opener.stats().clone();
         }
@@ -946,18 +924,12 @@ impl Node<'_> {
         };
         if let Some(r) = &self.run {
             m.roster = r.names.clone();
-            m.lost = r
-                .suspected
-                .iter()
-                .map(|i| r.names[*i as usize].clone())
+            m.lost = (r.alive.suspected())
+                .map(|i| r.names[i as usize].clone())
                 .collect();
-            m.alive = (0..r.names.len())
-                .filter(|i| {
-                    *i != r.me.index()
-                        && r.heard[*i].is_some()
-                        && !r.suspected.contains(&(*i as u32))
-                })
-                .map(|i| r.names[i].clone())
+            m.alive = (0..r.names.len() as u32)
+                .filter(|i| *i != r.me.0 && r.alive.has_heard(*i) && !r.alive.is_suspected(*i))
+                .map(|i| r.names[i as usize].clone())
                 .collect();
             m.subteams = Status::of_kernel(r.agent.kernel(), &r.graph).0;
         }

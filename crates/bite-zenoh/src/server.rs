@@ -12,12 +12,12 @@
 
 use crate::Keys;
 use crate::net::{Clock, NetOptions, unix_micros};
+use bite_agent::scenario::Scenario;
+use bite_agent::schema::Command;
 use bite_core::graph::BehaviorGraph;
 use bite_core::ids::RobotId;
 use bite_core::time::Time;
 use bite_sim::physics::World;
-use bite_sim::physics::schema::Command;
-use bite_sim::scenario::Scenario;
 use serde_json::json;
 use std::collections::BTreeMap;
 use std::io::Write;

@@ -24,14 +24,12 @@
 //! [`World::control`] runs the pilot and actuates its command.
 //! Everything is seeded: a run is a pure function of its inputs.
 
-pub mod pilot;
-pub mod plan;
-pub mod schema;
-pub mod spec;
 pub mod svg;
-pub mod swarm;
 
-use crate::runner::derive_seed;
+use bite_agent::{pilot, schema, spec};
+
+use bite_agent::agent::derive_seed;
+use bite_agent::spec::in_rect;
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::ids::{BehaviorId, BeliefId};
 use bite_core::interaction::Rng;
@@ -786,15 +784,6 @@ impl World {
     }
 }
 
-fn in_rect(p: DVec2, r: &[f64; 4]) -> bool {
-    let [x0, y0, x1, y1] = *r;
-    p.x >= x0.min(x1) && p.x <= x0.max(x1) && p.y >= y0.min(y1) && p.y <= y0.max(y1)
-}
-
-/// Seconds a teammate's sighting counts as knowing where it is
-/// (`teammates_known`, avoid-teammate).
-pub const MATE_MEMORY: f64 = 3.0;
-
 /// Radius around a robot's path counted as covered, m.
 pub const COVER_RADIUS: f64 = 0.5;
 
@@ -863,26 +852,10 @@ pub fn coverage(world: &World) -> f64 {
     world.coverage.share()
 }
 
-/// The world's part of the run summary.
-pub fn summary(world: &World) -> crate::summary::WorldSummary {
-    crate::summary::WorldSummary {
-        goal: world.spec.goal.as_ref().map(|(o, z)| format!("{o} in {z}")),
-        goal_met_at: world.goal_met,
-        distance: world
-            .odometers()
-            .iter()
-            .map(|d| (d * 100.0).round() / 100.0)
-            .collect(),
-        coverage: (coverage(world) * 1000.0).round() / 1000.0,
-        formation_error: world
-            .formation_error()
-            .map(|(m, x)| [(m * 1000.0).round() / 1000.0, (x * 1000.0).round() / 1000.0]),
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use bite_agent::swarm;
     use bite_core::value::Value;
     use schema::Weighted;
 

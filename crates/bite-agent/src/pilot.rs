@@ -12,8 +12,8 @@
 //! in a run on one machine the [`super::World`] keeps one per robot; a
 //! robot process talking to a simulator server keeps its own.
 
-use super::schema::{self, Command, Mate, Sensed, State, View, Weighted};
-use super::{MATE_MEMORY, PhysicsSpec, in_rect};
+use crate::schema::{self, Command, Mate, Sensed, State, View, Weighted};
+use crate::spec::{PhysicsSpec, in_rect};
 use bite_core::cond::{Env, Expr, Resolver};
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::ids::{BehaviorId, BeliefId};
@@ -21,6 +21,10 @@ use bite_core::value::Value;
 use glam::DVec2;
 use std::collections::BTreeMap;
 use std::sync::Arc;
+
+/// Seconds a teammate's sighting counts as knowing where it is
+/// (`teammates_known`, avoid-teammate).
+pub const MATE_MEMORY: f64 = 3.0;
 
 /// The percepts every robot computes, by name.
 #[derive(Clone, Debug, Default)]
@@ -358,7 +362,7 @@ pub struct Pilot {
     /// Teammates presumed lost (their bodies are obstacles).
     lost: std::collections::BTreeSet<u32>,
     /// The arena as this robot knows it, built when first needed.
-    map: Option<Arc<super::plan::Map>>,
+    map: Option<Arc<crate::plan::Map>>,
 }
 
 impl Pilot {
@@ -479,7 +483,7 @@ impl Pilot {
         self.lost.clear();
         self.lost.extend(lost);
         if !self.lost.is_empty() && self.map.is_none() {
-            self.map = Some(Arc::new(super::plan::Map::new(&self.spec)));
+            self.map = Some(Arc::new(crate::plan::Map::new(&self.spec)));
         }
     }
 

@@ -5,7 +5,7 @@
 //! seed and the time limit. The same behavior graph runs against any
 //! scenario.
 
-use crate::net::{Cut, NetModel, Partition};
+use crate::netmodel::{Cut, NetModel, Partition};
 use bite_core::diag::{Diagnostic, Diagnostics, Loc};
 use bite_core::graph::BehaviorGraph;
 use bite_core::ids::RobotId;
@@ -157,7 +157,7 @@ struct ScenarioSpec {
     inject: Option<Spanned<InjectSpec>>,
     #[serde(default)]
     sensed: Vec<String>,
-    physics: Option<Spanned<crate::physics::spec::PhysicsRaw>>,
+    physics: Option<Spanned<crate::spec::PhysicsRaw>>,
 }
 
 /// How teammates find out that a robot is gone: heartbeats, and a robot
@@ -339,7 +339,7 @@ pub struct SkillModel {
     /// Beliefs set when it completes.
     pub on_done: Vec<(String, Value)>,
     /// Motor schemas that drive the robot in the physical world.
-    pub schemas: Vec<crate::physics::SchemaSpec>,
+    pub schemas: Vec<crate::spec::SchemaSpec>,
 }
 
 /// Facts that change at a time.
@@ -414,7 +414,7 @@ pub struct Resolved {
     pub warnings: Vec<Diagnostic>,
     /// In the physical world: each behavior's motor schemas, with its skill
     /// parameters laid over the scenario's (empty: none; no world: empty).
-    pub motor: Vec<Arc<[crate::physics::schema::Weighted]>>,
+    pub motor: Vec<Arc<[crate::schema::Weighted]>>,
 }
 
 /// A scenario of the timed-skill world.
@@ -451,12 +451,12 @@ pub struct Scenario {
     /// Lost-teammate detection (`None`: off).
     pub failure_detector: Option<FailureDetector>,
     /// When a run counts as stalled.
-    pub stall: crate::stall::StallLimits,
+    pub stall: StallLimits,
     /// Beliefs the world provides whether or not the graph reads them
     /// (protocol parameters of some configurations may): not warned about.
     pub sensed: Vec<String>,
     /// The physical world (`world: physics`), if any.
-    pub physics: Option<Arc<crate::physics::PhysicsSpec>>,
+    pub physics: Option<Arc<crate::spec::PhysicsSpec>>,
 }
 
 impl Default for Scenario {
@@ -477,7 +477,7 @@ impl Default for Scenario {
             clocks: Vec::new(),
             inject: None,
             failure_detector: Some(FailureDetector::default()),
-            stall: crate::stall::StallLimits::default(),
+            stall: StallLimits::default(),
             sensed: Vec::new(),
             physics: None,
         }
@@ -526,7 +526,7 @@ pub struct MissionParts {
     /// Belief name → condition over percepts.
     pub beliefs: BTreeMap<String, String>,
     /// Target name → the objects it designates.
-    pub targets: BTreeMap<String, crate::physics::spec::TargetSpec>,
+    pub targets: BTreeMap<String, crate::spec::TargetSpec>,
 }
 
 impl Scenario {
@@ -558,7 +558,7 @@ impl Scenario {
             }
             let mut list = Vec::new();
             for v in schemas {
-                match crate::physics::SchemaSpec::from_json(v, Loc::UNKNOWN) {
+                match crate::spec::SchemaSpec::from_json(v, Loc::UNKNOWN) {
                     Ok(sc) => list.push(sc),
                     Err((e, hint)) => {
                         let mut diag = Diagnostic::error(
@@ -597,7 +597,7 @@ impl Scenario {
         spec.targets.extend(parts.targets.clone());
         // A compiled belief that reads a percept the world lacks is the
         // mission's error, not the scenario's.
-        for mut diag in crate::physics::check_beliefs(&spec, file) {
+        for mut diag in crate::pilot::check_beliefs(&spec, file) {
             if diag.loc == Loc::UNKNOWN {
                 diag.file = file.clone();
             }
@@ -640,8 +640,8 @@ impl Scenario {
         let physics = match spec.physics {
             Some(p) if physical => {
                 let loc = Loc::from(p.referenced);
-                let ps = crate::physics::PhysicsSpec::from_raw(file, loc, p.value, &mut d);
-                d.extend(crate::physics::check_beliefs(&ps, file));
+                let ps = crate::spec::PhysicsSpec::from_raw(file, loc, p.value, &mut d);
+                d.extend(crate::pilot::check_beliefs(&ps, file));
                 Some(Arc::new(ps))
             }
             Some(p) => {
@@ -822,7 +822,7 @@ impl Scenario {
                         .iter()
                         .filter_map(|x| {
                             let loc = Loc::from(x.referenced);
-                            match crate::physics::SchemaSpec::from_json(&x.value, loc) {
+                            match crate::spec::SchemaSpec::from_json(&x.value, loc) {
                                 Ok(sc) => Some(sc),
                                 Err((e, hint)) => {
                                     let mut diag = Diagnostic::error(file, loc, "bad-schema", e);
@@ -936,7 +936,7 @@ impl Scenario {
                 })
             }
         };
-        let mut stall = crate::stall::StallLimits::default();
+        let mut stall = StallLimits::default();
         if let Some(st) = &spec.stall {
             let loc = Loc::from(st.referenced);
             if let Some(a) = &st.value.after {
@@ -1149,5 +1149,24 @@ impl Scenario {
             warnings,
             motor,
         })
+    }
+}
+
+/// When a run counts as stalled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StallLimits {
+    /// No progress for this long (`None`: never).
+    pub after: Option<Duration>,
+    /// A behavior started more than this many times within one execution
+    /// of its parent (`0`: never).
+    pub repeats: u32,
+}
+
+impl Default for StallLimits {
+    fn default() -> Self {
+        StallLimits {
+            after: Some(Duration::from_secs(120)),
+            repeats: 100,
+        }
     }
 }

@@ -219,7 +219,7 @@ pub struct View {
     /// out of the way (obstacles to route around, not teammates to avoid).
     pub bodies: Vec<DVec2>,
     /// The arena as it knows it, to route around those bodies.
-    pub map: Option<std::sync::Arc<super::plan::Map>>,
+    pub map: Option<std::sync::Arc<crate::plan::Map>>,
 }
 
 /// A fused command: a desired velocity in the world frame, and a heading
@@ -496,7 +496,7 @@ pub struct State {
     /// where it was last seen.
     search: Option<f64>,
     /// A detour around a lost teammate's body it is following.
-    route: Option<super::plan::Route>,
+    route: Option<crate::plan::Route>,
 }
 
 /// One schema's output, before fusion.
@@ -524,7 +524,7 @@ fn target_point(view: &View, t: &Target) -> Option<DVec2> {
 /// Where to steer to reach `to`: `to`, or the next point of a detour round
 /// a lost teammate's body in the way (see [`super::plan`]).
 fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
-    super::plan::aim(
+    crate::plan::aim(
         view.map.as_deref(),
         &view.bodies,
         &mut state.route,

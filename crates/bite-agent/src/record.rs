@@ -8,7 +8,7 @@
 //! the test of "same inputs, same decisions" in every runtime.
 
 use crate::agent::{Agent, AgentOutput, Input};
-use crate::physics::Sensed;
+use crate::schema::Sensed;
 use bite_core::ids::{Fnv1a, RobotId};
 use bite_core::kernel::Position;
 use bite_core::msg::Envelope;

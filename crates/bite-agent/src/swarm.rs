@@ -36,7 +36,7 @@ pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
     }
     sc.push_str("  start:\n");
     for r in 0..n {
-        let c = super::schema::split_cell(region, r as u32, n as u32);
+        let c = crate::schema::split_cell(region, r as u32, n as u32);
         let _ = writeln!(
             sc,
             "    r{r}: {{ at: [{:.2}, {:.2}] }}",

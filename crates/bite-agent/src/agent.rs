@@ -20,7 +20,7 @@
 //! ([`Shared`]), so ten thousand agents stay cheap.
 
 use crate::scenario::Scenario;
-use crate::world::{RobotWorld, SkillBook};
+use crate::timed::{RobotWorld, SkillBook};
 use bite_core::belief::Source;
 use bite_core::event::Event;
 use bite_core::graph::BehaviorGraph;
@@ -37,10 +37,9 @@ use rand::SeedableRng;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 
-use crate::physics::pilot::PerceptTables;
-use crate::physics::schema::{Command, Weighted};
-use crate::physics::spec::PhysicsSpec;
-use crate::physics::{Pilot, Sensed};
+use crate::pilot::{PerceptTables, Pilot};
+use crate::schema::{Command, Sensed, Weighted};
+use crate::spec::PhysicsSpec;
 
 /// A seed for one purpose of one robot, derived from the run's seed.
 pub fn derive_seed(seed: u64, purpose: &str, robot: u32) -> u64 {

@@ -1,7 +1,7 @@
 //! The `physics:` section of a scenario and the `schemas:` of its skills
 //! (see `docs/scenario-format.md`).
 
-use super::schema::{Schema, Side, Target, Weighted};
+use crate::schema::{Schema, Side, Target, Weighted};
 use bite_core::diag::{Diagnostic, Loc};
 use glam::DVec2;
 use serde::Deserialize;
@@ -760,6 +760,12 @@ impl SchemaSpec {
             layer: self.layer,
         })
     }
+}
+
+/// True when `p` lies in the rectangle `[x0, y0, x1, y1]` (corners in any order).
+pub fn in_rect(p: DVec2, r: &[f64; 4]) -> bool {
+    let [x0, y0, x1, y1] = *r;
+    p.x >= x0.min(x1) && p.x <= x0.max(x1) && p.y >= y0.min(y1) && p.y <= y0.max(y1)
 }
 
 #[cfg(test)]

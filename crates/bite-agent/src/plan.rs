@@ -12,7 +12,7 @@
 //! path. Healthy teammates are not obstacles here: they move, and
 //! `avoid-teammate` handles them.
 
-use super::spec::{PhysicsSpec, Shape};
+use crate::spec::{PhysicsSpec, Shape};
 use glam::DVec2;
 use std::collections::BinaryHeap;
 
