@@ -1,9 +1,9 @@
 //! What a kernel reports: the raw material of run logs, summaries and
 //! invariant checks.
 
+use crate::ids::InstanceKey;
 use crate::ids::{BehaviorId, RobotId, TeamId};
-use crate::interaction::Assignment;
-use crate::msg::InstanceKey;
+use crate::members::Assignment;
 use crate::value::Value;
 use serde::{Deserialize, Serialize};
 use std::sync::{Arc, OnceLock};

@@ -151,6 +151,111 @@ impl Default for Fnv1a {
     }
 }
 
+/// The three kinds of social interaction behavior (the paper's three links
+/// between task behaviors and interaction behaviors).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kind {
+    /// Synchronized selection among sequential successors (`Decide`).
+    Sync,
+    /// Allocation of children to subteams (`Allocate`).
+    Allocate,
+    /// Synchronized termination (`Terminate`).
+    Terminate,
+}
+
+impl Kind {
+    /// All kinds, in a fixed order (also the index order of per-kind arrays).
+    pub const ALL: [Kind; 3] = [Kind::Sync, Kind::Allocate, Kind::Terminate];
+    /// Index for per-kind arrays.
+    #[inline]
+    pub const fn index(self) -> usize {
+        match self {
+            Kind::Sync => 0,
+            Kind::Allocate => 1,
+            Kind::Terminate => 2,
+        }
+    }
+    /// The word used in files and point names.
+    pub const fn as_str(self) -> &'static str {
+        match self {
+            Kind::Sync => "sync",
+            Kind::Allocate => "allocate",
+            Kind::Terminate => "terminate",
+        }
+    }
+    /// The noun used in messages: "synchronization", "allocation", "termination".
+    pub const fn noun(self) -> &'static str {
+        match self {
+            Kind::Sync => "synchronization",
+            Kind::Allocate => "allocation",
+            Kind::Terminate => "termination",
+        }
+    }
+    /// The noun with its article: "a synchronization", "an allocation".
+    pub const fn a_noun(self) -> &'static str {
+        match self {
+            Kind::Sync => "a synchronization",
+            Kind::Allocate => "an allocation",
+            Kind::Terminate => "a termination",
+        }
+    }
+    /// Parse the word used in files.
+    pub fn parse(s: &str) -> Option<Kind> {
+        match s {
+            "sync" => Some(Kind::Sync),
+            "allocate" | "alloc" => Some(Kind::Allocate),
+            "terminate" | "term" => Some(Kind::Terminate),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Kind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// Identity of one protocol instance: the interaction of kind `kind` that
+/// team `team` runs at behavior `behavior` during its `epoch`-th execution of
+/// it (epochs count from 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+pub struct InstanceKey {
+    /// The subteam running the interaction.
+    pub team: TeamId,
+    /// The point behavior (the behavior terminated, decided after, or allocated).
+    pub behavior: BehaviorId,
+    /// Which interaction.
+    pub kind: Kind,
+    /// The team's execution count of `behavior` when the instance started.
+    pub epoch: u32,
+    /// Allocation only: 0 for the allocation made when the team reached
+    /// the point, 1, 2… for re-allocations after teammates were lost.
+    pub round: u32,
+}
+
+impl InstanceKey {
+    /// `(epoch, round)`: the order of instances at one point.
+    pub fn stamp(&self) -> (u32, u32) {
+        (self.epoch, self.round)
+    }
+}
+
+impl fmt::Display for InstanceKey {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "{}/b{}/{}#{}",
+            self.team, self.behavior.0, self.kind, self.epoch
+        )?;
+        if self.round > 0 {
+            write!(f, ".{}", self.round)?;
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -21,7 +21,9 @@ use crate::belief::{BeliefStore, Symbols};
 use crate::cond::{Expr, Resolver};
 use crate::graph::BehaviorGraph;
 use crate::ids::{BehaviorId, BeliefId, RobotId};
-use crate::msg::{Body, InstanceKey, Kind};
+use crate::ids::{InstanceKey, Kind};
+pub use crate::members::{Assignment, ByIdMemo, ChildSlot};
+use crate::msg::Body;
 use crate::org::{MemberSet, Organization, Team};
 use crate::roster::Roster;
 use crate::time::Time;
@@ -34,7 +36,7 @@ use std::time::Duration;
 pub type Rng = rand_chacha::ChaCha8Rng;
 
 /// Protocol parameters as written in a graph or configuration file.
-pub type Params = serde_json::Value;
+pub use crate::graph::Params;
 
 /// Creates a fresh instance of a configured protocol.
 pub type Factory = Arc<dyn Fn() -> Box<dyn Interaction> + Send + Sync>;
@@ -255,32 +257,6 @@ pub enum PointInput {
     Terminate,
 }
 
-/// A child of an allocation point and how many members it wants.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ChildSlot {
-    /// The child behavior (head of an execution chain).
-    pub behavior: BehaviorId,
-    /// Fewest members that make it worth running (at least 1).
-    pub min: u32,
-    /// Most members it can use.
-    pub max: u32,
-}
-
-/// An allocation: each child with the members assigned to it.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct Assignment(pub Vec<(BehaviorId, MemberSet)>);
-
-impl Assignment {
-    /// The child assigned to `r`, if any.
-    pub fn child_of(&self, r: RobotId) -> Option<(usize, BehaviorId)> {
-        self.0
-            .iter()
-            .enumerate()
-            .find(|(_, (_, m))| m.contains(r))
-            .map(|(i, (b, _))| (i, *b))
-    }
-}
-
 /// The decision of an instance.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Outcome {
@@ -334,7 +310,7 @@ pub struct Cx<'a> {
     org: &'a Organization,
     runs: &'a BTreeMap<BehaviorId, u32>,
     graph: &'a BehaviorGraph,
-    mission: Option<&'a crate::mission::Mission>,
+    memo: Option<&'a ByIdMemo>,
     roster: &'a Roster,
     beliefs: &'a BeliefStore,
     rng: &'a mut Rng,
@@ -368,9 +344,9 @@ pub struct CxParts<'a> {
     pub runs: &'a BTreeMap<BehaviorId, u32>,
     /// The behavior graph.
     pub graph: &'a BehaviorGraph,
-    /// The mission, when the runtime has one (shares work between the
-    /// robots of a process, see [`Cx::assign_by_id`]).
-    pub mission: Option<&'a crate::mission::Mission>,
+    /// The allocations by id the robots of this process share, when the
+    /// runtime keeps them (the mission's: see [`Cx::assign_by_id`]).
+    pub memo: Option<&'a ByIdMemo>,
     /// The roster.
     pub roster: &'a Roster,
     /// This robot's beliefs.
@@ -408,7 +384,7 @@ impl<'a> Cx<'a> {
             org: p.org,
             runs: p.runs,
             graph: p.graph,
-            mission: p.mission,
+            memo: p.memo,
             roster: p.roster,
             beliefs: p.beliefs,
             rng: p.rng,
@@ -448,14 +424,14 @@ impl<'a> Cx<'a> {
             .iter()
             .filter(move |r| excluded.is_none_or(|x| !x.contains(*r)))
     }
-    /// The allocation by id ([`crate::rules::assign_by_id`]) of the
+    /// The allocation by id ([`crate::members::assign_by_id`]) of the
     /// members not presumed lost to `children`. With no member left out,
     /// robots of one process that see the same team and children share one
     /// (10,000 robots splitting among 10,000 children compute it once).
     pub fn assign_by_id(&self, children: &Arc<[ChildSlot]>) -> Arc<Assignment> {
-        match (self.excluded, self.mission) {
+        match (self.excluded, self.memo) {
             (None, Some(m)) => m.assign_by_id(&self.team.members, children),
-            _ => Arc::new(crate::rules::assign_by_id(&self.live_set(), children)),
+            _ => Arc::new(crate::members::assign_by_id(&self.live_set(), children)),
         }
     }
     /// The members not presumed lost, as a set.
@@ -661,15 +637,6 @@ impl Registry {
     /// An empty registry.
     pub fn new() -> Self {
         Self::default()
-    }
-    /// The silent rules built into the kernel: `sync.by-rule`,
-    /// `alloc.by-id`, `term.local`.
-    pub fn core() -> Self {
-        let mut r = Self::new();
-        r.register(Arc::new(crate::rules::SyncByRule));
-        r.register(Arc::new(crate::rules::AllocById));
-        r.register(Arc::new(crate::rules::TermLocal));
-        r
     }
     /// Add a protocol (replacing one of the same name).
     pub fn register(&mut self, p: Arc<dyn Protocol>) {

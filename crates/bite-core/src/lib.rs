@@ -30,6 +30,7 @@ pub mod graph;
 pub mod ids;
 pub mod interaction;
 pub mod kernel;
+pub mod members;
 pub mod mission;
 pub mod msg;
 pub mod org;

@@ -5,10 +5,12 @@
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
 use crate::event::LogList;
 use crate::graph::{BehaviorGraph, Binding};
+use crate::ids::Kind;
 use crate::ids::{BehaviorId, TeamId};
-use crate::interaction::{Assignment, ChildSlot, Factory, Params, Protocol, Registry, Setup};
-use crate::msg::Kind;
-use crate::org::{MemberSet, Split};
+use crate::interaction::{
+    Assignment, ByIdMemo, ChildSlot, Factory, Params, Protocol, Registry, Setup,
+};
+use crate::org::Split;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Arc;
@@ -63,19 +65,8 @@ pub struct Mission {
     splits: Splits,
     /// Recent allocations by id, by the (shared) team and children they
     /// split.
-    by_id: Mutex<Vec<ById>>,
+    by_id: ByIdMemo,
 }
-
-/// An allocation by id, and what it was computed from.
-#[derive(Debug)]
-struct ById {
-    members: Weak<MemberSet>,
-    children: Weak<[ChildSlot]>,
-    assignment: Weak<Assignment>,
-}
-
-/// How many allocations by id are remembered.
-const BY_ID_REMEMBERED: usize = 64;
 
 /// The subteams made by allocations, shared between the kernels of one
 /// process (see [`Mission::split`]): equal allocations of the same
@@ -222,7 +213,7 @@ impl Mission {
             child_index,
             unconditional,
             splits: Splits::default(),
-            by_id: Mutex::new(Vec::new()),
+            by_id: ByIdMemo::default(),
         })
     }
 
@@ -261,46 +252,10 @@ impl Mission {
             .map(|k| v[k].1)
     }
 
-    /// [`crate::rules::assign_by_id`] of `members` to `children`, computed
-    /// once for the robots of this process that pass the same (shared)
-    /// sets: the assignment depends on nothing else.
-    pub fn assign_by_id(
-        &self,
-        members: &Arc<MemberSet>,
-        children: &Arc<[ChildSlot]>,
-    ) -> Arc<Assignment> {
-        let mut memo = self
-            .by_id
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner);
-        // A weak pointer that still upgrades points at the live value, so
-        // equal addresses mean the same sets.
-        let same = |e: &ById| {
-            std::ptr::eq(e.members.as_ptr(), Arc::as_ptr(members))
-                && std::ptr::eq(e.children.as_ptr(), Arc::as_ptr(children))
-                && e.members.strong_count() > 0
-                && e.children.strong_count() > 0
-        };
-        if let Some(a) = memo
-            .iter()
-            .filter(|e| same(e))
-            .find_map(|e| e.assignment.upgrade())
-        {
-            return a;
-        }
-        let a = Arc::new(crate::rules::assign_by_id(members, children));
-        memo.retain(|e| {
-            !same(e) && e.assignment.strong_count() > 0 && e.members.strong_count() > 0
-        });
-        if memo.len() >= BY_ID_REMEMBERED {
-            memo.remove(0);
-        }
-        memo.push(ById {
-            members: Arc::downgrade(members),
-            children: Arc::downgrade(children),
-            assignment: Arc::downgrade(&a),
-        });
-        a
+    /// The allocations by id this process's robots share (see
+    /// [`ByIdMemo`]).
+    pub fn by_id_memo(&self) -> &ByIdMemo {
+        &self.by_id
     }
 
     /// The subteams that `assignment` makes of `parent` at execution

@@ -5,88 +5,25 @@
 //! a communicating protocol misses its deadline without deciding, the kernel
 //! applies the rule of the same kind.
 
-use crate::ids::RobotId;
+use crate::ids::Kind;
 use crate::interaction::{
-    Assignment, ChildSlot, Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol,
+    Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol, Registry,
 };
-use crate::msg::{Body, Kind};
-use crate::org::MemberSet;
+use crate::msg::Body;
 use std::sync::Arc;
 
-/// How many members each child gets when `n` members are dealt to
-/// `children` (graph order): every child first gets its minimum, in child
-/// order, while members last; the rest are shared as evenly as the
-/// children's maximums allow, earlier children taking the remainder.
-pub fn member_counts(n: usize, children: &[ChildSlot]) -> Vec<u32> {
-    let mut counts = vec![0u32; children.len()];
-    let mut left = n as u64;
-    for (i, c) in children.iter().enumerate() {
-        let want = u64::from(c.min.max(1).min(c.max));
-        let take = want.min(left);
-        counts[i] = take as u32;
-        left -= take;
-    }
-    while left > 0 {
-        let open = children
-            .iter()
-            .zip(&counts)
-            .filter(|(c, n)| **n < c.max)
-            .count() as u64;
-        if open == 0 {
-            break;
-        }
-        let share = (left / open).max(1);
-        for (c, n) in children.iter().zip(counts.iter_mut()) {
-            if left == 0 {
-                break;
-            }
-            let add = share.min(u64::from(c.max - *n)).min(left);
-            *n += add as u32;
-            left -= add;
-        }
-    }
-    counts
-}
+pub use crate::members::{assign_by_id, assign_in_order, member_counts};
 
-/// Assign `members` (in the order given: preference order) to `children`
-/// (graph order): the first child takes the first `counts[0]` members, the
-/// next child the next `counts[1]`, and so on, with [`member_counts`].
-/// Members left over get no child.
-///
-/// With members sorted by id this is the paper's SF2 ("assign based on
-/// ID"); protocols that first sort the members by something else (a value,
-/// a bid) use it for their assignment step.
-pub fn assign_in_order(
-    roster_len: usize,
-    members: impl IntoIterator<Item = RobotId>,
-    children: &[ChildSlot],
-) -> Assignment {
-    let members: Vec<RobotId> = members.into_iter().collect();
-    let counts = member_counts(members.len(), children);
-    let mut it = members.into_iter();
-    Assignment(
-        children
-            .iter()
-            .zip(&counts)
-            .map(|(c, n)| {
-                (
-                    c.behavior,
-                    MemberSet::from_iter(roster_len, it.by_ref().take(*n as usize)),
-                )
-            })
-            .collect(),
-    )
-}
-
-/// [`assign_in_order`] with the members in id order, a machine word at a
-/// time (a 10,000-robot team splits in microseconds).
-pub fn assign_by_id(members: &MemberSet, children: &[ChildSlot]) -> Assignment {
-    let counts = member_counts(members.len(), children);
-    let mut out = Vec::with_capacity(children.len());
-    for (c, m) in children.iter().zip(members.split_by_rank(&counts)) {
-        out.push((c.behavior, m));
+impl Registry {
+    /// The silent rules built into the kernel: `sync.by-rule`,
+    /// `alloc.by-id`, `term.local`.
+    pub fn core() -> Self {
+        let mut r = Self::new();
+        r.register(Arc::new(crate::rules::SyncByRule));
+        r.register(Arc::new(crate::rules::AllocById));
+        r.register(Arc::new(crate::rules::TermLocal));
+        r
     }
-    Assignment(out)
 }
 
 /// The outcome the kernel applies when an instance of `kind` cannot decide:
@@ -196,6 +133,8 @@ silent_protocol!(
 mod tests {
     use super::*;
     use crate::ids::BehaviorId;
+    use crate::ids::RobotId;
+    use crate::members::{Assignment, ChildSlot, MemberSet};
 
     fn slot(b: u32, min: u32, max: u32) -> ChildSlot {
         ChildSlot {

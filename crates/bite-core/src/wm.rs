@@ -33,6 +33,7 @@
 
 use crate::belief::{BeliefEnv, BeliefStore, Source};
 use crate::graph::BehaviorGraph;
+pub use crate::graph::sharing::{Policy, Sharing};
 use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
 use crate::kernel::Kernel;
 use crate::time::Time;
@@ -54,139 +55,6 @@ pub const MAX_QUEUED: usize = 1024;
 
 /// Confidence a robot gives its own percepts.
 pub const OWN_CONFIDENCE: f32 = 1.0;
-
-/// Which information-sharing algorithm a team runs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-pub enum Policy {
-    /// No world-model messages (each robot believes what it perceives).
-    #[default]
-    None,
-    /// Every change of every belief to every teammate.
-    Broadcast,
-    /// Algorithm 2.
-    Focused,
-    /// Algorithm 3.
-    Helpful,
-    /// Algorithms 2 and 3, obligatory messages first.
-    FocusedHelpful,
-}
-
-impl Policy {
-    /// All policies, for help texts.
-    pub const NAMES: [&'static str; 5] =
-        ["none", "broadcast", "focused", "helpful", "focused+helpful"];
-
-    /// Parse a policy name.
-    pub fn parse(s: &str) -> Option<Policy> {
-        Some(match s {
-            "none" => Policy::None,
-            "broadcast" => Policy::Broadcast,
-            "focused" => Policy::Focused,
-            "helpful" => Policy::Helpful,
-            "focused+helpful" | "helpful+focused" => Policy::FocusedHelpful,
-            _ => return None,
-        })
-    }
-    fn focused(self) -> bool {
-        matches!(self, Policy::Focused | Policy::FocusedHelpful)
-    }
-    fn helpful(self) -> bool {
-        matches!(self, Policy::Helpful | Policy::FocusedHelpful)
-    }
-}
-
-impl fmt::Display for Policy {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Policy::None => "none",
-            Policy::Broadcast => "broadcast",
-            Policy::Focused => "focused",
-            Policy::Helpful => "helpful",
-            Policy::FocusedHelpful => "focused+helpful",
-        })
-    }
-}
-
-/// A team's world-model settings (`world_model:` in a graph or a
-/// configuration).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Sharing {
-    /// The algorithm.
-    pub policy: Policy,
-    /// How often it decides what to share, per second.
-    pub hz: f64,
-    /// Messages per second each robot may send (one per recipient);
-    /// `None`: unlimited.
-    pub budget: Option<f64>,
-}
-
-impl Default for Sharing {
-    fn default() -> Self {
-        Sharing {
-            policy: Policy::None,
-            hz: 10.0,
-            budget: None,
-        }
-    }
-}
-
-impl Sharing {
-    /// These settings with a `world_model:` section laid over them;
-    /// mistakes are reported at the section.
-    pub fn with_spec(
-        self,
-        file: &std::sync::Arc<str>,
-        spec: &serde_saphyr::Spanned<crate::graph::spec::WorldModelSpec>,
-        diags: &mut Vec<crate::diag::Diagnostic>,
-    ) -> Sharing {
-        use crate::diag::{Diagnostic, Loc, did_you_mean};
-        let loc = Loc::from(spec.referenced);
-        let w = &spec.value;
-        let mut out = self;
-        if let Some(name) = &w.sharing {
-            match Policy::parse(name) {
-                Some(p) => out.policy = p,
-                None => {
-                    let mut d = Diagnostic::error(
-                        file,
-                        loc,
-                        "bad-sharing",
-                        format!("unknown sharing policy `{name}`"),
-                    );
-                    d.hint = did_you_mean(name, Policy::NAMES).or_else(|| {
-                        Some(format!("the policies are: {}", Policy::NAMES.join(", ")))
-                    });
-                    diags.push(d);
-                }
-            }
-        }
-        if let Some(hz) = w.hz {
-            if hz.is_finite() && hz > 0.0 && hz <= 1000.0 {
-                out.hz = hz;
-            } else {
-                diags.push(Diagnostic::error(
-                    file,
-                    loc,
-                    "bad-value",
-                    format!("`hz` is decisions per second, above 0 and at most 1000, found {hz}"),
-                ));
-            }
-        }
-        if let Some(b) = w.budget {
-            if b.is_finite() && b > 0.0 {
-                out.budget = Some(b);
-            } else {
-                diags.push(Diagnostic::error(
-                    file,
-                    loc,
-                    "bad-value",
-                    format!("`budget` is messages per second, above 0, found {b}"),
-                ));
-            }
-        }
-        out
-    }
-}
 
 /// Why a report is sent.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]

@@ -6,10 +6,13 @@
 
 use crate::diag::{Diagnostic, Diagnostics, Loc};
 use crate::value::Value;
+use serde::Deserialize;
+use serde::de::{self, Deserializer, MapAccess, Visitor};
+use serde_saphyr::Spanned;
+use std::fmt;
+use std::marker::PhantomData;
 use std::path::Path;
 use std::sync::Arc;
-
-pub use crate::graph::spec::{DurationText, Ordered};
 
 /// Largest file accepted, in bytes.
 pub const MAX_FILE_BYTES: usize = 16 * 1024 * 1024;
@@ -323,6 +326,65 @@ pub fn json_to_value(v: &serde_json::Value) -> Option<Value> {
             Some(Value::Vec2([a[0].as_f64()?, a[1].as_f64()?]))
         }
         _ => None,
+    }
+}
+
+/// A YAML mapping whose entries keep their file order and locations.
+#[derive(Debug)]
+pub struct Ordered<T>(pub Vec<(Spanned<String>, Spanned<T>)>);
+
+impl<'de, T: Deserialize<'de>> Deserialize<'de> for Ordered<T> {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V<T>(PhantomData<T>);
+        impl<'de, T: Deserialize<'de>> Visitor<'de> for V<T> {
+            type Value = Ordered<T>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a mapping of names to entries")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<Ordered<T>, A::Error> {
+                let mut v = Vec::new();
+                while let Some(entry) = m.next_entry()? {
+                    v.push(entry);
+                }
+                Ok(Ordered(v))
+            }
+        }
+        d.deserialize_map(V(PhantomData))
+    }
+}
+
+impl<T> Default for Ordered<T> {
+    fn default() -> Self {
+        Ordered(Vec::new())
+    }
+}
+
+/// A duration written as a number (seconds) or text (`250ms`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DurationText(pub String);
+
+impl<'de> Deserialize<'de> for DurationText {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl Visitor<'_> for V {
+            type Value = DurationText;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a duration such as `2s`, `250ms` or a number of seconds")
+            }
+            fn visit_u64<E: de::Error>(self, n: u64) -> Result<DurationText, E> {
+                Ok(DurationText(n.to_string()))
+            }
+            fn visit_i64<E: de::Error>(self, n: i64) -> Result<DurationText, E> {
+                Ok(DurationText(n.to_string()))
+            }
+            fn visit_f64<E: de::Error>(self, n: f64) -> Result<DurationText, E> {
+                Ok(DurationText(n.to_string()))
+            }
+            fn visit_str<E: de::Error>(self, s: &str) -> Result<DurationText, E> {
+                Ok(DurationText(s.to_string()))
+            }
+        }
+        d.deserialize_any(V)
     }
 }
 

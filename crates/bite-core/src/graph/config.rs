@@ -18,7 +18,7 @@ use super::load::make_binding;
 use super::spec::ConfigSpec;
 use super::{BehaviorGraph, Binding};
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
-use crate::msg::Kind;
+use crate::ids::Kind;
 use std::path::Path;
 use std::sync::Arc;
 
@@ -81,7 +81,7 @@ impl Config {
         });
         if let Some(w) = &spec.world_model {
             // Checked now, applied over the graph's settings later.
-            crate::wm::Sharing::default().with_spec(file, w, &mut diags);
+            crate::graph::Sharing::default().with_spec(file, w, &mut diags);
         }
         if diags.iter().any(|d| d.is_error()) {
             return Err(Diagnostics(diags));

@@ -7,7 +7,7 @@
 
 use super::BehaviorGraph;
 use crate::ids::BehaviorId;
-use crate::msg::Kind;
+use crate::ids::Kind;
 use std::fmt::Write;
 
 /// DOT text, with each point's protocol given by the graph's own bindings.

@@ -9,8 +9,8 @@ use super::{Behavior, BehaviorGraph, Binding, MAX_BEHAVIORS, MAX_DEPTH, MAX_ROBO
 use crate::belief::Symbols;
 use crate::cond::{CondError, Expr, Resolver};
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
+use crate::ids::Kind;
 use crate::ids::{BehaviorId, BeliefId};
-use crate::msg::Kind;
 use crate::roster::{RobotInfo, Roster};
 use crate::time::parse_duration;
 use crate::value::Value;
@@ -245,8 +245,8 @@ impl Builder<'_> {
         }
         let defaults = self.defaults(&spec.defaults);
         let sharing = match &spec.world_model {
-            Some(w) => crate::wm::Sharing::default().with_spec(&self.file, w, &mut self.diags),
-            None => crate::wm::Sharing::default(),
+            Some(w) => crate::graph::Sharing::default().with_spec(&self.file, w, &mut self.diags),
+            None => crate::graph::Sharing::default(),
         };
         let initial_beliefs = self.beliefs(&spec.beliefs);
 

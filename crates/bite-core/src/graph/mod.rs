@@ -20,6 +20,7 @@
 mod config;
 pub mod dot;
 mod load;
+pub mod sharing;
 pub mod spec;
 
 pub use config::Config;
@@ -29,10 +30,14 @@ use crate::belief::Symbols;
 use crate::cond::Expr;
 use crate::diag::{Diagnostic, Loc};
 use crate::ids::BehaviorId;
-use crate::interaction::Params;
-use crate::msg::Kind;
+use crate::ids::Kind;
 use crate::roster::Roster;
 use crate::value::Value;
+pub use sharing::{Policy, Sharing};
+
+/// A protocol's parameters as a binding gives them (`params:` in a graph or
+/// configuration file), handed to the protocol to configure itself.
+pub type Params = serde_json::Value;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Arc;
@@ -139,7 +144,7 @@ pub struct BehaviorGraph {
     roster: Arc<Roster>,
     defaults: [Option<Binding>; 3],
     initial_beliefs: Vec<(String, Value)>,
-    sharing: crate::wm::Sharing,
+    sharing: Sharing,
     config: Option<String>,
     warnings: Vec<Diagnostic>,
 }
@@ -158,7 +163,7 @@ impl BehaviorGraph {
         &self.file
     }
     /// The team's world-model settings (`world_model:`).
-    pub fn sharing(&self) -> crate::wm::Sharing {
+    pub fn sharing(&self) -> Sharing {
         self.sharing
     }
     /// Name of the applied configuration, if any.

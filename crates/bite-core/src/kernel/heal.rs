@@ -7,7 +7,7 @@ use super::position::{
 use super::{Kernel, Phase};
 use crate::event::{EndReason, Event, FrameRef, Via};
 use crate::ids::RobotId;
-use crate::msg::{InstanceKey, Kind};
+use crate::ids::{InstanceKey, Kind};
 
 impl Kernel {
     /// Allocation splits: a teammate under the same execution of an

@@ -5,8 +5,9 @@
 use super::{DEDUP_PER_SENDER, Kernel, Outgoing, Output};
 use crate::event::{DropReason, Event};
 use crate::ids::{BehaviorId, RobotId, TeamId};
+use crate::ids::{InstanceKey, Kind};
 use crate::interaction::{Closed, Outcome, Recipients};
-use crate::msg::{Body, Envelope, InstanceKey, Kind, encoded_len};
+use crate::msg::{Body, Envelope, encoded_len};
 use crate::time::Time;
 use std::collections::BTreeMap;
 use std::sync::Arc;

@@ -221,7 +221,7 @@ impl Kernel {
                 org: &self.org,
                 runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
                 graph: self.mission.graph(),
-                mission: Some(&self.mission),
+                memo: Some(self.mission.by_id_memo()),
                 roster: self.mission.graph().roster(),
                 beliefs: &self.beliefs,
                 rng: &mut self.rng,

@@ -29,12 +29,13 @@ use crate::cond::Expr;
 use crate::event::{DropReason, EndReason, Event, FrameRef, LogList, OutcomeLog, Via};
 use crate::graph::BehaviorGraph;
 use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
+use crate::ids::{InstanceKey, Kind};
 use crate::interaction::{
     Assignment, ChildSlot, Closed, Cx, CxParts, Effects, Interaction, LocalEnd, Outcome,
     PointInput, Recipients, Rng,
 };
 use crate::mission::Mission;
-use crate::msg::{Body, Envelope, InstanceKey, Kind, encoded_len};
+use crate::msg::{Body, Envelope, encoded_len};
 use crate::org::{MemberSet, Organization, Split};
 use crate::rules;
 use crate::time::Time;

@@ -54,7 +54,7 @@
 use super::{Frame, Kernel, Phase};
 use crate::event::{Event, FrameRef, Via};
 use crate::ids::{BehaviorId, RobotId, TeamId};
-use crate::msg::{InstanceKey, Kind};
+use crate::ids::{InstanceKey, Kind};
 use crate::org::MemberSet;
 use crate::time::Time;
 use serde::{Deserialize, Serialize};
