@@ -22,17 +22,10 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-fn launch(out: &Path, extra: &[&str]) {
+fn launch(out: &Path, graph: &str, extra: &[&str]) {
     let run = bite()
         .current_dir(repo())
-        .args([
-            "launch",
-            "examples/formation.yaml",
-            "--speed",
-            "4",
-            "--record",
-            "--json",
-        ])
+        .args(["launch", graph, "--speed", "4", "--record", "--json"])
         .arg("--out")
         .arg(out)
         .args(extra)
@@ -59,16 +52,25 @@ fn replay(file: &Path) -> (bool, String) {
 
 #[test]
 fn every_robot_replays_identically_from_its_recorded_inputs() {
-    for (name, extra) in [
-        ("timed", vec!["--timed"]),
+    const FORMATION: &str = "examples/formation.yaml";
+    for (name, graph, extra) in [
+        ("timed", FORMATION, vec!["--timed"]),
+        ("physical", FORMATION, vec![]),
         (
             "physical-kill",
+            FORMATION,
             vec!["--kill", "r2@12s", "--config", "examples/configs/7.yaml"],
         ),
+        ("box-push", "examples/search-rescue.rtcl", vec![]),
     ] {
         let out = tmp(name);
-        launch(&out, &extra);
-        for r in ["r0", "r1", "r2"] {
+        launch(&out, graph, &extra);
+        let robots: Vec<String> = (std::fs::read_dir(&out).unwrap())
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter_map(|f| f.strip_suffix(".inputs").map(String::from))
+            .collect();
+        assert!(robots.len() >= 2, "{name}: records of {robots:?}");
+        for r in &robots {
             let file = out.join(format!("{r}.inputs"));
             let (ok, text) = replay(&file);
             assert!(ok && text.starts_with("identical"), "{name} {r}: {text}");
@@ -83,7 +85,7 @@ fn every_robot_replays_identically_from_its_recorded_inputs() {
     }
     // An altered record is caught.
     let out = tmp("altered");
-    launch(&out, &["--timed"]);
+    launch(&out, FORMATION, &["--timed"]);
     let file = out.join("r0.inputs");
     let text = std::fs::read_to_string(&file).unwrap();
     let altered: Vec<String> = text
