@@ -138,7 +138,6 @@ const CORE_LAYERS: &[&str] = &[
     "value",
     "diag",
     "ids",
-    "dedup",
     "cond",
     "belief",
     "roster",

@@ -9,7 +9,8 @@
 //!   and termination points;
 //! - [`cond`] and [`belief`]: the condition language of preconditions and
 //!   termination conditions, and the belief store it reads;
-//! - [`org`]: the organization (team) hierarchy and its links to behaviors;
+//! - [`org`] and [`members`]: the organization (team) hierarchy and its
+//!   links to behaviors; sets of robots and allocations of them;
 //! - [`interaction`] and [`rules`]: the social interaction behaviors — the
 //!   pluggable protocol interface, its registry, and the silent rules built
 //!   into the kernel;
@@ -23,7 +24,6 @@
 
 pub mod belief;
 pub mod cond;
-pub mod dedup;
 pub mod diag;
 pub mod event;
 pub mod graph;
