@@ -660,3 +660,133 @@ fn the_readme_launch_commands_complete_as_written() {
         assert!(d.join("out/launch/r0.jsonl").exists(), "{what}");
     }
 }
+
+/// A client written from `docs/zenoh-interface.md` alone (Python: hashlib,
+/// hmac, struct) builds robot-to-robot frames: one sealed with the team key
+/// is accepted (its copy counts as a replay, which only an accepted frame
+/// can be), one sealed with another key is rejected as `bad-mac`, and a
+/// valid one on another robot's key as `wrong-sender`; the team completes.
+#[test]
+fn a_python_client_builds_frames_from_the_documented_layout() {
+    let _one = serial();
+    let py = python_with_zenoh();
+    let mut t = team("frames", false, "2");
+    let o = Command::new(&py)
+        .current_dir(repo())
+        .arg("crates/bite-cli/tests/python/frames.py")
+        .args([&t.endpoints[2], &t.team])
+        .arg(&t.key_file)
+        .args([
+            "examples/formation.yaml",
+            "examples/scenarios/formation.yaml",
+            "120",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "frames.py failed: {}\n{}\nlogs in {}",
+        String::from_utf8_lossy(&o.stderr),
+        String::from_utf8_lossy(&o.stdout),
+        t.out.display()
+    );
+    let report: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let delta = |r: &str, reason: &str| {
+        report["after"][r][reason].as_u64().unwrap_or(0)
+            - report["before"][r][reason].as_u64().unwrap_or(0)
+    };
+    for r in ["r0", "r2"] {
+        assert_eq!(delta(r, "replay"), 1, "{r}: {report}");
+        assert_eq!(delta(r, "bad-mac"), 1, "{r}: {report}");
+        assert_eq!(delta(r, "too-old"), 0, "{r}: {report}");
+    }
+    assert_eq!(delta("r0", "wrong-sender"), 1, "{report}");
+    assert_eq!(report["unknown_phases"], serde_json::json!([]), "{report}");
+    assert!(
+        report["phases"].as_array().is_some_and(|p| p.len() >= 2),
+        "{report}"
+    );
+    for r in ["r0", "r1", "r2"] {
+        assert_eq!(report["final"][r], "completed", "{report}");
+    }
+    t.procs.terminate();
+    check_agreement(&t.out, &["r0", "r1", "r2"]);
+}
+
+/// A robot started with no graph and no scenario refuses a submission that
+/// carries no scenario, and says why in its status (it used to run it in
+/// an empty world and stay `running` for ever).
+#[test]
+fn a_submission_without_a_world_is_refused_with_the_reason() {
+    let _one = serial();
+    let out = tmp("no-world");
+    let key = TeamKey::new((0..32).map(|i| i as u8 ^ 0x33).collect()).unwrap();
+    let key_file = out.join("team.key");
+    std::fs::write(&key_file, key.to_hex()).unwrap();
+    // The graph alone, with no scenario next to it.
+    let graph = out.join("formation.yaml");
+    std::fs::copy(repo().join("examples/formation.yaml"), &graph).unwrap();
+    let team = format!("noworld-{}", std::process::id());
+    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let mut procs = Procs(Vec::new());
+    let log = std::fs::File::create(out.join("r0.log")).unwrap();
+    let child = bite()
+        .args(["robot", "--name", "r0", "--team", &team, "--listen", &ep])
+        .arg("--key")
+        .arg(&key_file)
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .stdin(Stdio::null())
+        .spawn()
+        .unwrap();
+    procs.0.push(("r0".into(), child));
+    let session = client(std::slice::from_ref(&ep));
+    let (tx, rx) = std::sync::mpsc::channel::<Value>();
+    let _sub = session
+        .declare_subscriber(format!("bite/{team}/status/r0"))
+        .callback(move |s| {
+            if let Ok(v) = serde_json::from_slice(&s.payload().to_bytes()) {
+                let _ = tx.send(v);
+            }
+        })
+        .wait()
+        .unwrap();
+    let first = rx.recv_timeout(Duration::from_secs(20)).expect("a status");
+    assert_eq!(first["state"], "waiting", "{first}");
+    let sub = bite()
+        .args([
+            "submit",
+            "--team",
+            &team,
+            "--connect",
+            &ep,
+            "--id",
+            "m-noworld",
+        ])
+        .arg("--key")
+        .arg(&key_file)
+        .arg(&graph)
+        .output()
+        .unwrap();
+    assert!(
+        sub.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sub.stderr)
+    );
+    let deadline = Duration::from_secs(20);
+    let refused = std::iter::from_fn(|| rx.recv_timeout(deadline).ok())
+        .find(|s| !s["last_rejection"].is_null())
+        .expect("a status with the refusal");
+    assert_eq!(refused["state"], "waiting", "{refused}");
+    let r = &refused["last_rejection"];
+    assert_eq!(r["id"], "m-noworld", "{refused}");
+    assert_eq!(r["event"], "refused", "{refused}");
+    assert!(
+        r["reason"]
+            .as_str()
+            .unwrap_or("")
+            .contains("carries no scenario"),
+        "{refused}"
+    );
+    procs.terminate();
+}

@@ -13,8 +13,8 @@
 //! team or altered. The counter is per sender and strictly increasing; it
 //! starts at the sender's incarnation (microseconds since the Unix epoch
 //! when it started), so a restarted robot never reuses a counter.
-//! Receivers keep an IPsec-style sliding window per sender and accept each
-//! counter at most once. Anything that fails a check is dropped and counted
+//! Receivers keep a sliding window per sender (the last 30 s of its
+//! counters) and accept each counter at most once. Anything that fails a check is dropped and counted
 //! by reason ([`AuthStats`]), never acted upon.
 //!
 //! The team key authenticates **membership**: any holder of the key is a
@@ -37,8 +37,13 @@ pub const HEADER: usize = 16;
 pub const MAC: usize = 32;
 /// Largest payload accepted.
 pub const MAX_PAYLOAD: usize = 64 * 1024;
-/// Counters accepted out of order, below the highest seen.
-pub const WINDOW: u64 = 256;
+/// How far (µs of the sender's counter, i.e. of its clock) below the
+/// highest counter seen from a sender a frame is still told apart as a
+/// replay rather than refused as too old.
+pub const WINDOW_US: u64 = 30_000_000;
+/// Counters remembered per sender, at most (a sender sending faster than
+/// this many frames per window has its oldest ones refused as too old).
+pub const MAX_REMEMBERED: usize = 4096;
 
 const MAGIC: &[u8; 2] = b"BZ";
 const DOMAIN: &[u8] = b"bite-frame-v1\0";
@@ -291,60 +296,42 @@ pub fn seal_with(
     out
 }
 
-/// The anti-replay window of one sender.
-#[derive(Clone, Copy, Debug, Default)]
+/// The anti-replay window of one sender, over its counters (microseconds
+/// on the sender's clock): every counter accepted within [`WINDOW_US`] of
+/// the highest one is remembered (at most [`MAX_REMEMBERED`]), so a frame
+/// captured and replayed within the window counts as a replay; anything
+/// older than the window, or than the oldest counter forgotten to keep the
+/// memory bounded, is too old.
+#[derive(Clone, Debug, Default)]
 struct Window {
     top: u64,
-    /// Bit `i` set: counter `top - i` accepted.
-    seen: [u64; (WINDOW / 64) as usize],
+    /// Counters below this are too old (raised when one is forgotten).
+    floor: u64,
+    seen: std::collections::BTreeSet<u64>,
 }
 
 impl Window {
     fn check(&self, c: u64) -> Result<(), Reject> {
-        if c > self.top {
-            return Ok(());
-        }
-        let back = self.top - c;
-        if back >= WINDOW {
+        if c < self.floor || c.saturating_add(WINDOW_US) < self.top {
             return Err(Reject::TooOld);
         }
-        let (w, b) = ((back / 64) as usize, back % 64);
-        if self.seen[w] >> b & 1 == 1 {
-            Err(Reject::Replay)
-        } else {
-            Ok(())
+        if self.seen.contains(&c) {
+            return Err(Reject::Replay);
         }
+        Ok(())
     }
 
     fn accept(&mut self, c: u64) {
-        if c > self.top {
-            let shift = c - self.top;
-            self.top = c;
-            if shift >= WINDOW {
-                self.seen = Default::default();
+        self.seen.insert(c);
+        self.top = self.top.max(c);
+        let oldest = self.top.saturating_sub(WINDOW_US);
+        while let Some(&first) = self.seen.first() {
+            if first < oldest || self.seen.len() > MAX_REMEMBERED {
+                self.seen.pop_first();
+                self.floor = self.floor.max(first + 1);
             } else {
-                // Shift the whole bitmap left by `shift` bits (towards older).
-                let words = self.seen.len();
-                let (ws, bs) = ((shift / 64) as usize, (shift % 64) as u32);
-                let mut next = [0u64; (WINDOW / 64) as usize];
-                for (i, slot) in next.iter_mut().enumerate() {
-                    if i < ws {
-                        continue;
-                    }
-                    let src = i - ws;
-                    let mut v = self.seen[src] << bs;
-                    if bs > 0 && src > 0 {
-                        v |= self.seen[src - 1] >> (64 - bs);
-                    }
-                    *slot = v;
-                }
-                debug_assert_eq!(next.len(), words);
-                self.seen = next;
+                break;
             }
-            self.seen[0] |= 1;
-        } else {
-            let back = self.top - c;
-            self.seen[(back / 64) as usize] |= 1 << (back % 64);
         }
     }
 }
@@ -564,6 +551,101 @@ mod tests {
     }
 
     #[test]
+    fn a_frame_replayed_within_the_window_is_a_replay_and_later_too_old() {
+        let mut s = Sealer::new(key(1), sc("t"), 0);
+        let mut o = Opener::new(key(1), sc("t"), 1, 3);
+        let captured = s.seal(FrameKind::Heartbeat, b"x", NOW);
+        assert!(o.open(&captured, Some(0), NOW).is_ok());
+        // The sender goes on for a second (4 heartbeats), then the capture
+        // is played back.
+        for k in 1..=4 {
+            let f = s.seal(FrameKind::Heartbeat, b"x", NOW + k * 250_000);
+            assert!(o.open(&f, Some(0), NOW + k * 250_000).is_ok());
+        }
+        assert_eq!(
+            o.open(&captured, Some(0), NOW + 1_000_000),
+            Err(Reject::Replay)
+        );
+        // Out of order within the window: accepted once.
+        let late = seal_with(&key(1), &sc("t"), FrameKind::Kernel, 0, NOW + 10, b"y");
+        assert!(o.open(&late, Some(0), NOW + 1_000_000).is_ok());
+        assert_eq!(o.open(&late, Some(0), NOW + 1_000_000), Err(Reject::Replay));
+        // Once the sender is a window further on, the capture is too old.
+        let f = s.seal(FrameKind::Heartbeat, b"x", NOW + WINDOW_US + 1_000_000);
+        assert!(o.open(&f, Some(0), NOW + WINDOW_US + 1_000_000).is_ok());
+        assert_eq!(
+            o.open(&captured, Some(0), NOW + WINDOW_US + 1_000_000),
+            Err(Reject::TooOld)
+        );
+    }
+
+    #[test]
+    fn the_window_remembers_a_bounded_number_of_counters() {
+        let mut w = Window::default();
+        for c in 1..=(MAX_REMEMBERED as u64 + 10) {
+            assert_eq!(w.check(c), Ok(()));
+            w.accept(c);
+        }
+        assert_eq!(w.seen.len(), MAX_REMEMBERED);
+        // The forgotten ones are too old, never accepted again.
+        assert_eq!(w.check(5), Err(Reject::TooOld));
+        assert_eq!(w.check(MAX_REMEMBERED as u64 + 10), Err(Reject::Replay));
+    }
+
+    /// The frame layout and MAC input as `docs/zenoh-interface.md` gives
+    /// them, built here byte by byte without the sealer: if either drifts,
+    /// this fails.
+    #[test]
+    fn the_documented_frame_layout_is_what_robots_seal() {
+        let key = key(0x5a);
+        let (team, id, sender, counter) = ("demo", "m-42", 2u32, 1_795_270_222_967_000u64);
+        // Mission tag: FNV-1a 64 (offset 0xcbf29ce484222325, prime
+        // 0x100000001b3) over "id\0" + submission id.
+        let mut tag: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in b"id\0".iter().chain(id.as_bytes()) {
+            tag ^= u64::from(*b);
+            tag = tag.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        // A heartbeat payload: payload version 2, finished = false (postcard
+        // bool: one byte), no position (postcard Option: 0 = None).
+        let payload = [2u8, 0, 0];
+        let hb = crate::wire::Heartbeat {
+            finished: false,
+            position: None,
+        };
+        assert_eq!(crate::wire::encode_heartbeat(&hb), payload);
+        let mut frame = b"BZ".to_vec();
+        frame.push(1); // frame version
+        frame.push(3); // kind: heartbeat
+        frame.extend_from_slice(&sender.to_le_bytes());
+        frame.extend_from_slice(&counter.to_le_bytes());
+        frame.extend_from_slice(&payload);
+        let mut mac_input = b"bite-frame-v1\0".to_vec();
+        mac_input.extend_from_slice(team.as_bytes());
+        mac_input.push(0);
+        mac_input.extend_from_slice(&tag.to_le_bytes());
+        mac_input.extend_from_slice(&frame);
+        let mac = key.mac(&[&mac_input]);
+        frame.extend_from_slice(&mac);
+        let scope = Scope::new(team, tag);
+        assert_eq!(
+            frame,
+            seal_with(
+                &key,
+                &scope,
+                FrameKind::Heartbeat,
+                sender,
+                counter,
+                &payload
+            )
+        );
+        let hb = crate::wire::decode_heartbeat(&payload).expect("a heartbeat");
+        assert!(!hb.finished && hb.position.is_none());
+        let mut o = Opener::new(key, scope, 0, 3);
+        assert!(o.open(&frame, Some(sender), counter).is_ok());
+    }
+
+    #[test]
     fn keys_parse_and_refuse_short_or_bad_text() {
         let k = key(0xab);
         assert_eq!(TeamKey::from_hex(&k.to_hex()).unwrap().0, k.0);
@@ -579,7 +661,9 @@ mod tests {
         /// Whatever order counters arrive in, each is accepted at most
         /// once, and every counter above the highest seen is accepted.
         #[test]
-        fn window_accepts_each_counter_at_most_once(cs in proptest::collection::vec(0u64..600, 1..400)) {
+        fn window_accepts_each_counter_at_most_once(
+            cs in proptest::collection::vec(0u64..3 * WINDOW_US, 1..400),
+        ) {
             let mut w = Window::default();
             let mut accepted = std::collections::BTreeSet::new();
             for c in cs {
@@ -589,8 +673,11 @@ mod tests {
                         prop_assert!(accepted.insert(c), "counter {} accepted twice", c);
                         w.accept(c);
                     }
+                    // A counter seen again within the window is a replay.
+                    Err(Reject::Replay) => prop_assert!(accepted.contains(&c)),
                     Err(_) => prop_assert!(!fresh),
                 }
+                prop_assert!(w.seen.len() <= MAX_REMEMBERED);
             }
         }
 
