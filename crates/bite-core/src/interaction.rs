@@ -38,6 +38,80 @@ pub type Rng = rand_chacha::ChaCha8Rng;
 /// Protocol parameters as written in a graph or configuration file.
 pub use crate::graph::Params;
 
+/// Why a protocol could not be bound with the parameters given
+/// ([`Protocol::configure`]). The loader reports it at the binding's
+/// file:line:column.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum ConfigError {
+    /// The parameters do not decode into what the protocol takes.
+    #[error("`{protocol}`: {detail}")]
+    BadParams {
+        /// The protocol.
+        protocol: String,
+        /// What was wrong, as the decoder says it.
+        detail: String,
+    },
+    /// A parameter the protocol cannot do without is missing.
+    #[error("`{protocol}` needs `{param}`: {what}")]
+    Missing {
+        /// The protocol.
+        protocol: String,
+        /// The parameter.
+        param: String,
+        /// What it is, with an example.
+        what: String,
+    },
+    /// Parameters given to a protocol that takes none.
+    #[error("`{protocol}` takes no parameters")]
+    NoParams {
+        /// The protocol.
+        protocol: String,
+    },
+    /// A parameter names a behavior that is not a child of the point.
+    #[error("`{name}` is not a child of `{point}` (its children: {children})")]
+    NotAChild {
+        /// The name given.
+        name: String,
+        /// The point behavior.
+        point: String,
+        /// Its children, comma-separated.
+        children: String,
+    },
+    /// An expression in a parameter does not parse.
+    #[error("in `{src}`: {detail}")]
+    BadExpr {
+        /// The expression.
+        src: String,
+        /// The parser's message.
+        detail: String,
+    },
+    /// An expression in a parameter has the wrong type.
+    #[error("`{src}` is a {got}, a {want} is expected")]
+    ExprType {
+        /// The expression.
+        src: String,
+        /// Its type.
+        got: String,
+        /// The type wanted.
+        want: String,
+    },
+    /// Any other reason a protocol refuses its parameters.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// `Ok` when `params` is empty (`null` or `{}`): for protocols that take
+/// no parameters.
+pub fn no_params(name: &str, params: &Params) -> Result<(), ConfigError> {
+    match params {
+        Params::Null => Ok(()),
+        Params::Object(m) if m.is_empty() => Ok(()),
+        _ => Err(ConfigError::NoParams {
+            protocol: name.to_string(),
+        }),
+    }
+}
+
 /// Creates a fresh instance of a configured protocol.
 pub type Factory = Arc<dyn Fn() -> Box<dyn Interaction> + Send + Sync>;
 
@@ -62,7 +136,7 @@ pub trait Protocol: Send + Sync {
     /// Validate `params` (JSON `null` when none are given) and return a
     /// factory of instances configured with them. `setup` knows the point
     /// being bound and compiles expressions written in parameters.
-    fn configure(&self, params: &Params, setup: &mut Setup<'_>) -> Result<Factory, String>;
+    fn configure(&self, params: &Params, setup: &mut Setup<'_>) -> Result<Factory, ConfigError>;
     /// The answer to a teammate's late message for an instance this robot
     /// has finished and forgotten (only its outcome is remembered): a
     /// barrier answers a late arrival with its release, a vote answers a
@@ -113,23 +187,23 @@ impl<'a> Setup<'a> {
     }
     /// The behavior called `name` if it is a child of the point (for
     /// parameters that talk about children, e.g. roles).
-    pub fn child(&self, name: &str) -> Result<BehaviorId, String> {
+    pub fn child(&self, name: &str) -> Result<BehaviorId, ConfigError> {
         let children = &self.graph.behavior(self.point).children;
         match self.graph.find(name) {
             Some(b) if children.contains(&b) => Ok(b),
             _ => {
                 let names: Vec<&str> = children.iter().map(|c| self.graph.name_of(*c)).collect();
-                Err(format!(
-                    "`{name}` is not a child of `{}` (its children: {})",
-                    self.graph.name_of(self.point),
-                    names.join(", ")
-                ))
+                Err(ConfigError::NotAChild {
+                    name: name.to_string(),
+                    point: self.graph.name_of(self.point).to_string(),
+                    children: names.join(", "),
+                })
             }
         }
     }
     /// Compile an expression written in a parameter; `want` is the type it
     /// must have (`"number"` or `"bool"`), if any.
-    pub fn expr(&mut self, src: &str, want: Option<&str>) -> Result<Expr, String> {
+    pub fn expr(&mut self, src: &str, want: Option<&str>) -> Result<Expr, ConfigError> {
         struct R<'s> {
             symbols: &'s mut Symbols,
             graph: &'s BehaviorGraph,
@@ -153,11 +227,18 @@ impl<'a> Setup<'a> {
             symbols: self.symbols,
             graph: self.graph,
         };
-        let e = Expr::parse(src, &mut r).map_err(|e| format!("in `{src}`: {e}"))?;
+        let e = Expr::parse(src, &mut r).map_err(|e| ConfigError::BadExpr {
+            src: src.to_string(),
+            detail: e.to_string(),
+        })?;
         if let (Some(want), Some(ty)) = (want, e.static_type())
             && want != ty
         {
-            return Err(format!("`{src}` is a {ty}, a {want} is expected"));
+            return Err(ConfigError::ExprType {
+                src: src.to_string(),
+                got: ty.to_string(),
+                want: want.to_string(),
+            });
         }
         Ok(e)
     }
@@ -168,11 +249,14 @@ impl<'a> Setup<'a> {
 pub fn parse_params<T: serde::de::DeserializeOwned + Default>(
     name: &str,
     params: &Params,
-) -> Result<T, String> {
+) -> Result<T, ConfigError> {
     if params.is_null() {
         return Ok(T::default());
     }
-    serde_json::from_value(params.clone()).map_err(|e| format!("`{name}`: {e}"))
+    serde_json::from_value(params.clone()).map_err(|e| ConfigError::BadParams {
+        protocol: name.to_string(),
+        detail: e.to_string(),
+    })
 }
 
 /// How an instance this robot has forgotten ended (what

@@ -7,7 +7,8 @@
 
 use crate::ids::Kind;
 use crate::interaction::{
-    Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol, Registry,
+    ConfigError, Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol, Registry,
+    no_params,
 };
 use crate::msg::Body;
 use std::sync::Arc;
@@ -33,14 +34,6 @@ pub fn fallback(cx: &Cx<'_>) -> Outcome {
         PointInput::Sync { candidates, .. } => Outcome::Sync(candidates.first().copied()),
         PointInput::Allocate { children } => Outcome::Allocate(cx.assign_by_id(children)),
         PointInput::Terminate => Outcome::Terminate(None),
-    }
-}
-
-fn no_params(name: &str, params: &Params) -> Result<(), String> {
-    match params {
-        Params::Null => Ok(()),
-        Params::Object(m) if m.is_empty() => Ok(()),
-        _ => Err(format!("`{name}` takes no parameters")),
     }
 }
 
@@ -97,7 +90,7 @@ macro_rules! silent_protocol {
                 &self,
                 params: &Params,
                 _: &mut crate::interaction::Setup<'_>,
-            ) -> Result<Factory, String> {
+            ) -> Result<Factory, ConfigError> {
                 no_params($name, params)?;
                 Ok(Arc::new(|| {
                     Box::new(Silent { name: $name }) as Box<dyn Interaction>

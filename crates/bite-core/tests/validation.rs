@@ -192,7 +192,7 @@ impl Protocol for WaitAllStandIn {
         &self,
         params: &Params,
         setup: &mut bite_core::interaction::Setup<'_>,
-    ) -> Result<Factory, String> {
+    ) -> Result<Factory, bite_core::interaction::ConfigError> {
         bite_core::rules::TermLocal.configure(params, setup)
     }
 }
@@ -217,7 +217,7 @@ impl Protocol for FirstWinsStandIn {
         &self,
         params: &Params,
         setup: &mut bite_core::interaction::Setup<'_>,
-    ) -> Result<Factory, String> {
+    ) -> Result<Factory, bite_core::interaction::ConfigError> {
         bite_core::rules::TermLocal.configure(params, setup)
     }
 }

@@ -34,7 +34,7 @@ use crate::gather::Rule;
 use crate::lap;
 use crate::sync::{gather_protocol, no_params};
 use bite_core::ids::{BehaviorId, RobotId};
-use bite_core::interaction::{Assignment, ChildSlot, Cx, Outcome, parse_params};
+use bite_core::interaction::{Assignment, ChildSlot, ConfigError, Cx, Outcome, parse_params};
 use bite_core::msg::{Body, Kind};
 use bite_core::org::MemberSet;
 use bite_core::rules::{assign_in_order, member_counts};
@@ -128,9 +128,11 @@ gather_protocol!(
     "SF3: members send a value read from their beliefs (e.g. head angle); sorted, they are dealt to the children.",
     |params, setup| {
         let p = parse_params::<ByValueParams>("alloc.by-value", params)?;
-        let src = p
-            .value
-            .ok_or("`alloc.by-value` needs `value`: the number each member sends, e.g. `value: head_angle`")?;
+        let src = p.value.ok_or_else(|| ConfigError::Missing {
+            protocol: "alloc.by-value".into(),
+            param: "value".into(),
+            what: "the number each member sends, e.g. `value: head_angle`".into(),
+        })?;
         setup.expr(&src, Some("number")).map(|value| Sorted {
             value,
             order: p.order,
@@ -211,20 +213,26 @@ gather_protocol!(
     "SF6: roles ask for an attribute (e.g. colour); members announce theirs; matching members first.",
     |params, setup| {
         let p = parse_params::<ByAttributeParams>("alloc.by-attribute", params)?;
-        let attribute = p
-            .attribute
-            .ok_or("`alloc.by-attribute` needs `attribute`: the attribute roles ask for, e.g. `attribute: colour`")?;
+        let attribute = p.attribute.ok_or_else(|| ConfigError::Missing {
+            protocol: "alloc.by-attribute".into(),
+            param: "attribute".into(),
+            what: "the attribute roles ask for, e.g. `attribute: colour`".into(),
+        })?;
         let mut wants = BTreeMap::new();
         for (child, v) in &p.wants {
             let b = setup.child(child)?;
             let text = match v {
                 serde_json::Value::String(s) => s.clone(),
                 serde_json::Value::Bool(_) | serde_json::Value::Number(_) => v.to_string(),
-                _ => return Err(format!("`wants.{child}` must be a text, number or bool")),
+                _ => {
+                    return Err(ConfigError::Invalid(format!(
+                        "`wants.{child}` must be a text, number or bool"
+                    )));
+                }
             };
             wants.insert(b, text);
         }
-        Ok::<_, String>(Matching { attribute, wants })
+        Ok::<_, ConfigError>(Matching { attribute, wants })
     }
 );
 
@@ -408,11 +416,15 @@ mod tests {
             &serde_json::json!({"value": "x", "sort": 1}),
         );
         let e = e.unwrap_err();
-        assert!(e.contains("unknown field `sort`"), "{e}");
+        assert!(
+            matches!(&e, ConfigError::BadParams { protocol, detail }
+                if protocol == "alloc.by-value" && detail.contains("unknown field `sort`")),
+            "{e}"
+        );
         let o: Result<ByValueParams, _> = parse_params(
             "alloc.by-value",
             &serde_json::json!({"value": "x", "order": "sideways"}),
         );
-        assert!(o.unwrap_err().contains("ascending"));
+        assert!(o.unwrap_err().to_string().contains("ascending"));
     }
 }

@@ -60,7 +60,11 @@ impl Protocol for Auction {
     fn summary(&self) -> &'static str {
         "S2: sequential single-item auctions: the leader calls, members bid their utility, the best bid wins a place."
     }
-    fn configure(&self, params: &Params, _: &mut Setup<'_>) -> Result<Factory, String> {
+    fn configure(
+        &self,
+        params: &Params,
+        _: &mut Setup<'_>,
+    ) -> Result<Factory, bite_core::interaction::ConfigError> {
         no_params(self.name(), params)?;
         Ok(Arc::new(|| {
             Box::new(Market::default()) as Box<dyn Interaction>

@@ -96,7 +96,11 @@ macro_rules! barrier_protocol {
             fn default_deadline(&self) -> Duration {
                 Duration::from_secs(30)
             }
-            fn configure(&self, params: &Params, _: &mut Setup<'_>) -> Result<Factory, String> {
+            fn configure(
+                &self,
+                params: &Params,
+                _: &mut Setup<'_>,
+            ) -> Result<Factory, bite_core::interaction::ConfigError> {
                 no_params(self.name(), params)?;
                 Ok(Arc::new(|| {
                     Box::new(Barrier::new($mode)) as Box<dyn Interaction>

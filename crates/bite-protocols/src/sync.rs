@@ -44,13 +44,7 @@ use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-pub(crate) fn no_params(name: &str, params: &Params) -> Result<(), String> {
-    match params {
-        Params::Null => Ok(()),
-        Params::Object(m) if m.is_empty() => Ok(()),
-        _ => Err(format!("`{name}` takes no parameters")),
-    }
-}
+pub(crate) use bite_core::interaction::no_params;
 
 fn successors(cx: &Cx<'_>) -> Vec<BehaviorId> {
     match cx.input() {
@@ -120,7 +114,7 @@ macro_rules! gather_protocol {
                 &self,
                 $params: &bite_core::interaction::Params,
                 $setup: &mut bite_core::interaction::Setup<'_>,
-            ) -> Result<bite_core::interaction::Factory, String> {
+            ) -> Result<bite_core::interaction::Factory, bite_core::interaction::ConfigError> {
                 let rule = std::sync::Arc::new($make?);
                 Ok(std::sync::Arc::new(move || {
                     Box::new($crate::gather::Gather::new(rule.clone()))
@@ -424,7 +418,11 @@ impl Protocol for RoundRobin {
     fn summary(&self) -> &'static str {
         "SF7: every member picks the next successor in turn by the execution count; no messages."
     }
-    fn configure(&self, params: &Params, _: &mut Setup<'_>) -> Result<Factory, String> {
+    fn configure(
+        &self,
+        params: &Params,
+        _: &mut Setup<'_>,
+    ) -> Result<Factory, bite_core::interaction::ConfigError> {
         no_params(self.name(), params)?;
         Ok(Arc::new(|| Box::new(Turn) as Box<dyn Interaction>))
     }

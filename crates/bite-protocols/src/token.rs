@@ -61,10 +61,16 @@ impl Protocol for TokenPassing {
     fn summary(&self) -> &'static str {
         "Token passing (Farinelli et al.): one token per place travels until a member with enough utility keeps it."
     }
-    fn configure(&self, params: &Params, _: &mut Setup<'_>) -> Result<Factory, String> {
+    fn configure(
+        &self,
+        params: &Params,
+        _: &mut Setup<'_>,
+    ) -> Result<Factory, bite_core::interaction::ConfigError> {
         let p: TokenParams = parse_params(self.name(), params)?;
         if !p.threshold.is_finite() {
-            return Err("`threshold` must be a number".into());
+            return Err(bite_core::interaction::ConfigError::Invalid(
+                "`threshold` must be a number".into(),
+            ));
         }
         let threshold = p.threshold;
         Ok(Arc::new(move || {

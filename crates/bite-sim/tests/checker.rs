@@ -46,7 +46,7 @@ impl Protocol for Anarchy {
         &self,
         _: &Params,
         _: &mut bite_core::interaction::Setup<'_>,
-    ) -> Result<Factory, String> {
+    ) -> Result<Factory, bite_core::interaction::ConfigError> {
         Ok(Arc::new(|| Box::new(AnarchyInst) as Box<dyn Interaction>))
     }
 }
@@ -93,7 +93,7 @@ impl Protocol for Crowd {
         &self,
         _: &Params,
         _: &mut bite_core::interaction::Setup<'_>,
-    ) -> Result<Factory, String> {
+    ) -> Result<Factory, bite_core::interaction::ConfigError> {
         Ok(Arc::new(|| Box::new(CrowdInst) as Box<dyn Interaction>))
     }
 }

@@ -47,7 +47,7 @@ impl Protocol for FirstWins {
         &self,
         _p: &Params,
         _: &mut crate::interaction::Setup<'_>,
-    ) -> Result<Factory, String> {
+    ) -> Result<Factory, crate::interaction::ConfigError> {
         Ok(Arc::new(|| Box::new(FirstWinsInst) as Box<dyn Interaction>))
     }
 }
@@ -77,7 +77,7 @@ impl Protocol for Silent {
         &self,
         _p: &Params,
         _: &mut crate::interaction::Setup<'_>,
-    ) -> Result<Factory, String> {
+    ) -> Result<Factory, crate::interaction::ConfigError> {
         Ok(Arc::new(|| Box::new(SilentInst) as Box<dyn Interaction>))
     }
 }
