@@ -4,12 +4,12 @@
 //! to) and what it makes of its sensor readings.
 //!
 //! A [`Pilot`] turns the raw readings of a tick ([`Sensed`], from
-//! [`super::World::observe`] or from a real robot's drivers) into percepts
+//! `bite_sim::physics::World::observe` or from a real robot's drivers) into percepts
 //! and, through the scenario's `beliefs:` expressions, into the beliefs its
 //! graph reads ([`Pilot::perceive`]); it fuses the schemas of its current
 //! skill into a velocity command ([`Pilot::control`]) that the world
-//! carries out ([`super::World::actuate`]). It never touches the physics:
-//! in a run on one machine the [`super::World`] keeps one per robot; a
+//! carries out (`bite_sim::physics::World::actuate`). It never touches the physics:
+//! in the simulator each robot's `Agent` keeps one; a
 //! robot process talking to a simulator server keeps its own.
 
 use crate::schema::{self, Command, Mate, Sensed, State, View, Weighted};
@@ -393,7 +393,7 @@ impl Pilot {
     /// The pilot of robot `robot` of the team `names`, for a process that
     /// runs that robot alone: from the scenario `spec` (read from `file`)
     /// and the symbol table of the beliefs its graph reads, with the same
-    /// tables [`super::World::new`] builds.
+    /// tables the simulator's `World::new` builds.
     pub fn for_robot(
         spec: Arc<PhysicsSpec>,
         names: &[String],

@@ -522,7 +522,7 @@ fn target_point(view: &View, t: &Target) -> Option<DVec2> {
 }
 
 /// Where to steer to reach `to`: `to`, or the next point of a detour round
-/// a lost teammate's body in the way (see [`super::plan`]).
+/// a lost teammate's body in the way (see [`crate::plan`]).
 fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
     crate::plan::aim(
         view.map.as_deref(),

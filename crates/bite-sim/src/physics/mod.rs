@@ -1,28 +1,23 @@
-//! The physical world: a 2-D top-down arena on rapier2d, robots with
-//! differential or holonomic drives, sensors with noise, and the
-//! behavior-selection module that turns each robot's current behavior into
-//! the motor schemas that drive it.
+//! The physical world: the robots' bodies. A 2-D top-down arena on
+//! rapier2d, robots with differential or holonomic drives, sensors with
+//! noise.
 //!
-//! Two sides, as in Player/Stage. The world's side ([`World`]) owns the
-//! physics: bodies, drives, odometry, contacts, trajectories and coverage,
-//! and the raw sensing: [`World::observe`] reads robot `i`'s sensors (its
-//! noisy pose estimate, range rays, camera sightings of teammates and
-//! objects, odometer, contact) into a [`Sensed`], and [`World::actuate`]
-//! sets the velocity [`Command`] its drive follows. The robot's side
-//! ([`Pilot`], one per robot, in [`pilot`]) is its mind: the skill of its
-//! current leaf and its schemas' state, what it remembers of objects and
-//! teammates, the roles it refers to; it turns a [`Sensed`] into percepts
-//! and, through the scenario's `beliefs:` expressions, into the beliefs its
-//! graph reads ([`Pilot::perceive`]), and fuses its skill's schemas into a
-//! [`Command`] ([`Pilot::control`]). Both ends speak JSON ([`Sensed`] and
-//! [`Command`] are serde types), so a robot process can run its pilot
-//! against a simulator server, or a real robot.
+//! Two sides, as in Player/Stage. This is the world's side ([`World`]): it
+//! owns the physics: bodies, drives, odometry, contacts, trajectories and
+//! coverage, and the raw sensing: [`World::observe`] reads robot `i`'s
+//! sensors (its noisy pose estimate, range rays, camera sightings of
+//! teammates and objects, odometer, contact) into a [`Sensed`], and
+//! [`World::actuate`] sets the velocity [`Command`] its drive follows. The
+//! robot's side, its mind, is in `bite-agent`: each robot's `Agent` has a
+//! [`Pilot`] that turns a [`Sensed`] into percepts and beliefs and fuses
+//! the leaf behavior's motor schemas into a [`Command`]. Both ends speak
+//! JSON ([`Sensed`] and [`Command`] are serde types), so a robot process
+//! drives a body in a simulator server the same way, or a real robot.
 //!
-//! In a run on one machine the world keeps a pilot per robot, and the
-//! runner owns the clock: [`World::advance`] steps the physics at its fixed
-//! rate up to a control tick, [`World::sense`] observes and perceives, and
-//! [`World::control`] runs the pilot and actuates its command.
-//! Everything is seeded: a run is a pure function of its inputs.
+//! The runner owns the clock: [`World::advance`] steps the physics at its
+//! fixed rate up to a control tick, then each robot's readings go to its
+//! `Agent` and its command comes back to [`World::actuate`]. Everything is
+//! seeded: a run is a pure function of its inputs.
 
 pub mod svg;
 
