@@ -312,6 +312,41 @@ mod tests {
     use bite_core::msg::{Body, InstanceKey, Kind};
 
     #[test]
+    fn world_model_reports_of_every_value_type_round_trip() {
+        use bite_core::ids::BeliefId;
+        use bite_core::time::Time;
+        use bite_core::value::Value;
+        use bite_core::wm::{Reason, Report};
+        let values = [
+            Value::Bool(true),
+            Value::Num(2.31),
+            Value::Vec2([1.5, -0.5]),
+            Value::Text(Arc::from("yellow")),
+        ];
+        let msg = Inform {
+            reason: Reason::Helpful,
+            about: Some(BehaviorId(4)),
+            beliefs: values
+                .iter()
+                .enumerate()
+                .map(|(i, v)| Report {
+                    belief: BeliefId(i as u32),
+                    value: v.clone(),
+                    time: Time::from_millis(i as u64),
+                    confidence: 0.75,
+                })
+                .collect(),
+        };
+        let bytes = encode_inform(&[RobotId(0), RobotId(2)], &msg);
+        let (to, back) = decode_inform(&bytes).expect("a report decodes");
+        assert_eq!(to, vec![0, 2]);
+        assert_eq!(back, msg);
+        for cut in 0..bytes.len() {
+            assert!(decode_inform(&bytes[..cut]).is_err());
+        }
+    }
+
+    #[test]
     fn kernel_payload_round_trip() {
         let env = Envelope {
             instance: InstanceKey {
