@@ -47,7 +47,10 @@ macro_rules! out {
     }};
 }
 
+mod experiment;
+mod stats;
 mod sweep;
+mod tune;
 
 /// The formation example, built in so that `bite run` works anywhere.
 const FORMATION_GRAPH: &str = include_str!("../../../examples/formation.yaml");
@@ -150,6 +153,15 @@ enum Cmd {
     /// seeds, the invariant checker on every run, on every core; a table
     /// per fault class and the command that replays every failing run.
     Sweep(sweep::SweepArgs),
+    /// Compare configurations on missions, as the BITE paper's Table II
+    /// does: runs on every core (resumable), `runs.csv`, Figure-3-style
+    /// charts and box plots (SVG, PNG), and a report with pairwise
+    /// comparisons (`docs/experiments.md`).
+    Experiment(experiment::ExperimentArgs),
+    /// Search the protocol bindings of every point of a mission for the
+    /// best configuration on an objective (racing over seeds), and compare
+    /// it with the shipped configurations on held-out seeds.
+    Tune(tune::TuneArgs),
     /// Re-run a robot's mind from the inputs `bite robot --record` (or
     /// `bite launch --record`) wrote, and say whether every output is
     /// identical (exit 0) or where it first differs (exit 1).
@@ -1127,6 +1139,8 @@ fn main() -> ExitCode {
         Cmd::Run(a) => cmd_run(a),
         Cmd::Check { graph, config } => cmd_check(&graph, config.as_deref()),
         Cmd::Sweep(a) => sweep::cmd_sweep(a),
+        Cmd::Experiment(a) => experiment::cmd_experiment(a),
+        Cmd::Tune(a) => tune::cmd_tune(a),
         Cmd::Replay { file } => team::cmd_replay(&file),
         Cmd::Graph {
             graph,

@@ -59,3 +59,230 @@ pub fn scaling(path: &Path, title: &str, points: &[(usize, f64)]) -> Result<()> 
         .map_err(|e| anyhow::anyhow!("{e}"))
         .with_context(|| format!("drawing {}", path.display()))
 }
+
+/// Draw a picture into an SVG string with plotters, then write it as
+/// `<dir>/<name>.svg` and `<dir>/<name>.png`; returns `name`.
+fn svg_and_png(
+    dir: &Path,
+    name: &str,
+    size: (u32, u32),
+    draw: impl FnOnce(
+        &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    ) -> Result<(), Box<dyn std::error::Error>>,
+) -> Result<String> {
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        draw(&root).map_err(|e| anyhow::anyhow!("{e}"))?;
+        root.present().map_err(|e| anyhow::anyhow!("{e}"))?;
+    }
+    let svg_path = dir.join(format!("{name}.svg"));
+    std::fs::write(&svg_path, &svg).with_context(|| format!("writing {}", svg_path.display()))?;
+    let png_path = dir.join(format!("{name}.png"));
+    let png = crate::anim::rasterise(&svg, size.0, &crate::anim::svg_options())
+        .and_then(|p| p.encode_png().map_err(|e| anyhow::anyhow!("{e}")))
+        .with_context(|| format!("drawing {}", png_path.display()))?;
+    std::fs::write(&png_path, png).with_context(|| format!("writing {}", png_path.display()))?;
+    Ok(name.to_string())
+}
+
+fn upper(values: impl IntoIterator<Item = f64>) -> f64 {
+    let m = values
+        .into_iter()
+        .filter(|x| x.is_finite())
+        .fold(0.0, f64::max);
+    if m > 0.0 { m * 1.15 } else { 1.0 }
+}
+
+/// A chart in the style of the BITE paper's Figure 3 for one group of an
+/// experiment: per configuration, the mean interaction time by kind (left
+/// axis) and the mean task time (right axis), each with its 95 %
+/// confidence interval, and the median task time.
+pub fn figure3(dir: &Path, g: &crate::experiment::Group) -> Result<String> {
+    let k = g.configs.len();
+    let kinds = [
+        (
+            "interaction_time.sync",
+            "synchronization",
+            RGBColor(31, 119, 180),
+        ),
+        (
+            "interaction_time.allocate",
+            "allocation",
+            RGBColor(44, 160, 44),
+        ),
+        (
+            "interaction_time.total",
+            "interaction (all)",
+            RGBColor(148, 103, 189),
+        ),
+    ];
+    let inter: Vec<Vec<crate::stats::Describe>> = kinds
+        .iter()
+        .map(|(f, _, _)| (0..k).map(|i| g.describe(i, f)).collect())
+        .collect();
+    let task: Vec<crate::stats::Describe> = (0..k).map(|i| g.describe(i, "task_time")).collect();
+    // Head room above the data for the legend.
+    let y1 = upper(inter.iter().flatten().map(|d| d.mean + d.ci95)) * 1.5;
+    let y2 = upper(task.iter().map(|d| (d.mean + d.ci95).max(d.median))) * 1.5;
+    let labels = g.configs.clone();
+    let title = format!("{}: time per configuration (mean, 95 % CI)", g.title);
+    svg_and_png(dir, &format!("figure3-{}", g.slug), (900, 560), |root| {
+        root.fill(&WHITE)?;
+        let xr = -0.5..(k as f64 - 0.5);
+        let mut chart = ChartBuilder::on(root)
+            .caption(&title, ("sans-serif", 18))
+            .margin(14)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .right_y_label_area_size(60)
+            .build_cartesian_2d(xr.clone(), 0.0..y1)?
+            .set_secondary_coord(xr, 0.0..y2);
+        let fmt = |x: &f64| {
+            let i = x.round();
+            if (x - i).abs() < 1e-6 && i >= 0.0 && (i as usize) < labels.len() {
+                labels[i as usize].clone()
+            } else {
+                String::new()
+            }
+        };
+        chart
+            .configure_mesh()
+            .x_labels(k.max(2) * 2 + 1)
+            .x_label_formatter(&fmt)
+            .x_desc("configuration")
+            .y_desc("interaction time per robot (s)")
+            .disable_x_mesh()
+            .draw()?;
+        chart
+            .configure_secondary_axes()
+            .y_desc("task time (s)")
+            .draw()?;
+        for (j, ((_, name, colour), ds)) in kinds.iter().zip(&inter).enumerate() {
+            let dx = (j as f64 - 1.0) * 0.08;
+            let pts: Vec<(f64, f64)> = ds
+                .iter()
+                .enumerate()
+                .filter(|(_, d)| d.mean.is_finite())
+                .map(|(i, d)| (i as f64 + dx, d.mean))
+                .collect();
+            chart
+                .draw_series(LineSeries::new(pts.clone(), colour.stroke_width(2)))?
+                .label(*name)
+                .legend(move |(x, y)| {
+                    PathElement::new([(x, y), (x + 20, y)], colour.stroke_width(2))
+                });
+            chart.draw_series(
+                ds.iter()
+                    .enumerate()
+                    .filter(|(_, d)| d.n > 0)
+                    .map(|(i, d)| {
+                        ErrorBar::new_vertical(
+                            i as f64 + dx,
+                            d.mean - d.ci95,
+                            d.mean,
+                            d.mean + d.ci95,
+                            colour.filled(),
+                            6,
+                        )
+                    }),
+            )?;
+        }
+        let black = RGBColor(20, 20, 20);
+        let pts: Vec<(f64, f64)> = task
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.mean.is_finite())
+            .map(|(i, d)| (i as f64 + 0.2, d.mean))
+            .collect();
+        chart
+            .draw_secondary_series(LineSeries::new(pts, black.stroke_width(3)))?
+            .label("task time (right axis)")
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], black.stroke_width(3)));
+        chart.draw_secondary_series(task.iter().enumerate().filter(|(_, d)| d.n > 0).map(
+            |(i, d)| {
+                ErrorBar::new_vertical(
+                    i as f64 + 0.2,
+                    d.mean - d.ci95,
+                    d.mean,
+                    d.mean + d.ci95,
+                    black.filled(),
+                    8,
+                )
+            },
+        ))?;
+        chart
+            .draw_secondary_series(
+                task.iter()
+                    .enumerate()
+                    .filter(|(_, d)| d.n > 0)
+                    .map(|(i, d)| Cross::new((i as f64 + 0.2, d.median), 5, RED.stroke_width(2))),
+            )?
+            .label("median task time")
+            .legend(|(x, y)| Cross::new((x + 10, y), 5, RED.stroke_width(2)));
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()?;
+        Ok(())
+    })
+}
+
+/// Box plots of one figure per configuration of a group (quartiles, and
+/// whiskers at 1.5 times the interquartile range).
+pub fn boxes(dir: &Path, g: &crate::experiment::Group, figure: &str) -> Result<String> {
+    let k = g.configs.len();
+    let values: Vec<Vec<f64>> = (0..k).map(|i| g.values(i, figure)).collect();
+    let top = upper(values.iter().flatten().copied()) as f32;
+    let low = values
+        .iter()
+        .flatten()
+        .copied()
+        .filter(|x| x.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    let bottom = if low.is_finite() && low > 0.0 {
+        (low * 0.8) as f32
+    } else {
+        0.0
+    };
+    let labels = g.configs.clone();
+    let title = format!("{}: {figure} per configuration", g.title);
+    let name = format!(
+        "box-{}-{}",
+        g.slug,
+        figure.replace(|c: char| !c.is_ascii_alphanumeric(), "-")
+    );
+    svg_and_png(dir, &name, (900, 480), |root| {
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(root)
+            .caption(&title, ("sans-serif", 18))
+            .margin(14)
+            .x_label_area_size(40)
+            .y_label_area_size(60)
+            .build_cartesian_2d(labels[..].into_segmented(), bottom..top)?;
+        chart
+            .configure_mesh()
+            .x_label_formatter(&|v| match v {
+                SegmentValue::CenterOf(l) | SegmentValue::Exact(l) => (*l).clone(),
+                SegmentValue::Last => String::new(),
+            })
+            .x_desc("configuration")
+            .y_desc(figure)
+            .disable_x_mesh()
+            .draw()?;
+        chart.draw_series(
+            labels
+                .iter()
+                .zip(&values)
+                .filter(|(_, v)| !v.is_empty())
+                .map(|(l, v)| {
+                    Boxplot::new_vertical(SegmentValue::CenterOf(l), &Quartiles::new(v))
+                        .width(30)
+                        .style(RGBColor(31, 119, 180))
+                }),
+        )?;
+        Ok(())
+    })
+}

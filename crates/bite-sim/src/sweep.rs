@@ -244,6 +244,10 @@ pub struct RunResult {
     pub panicked: bool,
     /// The command that replays it.
     pub replay: String,
+    /// The run's whole summary (`None`: it panicked). Not written to the
+    /// sweep's log, which keeps one short line per run.
+    #[serde(skip)]
+    pub summary: Option<Box<crate::summary::Summary>>,
 }
 
 impl RunResult {
@@ -317,6 +321,7 @@ pub fn run_one(cases: &[Case], spec: &RunSpec) -> RunResult {
         detail: None,
         panicked: false,
         replay,
+        summary: None,
     };
     match outcome {
         Ok(Ok(report)) => {
@@ -330,6 +335,7 @@ pub fn run_one(cases: &[Case], spec: &RunSpec) -> RunResult {
                 .first()
                 .map(ToString::to_string)
                 .or_else(|| s.stall.clone());
+            r.summary = Some(Box::new(report.summary));
         }
         Ok(Err(d)) => {
             r.detail = Some(d.to_string());

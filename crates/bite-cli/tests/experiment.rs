@@ -1,0 +1,345 @@
+//! `bite experiment` and `bite tune` end to end, on the shipped files.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bite() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_bite"));
+    c.current_dir(root());
+    c
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("bite-exp-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("scratch dir");
+    d
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn ok(out: &Output) {
+    assert!(
+        out.status.success(),
+        "exit {:?}\n{}\n{}",
+        out.status.code(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn experiment(out: &Path, jobs: &str) -> Output {
+    bite()
+        .args([
+            "experiment",
+            "examples/experiments/table2.yaml",
+            "--seeds",
+            "1..3",
+            "--jobs",
+            jobs,
+            "--out",
+        ])
+        .arg(out)
+        .output()
+        .expect("bite runs")
+}
+
+#[test]
+fn the_table2_experiment_writes_runs_plots_and_a_report_and_resumes() {
+    let d = scratch("table2");
+    let a = d.join("a");
+    let first = experiment(&a, "2");
+    ok(&first);
+    let csv = std::fs::read_to_string(a.join("runs.csv")).expect("runs.csv");
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().expect("a header").split(',').collect();
+    for c in [
+        "key",
+        "config",
+        "world",
+        "seed",
+        "outcome",
+        "task_time",
+        "interaction_time.sync",
+        "interaction_time.allocate",
+        "messages.total",
+        "replay",
+    ] {
+        assert!(header.contains(&c), "column {c} in {header:?}");
+    }
+    let world = header.iter().position(|c| *c == "world").expect("world");
+    let seed = header.iter().position(|c| *c == "seed").expect("seed");
+    let config = header.iter().position(|c| *c == "config").expect("config");
+    let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
+    for w in ["timed", "physics"] {
+        let n = rows.iter().filter(|r| r[world] == w).count();
+        assert_eq!(n, 21, "7 configurations × 3 seeds in the {w} world");
+    }
+    // Row 3 is the paper's second series of row 2: other seeds.
+    assert!(
+        rows.iter()
+            .filter(|r| r[config] == "3")
+            .all(|r| r[seed].parse::<u64>().is_ok_and(|s| s > 1000))
+    );
+    for f in [
+        "figure3-formation-timed.svg",
+        "figure3-formation-timed.png",
+        "figure3-formation-physics.svg",
+        "figure3-formation-physics.png",
+        "box-formation-physics-task-time.svg",
+        "box-formation-physics-task-time.png",
+    ] {
+        let bytes = std::fs::read(a.join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
+        if f.ends_with(".png") {
+            assert_eq!(&bytes[1..4], b"PNG", "{f}");
+        } else {
+            assert!(String::from_utf8_lossy(&bytes).contains("<svg"), "{f}");
+        }
+    }
+    let report = std::fs::read_to_string(a.join("report.md")).expect("report.md");
+    assert!(report.contains("## formation · timed"));
+    assert!(report.contains("Spearman ρ"));
+    assert!(report.contains("p (Holm"));
+    assert!(report.contains("![formation · physics](figure3-formation-physics.svg)"));
+
+    // Again: nothing left to run, the same table.
+    let again = experiment(&a, "2");
+    ok(&again);
+    assert!(
+        String::from_utf8_lossy(&again.stderr).contains("42 done before, 0 to run"),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert_eq!(std::fs::read_to_string(a.join("runs.csv")).unwrap(), csv);
+
+    // One thread gives the same bytes as two.
+    let b = d.join("b");
+    ok(&experiment(&b, "1"));
+    assert_eq!(std::fs::read_to_string(b.join("runs.csv")).unwrap(), csv);
+    assert_eq!(
+        std::fs::read_to_string(b.join("report.md")).unwrap(),
+        report.replace(&a.display().to_string(), &b.display().to_string())
+    );
+
+    // An interrupted experiment: half the log kept, the rest is run.
+    let c = d.join("c");
+    std::fs::create_dir_all(&c).unwrap();
+    let log = std::fs::read_to_string(a.join("runs.jsonl")).unwrap();
+    let half: Vec<&str> = log.lines().take(20).collect();
+    std::fs::write(c.join("runs.jsonl"), half.join("\n") + "\n{\"key\": \"torn").unwrap();
+    let resumed = experiment(&c, "2");
+    ok(&resumed);
+    assert!(
+        String::from_utf8_lossy(&resumed.stderr).contains("20 done before, 22 to run"),
+        "{}",
+        String::from_utf8_lossy(&resumed.stderr)
+    );
+    assert_eq!(std::fs::read_to_string(c.join("runs.csv")).unwrap(), csv);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn a_malformed_experiment_names_file_line_and_column() {
+    let d = scratch("bad");
+    let f = d.join("bad.yaml");
+    let graph = root().join("examples/formation.yaml");
+    std::fs::write(
+        &f,
+        format!(
+            "experiment: bad\nmissions:\n  - graph: {}\n    worlds: [timed, physix]\nfigures: [task_tme]\nfaults: [los]\n",
+            graph.display()
+        ),
+    )
+    .unwrap();
+    let out = bite()
+        .arg("experiment")
+        .arg(&f)
+        .output()
+        .expect("bite runs");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    let name = f.display().to_string();
+    assert!(err.contains(&format!("{name}:4:")), "{err}");
+    assert!(err.contains("unknown world `physix`"), "{err}");
+    assert!(err.contains(&format!("{name}:5:")), "{err}");
+    assert!(err.contains("did you mean `task_time`?"), "{err}");
+    assert!(err.contains("unknown fault class `los`"), "{err}");
+    // A shape error from the YAML reader is located too.
+    std::fs::write(&f, "experiment: bad\nmissions: 3\n").unwrap();
+    let out = bite()
+        .arg("experiment")
+        .arg(&f)
+        .output()
+        .expect("bite runs");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains(&format!("{name}:2:")), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn tune_writes_a_configuration_that_check_accepts_and_compares_on_holdout_seeds() {
+    let d = scratch("tune");
+    let out = bite()
+        .args([
+            "tune",
+            "examples/formation.yaml",
+            "--seeds",
+            "1..6",
+            "--holdout",
+            "7..10",
+            "--out",
+        ])
+        .arg(&d)
+        .output()
+        .expect("bite runs");
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("holdout"), "{stdout}");
+    assert!(stdout.contains("| tuned | 4 | 100 % |"), "{stdout}");
+    assert!(stdout.contains("examples/configs/2.yaml"), "{stdout}");
+    let best = d.join("best.yaml");
+    let check = bite()
+        .args(["check", "examples/formation.yaml", "--config"])
+        .arg(&best)
+        .output()
+        .expect("bite runs");
+    ok(&check);
+    // The search is deterministic: the same again, on one thread.
+    let d2 = scratch("tune2");
+    let again = bite()
+        .args([
+            "tune",
+            "examples/formation.yaml",
+            "--seeds",
+            "1..6",
+            "--holdout",
+            "7..10",
+            "--jobs",
+            "1",
+            "--out",
+        ])
+        .arg(&d2)
+        .output()
+        .expect("bite runs");
+    ok(&again);
+    let strip = |s: &str| -> String {
+        s.lines()
+            .filter(|l| !l.contains(" runs in ") && !l.contains("bite run "))
+            .collect::<Vec<_>>()
+            .join("\n")
+    };
+    assert_eq!(
+        strip(&std::fs::read_to_string(&best).unwrap()),
+        strip(&std::fs::read_to_string(d2.join("best.yaml")).unwrap())
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("tune.csv")).unwrap(),
+        std::fs::read_to_string(d2.join("tune.csv")).unwrap()
+    );
+    // Held-out seeds must be new.
+    let clash = bite()
+        .args([
+            "tune",
+            "examples/formation.yaml",
+            "--seeds",
+            "1..6",
+            "--holdout",
+            "6..10",
+        ])
+        .output()
+        .expect("bite runs");
+    assert!(!clash.status.success());
+    assert!(String::from_utf8_lossy(&clash.stderr).contains("seed 6"));
+    let _ = std::fs::remove_dir_all(&d);
+    let _ = std::fs::remove_dir_all(&d2);
+}
+
+/// The table of group `title` in a report written by `bite experiment`:
+/// the lines starting with `| config` up to the first blank line.
+fn group_table(report: &str, title: &str) -> Vec<String> {
+    let start = report
+        .find(&format!("## {title}\n"))
+        .unwrap_or_else(|| panic!("no group `{title}` in the report"));
+    report[start..]
+        .lines()
+        .skip_while(|l| !l.starts_with("| config"))
+        .take_while(|l| !l.trim().is_empty())
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn the_reproduction_tables_are_what_bite_experiment_gives() {
+    let d = scratch("reproduction");
+    let out = bite()
+        .args(["experiment", "examples/experiments/table2.yaml", "--out"])
+        .arg(&d)
+        .output()
+        .expect("bite runs");
+    ok(&out);
+    let report = std::fs::read_to_string(d.join("report.md")).expect("report.md");
+    let doc_path = root().join("docs/reproduction.md");
+    let doc = std::fs::read_to_string(&doc_path).expect("docs/reproduction.md");
+    let mut rewritten = String::new();
+    let mut lines = doc.lines();
+    let mut differ = Vec::new();
+    let mut groups = 0;
+    while let Some(l) = lines.next() {
+        rewritten.push_str(l);
+        rewritten.push('\n');
+        let Some(title) = l
+            .strip_prefix("<!-- begin table2: ")
+            .and_then(|t| t.strip_suffix(" -->"))
+        else {
+            continue;
+        };
+        groups += 1;
+        let mut old = Vec::new();
+        for l in lines.by_ref() {
+            if l == "<!-- end -->" {
+                break;
+            }
+            old.push(l.to_string());
+        }
+        let new = group_table(&report, title);
+        if old != new {
+            differ.push(title.to_string());
+        }
+        for l in &new {
+            rewritten.push_str(l);
+            rewritten.push('\n');
+        }
+        rewritten.push_str("<!-- end -->\n");
+    }
+    assert_eq!(
+        groups, 2,
+        "docs/reproduction.md has the two tables of table2"
+    );
+    if differ.is_empty() {
+        let _ = std::fs::remove_dir_all(&d);
+        return;
+    }
+    if std::env::var_os("BITE_BLESS").is_some() {
+        std::fs::write(&doc_path, rewritten).expect("write docs/reproduction.md");
+        let figures = root().join("docs/figures/reproduction");
+        std::fs::create_dir_all(&figures).expect("figures dir");
+        for f in [
+            "figure3-formation-timed.png",
+            "figure3-formation-physics.png",
+            "box-formation-physics-task-time.png",
+        ] {
+            std::fs::copy(d.join(f), figures.join(f)).expect("copy a picture");
+        }
+        eprintln!("docs/reproduction.md: tables rewritten for {differ:?}");
+    } else {
+        panic!(
+            "docs/reproduction.md's tables for {differ:?} are not what `bite experiment \
+             examples/experiments/table2.yaml` gives; regenerate them with: \
+             BITE_BLESS=1 cargo test -p bite-cli --test experiment"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
