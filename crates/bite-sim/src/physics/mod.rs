@@ -19,6 +19,7 @@
 //! `Agent` and its command comes back to [`World::actuate`]. Everything is
 //! seeded: a run is a pure function of its inputs.
 
+mod place;
 pub mod svg;
 
 use bite_agent::{pilot, schema, spec};
@@ -204,6 +205,9 @@ impl World {
         file: &Arc<str>,
         seed: u64,
     ) -> Result<World, Diagnostics> {
+        // Objects the seed places, placed (the same for the same seed in
+        // every simulator that builds the world).
+        let spec = place::place(&spec, names, seed, file).map_err(|e| Diagnostics(vec![e]))?;
         let mut rw = rp::PhysicsWorld::new();
         rw.gravity = rp::Vector::ZERO;
         rw.integration_parameters.dt = (1.0 / spec.hz) as f32;
@@ -216,26 +220,7 @@ impl World {
             kinds[at] = Some(k);
         };
         // Walls: four thin boxes round the arena.
-        let (w, h) = (spec.arena.x as f32, spec.arena.y as f32);
-        let t = 0.1f32;
-        for (at, half) in [
-            (
-                rp::Vector::new(w / 2.0, -t),
-                rp::Vector::new(w / 2.0 + t, t),
-            ),
-            (
-                rp::Vector::new(w / 2.0, h + t),
-                rp::Vector::new(w / 2.0 + t, t),
-            ),
-            (
-                rp::Vector::new(-t, h / 2.0),
-                rp::Vector::new(t, h / 2.0 + t),
-            ),
-            (
-                rp::Vector::new(w + t, h / 2.0),
-                rp::Vector::new(t, h / 2.0 + t),
-            ),
-        ] {
+        for (at, half) in place::walls(spec.arena) {
             let (_, c) = rw.insert(
                 rp::RigidBodyBuilder::fixed().translation(at),
                 rp::ColliderBuilder::cuboid(half.x, half.y),
