@@ -96,6 +96,8 @@ pub struct World {
     robots: Vec<Robot>,
     objects: Vec<rp::RigidBodyHandle>,
     object_trails: Vec<Vec<(f64, DVec2)>>,
+    /// When some robot's camera first saw each object.
+    first_seen: Vec<Option<f64>>,
     dt: f64,
     t: f64,
     /// How percepts become graph beliefs (shared by the pilots).
@@ -386,6 +388,7 @@ impl World {
             robots,
             objects,
             object_trails: vec![Vec::new(); n_objects],
+            first_seen: vec![None; n_objects],
             t: 0.0,
             tables,
             goal_met: None,
@@ -410,6 +413,12 @@ impl World {
     /// True position of object `i`.
     pub fn object_pos(&self, i: usize) -> DVec2 {
         v64(self.rw.bodies[self.objects[i]].translation())
+    }
+
+    /// When some robot's camera first saw object `i` (seconds; `None`:
+    /// never so far).
+    pub fn first_seen(&self, i: usize) -> Option<f64> {
+        self.first_seen.get(i).copied().flatten()
     }
 
     /// When the scenario's goal (object in zone) was first met.
@@ -733,6 +742,7 @@ impl World {
             let p = self.object_pos(k);
             if let Some(est) = self.sighting(i, &near, truth, p, Kind::Object(k)) {
                 objects.push((k, est));
+                self.first_seen[k].get_or_insert(self.t);
             }
         }
         self.near = near;
