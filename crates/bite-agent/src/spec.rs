@@ -5,8 +5,10 @@ use crate::schema::{Schema, Side, Target, Weighted};
 use bite_core::diag::{Diagnostic, Loc};
 use glam::DVec2;
 use serde::Deserialize;
+use serde::de::{self, Deserializer, MapAccess, SeqAccess, Visitor};
 use serde_saphyr::Spanned;
 use std::collections::BTreeMap;
+use std::fmt;
 use std::sync::Arc;
 
 #[derive(Deserialize)]
@@ -65,7 +67,7 @@ struct StartRaw {
 #[serde(deny_unknown_fields)]
 struct ShapeRaw {
     name: Option<String>,
-    at: [f64; 2],
+    at: Spanned<AtRaw>,
     /// Full width and height of a box.
     #[serde(rename = "box")]
     rect: Option<[f64; 2]>,
@@ -76,6 +78,54 @@ struct ShapeRaw {
     damping: Option<f64>,
     #[serde(default)]
     angle: f64,
+}
+
+/// `at:` of an obstacle or object: a point, or (objects) a position the
+/// run's seed draws.
+enum AtRaw {
+    Point([f64; 2]),
+    Drawn(DrawRaw),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DrawRaw {
+    one_of: Option<Vec<[f64; 2]>>,
+    within: Option<[f64; 4]>,
+    #[serde(default)]
+    out_of_sight: bool,
+}
+
+impl<'de> Deserialize<'de> for AtRaw {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = AtRaw;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str(
+                    "a point `[x, y]`, or a drawn position `{ one_of: [[x, y], ...] }` or \
+                     `{ within: [x0, y0, x1, y1] }` (with `out_of_sight: true` if it must start \
+                     unseen)",
+                )
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<AtRaw, A::Error> {
+                let x: f64 = s
+                    .next_element()?
+                    .ok_or_else(|| de::Error::invalid_length(0, &self))?;
+                let y: f64 = s
+                    .next_element()?
+                    .ok_or_else(|| de::Error::invalid_length(1, &self))?;
+                if s.next_element::<f64>()?.is_some() {
+                    return Err(de::Error::custom("a point is `[x, y]`: two numbers"));
+                }
+                Ok(AtRaw::Point([x, y]))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, m: A) -> Result<AtRaw, A::Error> {
+                DrawRaw::deserialize(de::value::MapAccessDeserializer::new(m)).map(AtRaw::Drawn)
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 #[derive(Deserialize, Default)]
@@ -155,13 +205,50 @@ impl Shape {
     }
 }
 
+/// Where a drawn position comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Draw {
+    /// One of these points, each as likely.
+    OneOf(Vec<DVec2>),
+    /// Uniformly in the rectangle `[x0, y0, x1, y1]` (`x0 < x1`, `y0 < y1`).
+    Within([f64; 4]),
+}
+
+/// A movable object whose start the run's seed draws (`at: { one_of: ... }`
+/// or `at: { within: ... }`): the simulator draws it when it builds the
+/// world, again until the object is clear of everything else and, with
+/// `out_of_sight`, no robot's camera sees it from where the robot starts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Placement {
+    /// Where from.
+    pub draw: Draw,
+    /// No robot may see the object at its start pose.
+    pub out_of_sight: bool,
+    /// Where the `at:` is written (errors about the draw).
+    pub loc: Loc,
+}
+
+impl Draw {
+    /// A point the draw can give: the first of `one_of`, the centre of
+    /// `within` (where the object stands until a run draws its place).
+    pub fn typical(&self) -> DVec2 {
+        match self {
+            Draw::OneOf(v) => v.first().copied().unwrap_or(DVec2::ZERO),
+            Draw::Within([x0, y0, x1, y1]) => DVec2::new(x0 + x1, y0 + y1) / 2.0,
+        }
+    }
+}
+
 /// An obstacle (static) or an object (movable).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Body {
     /// Name (objects are seen by name and by colour).
     pub name: Option<String>,
-    /// Centre.
+    /// Centre (for an object drawn by seed, once the world has drawn it;
+    /// before, [`Draw::typical`]).
     pub at: DVec2,
+    /// The draw of a movable object's start, if the seed places it.
+    pub place: Option<Placement>,
     /// Rotation, radians.
     pub angle: f64,
     /// Shape.
@@ -304,6 +391,68 @@ fn positive(file: &Arc<str>, loc: Loc, what: &str, v: f64, d: &mut Vec<Diagnosti
     v
 }
 
+/// A drawn `at:`, checked: one source of points, all of them finite and in
+/// the arena.
+fn placement(
+    file: &Arc<str>,
+    loc: Loc,
+    raw: DrawRaw,
+    arena: DVec2,
+) -> Result<Placement, Diagnostic> {
+    let bad = |msg: String| {
+        Diagnostic::error(file, loc, "bad-place", msg).with_hint(
+            "`at: { one_of: [[x, y], ...] }` or `at: { within: [x0, y0, x1, y1] }`, \
+             optionally with `out_of_sight: true`",
+        )
+    };
+    let inside = |p: DVec2| (0.0..=arena.x).contains(&p.x) && (0.0..=arena.y).contains(&p.y);
+    let draw = match (raw.one_of, raw.within) {
+        (Some(_), Some(_)) => {
+            return Err(bad("give `one_of` or `within`, not both".into()));
+        }
+        (None, None) => {
+            return Err(bad(
+                "a drawn position needs `one_of: [[x, y], ...]` or `within: [x0, y0, x1, y1]`"
+                    .into(),
+            ));
+        }
+        (Some(points), None) => {
+            if points.is_empty() {
+                return Err(bad("`one_of` lists no point".into()));
+            }
+            let points: Vec<DVec2> = points.into_iter().map(DVec2::from).collect();
+            if let Some(p) = points.iter().find(|p| !p.is_finite() || !inside(**p)) {
+                return Err(bad(format!(
+                    "`one_of`: point [{}, {}] is not in the arena [0, {}] x [0, {}]",
+                    p.x, p.y, arena.x, arena.y
+                )));
+            }
+            Draw::OneOf(points)
+        }
+        (None, Some(r)) => {
+            let [x0, y0, x1, y1] = r;
+            if !r.iter().all(|v| v.is_finite()) || x0 >= x1 || y0 >= y1 {
+                return Err(bad(format!(
+                    "`within` is `[x0, y0, x1, y1]` with x0 < x1 and y0 < y1, found \
+                     [{x0}, {y0}, {x1}, {y1}]"
+                )));
+            }
+            if !inside(DVec2::new(x0, y0)) || !inside(DVec2::new(x1, y1)) {
+                return Err(bad(format!(
+                    "`within` [{x0}, {y0}, {x1}, {y1}] reaches out of the arena [0, {}] x [0, {}]",
+                    arena.x, arena.y
+                )));
+            }
+            Draw::Within(r)
+        }
+    };
+    Ok(Placement {
+        draw,
+        out_of_sight: raw.out_of_sight,
+        loc,
+    })
+}
+
 impl PhysicsSpec {
     pub(crate) fn from_raw(
         file: &Arc<str>,
@@ -390,9 +539,33 @@ impl PhysicsSpec {
                         "a movable object needs a `name` (robots see it by name)",
                     ));
                 }
+                let at_loc = Loc::from(s.at.referenced);
+                let (at, place) = match s.at.value {
+                    AtRaw::Point(p) => (DVec2::from(p), None),
+                    AtRaw::Drawn(_) if !movable => {
+                        d.push(
+                            Diagnostic::error(
+                                file,
+                                at_loc,
+                                "bad-place",
+                                "an obstacle stands where it is put: `at: [x, y]`",
+                            )
+                            .with_hint("only a movable object's start may be drawn by the seed"),
+                        );
+                        (DVec2::ZERO, None)
+                    }
+                    AtRaw::Drawn(raw) => match placement(file, at_loc, raw, arena) {
+                        Ok(p) => (p.draw.typical(), Some(p)),
+                        Err(e) => {
+                            d.push(e);
+                            (DVec2::ZERO, None)
+                        }
+                    },
+                };
                 out.push(Body {
                     name: s.name,
-                    at: DVec2::from(s.at),
+                    at,
+                    place,
                     angle: s.angle.to_radians(),
                     shape,
                     colour: s.colour,
@@ -776,6 +949,7 @@ mod tests {
         Body {
             name: None,
             at: DVec2::ZERO,
+            place: None,
             angle: 0.0,
             shape,
             colour: Some(colour.into()),
@@ -816,5 +990,77 @@ mod tests {
         assert!(long.fits(&plank) && !long.fits(&cube));
         let any = TargetSpec::default();
         assert!(any.fits(&blue));
+    }
+
+    /// A one-object physical scenario with `at` as given (line 6).
+    fn with_at(at: &str) -> Result<crate::scenario::Scenario, bite_core::diag::Diagnostics> {
+        let text = format!(
+            "scenario: s\nworld: physics\nphysics:\n  arena: [7, 4]\n  objects:\n    - {{ name: box, box: [0.3, 0.3], at: {at} }}\n"
+        );
+        crate::scenario::Scenario::load_str(&Arc::from("s.yaml"), &text)
+    }
+
+    #[test]
+    fn a_drawn_position_is_read_with_its_source() {
+        let sc = with_at("{ within: [4, 0.5, 6.5, 3.5], out_of_sight: true }").expect("loads");
+        let o = &sc.physics.as_ref().expect("physics").objects[0];
+        let p = o.place.as_ref().expect("drawn");
+        assert_eq!(p.draw, Draw::Within([4.0, 0.5, 6.5, 3.5]));
+        assert!(p.out_of_sight);
+        assert_eq!(p.loc, Loc::new(6, 41));
+        // Until a run draws it, it stands at the centre of the region.
+        assert_eq!(o.at, DVec2::new(5.25, 2.0));
+        let sc = with_at("{ one_of: [[1, 1], [6, 3]] }").expect("loads");
+        let o = &sc.physics.as_ref().expect("physics").objects[0];
+        let p = o.place.as_ref().expect("drawn");
+        assert_eq!(
+            p.draw,
+            Draw::OneOf(vec![DVec2::new(1.0, 1.0), DVec2::new(6.0, 3.0)])
+        );
+        assert!(!p.out_of_sight);
+        assert_eq!(o.at, DVec2::new(1.0, 1.0));
+        // A point is still a point.
+        let sc = with_at("[2, 3]").expect("loads");
+        let o = &sc.physics.as_ref().expect("physics").objects[0];
+        assert_eq!((o.at, o.place.is_none()), (DVec2::new(2.0, 3.0), true));
+    }
+
+    #[test]
+    fn a_bad_drawn_position_is_an_error_where_it_is_written() {
+        let err = |at: &str| match with_at(at) {
+            Ok(_) => panic!("`{at}` accepted"),
+            Err(d) => d.to_string(),
+        };
+        let e = err("{ within: [6, 0.5, 4, 3.5] }");
+        assert!(e.contains("s.yaml:6:41: error[bad-place]"), "{e}");
+        assert!(e.contains("x0 < x1 and y0 < y1"), "{e}");
+        let e = err("{ within: [4, 0.5, 8, 3.5] }");
+        assert!(e.contains("s.yaml:6:41: error[bad-place]"), "{e}");
+        assert!(
+            e.contains("reaches out of the arena [0, 7] x [0, 4]"),
+            "{e}"
+        );
+        let e = err("{ within: [4, 0.5, 6] }");
+        assert!(e.contains("s.yaml:6:"), "{e}");
+        let e = err("{ within: [4, 0.5, 6, 3], one_of: [[1, 1]] }");
+        assert!(e.contains("not both"), "{e}");
+        let e = err("{ out_of_sight: true }");
+        assert!(e.contains("needs `one_of"), "{e}");
+        let e = err("{ one_of: [] }");
+        assert!(e.contains("lists no point"), "{e}");
+        let e = err("{ one_of: [[1, 1], [9, 1]] }");
+        assert!(e.contains("point [9, 1] is not in the arena"), "{e}");
+        let e = err("{ inside: [4, 0.5, 6, 3] }");
+        assert!(e.contains("s.yaml:6:"), "{e}");
+        assert!(e.contains("inside"), "{e}");
+        let e = err("[1, 2, 3]");
+        assert!(e.contains("s.yaml:6:"), "{e}");
+        // Obstacles stand where they are put.
+        let text = "scenario: s\nworld: physics\nphysics:\n  arena: [7, 4]\n  obstacles:\n    - { disc: 0.2, at: { within: [1, 1, 2, 2] } }\n";
+        let e = crate::scenario::Scenario::load_str(&Arc::from("s.yaml"), text)
+            .map(|_| ())
+            .expect_err("rejected")
+            .to_string();
+        assert!(e.contains("s.yaml:6:24: error[bad-place]"), "{e}");
     }
 }

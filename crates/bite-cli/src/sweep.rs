@@ -53,6 +53,12 @@ pub struct SweepArgs {
     /// Table II for the built-in formation example).
     #[arg(long = "config")]
     configs: Vec<PathBuf>,
+    /// The scenario every graph runs against (default: each graph's own,
+    /// `scenarios/<stem>-physics.yaml` or `<stem>.yaml` next to it). It
+    /// runs in its own world: the `--worlds` that is not its kind is
+    /// skipped.
+    #[arg(long)]
+    scenario: Option<PathBuf>,
     /// Worlds: `timed`, `physics` (a graph without a physical scenario
     /// runs in the timed world only).
     #[arg(long, value_delimiter = ',', default_values_t = ["timed".to_string(), "physics".to_string()])]
@@ -132,14 +138,22 @@ fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
                     "physics" => false,
                     other => anyhow::bail!("unknown world `{other}`: timed or physics"),
                 };
-                let (graph, scenario) = load_team(g, None, cfg.as_deref(), None, None, timed)?;
+                let (graph, scenario) =
+                    load_team(g, None, cfg.as_deref(), a.scenario.as_deref(), None, timed)?;
                 if !timed && scenario.physics.is_none() {
+                    continue;
+                }
+                // A given scenario runs in its own world only.
+                if a.scenario.is_some() && timed && scenario.physics.is_some() {
                     continue;
                 }
                 let mission =
                     bite_sim::prepare(&graph, &scenario, None, &registry()).map_err(bad_input)?;
                 let mut args = g.map(|p| p.display().to_string()).unwrap_or_default();
                 args.push_str(&cfg_args);
+                if let Some(sc) = &a.scenario {
+                    args.push_str(&format!(" --scenario {}", sc.display()));
+                }
                 if timed {
                     args.push_str(" --timed");
                 }

@@ -207,6 +207,10 @@ pub struct WorldSummary {
     /// Formation error, m: mean and largest distance of a slot keeper from
     /// its slot (true poses), if any robot kept a slot.
     pub formation_error: Option<[f64; 2]>,
+    /// When some robot's camera first saw each named object, seconds
+    /// (objects never seen are left out).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub first_seen: BTreeMap<String, f64>,
 }
 
 /// Collects a summary from the event stream.
@@ -577,5 +581,11 @@ pub fn of_world(world: &crate::physics::World) -> WorldSummary {
         formation_error: world
             .formation_error()
             .map(|(m, x)| [(m * 1000.0).round() / 1000.0, (x * 1000.0).round() / 1000.0]),
+        first_seen: (world.spec().objects.iter().enumerate())
+            .filter_map(|(k, o)| {
+                let t = world.first_seen(k)?;
+                Some((o.name.clone()?, (t * 1000.0).round() / 1000.0))
+            })
+            .collect(),
     }
 }

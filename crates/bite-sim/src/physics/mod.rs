@@ -19,6 +19,7 @@
 //! `Agent` and its command comes back to [`World::actuate`]. Everything is
 //! seeded: a run is a pure function of its inputs.
 
+mod place;
 pub mod svg;
 
 use bite_agent::{pilot, schema, spec};
@@ -95,6 +96,8 @@ pub struct World {
     robots: Vec<Robot>,
     objects: Vec<rp::RigidBodyHandle>,
     object_trails: Vec<Vec<(f64, DVec2)>>,
+    /// When some robot's camera first saw each object.
+    first_seen: Vec<Option<f64>>,
     dt: f64,
     t: f64,
     /// How percepts become graph beliefs (shared by the pilots).
@@ -204,6 +207,9 @@ impl World {
         file: &Arc<str>,
         seed: u64,
     ) -> Result<World, Diagnostics> {
+        // Objects the seed places, placed (the same for the same seed in
+        // every simulator that builds the world).
+        let spec = place::place(&spec, names, seed, file).map_err(|e| Diagnostics(vec![e]))?;
         let mut rw = rp::PhysicsWorld::new();
         rw.gravity = rp::Vector::ZERO;
         rw.integration_parameters.dt = (1.0 / spec.hz) as f32;
@@ -216,26 +222,7 @@ impl World {
             kinds[at] = Some(k);
         };
         // Walls: four thin boxes round the arena.
-        let (w, h) = (spec.arena.x as f32, spec.arena.y as f32);
-        let t = 0.1f32;
-        for (at, half) in [
-            (
-                rp::Vector::new(w / 2.0, -t),
-                rp::Vector::new(w / 2.0 + t, t),
-            ),
-            (
-                rp::Vector::new(w / 2.0, h + t),
-                rp::Vector::new(w / 2.0 + t, t),
-            ),
-            (
-                rp::Vector::new(-t, h / 2.0),
-                rp::Vector::new(t, h / 2.0 + t),
-            ),
-            (
-                rp::Vector::new(w + t, h / 2.0),
-                rp::Vector::new(t, h / 2.0 + t),
-            ),
-        ] {
+        for (at, half) in place::walls(spec.arena) {
             let (_, c) = rw.insert(
                 rp::RigidBodyBuilder::fixed().translation(at),
                 rp::ColliderBuilder::cuboid(half.x, half.y),
@@ -401,6 +388,7 @@ impl World {
             robots,
             objects,
             object_trails: vec![Vec::new(); n_objects],
+            first_seen: vec![None; n_objects],
             t: 0.0,
             tables,
             goal_met: None,
@@ -425,6 +413,12 @@ impl World {
     /// True position of object `i`.
     pub fn object_pos(&self, i: usize) -> DVec2 {
         v64(self.rw.bodies[self.objects[i]].translation())
+    }
+
+    /// When some robot's camera first saw object `i` (seconds; `None`:
+    /// never so far).
+    pub fn first_seen(&self, i: usize) -> Option<f64> {
+        self.first_seen.get(i).copied().flatten()
     }
 
     /// When the scenario's goal (object in zone) was first met.
@@ -748,6 +742,7 @@ impl World {
             let p = self.object_pos(k);
             if let Some(est) = self.sighting(i, &near, truth, p, Kind::Object(k)) {
                 objects.push((k, est));
+                self.first_seen[k].get_or_insert(self.t);
             }
         }
         self.near = near;
