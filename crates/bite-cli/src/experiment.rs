@@ -776,31 +776,43 @@ pub fn execute(
         .open(log)
         .with_context(|| format!("opening {}", log.display()))?;
     let sink = Mutex::new(std::io::BufWriter::new(file));
+    run_parallel(&exp.cases, todo, jobs, |spec, r| {
+        let row = row(exp, spec, &r);
+        if let Ok(mut w) = sink.lock() {
+            let _ = serde_json::to_writer(&mut *w, &row);
+            let _ = writeln!(w);
+            let _ = w.flush();
+        }
+        bar.inc(1);
+        row
+    })
+}
+
+/// Run `specs` of `cases` on `jobs` threads, each result handed to `each`
+/// (on the worker that ran it); results come back in the order of
+/// `specs`, whatever the thread count. A panic in a run is caught by
+/// `run_one` and counted; the default hook is kept from printing each one
+/// over the progress bar meanwhile.
+pub fn run_parallel<T: Send>(
+    cases: &[Case],
+    specs: &[RunSpec],
+    jobs: usize,
+    each: impl Fn(&RunSpec, RunResult) -> T + Sync,
+) -> Result<Vec<T>> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs.max(1))
         .build()
         .context("starting the worker threads")?;
-    // A panic in a run is caught and counted; keep the default hook from
-    // printing each one over the progress bar.
     let hook = std::panic::take_hook();
     std::panic::set_hook(Box::new(|_| {}));
-    let rows: Vec<Map<String, Json>> = pool.install(|| {
-        todo.par_iter()
-            .map(|spec| {
-                let r = run_one(&exp.cases, spec);
-                let row = row(exp, spec, &r);
-                if let Ok(mut w) = sink.lock() {
-                    let _ = serde_json::to_writer(&mut *w, &row);
-                    let _ = writeln!(w);
-                    let _ = w.flush();
-                }
-                bar.inc(1);
-                row
-            })
+    let out = pool.install(|| {
+        specs
+            .par_iter()
+            .map(|spec| each(spec, run_one(cases, spec)))
             .collect()
     });
     std::panic::set_hook(hook);
-    Ok(rows)
+    Ok(out)
 }
 
 /// `bite experiment`.

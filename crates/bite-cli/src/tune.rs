@@ -25,9 +25,8 @@ use bite_core::Config;
 use bite_core::graph::BehaviorGraph;
 use bite_core::msg::Kind;
 use bite_sim::Scenario;
-use bite_sim::sweep::{Case, Class, RunSpec, run_one};
+use bite_sim::sweep::{Case, Class, RunSpec};
 use indicatif::{ProgressBar, ProgressStyle};
-use rayon::prelude::*;
 use serde_json::{Map, Value as Json};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -266,36 +265,25 @@ impl Search<'_> {
         }
         self.bar.inc_length(todo.len() as u64);
         let cases: Vec<Case> = self.candidates.iter().map(|c| c.case.clone()).collect();
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(self.jobs.max(1))
-            .build()
-            .context("starting the worker threads")?;
+        let specs: Vec<RunSpec> = todo
+            .iter()
+            .map(|(c, seed)| RunSpec {
+                case: *c,
+                class: Class::None,
+                seed: *seed,
+            })
+            .collect();
         let bar = &self.bar;
-        let hook = std::panic::take_hook();
-        std::panic::set_hook(Box::new(|_| {}));
-        let rows: Vec<((usize, u64), Map<String, Json>)> = pool.install(|| {
-            todo.par_iter()
-                .map(|(c, seed)| {
-                    let r = run_one(
-                        &cases,
-                        &RunSpec {
-                            case: *c,
-                            class: Class::None,
-                            seed: *seed,
-                        },
-                    );
-                    let mut row = Map::new();
-                    let completed = r.summary.as_ref().is_some_and(|s| s.completed) && !r.failed();
-                    experiment::figures_of(&r, &mut row);
-                    // `flatten` writes the summary's own `completed`; a run
-                    // that broke an invariant never counts as completed.
-                    row.insert("completed".into(), Json::from(completed));
-                    bar.inc(1);
-                    ((*c, *seed), row)
-                })
-                .collect()
-        });
-        std::panic::set_hook(hook);
+        let rows = experiment::run_parallel(&cases, &specs, self.jobs, |spec, r| {
+            let mut row = Map::new();
+            let completed = r.summary.as_ref().is_some_and(|s| s.completed) && !r.failed();
+            experiment::figures_of(&r, &mut row);
+            // `flatten` writes the summary's own `completed`; a run that
+            // broke an invariant never counts as completed.
+            row.insert("completed".into(), Json::from(completed));
+            bar.inc(1);
+            ((spec.case, spec.seed), row)
+        })?;
         self.runs += rows.len();
         self.results.extend(rows);
         Ok(())
