@@ -137,6 +137,16 @@ pub trait Protocol: Send + Sync {
     /// factory of instances configured with them. `setup` knows the point
     /// being bound and compiles expressions written in parameters.
     fn configure(&self, params: &Params, setup: &mut Setup<'_>) -> Result<Factory, ConfigError>;
+    /// The file a graph-defined protocol was read from (`None`: written
+    /// in Rust).
+    fn source(&self) -> Option<&str> {
+        None
+    }
+    /// How many protocols deep an instance runs (1: it uses none; a graph
+    /// protocol that uses another is one more than it).
+    fn nesting(&self) -> u32 {
+        1
+    }
     /// The answer to a teammate's late message for an instance this robot
     /// has finished and forgotten (only its outcome is remembered): a
     /// barrier answers a late arrival with its release, a vote answers a
@@ -483,6 +493,36 @@ impl<'a> Cx<'a> {
     /// Current time.
     pub fn now(&self) -> Time {
         self.now
+    }
+    /// A context for an instance run *inside* this one (a protocol whose
+    /// behavior uses another protocol, e.g. a graph-defined protocol that
+    /// falls back to `sync.leader`): the same robot, team, point, beliefs
+    /// and deadline, with its own effects (`fx`, which the outer instance
+    /// translates: it wraps the inner messages, adopts the inner decision)
+    /// and its own `decided` flag.
+    pub fn nested<'b>(&'b mut self, fx: &'b mut Effects, decided: bool) -> Cx<'b> {
+        Cx {
+            now: self.now,
+            me: self.me,
+            key: self.key,
+            team: self.team,
+            excluded: self.excluded,
+            lost: self.lost,
+            live: self.live,
+            org: self.org,
+            runs: self.runs,
+            graph: self.graph,
+            memo: self.memo,
+            roster: self.roster,
+            beliefs: self.beliefs,
+            rng: &mut *self.rng,
+            input: self.input,
+            retry: self.retry,
+            deadline: self.deadline,
+            decided,
+            aborted: self.aborted,
+            fx,
+        }
     }
     /// This robot.
     pub fn me(&self) -> RobotId {

@@ -167,17 +167,27 @@ impl Rule for Sorted {
         }
     }
     fn decide(&self, cx: &mut Cx<'_>, got: &BTreeMap<RobotId, Body>) -> Outcome {
+        let value = |r: RobotId| match got.get(&r) {
+            Some(Body::Value { value, .. }) => Some(*value),
+            _ => None,
+        };
+        deal_by_value(cx, value, self.order == Order::Descending)
+    }
+}
+
+/// SF3's deal: the live members sorted by the value they sent (ascending,
+/// or `descending`; unknown and non-finite values last, ties by id) are
+/// dealt to the children in graph order. `alloc.by-value` and the
+/// graph-defined market deal with it.
+pub(crate) fn deal_by_value(
+    cx: &Cx<'_>,
+    value: impl Fn(RobotId) -> Option<f64>,
+    descending: bool,
+) -> Outcome {
         let mut members: Vec<(Option<f64>, RobotId)> = live(cx)
             .into_iter()
-            .map(|r| {
-                let v = match got.get(&r) {
-                    Some(Body::Value { value, .. }) if value.is_finite() => Some(*value),
-                    _ => None,
-                };
-                (v, r)
-            })
+            .map(|r| (value(r).filter(|v| v.is_finite()), r))
             .collect();
-        let descending = self.order == Order::Descending;
         members.sort_by(|(a, ra), (b, rb)| {
             let by_value = match (a, b) {
                 (Some(x), Some(y)) if descending => y.total_cmp(x),
@@ -192,7 +202,6 @@ impl Rule for Sorted {
         Outcome::Allocate(
             assign_in_order(roster, members.into_iter().map(|(_, r)| r), cx.children()).into(),
         )
-    }
 }
 
 // ----- alloc.by-attribute --------------------------------------------------

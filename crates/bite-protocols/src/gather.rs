@@ -98,10 +98,23 @@ pub(crate) fn backoff(cx: &Cx<'_>, resends: u32) -> std::time::Duration {
     cx.retry() * 2u32.pow(resends.min(6))
 }
 
+/// How a protocol's announcements are written and read, when not with the
+/// library's messages (`Decision`, `Assignment`, `Release`): graph-defined
+/// protocols announce with a message of their own.
+pub(crate) trait Announce: Send + Sync {
+    /// The announcement of `o`.
+    fn encode(&self, o: &Outcome) -> Body;
+    /// `None`: `body` is not an announcement; `Some(Err)`: it is one but
+    /// malformed (or of another kind); `Some(Ok)`: the decision it carries.
+    fn decode(&self, cx: &Cx<'_>, body: &Body) -> Option<Result<Outcome, ()>>;
+}
+
 /// What every leader-coordinated protocol keeps about its coordination:
 /// the decision, who leads, and the resend backoff.
 #[derive(Default)]
 pub(crate) struct Coord {
+    /// How announcements are written (`None`: the library's messages).
+    codec: Option<Arc<dyn Announce>>,
     /// The decision, once known (answers retransmissions).
     pub(crate) result: Option<Outcome>,
     /// The leader this robot last dealt with (to notice a new leader).
@@ -115,6 +128,39 @@ pub(crate) struct Coord {
 }
 
 impl Coord {
+    /// A coordination announcing with `codec`'s messages.
+    pub(crate) fn with_codec(codec: Arc<dyn Announce>) -> Self {
+        Coord {
+            codec: Some(codec),
+            ..Coord::default()
+        }
+    }
+
+    /// The announcement of `o`.
+    pub(crate) fn encode(&self, o: &Outcome) -> Body {
+        match &self.codec {
+            Some(c) => c.encode(o),
+            None => announcement(o),
+        }
+    }
+
+    fn decode(&self, cx: &Cx<'_>, body: &Body) -> Option<Result<Outcome, ()>> {
+        if let Some(c) = &self.codec {
+            return c.decode(cx, body);
+        }
+        match announced(cx, body) {
+            Some(o) => Some(Ok(o)),
+            None if matches!(
+                body,
+                Body::Decision { .. } | Body::Assignment { .. } | Body::Release { .. }
+            ) =>
+            {
+                Some(Err(()))
+            }
+            None => None,
+        }
+    }
+
     /// The instance made progress (the leader heard a member, a member
     /// heard its leader move on): the deadline, which bounds the time
     /// without progress, starts over, and so does the resend backoff.
@@ -184,7 +230,7 @@ impl Coord {
     /// Apply a decision; a leader also announces it.
     pub(crate) fn adopt(&mut self, cx: &mut Cx<'_>, outcome: Outcome, announce: bool) {
         if announce {
-            cx.broadcast(announcement(&outcome));
+            cx.broadcast(self.encode(&outcome));
         }
         self.result = Some(outcome.clone());
         cx.decide(outcome);
@@ -196,15 +242,13 @@ impl Coord {
     /// it. A decision sent to the original leader is a member's own
     /// decision after its deadline, not the team's: ignored.
     pub(crate) fn on_announcement(&mut self, cx: &mut Cx<'_>, from: RobotId, body: &Body) -> bool {
-        let Some(outcome) = announced(cx, body) else {
-            if matches!(
-                body,
-                Body::Decision { .. } | Body::Assignment { .. } | Body::Release { .. }
-            ) {
+        let outcome = match self.decode(cx, body) {
+            None => return false,
+            Some(Err(())) => {
                 cx.violation(format!("malformed `{}` from {from}", body.name()));
                 return true;
             }
-            return false;
+            Some(Ok(o)) => o,
         };
         if self.result.is_some() || cx.is_aborted() {
             return true;
@@ -223,7 +267,7 @@ impl Coord {
     pub(crate) fn answer(&self, cx: &mut Cx<'_>, to: RobotId) -> bool {
         match &self.result {
             Some(o) => {
-                cx.send(to, announcement(o));
+                cx.send(to, self.encode(o));
                 true
             }
             None => false,
@@ -235,7 +279,7 @@ impl Coord {
     pub(crate) fn tell_new_leader(&self, cx: &mut Cx<'_>) -> bool {
         match &self.result {
             Some(o) if !cx.is_leader() => {
-                cx.send(cx.leader(), announcement(o));
+                cx.send(cx.leader(), self.encode(o));
                 true
             }
             _ => false,

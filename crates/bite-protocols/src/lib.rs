@@ -39,6 +39,7 @@ mod alloc;
 mod auction;
 mod barrier;
 mod gather;
+pub mod graphdef;
 pub mod lap;
 mod sync;
 mod token;
@@ -68,5 +69,23 @@ pub fn registry() -> Registry {
     r.register(Arc::new(WaitAll));
     r.register(Arc::new(Majority));
     r.register(Arc::new(FirstWins));
+    // The graph-defined protocols of `examples/protocols/` (parsed once).
+    let builtins = r.clone();
+    for p in graphdef::shipped(&builtins) {
+        r.register(p.clone());
+    }
     r
+}
+
+/// Add the protocols of these files (graph-defined, in order: a file may
+/// `use` the protocols before it) to `registry`.
+pub fn load_protocol_files(
+    registry: &mut Registry,
+    files: &[std::path::PathBuf],
+) -> Result<(), bite_core::diag::Diagnostics> {
+    for f in files {
+        let p = graphdef::GraphProtocol::load(f, registry)?;
+        graphdef::register(registry, p);
+    }
+    Ok(())
 }

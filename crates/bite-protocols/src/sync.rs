@@ -46,7 +46,7 @@ use std::sync::Arc;
 
 pub(crate) use bite_core::interaction::no_params;
 
-fn successors(cx: &Cx<'_>) -> Vec<BehaviorId> {
+pub(crate) fn successors(cx: &Cx<'_>) -> Vec<BehaviorId> {
     match cx.input() {
         PointInput::Sync { successors, .. } => successors.clone(),
         _ => Vec::new(),
@@ -66,7 +66,7 @@ pub(crate) fn rotation(cx: &Cx<'_>) -> Option<BehaviorId> {
         .find(|b| cx.candidates().contains(b))
 }
 
-fn check_choice(cx: &Cx<'_>, choice: Option<BehaviorId>) -> Result<(), String> {
+pub(crate) fn check_choice(cx: &Cx<'_>, choice: Option<BehaviorId>) -> Result<(), String> {
     match choice {
         Some(c) if !successors(cx).contains(&c) => {
             Err(format!("chose `b{}`, not a successor", c.0))
@@ -84,6 +84,55 @@ fn propose(cx: &Cx<'_>) -> Option<Body> {
 fn own_choice(cx: &mut Cx<'_>) -> Outcome {
     let all = successors(cx);
     Outcome::Sync(cx.preferred(&all))
+}
+
+/// The plurality winner among `successors` and its number of votes: the
+/// successor with the most votes, ties broken by graph order; `None` when
+/// nobody voted for any (abstentions and votes for non-successors count
+/// for nothing). `sync.vote` and the graph-defined votes count with it.
+pub(crate) fn plurality(
+    successors: &[BehaviorId],
+    votes: impl Iterator<Item = Option<BehaviorId>>,
+) -> Option<(BehaviorId, usize)> {
+    let mut counts: BTreeMap<BehaviorId, usize> = BTreeMap::new();
+    for c in votes.flatten() {
+        *counts.entry(c).or_insert(0) += 1;
+    }
+    let mut best: Option<(BehaviorId, usize)> = None;
+    for c in successors {
+        if let Some(n) = counts.get(c).copied()
+            && best.is_none_or(|(_, m)| n > m)
+        {
+            best = Some((*c, n));
+        }
+    }
+    best
+}
+
+/// The Borda winner among `successors` (m − 1 points for a first choice,
+/// m − 2 for a second…; ties broken by graph order), `None` when no ballot
+/// ranks any.
+pub(crate) fn borda<'a>(
+    successors: &[BehaviorId],
+    ballots: impl Iterator<Item = &'a [BehaviorId]>,
+) -> Option<BehaviorId> {
+    let m = successors.len() as u64;
+    let mut points: BTreeMap<BehaviorId, u64> = BTreeMap::new();
+    for ranking in ballots {
+        for (i, c) in ranking.iter().enumerate() {
+            *points.entry(*c).or_insert(0) += m.saturating_sub(1 + i as u64);
+        }
+    }
+    // Graph order breaks ties: the first successor with the most points.
+    let mut best: Option<(u64, BehaviorId)> = None;
+    for c in successors {
+        if let Some(p) = points.get(c).copied()
+            && best.is_none_or(|(q, _)| p > q)
+        {
+            best = Some((p, *c));
+        }
+    }
+    best.map(|(_, c)| c)
 }
 
 /// Generate the [`Protocol`] impl of a gather-based protocol.
@@ -169,17 +218,11 @@ impl Rule for Plurality {
         }
     }
     fn decide(&self, cx: &mut Cx<'_>, got: &BTreeMap<RobotId, Body>) -> Outcome {
-        let mut best: Option<(usize, BehaviorId)> = None;
-        for c in successors(cx) {
-            let n = got
-                .values()
-                .filter(|v| matches!(v, Body::Vote { choice: Some(x) } if *x == c))
-                .count();
-            if n > 0 && best.is_none_or(|(m, _)| n > m) {
-                best = Some((n, c));
-            }
-        }
-        Outcome::Sync(best.map(|(_, c)| c))
+        let votes = got.values().map(|v| match v {
+            Body::Vote { choice } => *choice,
+            _ => None,
+        });
+        Outcome::Sync(plurality(&successors(cx), votes).map(|(c, _)| c))
     }
     fn alone(&self, cx: &mut Cx<'_>) -> Outcome {
         own_choice(cx)
@@ -231,26 +274,11 @@ impl Rule for Borda {
         Ok(())
     }
     fn decide(&self, cx: &mut Cx<'_>, got: &BTreeMap<RobotId, Body>) -> Outcome {
-        let all = successors(cx);
-        let m = all.len() as u64;
-        let mut points: BTreeMap<BehaviorId, u64> = BTreeMap::new();
-        for b in got.values() {
-            if let Body::Ballot { ranking } = b {
-                for (i, c) in ranking.iter().enumerate() {
-                    *points.entry(*c).or_insert(0) += m.saturating_sub(1 + i as u64);
-                }
-            }
-        }
-        // Graph order breaks ties: the first successor with the most points.
-        let mut best: Option<(u64, BehaviorId)> = None;
-        for c in all {
-            if let Some(p) = points.get(&c).copied()
-                && best.is_none_or(|(q, _)| p > q)
-            {
-                best = Some((p, c));
-            }
-        }
-        Outcome::Sync(best.map(|(_, c)| c))
+        let ballots = got.values().filter_map(|b| match b {
+            Body::Ballot { ranking } => Some(ranking.as_slice()),
+            _ => None,
+        });
+        Outcome::Sync(borda(&successors(cx), ballots))
     }
     fn alone(&self, cx: &mut Cx<'_>) -> Outcome {
         own_choice(cx)

@@ -79,7 +79,9 @@ pub struct ProbeSpec {
     /// Allocation: each child takes exactly one member (tasks), instead of
     /// one or more.
     pub one_each: bool,
-    /// Allocation: children have utilities (see the module documentation).
+    /// Allocation: children have utilities (see the module documentation);
+    /// synchronization: each robot prefers the successors by seeded
+    /// utilities (small integers: robots disagree, votes tie).
     pub utilities: bool,
     /// Termination: robots finish one after the other, 0.5 s apart, the
     /// highest id first and the leader last.
@@ -219,8 +221,32 @@ pub fn mission_text(spec: &ProbeSpec) -> (String, String) {
                  a: {{ team: true, skill: work, until: done, next: [{}], sync: {bind} }}\n",
                 succ.join(", ")
             );
-            for s in &succ {
-                let _ = writeln!(g, "  {s}: {{ team: true, skill: rest, until: rested }}");
+            for (j, s) in succ.iter().enumerate() {
+                let utility = if spec.utilities {
+                    format!(", utility: u{j}")
+                } else {
+                    String::new()
+                };
+                let _ = writeln!(
+                    g,
+                    "  {s}: {{ team: true, skill: rest, until: rested{utility} }}"
+                );
+            }
+            if spec.utilities {
+                // Each robot's preference: small integers, so that robots
+                // disagree and votes tie.
+                let mut rng = Rng::seed_from_u64(spec.seed ^ 0x5eed_u64);
+                events.push_str("events:\n");
+                for i in 0..spec.robots {
+                    let set: Vec<String> = (0..succ.len())
+                        .map(|j| format!("u{j}: {}", rng.random_range(0..3u32)))
+                        .collect();
+                    let _ = writeln!(
+                        events,
+                        "  - {{ at: 0s, robots: [r{i}], set: {{ {} }} }}",
+                        set.join(", ")
+                    );
+                }
             }
             skills.push_str(
                 "  work: { duration: 1, start: { done: false }, done: { done: true } }\n  \
