@@ -67,9 +67,18 @@ const FORMATION_PHYSICS: &str = include_str!("../../../examples/scenarios/format
                   the protocol you bind at each of those points."
 )]
 struct Cli {
+    /// Protocol files (interaction behaviors written as behavior graphs)
+    /// to load beside the built-in ones, in order; every command can bind
+    /// them. Give a team's robot processes the same files.
+    #[arg(long = "protocols", global = true, value_name = "FILE")]
+    protocols: Vec<PathBuf>,
     #[command(subcommand)]
     cmd: Cmd,
 }
+
+/// The registry of this process: the library, the shipped graph protocols
+/// and the `--protocols` files (loaded once, in `main`).
+static REGISTRY: std::sync::OnceLock<bite_core::interaction::Registry> = std::sync::OnceLock::new();
 
 #[derive(Subcommand)]
 enum Cmd {
@@ -484,7 +493,41 @@ fn load_scenario(
 }
 
 fn registry() -> bite_core::interaction::Registry {
-    bite_protocols::registry()
+    REGISTRY.get_or_init(bite_protocols::registry).clone()
+}
+
+/// True when `text` is a protocol file (a top-level `protocol:` key).
+fn is_protocol_file(text: &str) -> bool {
+    bite_core::yaml::lines(text).any(|l| l.starts_with("protocol:"))
+}
+
+fn load_protocol(path: &Path) -> Result<bite_protocols::graphdef::GraphProtocol> {
+    bite_protocols::graphdef::GraphProtocol::load(path, &registry()).map_err(bad_input)
+}
+
+/// `bite check` on a protocol file: load it on its own and describe it.
+fn cmd_check_protocol(path: &Path) -> Result<ExitCode> {
+    let p = load_protocol(path)?;
+    use bite_core::interaction::Protocol as _;
+    let r = bite_protocols::graphdef::Registered(std::sync::Arc::new(p));
+    let d = r.def();
+    outln!(
+        "protocol `{}` ({} point, graph-defined, deadline {:.1}s): {}",
+        r.name(),
+        r.kind(),
+        r.default_deadline().as_secs_f64(),
+        r.summary()
+    );
+    if let Some(t) = d.twin() {
+        outln!("  mirrors `{t}`");
+    }
+    outln!("  {}", d.outline());
+    outln!(
+        "  bind it: `{{ protocol: {} }}` at a {} point",
+        r.name(),
+        r.kind()
+    );
+    Ok(ExitCode::SUCCESS)
 }
 
 /// The graph and the scenario of a run: a graph file (or the built-in
@@ -807,6 +850,16 @@ fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
 }
 
 fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Result<ExitCode> {
+    if config.is_none() && std::fs::read_to_string(graph).is_ok_and(|t| is_protocol_file(&t)) {
+        let dot = load_protocol(graph)?.to_dot();
+        match output {
+            Some(p) => {
+                std::fs::write(p, dot).with_context(|| format!("writing {}", p.display()))?
+            }
+            None => out!("{dot}"),
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
     let g = load_graph_or_mission(graph, config)?;
     let mission = Mission::new(g, &registry()).map_err(bad_input)?;
     let dot = bite_core::graph::dot::to_dot_with(mission.graph(), &|b, k| {
@@ -871,22 +924,27 @@ fn cmd_compile(a: CompileArgs<'_>) -> Result<ExitCode> {
 fn cmd_protocols() -> ExitCode {
     let r = registry();
     outln!(
-        "{:<16} {:<10} {:<6} {:<8} summary",
+        "{:<18} {:<10} {:<6} {:<8} {:<6} summary",
         "name",
         "kind",
         "comm",
-        "aliases"
+        "aliases",
+        "graph"
     );
     for p in r.iter() {
         outln!(
-            "{:<16} {:<10} {:<6} {:<8} {}",
+            "{:<18} {:<10} {:<6} {:<8} {:<6} {}",
             p.name(),
             p.kind().to_string(),
             if p.communicates() { "yes" } else { "no" },
             p.aliases().join(","),
+            if p.source().is_some() { "yes" } else { "-" },
             p.summary()
         );
     }
+    outln!(
+        "graph = written as a behavior graph (a protocol file: `bite check FILE`, `bite graph FILE`; docs/protocols.md)"
+    );
     ExitCode::SUCCESS
 }
 
@@ -1062,15 +1120,16 @@ fn cmd_bench_team(
 
 #[allow(clippy::disallowed_methods)] // a benchmark measures wall time
 fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitCode> {
-    use bite_sim::probe::{LIBRARY, ProbeSpec, probe};
+    use bite_sim::probe::{GRAPH_LIBRARY, LIBRARY, ProbeSpec, probe};
     let reg = registry();
-    let bar = ProgressBar::new((LIBRARY.len() * sizes.len()) as u64);
+    let all: Vec<_> = LIBRARY.iter().chain(GRAPH_LIBRARY).collect();
+    let bar = ProgressBar::new((all.len() * sizes.len()) as u64);
     bar.set_style(
         ProgressStyle::with_template("{spinner} {pos}/{len} [{bar:30}] {msg} ({elapsed})")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut rows = Vec::new();
-    for (kind, protocol, params) in LIBRARY {
+    for (kind, protocol, params) in all {
         for &n in sizes {
             bar.set_message(format!("{protocol}, {n} robots"));
             let mut spec = ProbeSpec::library(*kind, protocol, *params, n);
@@ -1135,9 +1194,22 @@ fn main() -> ExitCode {
     if std::env::var_os("BITE_PARSE_ONLY").is_some() {
         return ExitCode::SUCCESS;
     }
+    if !cli.protocols.is_empty() {
+        let mut r = bite_protocols::registry();
+        if let Err(d) = bite_protocols::load_protocol_files(&mut r, &cli.protocols) {
+            let _ = bad_input(d);
+            return ExitCode::from(2);
+        }
+        let _ = REGISTRY.set(r);
+    }
     let result = match cli.cmd {
         Cmd::Run(a) => cmd_run(a),
-        Cmd::Check { graph, config } => cmd_check(&graph, config.as_deref()),
+        Cmd::Check { graph, config } => {
+            match std::fs::read_to_string(&graph).map(|t| is_protocol_file(&t)) {
+                Ok(true) if config.is_none() => cmd_check_protocol(&graph),
+                _ => cmd_check(&graph, config.as_deref()),
+            }
+        }
         Cmd::Sweep(a) => sweep::cmd_sweep(a),
         Cmd::Experiment(a) => experiment::cmd_experiment(a),
         Cmd::Tune(a) => tune::cmd_tune(a),

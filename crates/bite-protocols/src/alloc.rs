@@ -184,24 +184,24 @@ pub(crate) fn deal_by_value(
     value: impl Fn(RobotId) -> Option<f64>,
     descending: bool,
 ) -> Outcome {
-        let mut members: Vec<(Option<f64>, RobotId)> = live(cx)
-            .into_iter()
-            .map(|r| (value(r).filter(|v| v.is_finite()), r))
-            .collect();
-        members.sort_by(|(a, ra), (b, rb)| {
-            let by_value = match (a, b) {
-                (Some(x), Some(y)) if descending => y.total_cmp(x),
-                (Some(x), Some(y)) => x.total_cmp(y),
-                (Some(_), None) => std::cmp::Ordering::Less,
-                (None, Some(_)) => std::cmp::Ordering::Greater,
-                (None, None) => std::cmp::Ordering::Equal,
-            };
-            by_value.then(ra.cmp(rb))
-        });
-        let roster = cx.team().members.roster_len();
-        Outcome::Allocate(
-            assign_in_order(roster, members.into_iter().map(|(_, r)| r), cx.children()).into(),
-        )
+    let mut members: Vec<(Option<f64>, RobotId)> = live(cx)
+        .into_iter()
+        .map(|r| (value(r).filter(|v| v.is_finite()), r))
+        .collect();
+    members.sort_by(|(a, ra), (b, rb)| {
+        let by_value = match (a, b) {
+            (Some(x), Some(y)) if descending => y.total_cmp(x),
+            (Some(x), Some(y)) => x.total_cmp(y),
+            (Some(_), None) => std::cmp::Ordering::Less,
+            (None, Some(_)) => std::cmp::Ordering::Greater,
+            (None, None) => std::cmp::Ordering::Equal,
+        };
+        by_value.then(ra.cmp(rb))
+    });
+    let roster = cx.team().members.roster_len();
+    Outcome::Allocate(
+        assign_in_order(roster, members.into_iter().map(|(_, r)| r), cx.children()).into(),
+    )
 }
 
 // ----- alloc.by-attribute --------------------------------------------------

@@ -63,6 +63,16 @@ pub const LIBRARY: &[(Kind, &str, Option<&str>)] = &[
     (Kind::Terminate, "term.first-wins", None),
 ];
 
+/// The graph-defined protocols of `examples/protocols/` with the
+/// parameters a probe gives them (after [`LIBRARY`] in `bite bench
+/// protocols`, beside their Rust twins).
+pub const GRAPH_LIBRARY: &[(Kind, &str, Option<&str>)] = &[
+    (Kind::Sync, "graph.vote", None),
+    (Kind::Sync, "graph.quorum-vote", None),
+    (Kind::Allocate, "graph.market", Some("{ bid: x }")),
+    (Kind::Terminate, "graph.wait-all", None),
+];
+
 /// What to measure.
 #[derive(Clone, Debug)]
 pub struct ProbeSpec {

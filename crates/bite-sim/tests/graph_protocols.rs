@@ -11,7 +11,14 @@ use proptest::prelude::*;
 use std::time::Duration;
 
 /// (kind, graph protocol, its params, Rust twin, its params).
-const TWINS: &[(Kind, &str, Option<&str>, &str, Option<&str>)] = &[
+type Twin = (
+    Kind,
+    &'static str,
+    Option<&'static str>,
+    &'static str,
+    Option<&'static str>,
+);
+const TWINS: &[Twin] = &[
     (Kind::Sync, "graph.vote", None, "sync.vote", None),
     (
         Kind::Allocate,
@@ -20,7 +27,13 @@ const TWINS: &[(Kind, &str, Option<&str>, &str, Option<&str>)] = &[
         "alloc.by-value",
         Some("{ value: pos.x, order: descending }"),
     ),
-    (Kind::Terminate, "graph.wait-all", None, "term.wait-all", None),
+    (
+        Kind::Terminate,
+        "graph.wait-all",
+        None,
+        "term.wait-all",
+        None,
+    ),
 ];
 
 #[derive(Clone, Debug)]
@@ -67,7 +80,10 @@ fn compare(which: usize, c: &Case) -> Result<(ProbeResult, ProbeResult), String>
         ));
     }
     if g.completed != t.completed {
-        return Err(format!("{what}: completed {} vs {}", g.completed, t.completed));
+        return Err(format!(
+            "{what}: completed {} vs {}",
+            g.completed, t.completed
+        ));
     }
     let mut gc = g.choices.clone();
     let mut tc = t.choices.clone();
@@ -77,24 +93,39 @@ fn compare(which: usize, c: &Case) -> Result<(ProbeResult, ProbeResult), String>
         return Err(format!("{what}: choices {gc:?} vs {tc:?}"));
     }
     if g.assignment != t.assignment {
-        return Err(format!("{what}: assignment {:?} vs {:?}", g.assignment, t.assignment));
+        return Err(format!(
+            "{what}: assignment {:?} vs {:?}",
+            g.assignment, t.assignment
+        ));
     }
     Ok((g, t))
 }
 
 #[test]
+#[allow(clippy::needless_range_loop)] // `compare` takes the index
 fn fault_free_twins_decide_alike_with_the_same_messages() {
     for which in 0..TWINS.len() {
         for n in [1usize, 2, 3, 5, 8] {
             for seed in 1..=4u64 {
-                let c = Case { n, loss: 0.0, dup: 0.0, jitter_ms: 0, crash: None, seed };
+                let c = Case {
+                    n,
+                    loss: 0.0,
+                    dup: 0.0,
+                    jitter_ms: 0,
+                    crash: None,
+                    seed,
+                };
                 let (g, t) = compare(which, &c).unwrap_or_else(|e| panic!("{e}"));
                 assert!(g.completed);
                 assert_eq!(g.timeouts, 0, "{} n={n}", TWINS[which].1);
                 // The vote and the market send what their twins send; the
                 // barrier goes without acknowledgements.
                 if TWINS[which].0 != Kind::Terminate {
-                    assert_eq!(g.messages, t.messages, "{} n={n} seed={seed}", TWINS[which].1);
+                    assert_eq!(
+                        g.messages, t.messages,
+                        "{} n={n} seed={seed}",
+                        TWINS[which].1
+                    );
                     assert_eq!(g.rounds, t.rounds, "{} n={n} seed={seed}", TWINS[which].1);
                 }
             }
@@ -131,16 +162,31 @@ fn the_quorum_vote_decides_without_waiting_for_everyone_and_falls_back() {
     for n in [1usize, 2, 3, 4, 7] {
         for seed in 1..=6u64 {
             for loss in [0.0, 0.2] {
-                let c = Case { n, loss, dup: 0.0, jitter_ms: 20, crash: None, seed };
+                let c = Case {
+                    n,
+                    loss,
+                    dup: 0.0,
+                    jitter_ms: 20,
+                    crash: None,
+                    seed,
+                };
                 let s = spec(Kind::Sync, "graph.quorum-vote", None, &c);
                 let r = run(&s);
                 assert!(r.completed, "n={n} seed={seed} loss={loss}");
-                assert!(r.violations.is_empty(), "n={n} seed={seed}: {:?}", r.violations);
+                assert!(
+                    r.violations.is_empty(),
+                    "n={n} seed={seed}: {:?}",
+                    r.violations
+                );
                 assert_eq!(r.protocol_violations, 0);
                 let first = r.choices.first().copied();
                 if loss == 0.0 {
                     assert_eq!(r.timeouts, 0, "n={n} seed={seed}");
-                    assert!(r.choices.iter().all(|c| Some(*c) == first), "split: {:?}", r.choices);
+                    assert!(
+                        r.choices.iter().all(|c| Some(*c) == first),
+                        "split: {:?}",
+                        r.choices
+                    );
                 }
             }
         }

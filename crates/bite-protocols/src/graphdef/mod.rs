@@ -37,8 +37,8 @@ use bite_core::cond::{Expr, Resolver};
 use bite_core::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
 use bite_core::ids::{BehaviorId, BeliefId};
 use bite_core::interaction::{
-    Closed, ConfigError, Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol,
-    Registry, Setup,
+    Closed, ConfigError, Cx, Factory, Interaction, Outcome, Params, PointInput, Protocol, Registry,
+    Setup,
 };
 use bite_core::msg::{Body, Kind};
 use serde::{Deserialize, Serialize};
@@ -292,6 +292,23 @@ impl GraphProtocol {
         &self.source
     }
 
+    /// One line: its messages and behaviors, with the roles' starts.
+    pub fn outline(&self) -> String {
+        let msgs: Vec<String> = self
+            .messages
+            .iter()
+            .map(|m| format!("{} ({})", m.name, Carries::NAMES[m.carries as usize]))
+            .collect();
+        format!(
+            "{} messages: {}; {} behaviors, the leader starts at `{}`, members at `{}`",
+            self.messages.len(),
+            msgs.join(", "),
+            self.behaviors.len(),
+            self.behaviors[self.start[LEADER]].name,
+            self.behaviors[self.start[MEMBER]].name
+        )
+    }
+
     /// The built-in protocol it mirrors, if the file names one.
     pub fn twin(&self) -> Option<&str> {
         self.twin.as_deref()
@@ -360,7 +377,11 @@ impl GraphProtocol {
                 Rule::Sorted { msg, descending } => format!(
                     "decide sorted {} {}",
                     m(*msg),
-                    if *descending { "descending" } else { "ascending" }
+                    if *descending {
+                        "descending"
+                    } else {
+                        "ascending"
+                    }
                 ),
                 Rule::Own => "decide own".into(),
                 Rule::Silent => "decide rule".into(),
@@ -386,7 +407,9 @@ impl GraphProtocol {
             return None;
         }
         let Some(m) = self.messages.get(*tag as usize) else {
-            return Some(Err(format!("message tag {tag} is not one of this protocol's")));
+            return Some(Err(format!(
+                "message tag {tag} is not one of this protocol's"
+            )));
         };
         let p: Payload = match postcard::from_bytes(data) {
             Ok(p) => p,
@@ -398,7 +421,10 @@ impl GraphProtocol {
                 | (Carries::Choice, Payload::Choice(_))
                 | (Carries::Ranking, Payload::Ranking(_))
                 | (Carries::Number, Payload::Number(_))
-                | (Carries::Decision, Payload::Pick(_) | Payload::Assignment { .. })
+                | (
+                    Carries::Decision,
+                    Payload::Pick(_) | Payload::Assignment { .. }
+                )
         );
         if !fits {
             return Some(Err(format!("`{}` carries the wrong content", m.name)));
@@ -450,7 +476,7 @@ impl Announce for Codec {
         match self.def.announce {
             Some(m) => self.def.message_body(m, &Self::payload(o)),
             None => Body::Custom {
-                tag: u16::MAX & !NESTED,
+                tag: !NESTED,
                 data: Vec::new(),
             },
         }
@@ -475,13 +501,12 @@ impl Announce for Codec {
                 }
             }
             (PointInput::Terminate, Payload::Pick(n)) => Ok(Outcome::Terminate(n)),
-            (PointInput::Allocate { .. }, Payload::Assignment { children, members }) => Body::Assignment {
-                children,
-                members,
+            (PointInput::Allocate { .. }, Payload::Assignment { children, members }) => {
+                Body::Assignment { children, members }
+                    .to_assignment(cx.team().members.roster_len())
+                    .map(|a| Outcome::Allocate(a.into()))
+                    .ok_or(())
             }
-            .to_assignment(cx.team().members.roster_len())
-            .map(|a| Outcome::Allocate(a.into()))
-            .ok_or(()),
             _ => Err(()),
         })
     }
@@ -530,12 +555,17 @@ impl Protocol for Registered {
             Params::Object(m) => {
                 for (k, v) in m {
                     if !def.params.iter().any(|(n, _, _)| n == k) {
-                        let known: Vec<&str> = def.params.iter().map(|(n, _, _)| n.as_str()).collect();
+                        let known: Vec<&str> =
+                            def.params.iter().map(|(n, _, _)| n.as_str()).collect();
                         return Err(ConfigError::BadParams {
                             protocol: name.into(),
                             detail: format!(
                                 "unknown parameter `{k}` (it takes: {})",
-                                if known.is_empty() { "none".into() } else { known.join(", ") }
+                                if known.is_empty() {
+                                    "none".into()
+                                } else {
+                                    known.join(", ")
+                                }
                             ),
                         });
                     }
@@ -603,7 +633,9 @@ impl Protocol for Registered {
         if !repeatable {
             return None;
         }
-        let codec = Codec { def: self.0.clone() };
+        let codec = Codec {
+            def: self.0.clone(),
+        };
         let o = match closed {
             Closed::Synced(c) => Outcome::Sync(*c),
             Closed::Allocated(x) => Outcome::Allocate(x.clone()),
@@ -690,10 +722,16 @@ fn condition(l: &mut Loader<'_>, vars: &Vars, s: &Spanned<String>, what: &str) -
                 let mut d = l.error(
                     loc(s),
                     "unknown-variable",
-                    format!("{what} `{}` reads `{u}`, which a protocol condition cannot read", s.value),
+                    format!(
+                        "{what} `{}` reads `{u}`, which a protocol condition cannot read",
+                        s.value
+                    ),
                 );
                 d.hint = did_you_mean(u, vars.names.iter().map(String::as_str)).or_else(|| {
-                    Some(format!("conditions read: {}, elapsed, runs", vars.names.join(", ")))
+                    Some(format!(
+                        "conditions read: {}, elapsed, runs",
+                        vars.names.join(", ")
+                    ))
                 });
                 l.push(d);
                 return None;
@@ -754,7 +792,9 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
             let mut d = l.error(
                 loc(&spec.kind),
                 "bad-kind",
-                format!("`{other}` is not a kind of point; expected `sync`, `allocate` or `terminate`"),
+                format!(
+                    "`{other}` is not a kind of point; expected `sync`, `allocate` or `terminate`"
+                ),
             );
             d.hint = did_you_mean(other, ["sync", "allocate", "terminate"]);
             l.push(d);
@@ -781,7 +821,11 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
     if let Some(t) = &spec.twin
         && l.registry.get(&t.value).is_none()
     {
-        let mut d = l.error(loc(t), "unknown-protocol", format!("no protocol `{}`", t.value));
+        let mut d = l.error(
+            loc(t),
+            "unknown-protocol",
+            format!("no protocol `{}`", t.value),
+        );
         d.hint = did_you_mean(&t.value, l.registry.names());
         l.push(d);
     }
@@ -797,7 +841,12 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
         l.push(d);
     }
     for (n, m) in &spec.messages.value.0 {
-        if n.value.is_empty() || !n.value.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+        if n.value.is_empty()
+            || !n
+                .value
+                .chars()
+                .all(|c| c.is_ascii_alphanumeric() || c == '_')
+        {
             let d = l.error(
                 loc(n),
                 "bad-name",
@@ -857,7 +906,10 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
             let d = l.error(
                 loc(a),
                 "announce",
-                format!("`{}` announces the decision, so it must carry `decision`", a.value),
+                format!(
+                    "`{}` announces the decision, so it must carry `decision`",
+                    a.value
+                ),
             );
             l.push(d);
         }
@@ -870,7 +922,13 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
         .params
         .0
         .iter()
-        .map(|(n, p)| (n.value.clone(), p.value.default.clone(), p.value.help.clone()))
+        .map(|(n, p)| {
+            (
+                n.value.clone(),
+                p.value.default.clone(),
+                p.value.help.clone(),
+            )
+        })
         .collect();
 
     // Behaviors: names first, then bodies.
@@ -882,7 +940,11 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
         .map(|(n, _)| n.value.clone())
         .collect();
     if beh_names.is_empty() {
-        let d = l.error(loc(&spec.behaviors), "empty", "a protocol has at least one behavior");
+        let d = l.error(
+            loc(&spec.behaviors),
+            "empty",
+            "a protocol has at least one behavior",
+        );
         l.push(d);
         return None;
     }
@@ -917,18 +979,30 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
             l.push(d);
         }
         let b = &b.value;
-        let pre = b.pre.as_ref().and_then(|p| condition(l, &vars, p, "precondition"));
-        let until = b.until.as_ref().and_then(|u| condition(l, &vars, u, "termination condition"));
+        let pre = b
+            .pre
+            .as_ref()
+            .and_then(|p| condition(l, &vars, p, "precondition"));
+        let until = b
+            .until
+            .as_ref()
+            .and_then(|u| condition(l, &vars, u, "termination condition"));
         let next: Vec<usize> = b.next.iter().filter_map(|s| find_beh(l, s)).collect();
         let mut skills = Vec::new();
         for sk in &b.skills {
-            if let Some(s) = skill(l, &SkillCx {
-                kind,
-                messages: &messages,
-                params: &params,
-                find_msg: &find_msg,
-            }, sk, &mut exprs, &mut uses, &mut depth)
-            {
+            if let Some(s) = skill(
+                l,
+                &SkillCx {
+                    kind,
+                    messages: &messages,
+                    params: &params,
+                    find_msg: &find_msg,
+                },
+                sk,
+                &mut exprs,
+                &mut uses,
+                &mut depth,
+            ) {
                 skills.push(s);
             }
         }
@@ -1001,17 +1075,21 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
                 .error(
                     loc(n),
                     "busy-loop",
-                    format!("behavior `{}` is on a loop in which no behavior waits", n.value),
+                    format!(
+                        "behavior `{}` is on a loop in which no behavior waits",
+                        n.value
+                    ),
                 )
                 .with_hint("give a behavior on the loop an `until`, or a successor a `pre`");
             l.push(d);
         }
     }
     // A protocol must be able to decide.
-    if !behaviors
-        .iter()
-        .any(|b| b.skills.iter().any(|s| matches!(s, Skill::Decide(_) | Skill::Use { .. })))
-    {
+    if !behaviors.iter().any(|b| {
+        b.skills
+            .iter()
+            .any(|s| matches!(s, Skill::Decide(_) | Skill::Use { .. }))
+    }) {
         let d = l.error(
             loc(&spec.behaviors),
             "never-decides",
@@ -1112,7 +1190,12 @@ where
 {
     let s = &sk.value;
     let at = loc(sk);
-    let set = [s.send.is_some(), s.keep.is_some(), s.decide.is_some(), s.use_.is_some()];
+    let set = [
+        s.send.is_some(),
+        s.keep.is_some(),
+        s.decide.is_some(),
+        s.use_.is_some(),
+    ];
     if set.iter().filter(|x| **x).count() != 1 {
         let d = l.error(
             at,
@@ -1124,7 +1207,11 @@ where
     }
     let unexpected = |l: &mut Loader<'_>, field: &str, x: bool| {
         if x {
-            let d = l.error(at, "skill", format!("`{field}` does not go with this skill"));
+            let d = l.error(
+                at,
+                "skill",
+                format!("`{field}` does not go with this skill"),
+            );
             l.push(d);
         }
     };
@@ -1139,7 +1226,11 @@ where
             return Some(Skill::Keep { msg, value });
         }
         let Some(to) = &s.to else {
-            let d = l.error(at, "skill", "`send` needs `to: leader`, `to: team` or `to: missing <message>`");
+            let d = l.error(
+                at,
+                "skill",
+                "`send` needs `to: leader`, `to: team` or `to: missing <message>`",
+            );
             l.push(d);
             return None;
         };
@@ -1158,7 +1249,10 @@ where
                 let d = l.error(
                     loc(to),
                     "bad-recipient",
-                    format!("`{}`: expected `leader`, `team` or `missing <message>`", to.value),
+                    format!(
+                        "`{}`: expected `leader`, `team` or `missing <message>`",
+                        to.value
+                    ),
                 );
                 l.push(d);
                 return None;
@@ -1172,7 +1266,11 @@ where
         unexpected(l, "params", s.params.is_some());
         let from = |l: &mut Loader<'_>, want: Carries| -> Option<usize> {
             let Some(f) = &s.from else {
-                let d = l.error(at, "skill", format!("`decide: {}` needs `from: <message>`", r.value));
+                let d = l.error(
+                    at,
+                    "skill",
+                    format!("`decide: {}` needs `from: <message>`", r.value),
+                );
                 l.push(d);
                 return None;
             };
@@ -1198,7 +1296,12 @@ where
                 let d = l.error(
                     loc(r),
                     "bad-rule",
-                    format!("`decide: {}` decides {} point, not {}", r.value, k.a_noun(), c.kind.a_noun()),
+                    format!(
+                        "`decide: {}` decides {} point, not {}",
+                        r.value,
+                        k.a_noun(),
+                        c.kind.a_noun()
+                    ),
                 );
                 l.push(d);
             }
@@ -1218,7 +1321,11 @@ where
                     None | Some("ascending") => false,
                     Some("descending") => true,
                     Some(o) => {
-                        let d = l.error(at, "bad-order", format!("`{o}`: expected `ascending` or `descending`"));
+                        let d = l.error(
+                            at,
+                            "bad-order",
+                            format!("`{o}`: expected `ascending` or `descending`"),
+                        );
                         l.push(d);
                         false
                     }
@@ -1235,14 +1342,20 @@ where
                 let mut d = l.error(
                     loc(r),
                     "bad-rule",
-                    format!("`{other}` is not a decision rule; expected one of {}", RULES.join(", ")),
+                    format!(
+                        "`{other}` is not a decision rule; expected one of {}",
+                        RULES.join(", ")
+                    ),
                 );
                 d.hint = did_you_mean(other, RULES);
                 l.push(d);
                 return None;
             }
         };
-        if !matches!(rule, Rule::Plurality(_) | Rule::Borda(_) | Rule::Sorted { .. }) {
+        if !matches!(
+            rule,
+            Rule::Plurality(_) | Rule::Borda(_) | Rule::Sorted { .. }
+        ) {
             unexpected(l, "from", s.from.is_some());
         }
         return Some(Skill::Decide(rule));
@@ -1252,7 +1365,11 @@ where
     unexpected(l, "value", s.value.is_some());
     unexpected(l, "from", s.from.is_some());
     let Some(p) = l.registry.get(&u.value).cloned() else {
-        let mut d = l.error(loc(u), "unknown-protocol", format!("no protocol `{}`", u.value));
+        let mut d = l.error(
+            loc(u),
+            "unknown-protocol",
+            format!("no protocol `{}`", u.value),
+        );
         d.hint = did_you_mean(&u.value, l.registry.names());
         l.push(d);
         return None;
@@ -1276,7 +1393,10 @@ where
         let d = l.error(
             loc(u),
             "too-deep",
-            format!("protocols nest at most {MAX_DEPTH} deep; `{}` is {inner} deep", u.value),
+            format!(
+                "protocols nest at most {MAX_DEPTH} deep; `{}` is {inner} deep",
+                u.value
+            ),
         );
         l.push(d);
         return None;
@@ -1330,15 +1450,22 @@ fn source<F>(
             let v = value?;
             for p in params_in(t) {
                 if !c.params.iter().any(|(n, _, _)| n == p) {
-                    let mut d = l.error(loc(v), "unknown-param", format!("no parameter `${p}` in `params`"));
+                    let mut d = l.error(
+                        loc(v),
+                        "unknown-param",
+                        format!("no parameter `${p}` in `params`"),
+                    );
                     d.hint = did_you_mean(p, c.params.iter().map(|(n, _, _)| n.as_str()));
                     l.push(d);
                     return None;
                 }
             }
             // Check the syntax now, with parameters standing for numbers.
-            let probe: BTreeMap<&str, String> =
-                c.params.iter().map(|(n, _, _)| (n.as_str(), "0".to_string())).collect();
+            let probe: BTreeMap<&str, String> = c
+                .params
+                .iter()
+                .map(|(n, _, _)| (n.as_str(), "0".to_string()))
+                .collect();
             struct Any(Symbols);
             impl Resolver for Any {
                 fn belief(&mut self, name: &str) -> BeliefId {
@@ -1427,7 +1554,13 @@ mod tests {
             assert!(p.to_dot().starts_with("digraph"));
             register(&mut r, p);
         }
-        assert_eq!(crate::registry().iter().filter(|p| p.source().is_some()).count(), SHIPPED.len());
+        assert_eq!(
+            crate::registry()
+                .iter()
+                .filter(|p| p.source().is_some())
+                .count(),
+            SHIPPED.len()
+        );
     }
 
     fn errors(text: &str) -> Diagnostics {
@@ -1439,24 +1572,45 @@ mod tests {
 
     #[test]
     fn mistakes_are_located_and_explained() {
-        let e = errors(&format!("{HEAD}behaviors:\n  a:\n    do:\n      - {{ send: vot, to: leader, value: preferred }}\n"));
+        let e = errors(&format!(
+            "{HEAD}behaviors:\n  a:\n    do:\n      - {{ send: vot, to: leader, value: preferred }}\n"
+        ));
         let d = &e.0[0];
         assert_eq!((d.code, d.loc.line), ("unknown-message", 11), "{e}");
         assert_eq!(d.hint.as_deref(), Some("did you mean `vote`?"), "{e}");
-        let e = errors(&format!("{HEAD}behaviors:\n  a:\n    until: heard_vot > 0\n    do:\n      - {{ decide: plurality, from: vote }}\n"));
+        let e = errors(&format!(
+            "{HEAD}behaviors:\n  a:\n    until: heard_vot > 0\n    do:\n      - {{ decide: plurality, from: vote }}\n"
+        ));
         assert!(e.has("unknown-variable"), "{e}");
         assert_eq!(e.0[0].loc.line, 10, "{e}");
-        let e = errors(&format!("{HEAD}behaviors:\n  a:\n    do:\n      - {{ decide: sorted, from: vote }}\n"));
+        let e = errors(&format!(
+            "{HEAD}behaviors:\n  a:\n    do:\n      - {{ decide: sorted, from: vote }}\n"
+        ));
         assert!(e.has("bad-rule"), "{e}");
-        let e = errors(&format!("{HEAD}behaviors:\n  a:\n    next: [b]\n  b:\n    next: [a]\n    do:\n      - {{ decide: own }}\n"));
+        let e = errors(&format!(
+            "{HEAD}behaviors:\n  a:\n    next: [b]\n  b:\n    next: [a]\n    do:\n      - {{ decide: own }}\n"
+        ));
         assert!(e.has("busy-loop"), "{e}");
-        let e = errors(&format!("{HEAD}behaviors:\n  a:\n    do:\n      - {{ use: sync.vot }}\n"));
-        assert_eq!(e.0[0].hint.as_deref(), Some("did you mean `sync.vote`?"), "{e}");
-        let e = errors(&format!("{HEAD}behaviors:\n  a:\n    do:\n      - {{ use: alloc.by-id }}\n"));
+        let e = errors(&format!(
+            "{HEAD}behaviors:\n  a:\n    do:\n      - {{ use: sync.vot }}\n"
+        ));
+        assert_eq!(
+            e.0[0].hint.as_deref(),
+            Some("did you mean `sync.vote`?"),
+            "{e}"
+        );
+        let e = errors(&format!(
+            "{HEAD}behaviors:\n  a:\n    do:\n      - {{ use: alloc.by-id }}\n"
+        ));
         assert!(e.has("bad-kind"), "{e}");
-        let e = errors(&format!("{HEAD}behaviors:\n  a:\n    until: heard_vote > 0\n  b:\n    do:\n      - {{ decide: own }}\n"));
-        assert!(e.has("unreachable") && e.has("never-decides") == false, "{e}");
-        let e = errors(&HEAD.replace("t.x", "sync.vote").replace("", "").to_string().replace("start:", "behaviors:\n  a:\n    do: [{ decide: own }]\nstart:"));
+        let e = errors(&format!(
+            "{HEAD}behaviors:\n  a:\n    until: heard_vote > 0\n  b:\n    do:\n      - {{ decide: own }}\n"
+        ));
+        assert!(e.has("unreachable") && !e.has("never-decides"), "{e}");
+        let e = errors(&HEAD.replace("t.x", "sync.vote").replace(
+            "start:",
+            "behaviors:\n  a:\n    do: [{ decide: own }]\nstart:",
+        ));
         assert!(e.has("name-taken"), "{e}");
     }
 

@@ -283,7 +283,9 @@ impl GraphRun {
                     Payload::Choice(c) => *c,
                     _ => None,
                 });
-                Outcome::Sync(crate::sync::plurality(&crate::sync::successors(cx), votes).map(|(c, _)| c))
+                Outcome::Sync(
+                    crate::sync::plurality(&crate::sync::successors(cx), votes).map(|(c, _)| c),
+                )
             }
             Rule::Borda(m) => {
                 let ballots = self.heard[m].values().filter_map(|p| match p {
@@ -442,7 +444,9 @@ impl Interaction for GraphRun {
         if let Some(n) = unnest(body) {
             match n {
                 Ok((slot, inner)) => match &self.sub {
-                    Some(s) if s.slot == slot => self.with_sub(cx, |i, c| i.on_message(c, from, &inner)),
+                    Some(s) if s.slot == slot => {
+                        self.with_sub(cx, |i, c| i.on_message(c, from, &inner))
+                    }
                     _ if self.early.len() < MAX_EARLY => self.early.push((from, slot, inner)),
                     _ => {}
                 },
