@@ -496,9 +496,13 @@ fn registry() -> bite_core::interaction::Registry {
     REGISTRY.get_or_init(bite_protocols::registry).clone()
 }
 
-/// True when `text` is a protocol file (a top-level `protocol:` key).
-fn is_protocol_file(text: &str) -> bool {
-    bite_core::yaml::lines(text).any(|l| l.starts_with("protocol:"))
+/// True when `path` is a protocol file (a top-level `protocol:` key). Read
+/// as every input is (bounded: a device or an endless FIFO is not read past
+/// the size cap; the command that reads it next reports it).
+fn is_protocol_file(path: &Path) -> bool {
+    let file: Arc<str> = Arc::from(path.display().to_string());
+    bite_core::yaml::read_text(&file, path)
+        .is_ok_and(|text| bite_core::yaml::lines(&text).any(|l| l.starts_with("protocol:")))
 }
 
 fn load_protocol(path: &Path) -> Result<bite_protocols::graphdef::GraphProtocol> {
@@ -850,7 +854,7 @@ fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
 }
 
 fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Result<ExitCode> {
-    if config.is_none() && std::fs::read_to_string(graph).is_ok_and(|t| is_protocol_file(&t)) {
+    if config.is_none() && is_protocol_file(graph) {
         let dot = load_protocol(graph)?.to_dot();
         match output {
             Some(p) => {
@@ -1205,9 +1209,10 @@ fn main() -> ExitCode {
     let result = match cli.cmd {
         Cmd::Run(a) => cmd_run(a),
         Cmd::Check { graph, config } => {
-            match std::fs::read_to_string(&graph).map(|t| is_protocol_file(&t)) {
-                Ok(true) if config.is_none() => cmd_check_protocol(&graph),
-                _ => cmd_check(&graph, config.as_deref()),
+            if config.is_none() && is_protocol_file(&graph) {
+                cmd_check_protocol(&graph)
+            } else {
+                cmd_check(&graph, config.as_deref())
             }
         }
         Cmd::Sweep(a) => sweep::cmd_sweep(a),
