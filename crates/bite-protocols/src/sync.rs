@@ -81,7 +81,18 @@ fn propose(cx: &Cx<'_>) -> Option<Body> {
     })
 }
 
-fn own_choice(cx: &mut Cx<'_>) -> Outcome {
+/// `Ok` if `ranking` names successors of the point, each once.
+pub(crate) fn check_ranking(cx: &Cx<'_>, ranking: &[BehaviorId]) -> Result<(), String> {
+    for (i, c) in ranking.iter().enumerate() {
+        check_choice(cx, Some(*c))?;
+        if ranking[..i].contains(c) {
+            return Err(format!("ranked `b{}` twice", c.0));
+        }
+    }
+    Ok(())
+}
+
+pub(crate) fn own_choice(cx: &mut Cx<'_>) -> Outcome {
     let all = successors(cx);
     Outcome::Sync(cx.preferred(&all))
 }
@@ -265,13 +276,7 @@ impl Rule for Borda {
         let Body::Ballot { ranking } = body else {
             return Err("sent something else than a ballot".into());
         };
-        for (i, c) in ranking.iter().enumerate() {
-            check_choice(cx, Some(*c))?;
-            if ranking[..i].contains(c) {
-                return Err(format!("ranked `b{}` twice", c.0));
-            }
-        }
-        Ok(())
+        check_ranking(cx, ranking)
     }
     fn decide(&self, cx: &mut Cx<'_>, got: &BTreeMap<RobotId, Body>) -> Outcome {
         let ballots = got.values().filter_map(|b| match b {

@@ -234,6 +234,8 @@ impl std::fmt::Debug for GraphProtocol {
 /// expressions and nested factories.
 pub(crate) struct Program {
     pub def: Arc<GraphProtocol>,
+    /// Announcements in `def`'s own message (shared by the instances).
+    pub codec: Arc<Codec>,
     pub exprs: Vec<Expr>,
     pub subs: Vec<Factory>,
 }
@@ -616,6 +618,7 @@ impl Protocol for Registered {
         }
         let program = Arc::new(Program {
             def: def.clone(),
+            codec: Arc::new(Codec { def: def.clone() }),
             exprs,
             subs,
         });
@@ -1407,7 +1410,6 @@ where
         protocol: p,
         params: s.params.clone().unwrap_or(Params::Null),
     });
-    let _ = c.params;
     Some(Skill::Use { slot })
 }
 

@@ -85,7 +85,7 @@ impl GraphRun {
     pub(crate) fn new(p: Arc<Program>) -> Self {
         let n = p.def.messages.len();
         let b = p.def.behaviors.len();
-        let codec = Arc::new(Codec { def: p.def.clone() });
+        let codec = p.codec.clone();
         GraphRun {
             p,
             at: None,
@@ -303,10 +303,7 @@ impl GraphRun {
                 crate::alloc::deal_by_value(cx, value, descending)
             }
             Rule::Own => match cx.input() {
-                bite_core::interaction::PointInput::Sync { successors, .. } => {
-                    let all = successors.clone();
-                    Outcome::Sync(cx.preferred(&all))
-                }
+                bite_core::interaction::PointInput::Sync { .. } => crate::sync::own_choice(cx),
                 bite_core::interaction::PointInput::Allocate { children } => {
                     let c = children.clone();
                     Outcome::Allocate(cx.assign_by_id(&c))
@@ -591,15 +588,7 @@ impl Interaction for GraphRun {
 fn check(cx: &Cx<'_>, p: &Payload) -> Result<(), String> {
     match p {
         Payload::Choice(c) => crate::sync::check_choice(cx, *c),
-        Payload::Ranking(r) => {
-            for (i, c) in r.iter().enumerate() {
-                crate::sync::check_choice(cx, Some(*c))?;
-                if r[..i].contains(c) {
-                    return Err(format!("ranked `b{}` twice", c.0));
-                }
-            }
-            Ok(())
-        }
+        Payload::Ranking(r) => crate::sync::check_ranking(cx, r),
         _ => Ok(()),
     }
 }
