@@ -496,10 +496,14 @@ fn registry() -> bite_core::interaction::Registry {
     REGISTRY.get_or_init(bite_protocols::registry).clone()
 }
 
-/// True when `path` is a protocol file (a top-level `protocol:` key). Read
-/// as every input is (bounded: a device or an endless FIFO is not read past
-/// the size cap; the command that reads it next reports it).
+/// True when `path` is a protocol file (a top-level `protocol:` key). Only a
+/// regular file is peeked at: a device or a FIFO can be read once only (a
+/// FIFO's writer is gone after the first reader), so it goes straight to the
+/// command that reads it, which refuses it at the size cap.
 fn is_protocol_file(path: &Path) -> bool {
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return false;
+    }
     let file: Arc<str> = Arc::from(path.display().to_string());
     bite_core::yaml::read_text(&file, path)
         .is_ok_and(|text| bite_core::yaml::lines(&text).any(|l| l.starts_with("protocol:")))
