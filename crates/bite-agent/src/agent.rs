@@ -136,9 +136,31 @@ pub struct Shared {
     /// policy, which beliefs are private.
     wm: Option<(usize, bite_core::wm::Sharing, Arc<[bool]>)>,
     root: Arc<MemberSet>,
+    /// Which version of the mission it is (0: the first).
+    version: u32,
 }
 
 impl Shared {
+    /// The shared parts of version `version` of a running mission (its
+    /// graph aligned to the versions before): a robot started on it (a
+    /// restarted process) runs that version from the start.
+    pub fn for_version(
+        mission: Arc<Mission>,
+        scenario: &Scenario,
+        version: u32,
+    ) -> Result<Arc<Shared>, bite_core::diag::Diagnostics> {
+        let mut s = Shared::new(mission, scenario)?;
+        if let Some(s) = Arc::get_mut(&mut s) {
+            s.version = version;
+        }
+        Ok(s)
+    }
+
+    /// Which version of the mission it is.
+    pub fn version(&self) -> u32 {
+        self.version
+    }
+
     /// The shared parts of `mission` run in `scenario`.
     pub fn new(
         mission: Arc<Mission>,
@@ -188,6 +210,7 @@ impl Shared {
             wm,
             root: Arc::new(MemberSet::all(n)),
             mission,
+            version: 0,
         }))
     }
 
@@ -243,6 +266,8 @@ pub struct Agent {
     percepts: Vec<(BeliefId, Value)>,
     own: Vec<(BeliefId, Value)>,
     told: Vec<(BeliefId, Value, bite_core::belief::Source)>,
+    /// A new version of the mission, held by the kernel until a safe point.
+    pending: Option<(u32, Arc<Shared>)>,
 }
 
 impl std::fmt::Debug for Agent {
@@ -270,12 +295,13 @@ impl Agent {
     /// process is a new incarnation with streams of its own).
     pub fn start(shared: Arc<Shared>, me: RobotId, seed: u64, incarnation: u32) -> Agent {
         let who = me.0 ^ (incarnation << 20);
-        let kernel = Kernel::with_root(
+        let mut kernel = Kernel::with_root(
             shared.mission.clone(),
             me,
             derive_seed(seed, "kernel", who),
             shared.root.clone(),
         );
+        kernel.start_on_version(shared.version);
         let pilot = shared
             .physics
             .as_ref()
@@ -301,6 +327,7 @@ impl Agent {
             percepts: Vec::new(),
             own: Vec::new(),
             told: Vec::new(),
+            pending: None,
             shared,
         }
     }
@@ -519,8 +546,52 @@ impl Agent {
         self.out.pop_front()
     }
 
+    /// Offer version `version` of the mission (`shared`: built for it with
+    /// [`Shared::new`] from its aligned graph and the same scenario). The
+    /// kernel holds it until its team's next safe point, then the skills,
+    /// motor schemas and percepts of the new version take over.
+    pub fn offer_change(
+        &mut self,
+        now: Time,
+        version: u32,
+        shared: Arc<Shared>,
+    ) -> Result<(), bite_core::graph::Refused> {
+        let now = now.max(self.last);
+        self.last = now;
+        let r = self
+            .kernel
+            .offer_change(now, version, shared.mission.clone());
+        if r.is_ok() {
+            self.pending = Some((version, shared));
+        }
+        self.drain(now);
+        r
+    }
+
+    /// The kernel switched to `version`: the rest of the mind follows.
+    fn switched(&mut self, version: u32) {
+        let Some((v, shared)) = self.pending.take() else {
+            return;
+        };
+        if v != version {
+            return;
+        }
+        if let (Some(p), Some((spec, tables))) = (self.pilot.as_mut(), shared.physics.as_ref()) {
+            *p = Pilot::new(spec.clone(), tables.clone());
+        }
+        if let (Some(wm), Some((len, _, private))) = (self.wm.as_mut(), shared.wm.as_ref()) {
+            wm.grow(*len, private.clone());
+        }
+        self.shared = shared;
+        // The leaf's skill is looked up again in the new version.
+        self.version = u64::MAX;
+    }
+
     fn drain(&mut self, now: Time) {
         while let Some(o) = self.kernel.poll_output() {
+            if let Output::Event(Event::MissionChanged { version, .. }) = &o {
+                self.switched(*version);
+            }
             self.out.push_back(match o {
                 Output::Send(s) => AgentOutput::Send {
                     to: s.to,

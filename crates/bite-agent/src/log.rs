@@ -188,6 +188,12 @@ impl Namer<'_> {
             "member_back" => Event::MemberBack {
                 member: field(&ev, "member")?,
             },
+            "mission_changed" => Event::MissionChanged {
+                version: field(&ev, "version")?,
+                team: field(&ev, "team")?,
+                after: field(&ev, "after")?,
+                changed: field(&ev, "changed").unwrap_or_default(),
+            },
             _ => return None,
         };
         Some((t, robot, e))

@@ -150,6 +150,8 @@ struct ScenarioSpec {
     events: Vec<Spanned<EventSpec>>,
     #[serde(default)]
     crashes: Vec<Spanned<CrashSpec>>,
+    #[serde(default)]
+    mission_changes: Vec<Spanned<ChangeSpec>>,
     failure_detector: Option<Spanned<DetectorSpec>>,
     stall: Option<Spanned<StallSpec>>,
     #[serde(default)]
@@ -272,6 +274,14 @@ struct EventSpec {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
+struct ChangeSpec {
+    at: DurationText,
+    graph: String,
+    config: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct CrashSpec {
     robot: RobotRef,
     at: DurationText,
@@ -353,6 +363,31 @@ pub struct WorldEvent {
     pub set: Vec<(String, Value)>,
     /// Where it is written.
     pub loc: Loc,
+}
+
+/// A new version of the mission handed to the running team at a time
+/// (`mission_changes:`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MissionChange {
+    /// When.
+    pub at: Time,
+    /// The new graph file, as written (relative to the scenario file).
+    pub graph: String,
+    /// Its configuration file, if any (relative to the scenario file).
+    pub config: Option<String>,
+    /// Where it is written.
+    pub loc: Loc,
+}
+
+impl MissionChange {
+    /// A path of this entry, relative to the scenario file `scenario`.
+    pub fn path(scenario: &Path, written: &str) -> std::path::PathBuf {
+        let p = Path::new(written);
+        if p.is_absolute() {
+            return p.to_path_buf();
+        }
+        scenario.parent().map_or_else(|| p.to_path_buf(), |d| d.join(p))
+    }
 }
 
 /// A robot that stops at a time (no more ticks, messages or timers).
@@ -444,6 +479,8 @@ pub struct Scenario {
     pub events: Vec<WorldEvent>,
     /// Robot crashes.
     pub crashes: Vec<Crash>,
+    /// New versions of the mission handed to the team while it runs.
+    pub mission_changes: Vec<MissionChange>,
     /// Robots whose clocks run fast, slow or ahead: robot, rate, offset (s).
     pub clocks: Vec<(RobotRef, f64, f64, Loc)>,
     /// Forged, replayed or malformed messages injected this often.
@@ -474,6 +511,7 @@ impl Default for Scenario {
             skills: BTreeMap::new(),
             events: Vec::new(),
             crashes: Vec::new(),
+            mission_changes: Vec::new(),
             clocks: Vec::new(),
             inject: None,
             failure_detector: Some(FailureDetector::default()),
@@ -885,6 +923,27 @@ impl Scenario {
                 loc,
             });
         }
+        let mut mission_changes = Vec::new();
+        let mut last = Time::ZERO;
+        for c in &spec.mission_changes {
+            let loc = Loc::from(c.referenced);
+            let at = Time::ZERO + dur(file, loc, &c.value.at, &mut d);
+            if at < last {
+                d.push(Diagnostic::error(
+                    file,
+                    loc,
+                    "bad-value",
+                    "mission changes are listed in time order (each is the next version)",
+                ));
+            }
+            last = at;
+            mission_changes.push(MissionChange {
+                at,
+                graph: c.value.graph.clone(),
+                config: c.value.config.clone(),
+                loc,
+            });
+        }
         let mut clocks = Vec::new();
         for (k, c) in &spec.clocks.0 {
             let loc = Loc::from(k.referenced);
@@ -976,6 +1035,7 @@ impl Scenario {
             skills,
             events,
             crashes,
+            mission_changes,
         })
     }
 

@@ -423,6 +423,42 @@ fn load_graph_or_mission(path: &Path, config: Option<&Path>) -> Result<BehaviorG
     }
 }
 
+/// The scenario's `mission_changes:`, loaded and numbered (version 1, 2,
+/// ...), each aligned to the one before it. A version that cannot replace
+/// the one before is an input error at the scenario line that names it.
+fn scenario_changes(
+    scenario: &Scenario,
+    mission: &Arc<Mission>,
+) -> Result<Vec<bite_sim::runner::Change>> {
+    use bite_agent::scenario::MissionChange;
+    let here = Path::new(&*scenario.file);
+    let mut base = mission.clone();
+    let mut out = Vec::new();
+    for (i, c) in scenario.mission_changes.iter().enumerate() {
+        let graph = MissionChange::path(here, &c.graph);
+        let config = c.config.as_ref().map(|x| MissionChange::path(here, x));
+        let g = load_graph_or_mission(&graph, config.as_deref())?;
+        let next = bite_sim::runner::prepare_change(&base, &g, &registry()).map_err(|why| {
+            bad_input(bite_core::diag::Diagnostics(vec![
+                bite_core::diag::Diagnostic::error(
+                    &scenario.file,
+                    c.loc,
+                    "change-refused",
+                    format!("{} cannot replace the running mission: {why}", graph.display()),
+                ),
+            ]))
+        })?;
+        out.push(bite_sim::runner::Change {
+            at: c.at,
+            version: i as u32 + 1,
+            mission: next.clone(),
+            source: graph.display().to_string(),
+        });
+        base = next;
+    }
+    Ok(out)
+}
+
 fn with_config(graph: BehaviorGraph, config: Option<&Path>) -> Result<BehaviorGraph> {
     match config {
         Some(c) => {
@@ -634,6 +670,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         bar.set_position(p.now.as_secs_f64() as u64);
         bar.set_message(format!("{}/{} robots done", p.finished, p.robots));
     };
+    let changes = scenario_changes(&scenario, &mission)?;
     let report = run(
         mission.clone(),
         &scenario,
@@ -643,6 +680,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
             log: Some(&mut writer),
             record: false,
             progress: Some(&mut on_progress),
+            changes,
         },
     )
     .map_err(bad_input)?;
@@ -1093,6 +1131,7 @@ fn cmd_bench_team(
             log: None,
             record: false,
             progress: Some(&mut on_progress),
+            ..Default::default()
         },
     )
     .map_err(bad_input)?;

@@ -107,6 +107,30 @@ impl BeliefStore {
             version: 0,
         }
     }
+    /// Take a larger symbol table that starts with this one (a new version
+    /// of the mission): beliefs kept by name that no condition read before
+    /// move into their slots.
+    pub fn extend_symbols(&mut self, symbols: Arc<Symbols>) {
+        debug_assert!(
+            self.symbols
+                .iter()
+                .all(|(id, n)| symbols.get(n) == Some(id))
+        );
+        self.slots.resize(symbols.len(), None);
+        let moved: Vec<Arc<str>> = self
+            .extra
+            .keys()
+            .filter(|n| symbols.get(n).is_some())
+            .cloned()
+            .collect();
+        for n in moved {
+            if let (Some(b), Some(id)) = (self.extra.remove(&n), symbols.get(&n)) {
+                self.slots[id.index()] = Some(b);
+            }
+        }
+        self.symbols = symbols;
+        self.version += 1;
+    }
     /// The symbol table.
     pub fn symbols(&self) -> &Arc<Symbols> {
         &self.symbols

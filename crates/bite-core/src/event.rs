@@ -564,6 +564,46 @@ pub enum Event {
         /// How many frames it joined.
         depth: u32,
     },
+    /// A new version of the mission reached this robot; it is held until
+    /// its team's next safe point.
+    MissionChangeOffered {
+        /// The version.
+        version: u32,
+    },
+    /// A new version of the mission was refused here (the mission goes on
+    /// unchanged).
+    MissionChangeRefused {
+        /// The version.
+        version: u32,
+        /// Why.
+        reason: String,
+    },
+    /// The robot switched to a new version of the mission at a safe point,
+    /// with the other members of its team there.
+    MissionChanged {
+        /// The version it runs from now on.
+        version: u32,
+        /// The team that switched.
+        team: TeamId,
+        /// The execution whose successor is the first chosen in `version`.
+        after: FrameRef,
+        /// Behaviors the version adds, removes or edits.
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        changed: Vec<String>,
+    },
+    /// At a safe point with a version pending, the team went on in the
+    /// running version (not every member held it yet, or, `timed_out`,
+    /// this member heard no decision from its leader in time).
+    MissionChangeDeferred {
+        /// The pending version.
+        version: u32,
+        /// The team.
+        team: TeamId,
+        /// The execution whose successor was chosen in the running version.
+        after: FrameRef,
+        /// True when the member stopped waiting for its leader.
+        timed_out: bool,
+    },
     /// The stack emptied: the mission is over for this robot.
     MissionCompleted,
     /// Too many transitions in one step (conditions that are immediately

@@ -63,6 +63,10 @@ impl Roster {
             .position(|r| r.name == name)
             .map(|i| RobotId(i as u32))
     }
+    /// The robots' names in id order.
+    pub fn names(&self) -> Vec<String> {
+        self.robots.iter().map(|r| r.name.clone()).collect()
+    }
     /// All robots in id order.
     pub fn iter(&self) -> impl Iterator<Item = (RobotId, &RobotInfo)> {
         self.robots

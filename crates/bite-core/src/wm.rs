@@ -189,6 +189,16 @@ pub struct WorldModel {
 }
 
 impl WorldModel {
+    /// Take a new version of the mission with `beliefs` beliefs (at least
+    /// as many as before, numbered alike) and its privacy marks.
+    pub fn grow(&mut self, beliefs: usize, private: std::sync::Arc<[bool]>) {
+        let n = beliefs.max(self.own.len());
+        self.own.resize(n, None);
+        self.told.resize(n, None);
+        self.given.resize(n, None);
+        self.private = private;
+    }
+
     /// The world model of robot `me` for a graph with `beliefs` beliefs;
     /// `private[b]` marks the beliefs about the robot itself (its own
     /// progress, its pose), which are neither reported nor adopted.

@@ -41,7 +41,7 @@ use std::time::Duration;
 pub const SPLIT_BOUND: Duration = Duration::from_secs(5);
 
 /// The invariants [`Checker`] checks, by name.
-pub const CHECKED: [&str; 7] = [
+pub const CHECKED: [&str; 8] = [
     "agreement",
     "allocation",
     "splits-healed",
@@ -49,6 +49,7 @@ pub const CHECKED: [&str; 7] = [
     "epochs",
     "stack",
     "organization",
+    "mission-change",
 ];
 
 /// What the checker found, for summaries.
@@ -185,6 +186,11 @@ pub struct Checker {
     legs: BTreeMap<Exec, BTreeMap<RobotId, Vec<Leg>>>,
     /// Where each robot's legs are, to close them when they end.
     running_leg: BTreeMap<(RobotId, TeamId, BehaviorId, u32), Exec>,
+    /// The version of the mission each robot runs.
+    version: BTreeMap<RobotId, u32>,
+    /// After each point, the version each member chose its successor in,
+    /// and whom it presumed lost then.
+    chosen_in: BTreeMap<Exec, BTreeMap<RobotId, (u32, BTreeSet<RobotId>)>>,
 }
 
 impl Checker {
@@ -210,7 +216,16 @@ impl Checker {
             last_epoch: BTreeMap::new(),
             legs: BTreeMap::new(),
             running_leg: BTreeMap::new(),
+            version: BTreeMap::new(),
+            chosen_in: BTreeMap::new(),
         }
+    }
+
+    /// A newer version of the mission was handed to the team: name
+    /// behaviors after it (versions are numbered alike, so it names every
+    /// earlier version's behaviors too).
+    pub fn set_mission(&mut self, mission: Arc<Mission>) {
+        self.mission = mission;
     }
 
     /// Robot `r`'s process restarted with a fresh mind: it is held to
@@ -334,6 +349,9 @@ impl Checker {
                     }
                 }
             },
+            Event::MissionChanged { version, .. } => {
+                self.version.insert(robot, *version);
+            }
             Event::Selected {
                 behavior,
                 team,
@@ -367,6 +385,7 @@ impl Checker {
                 *last = (*last).max(*epoch);
                 if let Some(a) = after {
                     let point = (*team, a.behavior, a.epoch);
+                    self.check_version(robot, point);
                     self.legs
                         .entry(point)
                         .or_default()
@@ -416,6 +435,53 @@ impl Checker {
         }
     }
 
+    /// Robot `r` (restarted) runs version `version` of the mission.
+    pub fn runs_version(&mut self, r: RobotId, version: u32) {
+        self.version.insert(r, version);
+    }
+
+    /// Record the version `robot` chose the successor of `point` in (a
+    /// member that re-chooses there, converging after a split, replaces
+    /// its earlier choice).
+    fn check_version(&mut self, robot: RobotId, point: Exec) {
+        let v = self.version.get(&robot).copied().unwrap_or(0);
+        let lost = self.lost_now.get(&robot).cloned().unwrap_or_default();
+        self.chosen_in
+            .entry(point)
+            .or_default()
+            .insert(robot, (v, lost));
+    }
+
+    /// Every member of a team chooses what follows a point under the same
+    /// version of the mission, once splits have healed: a team switches
+    /// versions together, at one safe point (members that presumed each
+    /// other lost then, cut off from each other, each decide on their
+    /// own side).
+    fn check_versions(&mut self) {
+        for (point, members) in std::mem::take(&mut self.chosen_in) {
+            let mut clash = None;
+            for (a, (va, lost_a)) in &members {
+                for (b, (vb, lost_b)) in members.range(*a..) {
+                    if va != vb && !lost_a.contains(b) && !lost_b.contains(a) {
+                        clash = Some((*a, *va, *b, *vb));
+                    }
+                }
+            }
+            if let Some((a, va, b, vb)) = clash {
+                let detail = format!(
+                    "after `{}` #{} (team {}), {a} chose in version {va} and {b} in version {vb}",
+                    self.name(point.1),
+                    point.2,
+                    point.0
+                );
+                self.v.push(Violation {
+                    invariant: "mission-change",
+                    detail,
+                });
+            }
+        }
+    }
+
     /// The run ended at `end`: run the checks that need the whole run.
     pub fn finish(
         mut self,
@@ -425,6 +491,7 @@ impl Checker {
     ) -> Vec<Violation> {
         self.check_decisions();
         self.check_splits(end, crashes);
+        self.check_versions();
         self.check_termination(end, crashes);
         for f in finals {
             if let Err(e) = &f.org_check {

@@ -69,6 +69,46 @@ pub struct RunOptions<'a> {
     pub record: bool,
     /// Called about once per simulated second.
     pub progress: Option<&'a mut dyn FnMut(Progress)>,
+    /// New versions of the mission handed to the running team, in order
+    /// (see [`prepare_change`]).
+    pub changes: Vec<Change>,
+}
+
+/// A new version of the mission handed to the team at a time.
+#[derive(Clone, Debug)]
+pub struct Change {
+    /// When the team is given it (every robot not crashed; a crashed one
+    /// when it resumes).
+    pub at: Time,
+    /// Its version (1 for the first change, and so on).
+    pub version: u32,
+    /// The mission, aligned to the version before it.
+    pub mission: Arc<Mission>,
+    /// Where it came from (for the log).
+    pub source: String,
+}
+
+/// Build version `version` of a running mission from its new graph: sized
+/// like `base`, numbered like it (see `BehaviorGraph::aligned_to`), with
+/// protocols resolved. A version that cannot replace `base` is refused
+/// with the reason.
+pub fn prepare_change(
+    base: &Mission,
+    graph: &BehaviorGraph,
+    registry: &Registry,
+) -> Result<Arc<Mission>, String> {
+    let n = base.graph().roster().len();
+    let graph = if graph.roster().len() != n {
+        graph.with_team_size(n)
+    } else {
+        graph.clone()
+    };
+    let aligned = graph
+        .aligned_to(base.graph())
+        .map_err(|e| e.to_string())?;
+    Mission::new(aligned, registry)
+        .map(Arc::new)
+        .map_err(|d| d.to_string())
 }
 
 /// One recorded event.
@@ -97,6 +137,8 @@ pub struct FinalRobot {
     pub org_check: Result<(), String>,
     /// Its kernel's counters.
     pub stats: Stats,
+    /// The version of the mission it ran at the end.
+    pub version: u32,
 }
 
 /// What a run produced.
@@ -155,6 +197,8 @@ enum What {
     },
     /// A forged, replayed or malformed message is injected.
     Inject,
+    /// The `k`th new version of the mission is handed to the team.
+    Change(usize),
 }
 
 struct Scheduled {
@@ -225,6 +269,10 @@ struct Sim<'a, 'w> {
     injected: BTreeMap<&'static str, u64>,
     /// How often a message is injected (`None`: never).
     inject: Option<Duration>,
+    /// New versions of the mission, with what their robots share.
+    changes: Vec<(Change, Arc<Shared>)>,
+    /// How many of them have been handed out.
+    handed: usize,
 }
 
 impl Sim<'_, '_> {
@@ -392,8 +440,13 @@ impl Sim<'_, '_> {
         let i = r.index();
         self.incarnation[i] += 1;
         let now = self.clock(i);
+        // A fresh mind starts on the newest version handed out so far.
+        let shared = match self.handed.checked_sub(1) {
+            Some(k) => self.changes[k].1.clone(),
+            None => self.shared.clone(),
+        };
         self.agents[i] = Agent::restart(
-            self.shared.clone(),
+            shared,
             r,
             self.seed,
             self.incarnation[i],
@@ -402,6 +455,8 @@ impl Sim<'_, '_> {
         );
         self.timers[i] = None;
         self.checker.restarted(r);
+        self.checker
+            .runs_version(r, self.agents[i].kernel().version());
         if self.log.is_writing() {
             let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "restarted", "incarnation": self.incarnation[i]});
             self.log.write(&rec);
@@ -532,6 +587,23 @@ impl Sim<'_, '_> {
         !self.crashed[subject.index()] && !self.net.cut(self.now, subject, observer)
     }
 
+    /// Hand robot `r` the newest version handed out so far, if it does not
+    /// run or hold it already.
+    fn hand_changes(&mut self, r: RobotId) {
+        let Some((c, shared)) = self.handed.checked_sub(1).map(|k| &self.changes[k]) else {
+            return;
+        };
+        let (version, shared) = (c.version, shared.clone());
+        let k = self.agents[r.index()].kernel();
+        if k.pending_version().unwrap_or(k.version()) >= version {
+            return;
+        }
+        let now = self.clock(r.index());
+        // A refusal is an event in the log; the robot runs on.
+        let _ = self.agents[r.index()].offer_change(now, version, shared);
+        self.drain(r);
+    }
+
     fn live_all_finished(&self) -> bool {
         self.agents
             .iter()
@@ -541,6 +613,10 @@ impl Sim<'_, '_> {
 
     fn run(&mut self, limit: Time, period: Duration) -> Time {
         self.schedule(Time::ZERO, What::Control);
+        for k in 0..self.changes.len() {
+            let at = self.changes[k].0.at;
+            self.schedule(at, What::Change(k));
+        }
         for i in 0..self.resolved.crashes.len() {
             let (r, at, until) = self.resolved.crashes[i];
             self.schedule(at, What::Crash(r));
@@ -734,10 +810,36 @@ impl Sim<'_, '_> {
                         self.schedule(next, What::Inject);
                     }
                 }
+                What::Change(k) => {
+                    self.handed = self.handed.max(k + 1);
+                    let (c, _) = &self.changes[k];
+                    let mission = c.mission.clone();
+                    if self.log.is_writing() {
+                        let rec = json!({
+                            "t": self.now.as_secs_f64(),
+                            "event": "mission_change_submitted",
+                            "version": c.version,
+                            "source": c.source,
+                            "changed": mission.graph().changed_since(self.graph.as_ref()),
+                        });
+                        self.log.write(&rec);
+                    }
+                    // Names of every version's behaviors (aligned: a
+                    // superset of the earlier ones).
+                    self.graph = mission.graph().clone();
+                    self.checker.set_mission(mission);
+                    for x in 0..n as u32 {
+                        if !self.crashed[x as usize] {
+                            self.hand_changes(RobotId(x));
+                        }
+                    }
+                }
                 What::Resume(r) => {
                     self.crashed[r.index()] = false;
                     if self.resolved.restarts.contains(&(r, self.now)) {
                         self.restart(r);
+                    } else {
+                        self.hand_changes(r);
                     }
                     if self.log.is_writing() {
                         let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "resumed"});
@@ -865,7 +967,13 @@ pub fn run(
         inject_rng: bite_core::interaction::Rng::seed_from_u64(derive_seed(seed, "inject", 0)),
         injected: BTreeMap::new(),
         inject: scenario.inject,
+        changes: Vec::new(),
+        handed: 0,
     };
+    for c in opts.changes {
+        let shared = Shared::for_version(c.mission.clone(), scenario, c.version)?;
+        sim.changes.push((c, shared));
+    }
     let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);
     let period = Duration::from_secs_f64(1.0 / scenario.control_hz);
     let end = sim.run(limit, period);
@@ -885,8 +993,20 @@ pub fn run(
             stack: k.stack().to_vec(),
             org_check: k.org().check_invariants(),
             stats: k.stats().clone(),
+            version: k.version(),
         })
         .collect();
+    // The newest version handed out names every behavior of every version.
+    let mission = sim
+        .handed
+        .checked_sub(1)
+        .map_or(mission, |k| sim.changes[k].0.mission.clone());
+    let versions: BTreeMap<u32, usize> = (sim.agents.iter().enumerate())
+        .filter(|(i, _)| !sim.crashed[*i])
+        .fold(BTreeMap::new(), |mut m, (_, a)| {
+            *m.entry(a.kernel().version()).or_insert(0) += 1;
+            m
+        });
     let crashes = sim.resolved.crashes.clone();
     let stalled = sim.stall.stalled().cloned();
     let checker = std::mem::replace(
@@ -906,6 +1026,12 @@ pub fn run(
         fingerprint,
     );
     summary.invariants = crate::check::Invariants::of(&violations);
+    if !sim.changes.is_empty() {
+        summary.versions = Some(crate::summary::Versions {
+            handed: sim.handed as u32,
+            robots: versions,
+        });
+    }
     if let Some((_, why)) = stalled
         && !summary.completed
     {

@@ -182,6 +182,19 @@ pub struct Summary {
     /// The world models' messages (when the team shares beliefs).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sharing: Option<bite_core::wm::SharingTotals>,
+    /// New versions of the mission handed to the team, and which version
+    /// each robot ran at the end (runs with mission changes only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub versions: Option<Versions>,
+}
+
+/// The versions of a changed mission at the end of a run.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct Versions {
+    /// New versions handed to the team.
+    pub handed: u32,
+    /// Live robots by the version they ran at the end.
+    pub robots: BTreeMap<u32, usize>,
 }
 
 /// Heartbeat copies sent and their bytes.
@@ -396,6 +409,7 @@ impl Aggregator {
             log_fingerprint: format!("{log_fingerprint:016x}"),
             world: None,
             sharing: None,
+            versions: None,
         }
     }
 }
@@ -441,6 +455,18 @@ impl fmt::Display for Summary {
                 (None, _) => format!("{} checked, none violated", self.invariants.checked.len()),
             }
         )?;
+        if let Some(v) = &self.versions {
+            writeln!(
+                f,
+                "  mission changes  {} handed; robots ending on {}",
+                v.handed,
+                v.robots
+                    .iter()
+                    .map(|(ver, n)| format!("version {ver}: {n}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )?;
+        }
         writeln!(f, "  task time        {:.2} s", self.task_time)?;
         if let Some(w) = &self.world {
             let goal = match (&w.goal, w.goal_met_at) {

@@ -391,6 +391,7 @@ mod tests {
             }],
             ended: vec![],
             burned: vec![],
+            ..Default::default()
         };
         let h = Heartbeat {
             finished: false,

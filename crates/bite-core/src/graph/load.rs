@@ -270,6 +270,7 @@ impl Builder<'_> {
             sharing,
             config: None,
             warnings: self.diags,
+            retired: Vec::new(),
         })
     }
 

@@ -17,12 +17,14 @@
 //!
 //! Graphs are loaded from YAML (see `docs/graph-format.md`) by [`load`].
 
+mod align;
 mod config;
 pub mod dot;
 mod load;
 pub mod sharing;
 pub mod spec;
 
+pub use align::Refused;
 pub use config::Config;
 pub use load::{load, load_str};
 
@@ -147,6 +149,9 @@ pub struct BehaviorGraph {
     sharing: Sharing,
     config: Option<String>,
     warnings: Vec<Diagnostic>,
+    /// Behaviors of older versions kept for robots still inside them
+    /// (sorted; see [`BehaviorGraph::aligned_to`]).
+    retired: Vec<BehaviorId>,
 }
 
 impl BehaviorGraph {

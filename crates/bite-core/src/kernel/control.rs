@@ -626,6 +626,19 @@ impl Kernel {
             return false;
         };
         let (b, team, epoch) = (frame.behavior, frame.team, frame.epoch);
+        if key.is_none() && self.pending.is_some() {
+            let after = FrameId {
+                team,
+                behavior: b,
+                epoch,
+            };
+            if !self.fence_passed(after) {
+                return false;
+            }
+        }
+        let Phase::Selecting { frame, key } = &self.phase else {
+            return false;
+        };
         let graph = self.mission.graph().clone();
         match *key {
             None => {

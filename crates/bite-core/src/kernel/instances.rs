@@ -509,6 +509,7 @@ impl Kernel {
                 let d = (i.state == State::Active).then_some(i.deadline);
                 i.wake.into_iter().chain(d)
             })
+            .chain(self.fence_wait.map(|(_, t)| t + change::FENCE_WAIT))
             .min();
     }
 

@@ -46,6 +46,7 @@ use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
 use std::time::Duration;
 
+mod change;
 mod control;
 mod heal;
 mod inbox;
@@ -53,6 +54,7 @@ mod instances;
 mod membership;
 mod position;
 use inbox::Inbox;
+pub use change::{FENCE_WAIT, Fence};
 pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position};
 
 /// How long accepted `(sender, seq)` pairs are remembered to drop
@@ -397,6 +399,16 @@ pub struct Kernel {
     peers: BTreeMap<RobotId, (Time, Vec<(FrameId, FrameState)>)>,
     /// When each teammate's position last changed (it makes progress).
     peer_moved: BTreeMap<RobotId, Time>,
+    /// The version of the mission it runs (see `change.rs`).
+    version: u32,
+    /// A newer version, held until a safe point.
+    pending: Option<(u32, Arc<Mission>)>,
+    /// What it did at recent safe points while a version was pending.
+    fences: VecDeque<Fence>,
+    /// Holding at a safe point for the leader's decision: where, since when.
+    fence_wait: Option<(FrameId, Time)>,
+    /// What teammates' heartbeats said about versions.
+    peer_versions: BTreeMap<RobotId, change::PeerVersion>,
 }
 
 impl Kernel {
@@ -445,6 +457,11 @@ impl Kernel {
             rejoin_since: None,
             peers: BTreeMap::new(),
             peer_moved: BTreeMap::new(),
+            version: 0,
+            pending: None,
+            fences: VecDeque::new(),
+            fence_wait: None,
+            peer_versions: BTreeMap::new(),
         }
     }
 

@@ -154,6 +154,16 @@ pub struct Position {
     pub ended: Vec<Ended>,
     /// Executions it (or a teammate it heard) burned recently.
     pub burned: Vec<FrameId>,
+    /// The version of the mission it runs (0: the one it started with).
+    #[serde(default)]
+    pub version: u32,
+    /// The newer version it holds, waiting for a safe point (0: none).
+    #[serde(default)]
+    pub pending: u32,
+    /// What it decided or followed at recent safe points while a version
+    /// was pending (see `kernel/change.rs`).
+    #[serde(default)]
+    pub fences: Vec<super::change::Fence>,
 }
 
 impl Position {
@@ -185,6 +195,8 @@ impl Position {
                 .iter()
                 .all(|e| ok_id(&e.id) && e.parent.as_ref().is_none_or(ok_id))
             && self.burned.iter().all(ok_id)
+            && self.fences.len() <= RECENT
+            && self.fences.iter().all(|f| ok_id(&f.after))
             && self.frames.iter().all(|f| {
                 ok_id(&f.id)
                     && f.anchor
@@ -267,6 +279,9 @@ impl Kernel {
             frames,
             ended: self.recent_ended.iter().copied().collect(),
             burned: self.recent_burned.iter().copied().collect(),
+            version: self.version,
+            pending: self.pending.as_ref().map_or(0, |p| p.0),
+            fences: self.fences.iter().copied().collect(),
         }
     }
 
@@ -360,12 +375,16 @@ impl Kernel {
         if from == self.me {
             return;
         }
-        let graph = self.mission.graph();
+        // Bounded first (lengths, epochs); behaviors of a version this
+        // robot does not run yet are then left out of what it reads.
         if from.index() >= self.org.roster_len()
-            || !pos.is_bounded(self.org.roster_len(), graph.behaviors().len())
+            || !pos.is_bounded(self.org.roster_len(), u32::MAX as usize)
         {
             return self.drop_msg(from, crate::event::DropReason::Malformed);
         }
+        self.peer_version(from, pos);
+        let readable = self.readable(pos);
+        let pos = readable.as_ref().unwrap_or(pos);
         if self.awaiting_rejoin() {
             self.adopt(from, pos);
             self.step();

@@ -1,0 +1,329 @@
+//! Changing a running mission: a new version is held *pending* and each
+//! subteam switches to it at a safe point, all its members at the same one.
+//!
+//! A safe point is a behavior boundary: the moment a team has ended an
+//! execution `X` and is about to choose what follows it (Algorithm 1, line
+//! 8), before any synchronization instance of that choice starts. Nothing
+//! is ever switched inside a behavior or inside a protocol instance, so
+//! every instance runs to its end under the version it started in.
+//!
+//! **Agreement.** At `X` with a version `v` pending, a robot:
+//!
+//! 1. follows what a teammate already did at `X` for `v` (its heartbeat
+//!    lists the recent [`Fence`]s it applied: switched, or went on in the
+//!    running version);
+//! 2. if it is the team's leader (the lowest-id member neither lost nor
+//!    departed, as for healing splits), decides: it switches when every
+//!    other such member is heard (recently) holding `v`, and goes on in
+//!    the running version otherwise (the next boundary tries again); its
+//!    decision travels with its heartbeats;
+//! 3. otherwise holds at `X` until it hears the decision (at most
+//!    [`FENCE_WAIT`]; then it goes on in the running version and says so).
+//!
+//! Only the leader decides and every member follows it, so a team never
+//! splits over a version; teams the change does not reach keep running and
+//! switch at their own next boundary. The new version is numbered like the
+//! running one ([`crate::graph::BehaviorGraph::aligned_to`]): instance keys,
+//! positions and team ids mean the same in both, so teams on either side of
+//! a change still end their common ancestors together.
+
+use super::*;
+use crate::graph::Refused;
+use crate::kernel::position::{FRESH, FrameId, RECENT};
+use serde::Deserialize;
+
+/// How long a member holds at a boundary for its leader's decision.
+pub const FENCE_WAIT: Duration = Duration::from_secs(5);
+
+/// What a robot did at one boundary while a version was pending.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Fence {
+    /// The version that was pending.
+    pub version: u32,
+    /// The execution whose successor was being chosen.
+    pub after: FrameId,
+    /// True: switched to `version` there; false: went on in the running one.
+    pub switched: bool,
+}
+
+/// What a teammate's heartbeat said about versions.
+#[derive(Clone, Debug, Default)]
+pub(super) struct PeerVersion {
+    pub(super) heard: Time,
+    pub(super) version: u32,
+    pub(super) pending: u32,
+    pub(super) fences: Vec<Fence>,
+    /// The executions its frames follow (it has chosen their successors).
+    pub(super) past: Vec<FrameId>,
+}
+
+impl Kernel {
+    /// The version of the mission this robot runs (0: the first).
+    pub fn version(&self) -> u32 {
+        self.version
+    }
+
+    /// Start a fresh kernel on version `version` of its mission (a
+    /// restarted process given the newest version its team was handed).
+    /// Ignored once the mission has started.
+    pub fn start_on_version(&mut self, version: u32) {
+        if matches!(self.phase, Phase::NotStarted) && self.pending.is_none() {
+            self.version = version;
+        }
+    }
+
+    /// The version it holds pending, if any.
+    pub fn pending_version(&self) -> Option<u32> {
+        self.pending.as_ref().map(|p| p.0)
+    }
+
+    /// Offer version `version` of the mission (its graph aligned to the
+    /// running one's, see [`crate::graph::BehaviorGraph::aligned_to`]). It
+    /// replaces any older pending version and is applied at this robot's
+    /// team's next safe point. Refused when it is not newer than what this
+    /// robot runs or holds, or not aligned to it.
+    pub fn offer_change(
+        &mut self,
+        now: Time,
+        version: u32,
+        mission: Arc<Mission>,
+    ) -> Result<(), Refused> {
+        self.set_now(now);
+        let refuse = |me: &mut Kernel, why: String| {
+            me.emit(Event::MissionChangeRefused {
+                version,
+                reason: why.clone(),
+            });
+            Err(Refused(why))
+        };
+        let newest = self.pending_version().unwrap_or(self.version);
+        if version <= newest {
+            return refuse(
+                self,
+                format!("version {version} is not newer than version {newest}, held here"),
+            );
+        }
+        let (old, new) = (self.mission.graph(), mission.graph());
+        let aligned = new.len() >= old.len()
+            && new.roster().names() == old.roster().names()
+            && old.symbols().iter().all(|(id, n)| new.symbols().get(n) == Some(id))
+            && old.behaviors().iter().all(|b| new.get(b.id).is_some_and(|c| c.name == b.name));
+        if !aligned {
+            return refuse(
+                self,
+                format!("version {version} is not numbered like the running version (align it first)"),
+            );
+        }
+        self.pending = Some((version, mission));
+        self.emit(Event::MissionChangeOffered { version });
+        self.step();
+        Ok(())
+    }
+
+    /// Line 8 with a version pending: may this robot choose the successor
+    /// of `after` now? Switches first if its team does. False: hold.
+    pub(super) fn fence_passed(&mut self, after: FrameId) -> bool {
+        let Some(v) = self.pending_version() else {
+            return true;
+        };
+        if self
+            .fences
+            .iter()
+            .any(|f| f.version == v && f.after == after)
+        {
+            return true;
+        }
+        // 1. A teammate already applied a decision here.
+        let followed = self.peer_versions.values().find_map(|p| {
+            p.fences
+                .iter()
+                .find(|f| f.after == after && f.version == v)
+                .map(|f| f.switched)
+        });
+        let team = self.org.team(after.team).map(|t| t.members.clone());
+        let depth = self.stack.len();
+        let leader = self.heal_leader(after.team, depth);
+        // A teammate of the team heard past `after` in the running version.
+        let passed_old = |me: &Kernel| {
+            me.peer_versions.iter().any(|(r, p)| {
+                team.as_ref().is_some_and(|t| t.contains(*r))
+                    && p.version < v
+                    && p.past.contains(&after)
+            })
+        };
+        // The team's leader runs `v` already (it switched on its side of a
+        // partition, or this robot is a restarted or late one): catch up.
+        let leader_ahead = leader.filter(|l| *l != self.me).is_some_and(|l| {
+            self.peer_versions
+                .get(&l)
+                .is_some_and(|p| self.now - p.heard <= FRESH && p.version >= v)
+        });
+        let switch = match followed {
+            Some(s) => s,
+            None if leader_ahead => true,
+            None if passed_old(self) => false,
+            // 2. The leader decides.
+            None if leader == Some(self.me) => {
+                let above = &self.stack[..depth];
+                team.as_ref().is_some_and(|t| {
+                    t.iter().all(|r| {
+                        r == self.me
+                            || self.lost.contains(r)
+                            || above
+                                .iter()
+                                .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(r)))
+                            || self.peer_versions.get(&r).is_some_and(|p| {
+                                self.now - p.heard <= FRESH && (p.pending == v || p.version >= v)
+                            })
+                    })
+                })
+            }
+            // 3. Hold for the leader's decision, for a while.
+            None => {
+                let since = match self.fence_wait {
+                    Some((f, t)) if f == after => t,
+                    _ => {
+                        self.fence_wait = Some((after, self.now));
+                        self.refresh_due();
+                        self.now
+                    }
+                };
+                if self.now - since < FENCE_WAIT {
+                    return false;
+                }
+                self.emit(Event::MissionChangeDeferred {
+                    version: v,
+                    team: after.team,
+                    after: FrameRef {
+                        behavior: after.behavior,
+                        epoch: after.epoch,
+                    },
+                    timed_out: true,
+                });
+                self.record_fence(Fence {
+                    version: v,
+                    after,
+                    switched: false,
+                });
+                return true;
+            }
+        };
+        self.record_fence(Fence {
+            version: v,
+            after,
+            switched: switch,
+        });
+        if switch {
+            self.switch_version(after);
+        } else {
+            self.emit(Event::MissionChangeDeferred {
+                version: v,
+                team: after.team,
+                after: FrameRef {
+                    behavior: after.behavior,
+                    epoch: after.epoch,
+                },
+                timed_out: false,
+            });
+        }
+        true
+    }
+
+    fn record_fence(&mut self, f: Fence) {
+        self.fences.push_back(f);
+        while self.fences.len() > RECENT {
+            self.fences.pop_front();
+        }
+        if self.fence_wait.is_some() {
+            self.fence_wait = None;
+            self.refresh_due();
+        }
+    }
+
+    /// Run the pending version from now on (at the boundary after `after`).
+    fn switch_version(&mut self, after: FrameId) {
+        let Some((version, mission)) = self.pending.take() else {
+            return;
+        };
+        let old = self.mission.clone();
+        let changed = mission.graph().changed_since(old.graph());
+        self.beliefs.extend_symbols(mission.graph().symbols().clone());
+        for (name, value) in mission.graph().initial_beliefs() {
+            if old.graph().symbols().get(name).is_none() {
+                self.beliefs
+                    .set_named(name, value.clone(), self.now, Source::Given);
+            }
+        }
+        self.mission = mission;
+        self.version = version;
+        self.stack_version += 1;
+        self.emit(Event::MissionChanged {
+            version,
+            team: after.team,
+            after: FrameRef {
+                behavior: after.behavior,
+                epoch: after.epoch,
+            },
+            changed,
+        });
+    }
+
+    /// What a teammate's heartbeat says about versions (before the rest of
+    /// it is read: it may name behaviors of a version this robot does not
+    /// run yet).
+    pub(super) fn peer_version(&mut self, from: RobotId, pos: &Position) {
+        if pos.version == 0 && pos.pending == 0 && pos.fences.is_empty() && self.pending.is_none()
+        {
+            self.peer_versions.remove(&from);
+            return;
+        }
+        let past = pos
+            .frames
+            .iter()
+            .filter_map(|f| {
+                f.anchor.filter(|a| !a.first).map(|a| FrameId {
+                    team: f.id.team,
+                    behavior: a.behavior,
+                    epoch: a.epoch,
+                })
+            })
+            .collect();
+        self.peer_versions.insert(
+            from,
+            PeerVersion {
+                heard: self.now,
+                version: pos.version,
+                pending: pos.pending,
+                fences: pos.fences.clone(),
+                past,
+            },
+        );
+    }
+
+    /// The part of a teammate's position this robot can read: frames of
+    /// behaviors its running version does not have (the teammate switched
+    /// already) are left out, with everything below them.
+    pub(super) fn readable(&self, pos: &Position) -> Option<Position> {
+        let n = self.graph().len();
+        let known = |id: &FrameId| id.behavior.index() < n;
+        let all_known = pos.frames.iter().all(|f| {
+            known(&f.id) && f.anchor.is_none_or(|a| a.behavior.index() < n)
+        }) && pos.ended.iter().all(|e| known(&e.id))
+            && pos.burned.iter().all(known);
+        if all_known {
+            return None;
+        }
+        let mut p = pos.clone();
+        let cut = p
+            .frames
+            .iter()
+            .position(|f| !known(&f.id) || f.anchor.is_some_and(|a| a.behavior.index() >= n))
+            .unwrap_or(p.frames.len());
+        p.frames.truncate(cut);
+        p.ended
+            .retain(|e| known(&e.id) && e.parent.as_ref().is_none_or(known));
+        p.burned.retain(known);
+        p.fences.retain(|f| known(&f.after));
+        Some(p)
+    }
+}

@@ -1,0 +1,245 @@
+//! Changing a running mission: the formation's course changes mid-way
+//! (`examples/formation-change.yaml` → `formation-change-v2.yaml`), at
+//! many times, over many seeds, under loss, partitions, crashes and
+//! restarts around the change. Every member of a team switches at the
+//! same safe point, the team never splits over a version, nobody stalls.
+
+mod missions;
+
+use bite_core::event::Event;
+use bite_sim::fault::{Fault, apply_all};
+use bite_sim::runner::{Change, RunOptions, prepare_change};
+use bite_sim::summary::Outcome;
+use bite_sim::{prepare, run};
+use missions::{graph, scenario};
+use std::time::Duration;
+
+const V1: &str = include_str!("../../../examples/formation-change.yaml");
+const V2: &str = include_str!("../../../examples/formation-change-v2.yaml");
+const SCENARIO: &str = include_str!("../../../examples/scenarios/formation-change.yaml");
+
+struct Run {
+    summary: bite_sim::summary::Summary,
+    violations: Vec<String>,
+    /// (robot, version, after behavior) of every switch.
+    switched: Vec<(u32, u32, String)>,
+    /// Live robots' versions at the end.
+    versions: Vec<u32>,
+    /// Members that stopped waiting for their leader's decision at a safe
+    /// point.
+    fence_timeouts: usize,
+    v2: std::sync::Arc<bite_core::mission::Mission>,
+}
+
+/// The same run without a change: on the first version, or (`second`)
+/// on the second from the start.
+fn run_alone(second: bool, seed: u64, faults: &[Fault]) -> Outcome {
+    let g = if second {
+        graph("formation-change-v2.yaml", V2)
+    } else {
+        graph("formation-change.yaml", V1)
+    };
+    let mut sc = scenario("formation-change.yaml", SCENARIO);
+    sc.mission_changes.clear();
+    missions::simulate(&g, &apply_all(&sc, faults), seed)
+        .report
+        .summary
+        .outcome
+}
+
+fn run_change(at: f64, seed: u64, faults: &[Fault]) -> Run {
+    let g = graph("formation-change.yaml", V1);
+    let mut sc = scenario("formation-change.yaml", SCENARIO);
+    // The test hands the change itself, at `at`.
+    sc.mission_changes.clear();
+    let sc = apply_all(&sc, faults);
+    let reg = bite_protocols::registry();
+    let v1 = prepare(&g, &sc, None, &reg).unwrap_or_else(|d| panic!("{d}"));
+    let v2 = prepare_change(&v1, &graph("formation-change-v2.yaml", V2), &reg)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let report = run(
+        v1,
+        &sc,
+        RunOptions {
+            seed: Some(seed),
+            record: true,
+            changes: vec![Change {
+                at: bite_core::time::Time::ZERO + Duration::from_secs_f64(at),
+                version: 1,
+                mission: v2.clone(),
+                source: "formation-change-v2.yaml".into(),
+            }],
+            ..RunOptions::default()
+        },
+    )
+    .unwrap_or_else(|d| panic!("{d}"));
+    let switched = report
+        .history
+        .iter()
+        .filter_map(|r| match &r.event {
+            Event::MissionChanged { version, after, .. } => Some((
+                r.robot.0,
+                *version,
+                v2.graph().name_of(after.behavior).to_string(),
+            )),
+            _ => None,
+        })
+        .collect();
+    let versions = (report.finals.iter())
+        .filter(|f| !f.crashed)
+        .map(|f| f.version)
+        .collect();
+    let fence_timeouts = (report.history.iter())
+        .filter(|r| {
+            matches!(
+                r.event,
+                Event::MissionChangeDeferred {
+                    timed_out: true,
+                    ..
+                }
+            )
+        })
+        .count();
+    Run {
+        fence_timeouts,
+        violations: report.violations.iter().map(ToString::to_string).collect(),
+        summary: report.summary,
+        switched,
+        versions,
+        v2,
+    }
+}
+
+fn faults(spec: &str) -> Vec<Fault> {
+    Fault::parse_all(spec).unwrap_or_else(|e| panic!("{spec}: {e}"))
+}
+
+#[test]
+fn the_example_changes_course_mid_way_and_completes_with_everyone_switching_together() {
+    let g = graph("formation-change.yaml", V1);
+    let sc = scenario("formation-change.yaml", SCENARIO);
+    assert_eq!(sc.mission_changes.len(), 1, "the example scenario changes the mission");
+    let r = run_change(sc.mission_changes[0].at.as_secs_f64(), sc.seed, &[]);
+    assert_eq!(r.summary.outcome, Outcome::Completed, "{}", r.summary);
+    assert!(r.violations.is_empty(), "{:?}", r.violations);
+    assert_eq!(r.switched.len(), 3, "every robot switches: {:?}", r.switched);
+    let after: std::collections::BTreeSet<&str> =
+        r.switched.iter().map(|s| s.2.as_str()).collect();
+    assert_eq!(after.len(), 1, "all at the same safe point: {:?}", r.switched);
+    assert_eq!(r.versions, [1, 1, 1]);
+    // The new version ran: the column (new) instead of the line (retired).
+    let line = r.v2.graph().find("line").expect("line is kept, retired");
+    assert!(r.v2.graph().is_retired(line));
+    assert!(g.find("column").is_none());
+    let ran = |name: &str| r.summary.points.iter().any(|p| p.point.starts_with(name));
+    assert!(ran("column"), "{}", r.summary);
+}
+
+#[test]
+fn a_change_that_cannot_be_applied_safely_is_refused_with_the_reason() {
+    let g = graph("formation-change.yaml", V1);
+    let sc = scenario("formation-change.yaml", SCENARIO);
+    let reg = bite_protocols::registry();
+    let v1 = prepare(&g, &sc, None, &reg).unwrap_or_else(|d| panic!("{d}"));
+    // `walk` loses its children: robots inside it could not end it.
+    let bad = V2.replace(
+        "    children: [lead, follow_left, follow_right]\n",
+        "    skill: walk_lead\n",
+    );
+    let bad = bad.replace("    allocate: { point: C }\n", "");
+    let e = prepare_change(&v1, &graph("bad.yaml", &bad), &reg).unwrap_err();
+    assert!(e.contains("`walk` has children"), "{e}");
+    // Another team.
+    let e = prepare_change(
+        &v1,
+        &graph("bad.yaml", &V2.replace("{ name: r2,", "{ name: r9,")),
+        &reg,
+    )
+    .unwrap_err();
+    assert!(e.contains("team differs"), "{e}");
+}
+
+/// The change at many times (so that it meets every kind of safe point:
+/// after a search, a leg, the narrow passage), over seeds and fault
+/// classes: loss, a partition across the change, the leader crashing at
+/// the change, a restart during it.
+#[test]
+fn hot_change_under_loss_and_crashes_never_splits_or_stalls() {
+    let classes: [(&str, &str); 6] = [
+        ("fault-free", ""),
+        ("loss", "loss=0.15"),
+        ("heavy-loss", "loss=0.3;dup=0.05;jitter=30ms"),
+        ("partition", "partition=r0|r1,r2@{p}+4s"),
+        ("leader-crash", "crash=r0@{c}"),
+        ("restart", "restart=r1@{c}+3s"),
+    ];
+    let mut failures = Vec::new();
+    let mut runs = 0;
+    let mut switched_runs = 0;
+    let mut with_deadlines = Vec::new();
+    let mut base_deadlines = Vec::new();
+    for (class, spec) in classes {
+        for seed in 1..=25u64 {
+            let at = 8.0 + (seed as f64 * 9.7) % 45.0;
+            let spec = spec
+                .replace("{p}", &format!("{:.1}s", at - 1.0))
+                .replace("{c}", &format!("{:.1}s", at + 0.5 + seed as f64));
+            let r = run_change(at, seed, &faults(&spec));
+            runs += 1;
+            let what = format!("{class} seed {seed} change at {at:.1}s [{spec}]");
+            if !r.violations.is_empty() {
+                failures.push(format!("{what}: {:?}", r.violations));
+            }
+            // No stall, no time limit. Under heavy loss a barrier may need
+            // its deadline, with or without a change (the same seed runs
+            // into it on either version alone); the change itself never
+            // leaves a member waiting for its leader's decision.
+            if !matches!(
+                r.summary.outcome,
+                Outcome::Completed | Outcome::CompletedWithTimeouts
+            ) {
+                failures.push(format!("{what}: {}", r.summary));
+            }
+            if r.summary.outcome == Outcome::CompletedWithTimeouts {
+                with_deadlines.push(what.clone());
+            }
+            if [false, true]
+                .iter()
+                .any(|v2| run_alone(*v2, seed, &faults(&spec)) == Outcome::CompletedWithTimeouts)
+            {
+                base_deadlines.push(what.clone());
+            }
+            if r.fence_timeouts > 0 && !class.contains("crash") {
+                failures.push(format!(
+                    "{what}: {} members gave up waiting for their leader's decision",
+                    r.fence_timeouts
+                ));
+            }
+            // A live team ends on one version (nobody left behind on a
+            // version its team left).
+            let vs: std::collections::BTreeSet<u32> = r.versions.iter().copied().collect();
+            if vs.len() > 1 {
+                failures.push(format!("{what}: versions at the end {:?}", r.versions));
+            }
+            if vs.contains(&1) {
+                switched_runs += 1;
+            }
+        }
+    }
+    assert!(failures.is_empty(), "{} of {runs} runs:\n{}", failures.len(), failures.join("\n"));
+    // Protocol deadlines (a barrier under loss) are about as frequent as
+    // in the same runs without a change (on either version alone).
+    eprintln!(
+        "runs needing a protocol deadline: {} with the change, {} without, of {runs}",
+        with_deadlines.len(),
+        base_deadlines.len()
+    );
+    assert!(
+        with_deadlines.len() <= base_deadlines.len() + runs / 20,
+        "with the change: {with_deadlines:?}\nwithout: {base_deadlines:?}"
+    );
+    assert!(
+        switched_runs * 10 >= runs * 9,
+        "the change was applied in only {switched_runs} of {runs} runs"
+    );
+}
