@@ -297,6 +297,13 @@ pub struct SubmitArgs {
     /// A configuration to send with it (YAML).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// A new version of the mission the team is running: each subteam
+    /// switches to it at its next safe point (between behaviors, all its
+    /// members together) instead of refusing it as busy. Its behaviors are
+    /// matched to the running ones by name; a version that cannot replace
+    /// the running one is refused with the reason (`bite status`).
+    #[arg(long)]
+    pub replace: bool,
     /// The submission id (default: a random one).
     #[arg(long)]
     pub id: Option<String>,
@@ -395,7 +402,7 @@ fn loader(
     own: Option<Scenario>,
     robots: Option<usize>,
 ) -> bite_zenoh::robot::Loader {
-    Box::new(move |body: &MissionBody| {
+    Box::new(move |body: &MissionBody, running: Option<&Arc<bite_core::mission::Mission>>| {
         let scenario = match (&body.scenario, &own) {
             (Some(text), _) => Scenario::load_str(
                 &Arc::from(format!("{} (submitted scenario)", body.id)),
@@ -437,8 +444,12 @@ fn loader(
             }
             None => graph,
         };
-        let mission = bite_sim::runner::prepare(&graph, &scenario, robots, &crate::registry())
-            .map_err(|d| d.to_string())?;
+        let mission = match running {
+            // A new version of the running mission: numbered like it.
+            Some(base) => bite_sim::runner::prepare_change(base, &graph, &crate::registry())?,
+            None => bite_sim::runner::prepare(&graph, &scenario, robots, &crate::registry())
+                .map_err(|d| d.to_string())?,
+        };
         let seed = body.seed.unwrap_or(scenario.seed);
         Ok(Prepared {
             mission,
@@ -588,6 +599,7 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
         config: a.config.as_deref().map(read).transpose()?,
         scenario: scenario.as_deref().map(read).transpose()?,
         seed: None,
+        replace: a.replace,
     };
     let sub = bite_zenoh::wire::sign_submission(&key, &a.net.team, &body);
     let session = a.net.options().open()?;
@@ -1061,7 +1073,7 @@ pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
         let base = MissionArgs::from_origin(&origin["base"]);
         let robots = origin["robots"].as_u64().map(|n| n as usize);
         let own = base.own_scenario()?;
-        loader(base, own, robots)(&body).map_err(|e| anyhow::anyhow!("{e}"))?
+        loader(base, own, robots)(&body, None).map_err(|e| anyhow::anyhow!("{e}"))?
     } else if origin.get("args").is_some() {
         let args = MissionArgs::from_origin(&origin["args"]);
         let (graph, scenario) = args.load()?;

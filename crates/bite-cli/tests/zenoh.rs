@@ -252,8 +252,8 @@ struct Team {
 }
 
 /// Three robots in the timed world, started by hand (no launcher), with
-/// or without a mission.
-fn team(name: &str, mission: bool, speed: &str) -> Team {
+/// or without a mission (a graph, run in the timed world next to it).
+fn team(name: &str, mission: Option<&str>, speed: &str) -> Team {
     let out = tmp(name);
     let key = TeamKey::new((0..32).map(|i| i as u8 ^ 0x5a).collect()).unwrap();
     let key_file = out.join("team.key");
@@ -266,8 +266,8 @@ fn team(name: &str, mission: bool, speed: &str) -> Team {
         let name = format!("r{k}");
         let mut c = bite();
         c.current_dir(repo()).args(["robot", "--name", &name]);
-        if mission {
-            c.args(["examples/formation.yaml", "--timed", "--exit-when-done"]);
+        if let Some(graph) = mission {
+            c.args([graph, "--timed", "--exit-when-done"]);
         } else {
             c.args(["--scenario", "examples/scenarios/formation.yaml"]);
         }
@@ -312,7 +312,7 @@ fn client(endpoints: &[String]) -> zenoh::Session {
 #[test]
 fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
     let _one = serial();
-    let mut t = team("attack", true, "2");
+    let mut t = team("attack", Some("examples/formation.yaml"), "2");
     let session = client(&t.endpoints);
     // Capture r0's frames as they go by.
     let (tx, rx) = std::sync::mpsc::channel::<Vec<u8>>();
@@ -453,7 +453,7 @@ fn python_with_zenoh() -> PathBuf {
 fn a_python_client_follows_the_status_and_submits_a_mission() {
     let _one = serial();
     let py = python_with_zenoh();
-    let mut t = team("python", false, "2");
+    let mut t = team("python", None, "2");
     let o = Command::new(&py)
         .current_dir(repo())
         .arg("crates/bite-cli/tests/python/client.py")
@@ -670,7 +670,7 @@ fn the_readme_launch_commands_complete_as_written() {
 fn a_python_client_builds_frames_from_the_documented_layout() {
     let _one = serial();
     let py = python_with_zenoh();
-    let mut t = team("frames", false, "2");
+    let mut t = team("frames", None, "2");
     let o = Command::new(&py)
         .current_dir(repo())
         .arg("crates/bite-cli/tests/python/frames.py")
@@ -789,4 +789,46 @@ fn a_submission_without_a_world_is_refused_with_the_reason() {
         "{refused}"
     );
     procs.terminate();
+}
+
+/// `bite submit --replace`: a team of robot processes running the
+/// formation takes a new version of its mission (a longer course, a
+/// column instead of the line) without restarting; every robot switches
+/// at the same safe point, and the team completes the new course.
+#[test]
+fn a_running_team_takes_a_new_version_of_its_mission_over_zenoh() {
+    let _one = serial();
+    let mut t = team("replace", Some("examples/formation-change.yaml"), "4");
+    // Let the team get going (a few team seconds), then replace.
+    std::thread::sleep(Duration::from_secs(5));
+    let sub = bite()
+        .current_dir(repo())
+        .args(["submit", "--replace", "--timed", "--team", &t.team, "--id", "v2"])
+        .args(["--connect", &t.endpoints[0]])
+        .arg("--key")
+        .arg(&t.key_file)
+        .arg("examples/formation-change-v2.yaml")
+        .output()
+        .unwrap();
+    assert!(sub.status.success(), "{}", String::from_utf8_lossy(&sub.stderr));
+    let codes = t.procs.wait_all(Duration::from_secs(120));
+    for (name, code) in &codes {
+        assert_eq!(*code, Some(0), "{name} did not complete; logs in {}", t.out.display());
+    }
+    let mut switches = Vec::new();
+    for r in ["r0", "r1", "r2"] {
+        let log = read_jsonl(&t.out.join(format!("{r}.jsonl")));
+        let changed: Vec<&Value> = log.iter().filter(|e| e["event"] == "mission_changed").collect();
+        assert_eq!(changed.len(), 1, "{r}: {changed:?} (logs in {})", t.out.display());
+        switches.push((changed[0]["version"].clone(), changed[0]["after"].clone()));
+        // The new version ran: the column, not the line.
+        let ran = |b: &str| log.iter().any(|e| e["event"] == "selected" && e["behavior"] == b);
+        assert!(ran("column") && !ran("line"), "{r} (logs in {})", t.out.display());
+        assert!(log.iter().any(|e| e["event"] == "mission_completed"), "{r}");
+    }
+    assert!(
+        switches.iter().all(|s| *s == switches[0]),
+        "not all at the same safe point: {switches:?}"
+    );
+    check_agreement(&t.out, &["r0", "r1", "r2"]);
 }

@@ -53,7 +53,9 @@ pub struct Prepared {
 
 /// Turns a submitted mission into a [`Prepared`] one (the CLI compiles
 /// graphs and command-language missions against the robot's scenario).
-pub type Loader = Box<dyn Fn(&MissionBody) -> Result<Prepared, String> + Send>;
+/// With the running mission (a replacement, `MissionBody::replace`), it
+/// builds the new version numbered like it.
+pub type Loader = Box<dyn Fn(&MissionBody, Option<&Arc<Mission>>) -> Result<Prepared, String> + Send>;
 
 /// How a robot runs.
 pub struct RobotOptions {
@@ -748,10 +750,14 @@ impl Node<'_> {
         if let Some(r) = &self.run
             && !r.agent.kernel().is_finished()
         {
-            let why = "busy: the current mission has not completed";
+            if body.replace {
+                return self.replace_mission(&body, loader);
+            }
+            let why = "busy: the current mission has not completed (send a new version of it \
+                       with `bite submit --replace`)";
             return self.reject_mission("mission_refused", id, why.into());
         }
-        match loader(&body).and_then(|p| {
+        match loader(&body, None).and_then(|p| {
             self.start(p, Some(body.id.clone()), None)
                 .map_err(|e| e.to_string())
         }) {
@@ -759,6 +765,42 @@ impl Node<'_> {
                 self.seen_missions.insert(body.id.clone());
             }
             Err(e) => self.reject_mission("mission_refused", id, e),
+        }
+    }
+
+    /// A new version of the running mission: offered to the mind, which
+    /// switches at its team's next safe point (see `bite_core::kernel`'s
+    /// `change.rs`), or refused with the reason.
+    fn replace_mission(&mut self, body: &MissionBody, loader: &Loader) {
+        let id = Some(body.id.clone());
+        let version = body.version();
+        let Some(r) = self.run.as_mut() else { return };
+        let prepared = loader(body, Some(r.agent.kernel().mission())).and_then(|p| {
+            bite_agent::agent::Shared::for_version(p.mission, &p.scenario, version)
+                .map_err(|d| d.to_string())
+        });
+        let shared = match prepared {
+            Ok(s) => s,
+            Err(e) => return self.reject_mission("mission_refused", id, e),
+        };
+        let graph = shared.mission().graph().clone();
+        let now = r.clock.now();
+        match r.agent.offer_change(now, version, shared) {
+            Ok(()) => {
+                // Names every version's behaviors (aligned).
+                r.graph = graph;
+                self.seen_missions.insert(body.id.clone());
+                self.log_record(json!({
+                    "event": "mission_change_submitted",
+                    "id": body.id,
+                    "version": version,
+                }));
+                self.flush_agent();
+            }
+            Err(e) => {
+                self.flush_agent();
+                self.reject_mission("mission_refused", id, e.to_string());
+            }
         }
     }
 
@@ -874,9 +916,13 @@ impl Node<'_> {
             auth: self.last_auth.clone(),
             missions_rejected: self.missions_rejected,
             last_rejection: self.last_rejection.clone(),
+            version: 0,
+            pending_version: None,
         };
         if let Some(r) = &self.run {
             let k = r.agent.kernel();
+            s.version = k.version();
+            s.pending_version = k.pending_version();
             s.mission = Some(r.graph.name().to_string());
             s.mission_id = r.mission_id.clone();
             s.t = r.clock.now().as_secs_f64();

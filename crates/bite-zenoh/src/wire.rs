@@ -161,6 +161,13 @@ pub struct Status {
     /// client learns what became of its submission.
     #[serde(default)]
     pub last_rejection: Option<Rejection>,
+    /// The version of the mission it runs (0: as started; see
+    /// [`MissionBody::version`]) and the newer one it holds, if any.
+    #[serde(default)]
+    pub version: u32,
+    /// A newer version held until the team's next safe point.
+    #[serde(default)]
+    pub pending_version: Option<u32>,
 }
 
 /// A submission a robot did not run, and why.
@@ -233,6 +240,25 @@ pub struct MissionBody {
     /// Seed for the robots' random streams (default: the scenario's).
     #[serde(default)]
     pub seed: Option<u64>,
+    /// A new version of the running mission (`bite submit --replace`): a
+    /// team at work takes it at its safe points instead of refusing it as
+    /// busy; its version is [`MissionBody::version`].
+    #[serde(default)]
+    pub replace: bool,
+}
+
+/// 2020-01-01T00:00:00Z, seconds since the Unix epoch.
+const VERSION_EPOCH_S: u64 = 1_577_836_800;
+
+impl MissionBody {
+    /// The version a replacement is numbered with on every robot: the
+    /// second it was issued, counted from 2020 (newer submissions have
+    /// higher versions, whichever robot numbers them; two replacements
+    /// issued within the same second: the second is refused as not newer).
+    pub fn version(&self) -> u32 {
+        let s = (self.issued_at / 1000).saturating_sub(VERSION_EPOCH_S);
+        u32::try_from(s).unwrap_or(u32::MAX).max(1)
+    }
 }
 
 const MISSION_DOMAIN: &[u8] = b"bite-mission-v1\0";
@@ -420,6 +446,7 @@ mod tests {
             config: None,
             scenario: None,
             seed: None,
+            replace: false,
         };
         let s = sign_submission(&key, "t", &body);
         let bytes = serde_json::to_vec(&s).unwrap();
