@@ -191,7 +191,7 @@ impl Namer<'_> {
             "mission_changed" => Event::MissionChanged {
                 version: field(&ev, "version")?,
                 team: field(&ev, "team")?,
-                after: field(&ev, "after")?,
+                after: field(&ev, "after").unwrap_or(None),
                 changed: field(&ev, "changed").unwrap_or_default(),
             },
             _ => return None,

@@ -473,9 +473,11 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
                     seed_offset: *offset,
                     fingerprint,
                 });
+                let changes = crate::scenario_changes(&scenario, &mission)?;
                 cases.push(Case {
                     args,
                     mission,
+                    changes,
                     scenario,
                 });
             }

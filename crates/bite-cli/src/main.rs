@@ -426,7 +426,7 @@ fn load_graph_or_mission(path: &Path, config: Option<&Path>) -> Result<BehaviorG
 /// The scenario's `mission_changes:`, loaded and numbered (version 1, 2,
 /// ...), each aligned to the one before it. A version that cannot replace
 /// the one before is an input error at the scenario line that names it.
-fn scenario_changes(
+pub(crate) fn scenario_changes(
     scenario: &Scenario,
     mission: &Arc<Mission>,
 ) -> Result<Vec<bite_sim::runner::Change>> {

@@ -157,9 +157,11 @@ fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
                 if timed {
                     args.push_str(" --timed");
                 }
+                let changes = crate::scenario_changes(&scenario, &mission)?;
                 cases.push(Case {
                     args: args.trim().to_string(),
                     mission,
+                    changes,
                     scenario,
                 });
             }

@@ -240,12 +240,14 @@ impl Search<'_> {
         let graph = self.base.clone().with_config(&cfg).ok()?;
         let mission = bite_sim::prepare(&graph, &self.scenario, None, &registry()).ok()?;
         let i = self.candidates.len();
+        let changes = crate::scenario_changes(&self.scenario, &mission).ok()?;
         self.candidates.push(Candidate {
             label: label.to_string(),
             bindings: bindings.clone(),
             case: Case {
                 args: String::new(),
                 mission,
+                changes,
                 scenario: self.scenario.clone(),
             },
         });

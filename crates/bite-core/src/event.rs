@@ -585,8 +585,10 @@ pub enum Event {
         version: u32,
         /// The team that switched.
         team: TeamId,
-        /// The execution whose successor is the first chosen in `version`.
-        after: FrameRef,
+        /// The execution whose successor is the first chosen in `version`
+        /// (`None`: a restarted robot took its team's version as it
+        /// rejoined).
+        after: Option<FrameRef>,
         /// Behaviors the version adds, removes or edits.
         #[serde(default, skip_serializing_if = "Vec::is_empty")]
         changed: Vec<String>,

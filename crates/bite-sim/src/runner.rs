@@ -440,13 +440,8 @@ impl Sim<'_, '_> {
         let i = r.index();
         self.incarnation[i] += 1;
         let now = self.clock(i);
-        // A fresh mind starts on the newest version handed out so far.
-        let shared = match self.handed.checked_sub(1) {
-            Some(k) => self.changes[k].1.clone(),
-            None => self.shared.clone(),
-        };
         self.agents[i] = Agent::restart(
-            shared,
+            self.shared.clone(),
             r,
             self.seed,
             self.incarnation[i],
@@ -455,8 +450,11 @@ impl Sim<'_, '_> {
         );
         self.timers[i] = None;
         self.checker.restarted(r);
-        self.checker
-            .runs_version(r, self.agents[i].kernel().version());
+        self.checker.runs_version(r, 0);
+        // A fresh mind starts on the first version and holds the newest
+        // one handed out: it takes it as it rejoins a team that runs it,
+        // or with its team at the next safe point.
+        self.hand_changes(r);
         if self.log.is_writing() {
             let rec = json!({"t": self.now.as_secs_f64(), "robot": self.graph.roster().name(r), "event": "restarted", "incarnation": self.incarnation[i]});
             self.log.write(&rec);

@@ -206,6 +206,9 @@ pub struct Case {
     pub mission: Arc<Mission>,
     /// The scenario, before faults.
     pub scenario: Scenario,
+    /// New versions of the mission handed to the team as it runs (the
+    /// scenario's `mission_changes:`, loaded).
+    pub changes: Vec<crate::runner::Change>,
 }
 
 /// One run of the sweep.
@@ -305,6 +308,7 @@ pub fn run_one(cases: &[Case], spec: &RunSpec) -> RunResult {
             &scenario,
             RunOptions {
                 seed: Some(spec.seed),
+                changes: case.changes.clone(),
                 ..RunOptions::default()
             },
         )

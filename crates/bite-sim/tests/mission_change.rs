@@ -80,7 +80,9 @@ fn run_change(at: f64, seed: u64, faults: &[Fault]) -> Run {
             Event::MissionChanged { version, after, .. } => Some((
                 r.robot.0,
                 *version,
-                v2.graph().name_of(after.behavior).to_string(),
+                after.map_or("(rejoining)".to_string(), |a| {
+                    v2.graph().name_of(a.behavior).to_string()
+                }),
             )),
             _ => None,
         })

@@ -143,14 +143,15 @@ impl Kernel {
         let team = self.org.team(after.team).map(|t| t.members.clone());
         let depth = self.stack.len();
         let leader = self.heal_leader(after.team, depth);
-        // A teammate of the team heard past `after` in the running version.
-        let passed_old = |me: &Kernel| {
-            me.peer_versions.iter().any(|(r, p)| {
-                team.as_ref().is_some_and(|t| t.contains(*r))
-                    && p.version < v
-                    && p.past.contains(&after)
+        let in_team = |r: RobotId| team.as_ref().is_some_and(|t| t.contains(r));
+        // A teammate heard past `after`: in the running version (the team
+        // went on without switching there), or in `v` (it switched there).
+        let passed = |newer: bool| {
+            self.peer_versions.iter().any(|(r, p)| {
+                in_team(*r) && (p.version >= v) == newer && p.past.contains(&after)
             })
         };
+        let (passed_old, passed_new) = (passed(false), passed(true));
         // The team's leader runs `v` already (it switched on its side of a
         // partition, or this robot is a restarted or late one): catch up.
         let leader_ahead = leader.filter(|l| *l != self.me).is_some_and(|l| {
@@ -158,27 +159,45 @@ impl Kernel {
                 .get(&l)
                 .is_some_and(|p| self.now - p.heard <= FRESH && p.version >= v)
         });
-        let switch = match followed {
-            Some(s) => s,
-            None if leader_ahead => true,
-            None if passed_old(self) => false,
-            // 2. The leader decides.
-            None if leader == Some(self.me) => {
-                let above = &self.stack[..depth];
-                team.as_ref().is_some_and(|t| {
-                    t.iter().all(|r| {
-                        r == self.me
-                            || self.lost.contains(r)
-                            || above
+        // The leader's view of its members: each fresh, holding `v` or not.
+        let above = &self.stack[..depth];
+        let members: Vec<RobotId> = team
+            .as_ref()
+            .map(|t| {
+                t.iter()
+                    .filter(|r| {
+                        *r != self.me
+                            && !self.lost.contains(*r)
+                            && !above
                                 .iter()
-                                .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(r)))
-                            || self.peer_versions.get(&r).is_some_and(|p| {
-                                self.now - p.heard <= FRESH && (p.pending == v || p.version >= v)
-                            })
+                                .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(*r)))
                     })
-                })
-            }
-            // 3. Hold for the leader's decision, for a while.
+                    .collect()
+            })
+            .unwrap_or_default();
+        let fresh = |r: &RobotId| {
+            self.peer_versions
+                .get(r)
+                .filter(|p| self.now - p.heard <= FRESH)
+        };
+        let all_fresh = members.iter().all(|r| fresh(r).is_some());
+        let all_hold = members
+            .iter()
+            .all(|r| fresh(r).is_some_and(|p| p.pending == v || p.version >= v));
+        let leads = leader == Some(self.me);
+        let decided = match followed {
+            Some(s) => Some(s),
+            None if leader_ahead || passed_new => Some(true),
+            None if passed_old => Some(false),
+            // 2. The leader decides, on what it heard recently from every
+            // member (back from a pause, it first hears them again).
+            None if leads && all_fresh => Some(all_hold),
+            // 3. Hold for the decision (a member), or for fresh news (the
+            // leader), for a while.
+            None => None,
+        };
+        let switch = match decided {
+            Some(s) => s,
             None => {
                 let since = match self.fence_wait {
                     Some((f, t)) if f == after => t,
@@ -191,21 +210,25 @@ impl Kernel {
                 if self.now - since < FENCE_WAIT {
                     return false;
                 }
-                self.emit(Event::MissionChangeDeferred {
-                    version: v,
-                    team: after.team,
-                    after: FrameRef {
-                        behavior: after.behavior,
-                        epoch: after.epoch,
-                    },
-                    timed_out: true,
-                });
-                self.record_fence(Fence {
-                    version: v,
-                    after,
-                    switched: false,
-                });
-                return true;
+                if leads {
+                    all_hold
+                } else {
+                    self.emit(Event::MissionChangeDeferred {
+                        version: v,
+                        team: after.team,
+                        after: FrameRef {
+                            behavior: after.behavior,
+                            epoch: after.epoch,
+                        },
+                        timed_out: true,
+                    });
+                    self.record_fence(Fence {
+                        version: v,
+                        after,
+                        switched: false,
+                    });
+                    return true;
+                }
             }
         };
         self.record_fence(Fence {
@@ -214,7 +237,7 @@ impl Kernel {
             switched: switch,
         });
         if switch {
-            self.switch_version(after);
+            self.switch_version(Some(after));
         } else {
             self.emit(Event::MissionChangeDeferred {
                 version: v,
@@ -240,8 +263,18 @@ impl Kernel {
         }
     }
 
-    /// Run the pending version from now on (at the boundary after `after`).
-    fn switch_version(&mut self, after: FrameId) {
+    /// A restarted robot rejoining its team (a fresh mind, in nothing yet)
+    /// holds a version its teammate already runs: it takes it before it
+    /// joins the team where the team is.
+    pub(super) fn rejoin_version(&mut self, pos: &Position) {
+        if self.pending_version().is_some_and(|v| pos.version >= v) {
+            self.switch_version(None);
+        }
+    }
+
+    /// Run the pending version from now on: at the boundary after `after`,
+    /// or (`None`) as a restarted robot rejoins.
+    fn switch_version(&mut self, after: Option<FrameId>) {
         let Some((version, mission)) = self.pending.take() else {
             return;
         };
@@ -259,11 +292,11 @@ impl Kernel {
         self.stack_version += 1;
         self.emit(Event::MissionChanged {
             version,
-            team: after.team,
-            after: FrameRef {
-                behavior: after.behavior,
-                epoch: after.epoch,
-            },
+            team: after.map_or(TeamId::ROOT, |a| a.team),
+            after: after.map(|a| FrameRef {
+                behavior: a.behavior,
+                epoch: a.epoch,
+            }),
             changed,
         });
     }
@@ -277,9 +310,13 @@ impl Kernel {
             self.peer_versions.remove(&from);
             return;
         }
-        let past = pos
-            .frames
-            .iter()
+        // What it has chosen successors of: what its frames follow, and
+        // what it ended recently and is not choosing a successor of now.
+        let choosing: Vec<FrameId> = (pos.frames.iter())
+            .filter(|f| f.state != crate::kernel::FrameState::Running)
+            .map(|f| f.id)
+            .collect();
+        let past = (pos.frames.iter())
             .filter_map(|f| {
                 f.anchor.filter(|a| !a.first).map(|a| FrameId {
                     team: f.id.team,
@@ -287,7 +324,18 @@ impl Kernel {
                     epoch: a.epoch,
                 })
             })
+            .chain(pos.ended.iter().map(|e| e.id).filter(|id| !choosing.contains(id)))
             .collect();
+        // Pass on what teammates did at safe points of this robot's teams.
+        for f in &pos.fences {
+            let mine = self.org.team(f.after.team).is_some_and(|t| t.contains(self.me));
+            if mine && !self.relayed.contains(f) && !self.fences.contains(f) {
+                self.relayed.push_back(*f);
+                while self.relayed.len() > RECENT {
+                    self.relayed.pop_front();
+                }
+            }
+        }
         self.peer_versions.insert(
             from,
             PeerVersion {

@@ -405,6 +405,9 @@ pub struct Kernel {
     pending: Option<(u32, Arc<Mission>)>,
     /// What it did at recent safe points while a version was pending.
     fences: VecDeque<Fence>,
+    /// What teammates did at recent safe points of its teams, passed on
+    /// with its heartbeats (members hear only their leader).
+    relayed: VecDeque<Fence>,
     /// Holding at a safe point for the leader's decision: where, since when.
     fence_wait: Option<(FrameId, Time)>,
     /// What teammates' heartbeats said about versions.
@@ -460,6 +463,7 @@ impl Kernel {
             version: 0,
             pending: None,
             fences: VecDeque::new(),
+            relayed: VecDeque::new(),
             fence_wait: None,
             peer_versions: BTreeMap::new(),
         }

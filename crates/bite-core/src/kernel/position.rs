@@ -195,7 +195,7 @@ impl Position {
                 .iter()
                 .all(|e| ok_id(&e.id) && e.parent.as_ref().is_none_or(ok_id))
             && self.burned.iter().all(ok_id)
-            && self.fences.len() <= RECENT
+            && self.fences.len() <= 2 * RECENT
             && self.fences.iter().all(|f| ok_id(&f.after))
             && self.frames.iter().all(|f| {
                 ok_id(&f.id)
@@ -281,7 +281,7 @@ impl Kernel {
             burned: self.recent_burned.iter().copied().collect(),
             version: self.version,
             pending: self.pending.as_ref().map_or(0, |p| p.0),
-            fences: self.fences.iter().copied().collect(),
+            fences: self.fences.iter().chain(&self.relayed).copied().collect(),
         }
     }
 
@@ -383,6 +383,9 @@ impl Kernel {
             return self.drop_msg(from, crate::event::DropReason::Malformed);
         }
         self.peer_version(from, pos);
+        if self.awaiting_rejoin() {
+            self.rejoin_version(pos);
+        }
         let readable = self.readable(pos);
         let pos = readable.as_ref().unwrap_or(pos);
         if self.awaiting_rejoin() {
