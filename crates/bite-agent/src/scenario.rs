@@ -386,7 +386,9 @@ impl MissionChange {
         if p.is_absolute() {
             return p.to_path_buf();
         }
-        scenario.parent().map_or_else(|| p.to_path_buf(), |d| d.join(p))
+        scenario
+            .parent()
+            .map_or_else(|| p.to_path_buf(), |d| d.join(p))
     }
 }
 

@@ -444,7 +444,10 @@ pub(crate) fn scenario_changes(
                     &scenario.file,
                     c.loc,
                     "change-refused",
-                    format!("{} cannot replace the running mission: {why}", graph.display()),
+                    format!(
+                        "{} cannot replace the running mission: {why}",
+                        graph.display()
+                    ),
                 ),
             ]))
         })?;

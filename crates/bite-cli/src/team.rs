@@ -402,62 +402,65 @@ fn loader(
     own: Option<Scenario>,
     robots: Option<usize>,
 ) -> bite_zenoh::robot::Loader {
-    Box::new(move |body: &MissionBody, running: Option<&Arc<bite_core::mission::Mission>>| {
-        let scenario = match (&body.scenario, &own) {
-            (Some(text), _) => Scenario::load_str(
-                &Arc::from(format!("{} (submitted scenario)", body.id)),
-                text,
-            )
-            .map_err(|d| d.to_string())?,
-            (None, Some(s)) => s.clone(),
-            (None, None) => {
-                return Err(format!(
-                    "submission {} carries no scenario and this robot was started without one: \
+    Box::new(
+        move |body: &MissionBody, running: Option<&Arc<bite_core::mission::Mission>>| {
+            let scenario = match (&body.scenario, &own) {
+                (Some(text), _) => Scenario::load_str(
+                    &Arc::from(format!("{} (submitted scenario)", body.id)),
+                    text,
+                )
+                .map_err(|d| d.to_string())?,
+                (None, Some(s)) => s.clone(),
+                (None, None) => {
+                    return Err(format!(
+                        "submission {} carries no scenario and this robot was started without one: \
                      send one (`bite submit --scenario FILE`, or the `scenario` field) or start \
                      the robots with `--scenario FILE`",
-                    body.id
-                ));
-            }
-        };
-        let label = format!("{} (submitted)", body.id);
-        let (graph, scenario) = if let Some(src) = &body.rtcl {
-            let lib = rtcl::library(base.library.as_deref()).map_err(|e| e.to_string())?;
-            let opts = rtcl::options_for(&scenario, robots);
-            let compiled =
-                bite_rtcl::compile(&label, src, &lib, &opts).map_err(|d| d.to_string())?;
-            let g = bite_core::graph::load_str(&Arc::from(label.as_str()), &compiled.graph)
-                .map_err(|d| d.to_string())?;
-            let s = rtcl::bind_parts(&label, &compiled, &scenario).map_err(|d| d.to_string())?;
-            (g, s)
-        } else {
-            let text = body.graph.as_deref().unwrap_or_default();
-            let g = bite_core::graph::load_str(&Arc::from(label.as_str()), text)
-                .map_err(|d| d.to_string())?;
-            (g, scenario)
-        };
-        let graph = match &body.config {
-            Some(c) => {
-                let cfg =
-                    bite_core::Config::load_str(&Arc::from(format!("{} (config)", body.id)), c)
-                        .map_err(|d| d.to_string())?;
-                graph.with_config(&cfg).map_err(|d| d.to_string())?
-            }
-            None => graph,
-        };
-        let mission = match running {
-            // A new version of the running mission: numbered like it.
-            Some(base) => bite_sim::runner::prepare_change(base, &graph, &crate::registry())?,
-            None => bite_sim::runner::prepare(&graph, &scenario, robots, &crate::registry())
-                .map_err(|d| d.to_string())?,
-        };
-        let seed = body.seed.unwrap_or(scenario.seed);
-        Ok(Prepared {
-            mission,
-            scenario,
-            seed,
-            origin: serde_json::json!({"submitted": body, "base": base.origin(), "robots": robots}),
-        })
-    })
+                        body.id
+                    ));
+                }
+            };
+            let label = format!("{} (submitted)", body.id);
+            let (graph, scenario) = if let Some(src) = &body.rtcl {
+                let lib = rtcl::library(base.library.as_deref()).map_err(|e| e.to_string())?;
+                let opts = rtcl::options_for(&scenario, robots);
+                let compiled =
+                    bite_rtcl::compile(&label, src, &lib, &opts).map_err(|d| d.to_string())?;
+                let g = bite_core::graph::load_str(&Arc::from(label.as_str()), &compiled.graph)
+                    .map_err(|d| d.to_string())?;
+                let s =
+                    rtcl::bind_parts(&label, &compiled, &scenario).map_err(|d| d.to_string())?;
+                (g, s)
+            } else {
+                let text = body.graph.as_deref().unwrap_or_default();
+                let g = bite_core::graph::load_str(&Arc::from(label.as_str()), text)
+                    .map_err(|d| d.to_string())?;
+                (g, scenario)
+            };
+            let graph = match &body.config {
+                Some(c) => {
+                    let cfg =
+                        bite_core::Config::load_str(&Arc::from(format!("{} (config)", body.id)), c)
+                            .map_err(|d| d.to_string())?;
+                    graph.with_config(&cfg).map_err(|d| d.to_string())?
+                }
+                None => graph,
+            };
+            let mission = match running {
+                // A new version of the running mission: numbered like it.
+                Some(base) => bite_sim::runner::prepare_change(base, &graph, &crate::registry())?,
+                None => bite_sim::runner::prepare(&graph, &scenario, robots, &crate::registry())
+                    .map_err(|d| d.to_string())?,
+            };
+            let seed = body.seed.unwrap_or(scenario.seed);
+            Ok(Prepared {
+                mission,
+                scenario,
+                seed,
+                origin: serde_json::json!({"submitted": body, "base": base.origin(), "robots": robots}),
+            })
+        },
+    )
 }
 
 /// `bite robot`.

@@ -803,27 +803,59 @@ fn a_running_team_takes_a_new_version_of_its_mission_over_zenoh() {
     std::thread::sleep(Duration::from_secs(5));
     let sub = bite()
         .current_dir(repo())
-        .args(["submit", "--replace", "--timed", "--team", &t.team, "--id", "v2"])
+        .args([
+            "submit",
+            "--replace",
+            "--timed",
+            "--team",
+            &t.team,
+            "--id",
+            "v2",
+        ])
         .args(["--connect", &t.endpoints[0]])
         .arg("--key")
         .arg(&t.key_file)
         .arg("examples/formation-change-v2.yaml")
         .output()
         .unwrap();
-    assert!(sub.status.success(), "{}", String::from_utf8_lossy(&sub.stderr));
+    assert!(
+        sub.status.success(),
+        "{}",
+        String::from_utf8_lossy(&sub.stderr)
+    );
     let codes = t.procs.wait_all(Duration::from_secs(120));
     for (name, code) in &codes {
-        assert_eq!(*code, Some(0), "{name} did not complete; logs in {}", t.out.display());
+        assert_eq!(
+            *code,
+            Some(0),
+            "{name} did not complete; logs in {}",
+            t.out.display()
+        );
     }
     let mut switches = Vec::new();
     for r in ["r0", "r1", "r2"] {
         let log = read_jsonl(&t.out.join(format!("{r}.jsonl")));
-        let changed: Vec<&Value> = log.iter().filter(|e| e["event"] == "mission_changed").collect();
-        assert_eq!(changed.len(), 1, "{r}: {changed:?} (logs in {})", t.out.display());
+        let changed: Vec<&Value> = log
+            .iter()
+            .filter(|e| e["event"] == "mission_changed")
+            .collect();
+        assert_eq!(
+            changed.len(),
+            1,
+            "{r}: {changed:?} (logs in {})",
+            t.out.display()
+        );
         switches.push((changed[0]["version"].clone(), changed[0]["after"].clone()));
         // The new version ran: the column, not the line.
-        let ran = |b: &str| log.iter().any(|e| e["event"] == "selected" && e["behavior"] == b);
-        assert!(ran("column") && !ran("line"), "{r} (logs in {})", t.out.display());
+        let ran = |b: &str| {
+            log.iter()
+                .any(|e| e["event"] == "selected" && e["behavior"] == b)
+        };
+        assert!(
+            ran("column") && !ran("line"),
+            "{r} (logs in {})",
+            t.out.display()
+        );
         assert!(log.iter().any(|e| e["event"] == "mission_completed"), "{r}");
     }
     assert!(

@@ -103,9 +103,7 @@ pub fn prepare_change(
     } else {
         graph.clone()
     };
-    let aligned = graph
-        .aligned_to(base.graph())
-        .map_err(|e| e.to_string())?;
+    let aligned = graph.aligned_to(base.graph()).map_err(|e| e.to_string())?;
     Mission::new(aligned, registry)
         .map(Arc::new)
         .map_err(|d| d.to_string())

@@ -120,14 +120,27 @@ fn faults(spec: &str) -> Vec<Fault> {
 fn the_example_changes_course_mid_way_and_completes_with_everyone_switching_together() {
     let g = graph("formation-change.yaml", V1);
     let sc = scenario("formation-change.yaml", SCENARIO);
-    assert_eq!(sc.mission_changes.len(), 1, "the example scenario changes the mission");
+    assert_eq!(
+        sc.mission_changes.len(),
+        1,
+        "the example scenario changes the mission"
+    );
     let r = run_change(sc.mission_changes[0].at.as_secs_f64(), sc.seed, &[]);
     assert_eq!(r.summary.outcome, Outcome::Completed, "{}", r.summary);
     assert!(r.violations.is_empty(), "{:?}", r.violations);
-    assert_eq!(r.switched.len(), 3, "every robot switches: {:?}", r.switched);
-    let after: std::collections::BTreeSet<&str> =
-        r.switched.iter().map(|s| s.2.as_str()).collect();
-    assert_eq!(after.len(), 1, "all at the same safe point: {:?}", r.switched);
+    assert_eq!(
+        r.switched.len(),
+        3,
+        "every robot switches: {:?}",
+        r.switched
+    );
+    let after: std::collections::BTreeSet<&str> = r.switched.iter().map(|s| s.2.as_str()).collect();
+    assert_eq!(
+        after.len(),
+        1,
+        "all at the same safe point: {:?}",
+        r.switched
+    );
     assert_eq!(r.versions, [1, 1, 1]);
     // The new version ran: the column (new) instead of the line (retired).
     let line = r.v2.graph().find("line").expect("line is kept, retired");
@@ -228,7 +241,12 @@ fn hot_change_under_loss_and_crashes_never_splits_or_stalls() {
             }
         }
     }
-    assert!(failures.is_empty(), "{} of {runs} runs:\n{}", failures.len(), failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "{} of {runs} runs:\n{}",
+        failures.len(),
+        failures.join("\n")
+    );
     // Protocol deadlines (a barrier under loss) are about as frequent as
     // in the same runs without a change (on either version alone).
     eprintln!(

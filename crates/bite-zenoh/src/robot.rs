@@ -55,7 +55,8 @@ pub struct Prepared {
 /// graphs and command-language missions against the robot's scenario).
 /// With the running mission (a replacement, `MissionBody::replace`), it
 /// builds the new version numbered like it.
-pub type Loader = Box<dyn Fn(&MissionBody, Option<&Arc<Mission>>) -> Result<Prepared, String> + Send>;
+pub type Loader =
+    Box<dyn Fn(&MissionBody, Option<&Arc<Mission>>) -> Result<Prepared, String> + Send>;
 
 /// How a robot runs.
 pub struct RobotOptions {

@@ -172,13 +172,17 @@ impl BehaviorGraph {
                 || src(&a.utility) != src(&b.utility)
                 || a.skill != b.skill
                 || a.members != b.members
-                || !a.bindings.iter().zip(&b.bindings).all(|(x, y)| match (x, y) {
-                    (Some(x), Some(y)) => {
-                        (&x.protocol, x.deadline, x.retry, &x.params)
-                            == (&y.protocol, y.deadline, y.retry, &y.params)
-                    }
-                    (x, y) => x.is_none() && y.is_none(),
-                })
+                || !a
+                    .bindings
+                    .iter()
+                    .zip(&b.bindings)
+                    .all(|(x, y)| match (x, y) {
+                        (Some(x), Some(y)) => {
+                            (&x.protocol, x.deadline, x.retry, &x.params)
+                                == (&y.protocol, y.deadline, y.retry, &y.params)
+                        }
+                        (x, y) => x.is_none() && y.is_none(),
+                    })
         };
         let mut out = Vec::new();
         for b in &self.behaviors {
@@ -256,7 +260,9 @@ behaviors:
             .aligned_to(&old)
             .unwrap_err();
         assert!(e.0.contains("`go` has children"), "{e}");
-        let e = graph(&OLD.replace("robots: 3", "robots: 4")).aligned_to(&old).unwrap_err();
+        let e = graph(&OLD.replace("robots: 3", "robots: 4"))
+            .aligned_to(&old)
+            .unwrap_err();
         assert!(e.0.contains("team differs"), "{e}");
         let e = graph(&OLD.replace("go: {team: true,", "go: {"))
             .aligned_to(&old)

@@ -106,12 +106,20 @@ impl Kernel {
         let (old, new) = (self.mission.graph(), mission.graph());
         let aligned = new.len() >= old.len()
             && new.roster().names() == old.roster().names()
-            && old.symbols().iter().all(|(id, n)| new.symbols().get(n) == Some(id))
-            && old.behaviors().iter().all(|b| new.get(b.id).is_some_and(|c| c.name == b.name));
+            && old
+                .symbols()
+                .iter()
+                .all(|(id, n)| new.symbols().get(n) == Some(id))
+            && old
+                .behaviors()
+                .iter()
+                .all(|b| new.get(b.id).is_some_and(|c| c.name == b.name));
         if !aligned {
             return refuse(
                 self,
-                format!("version {version} is not numbered like the running version (align it first)"),
+                format!(
+                    "version {version} is not numbered like the running version (align it first)"
+                ),
             );
         }
         self.pending = Some((version, mission));
@@ -147,9 +155,9 @@ impl Kernel {
         // A teammate heard past `after`: in the running version (the team
         // went on without switching there), or in `v` (it switched there).
         let passed = |newer: bool| {
-            self.peer_versions.iter().any(|(r, p)| {
-                in_team(*r) && (p.version >= v) == newer && p.past.contains(&after)
-            })
+            self.peer_versions
+                .iter()
+                .any(|(r, p)| in_team(*r) && (p.version >= v) == newer && p.past.contains(&after))
         };
         let (passed_old, passed_new) = (passed(false), passed(true));
         // The team's leader runs `v` already (it switched on its side of a
@@ -280,7 +288,8 @@ impl Kernel {
         };
         let old = self.mission.clone();
         let changed = mission.graph().changed_since(old.graph());
-        self.beliefs.extend_symbols(mission.graph().symbols().clone());
+        self.beliefs
+            .extend_symbols(mission.graph().symbols().clone());
         for (name, value) in mission.graph().initial_beliefs() {
             if old.graph().symbols().get(name).is_none() {
                 self.beliefs
@@ -305,8 +314,7 @@ impl Kernel {
     /// it is read: it may name behaviors of a version this robot does not
     /// run yet).
     pub(super) fn peer_version(&mut self, from: RobotId, pos: &Position) {
-        if pos.version == 0 && pos.pending == 0 && pos.fences.is_empty() && self.pending.is_none()
-        {
+        if pos.version == 0 && pos.pending == 0 && pos.fences.is_empty() && self.pending.is_none() {
             self.peer_versions.remove(&from);
             return;
         }
@@ -324,11 +332,19 @@ impl Kernel {
                     epoch: a.epoch,
                 })
             })
-            .chain(pos.ended.iter().map(|e| e.id).filter(|id| !choosing.contains(id)))
+            .chain(
+                pos.ended
+                    .iter()
+                    .map(|e| e.id)
+                    .filter(|id| !choosing.contains(id)),
+            )
             .collect();
         // Pass on what teammates did at safe points of this robot's teams.
         for f in &pos.fences {
-            let mine = self.org.team(f.after.team).is_some_and(|t| t.contains(self.me));
+            let mine = self
+                .org
+                .team(f.after.team)
+                .is_some_and(|t| t.contains(self.me));
             if mine && !self.relayed.contains(f) && !self.fences.contains(f) {
                 self.relayed.push_back(*f);
                 while self.relayed.len() > RECENT {
@@ -354,9 +370,11 @@ impl Kernel {
     pub(super) fn readable(&self, pos: &Position) -> Option<Position> {
         let n = self.graph().len();
         let known = |id: &FrameId| id.behavior.index() < n;
-        let all_known = pos.frames.iter().all(|f| {
-            known(&f.id) && f.anchor.is_none_or(|a| a.behavior.index() < n)
-        }) && pos.ended.iter().all(|e| known(&e.id))
+        let all_known = pos
+            .frames
+            .iter()
+            .all(|f| known(&f.id) && f.anchor.is_none_or(|a| a.behavior.index() < n))
+            && pos.ended.iter().all(|e| known(&e.id))
             && pos.burned.iter().all(known);
         if all_known {
             return None;

@@ -53,8 +53,8 @@ mod inbox;
 mod instances;
 mod membership;
 mod position;
-use inbox::Inbox;
 pub use change::{FENCE_WAIT, Fence};
+use inbox::Inbox;
 pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position};
 
 /// How long accepted `(sender, seq)` pairs are remembered to drop

@@ -803,3 +803,129 @@ behaviors:
         Some(&1)
     );
 }
+
+impl Harness {
+    /// Every robot hears every other's heartbeat (its position).
+    fn beacons(&mut self) {
+        let positions: Vec<Position> = self.kernels.iter().map(Kernel::position).collect();
+        for (i, k) in self.kernels.iter_mut().enumerate() {
+            for (j, p) in positions.iter().enumerate() {
+                if i != j {
+                    k.peer(self.now, RobotId(j as u32), p);
+                }
+            }
+        }
+        for i in 0..self.kernels.len() {
+            self.drain(i);
+        }
+        self.pump();
+    }
+}
+
+const COURSE: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, until: a_done, next: [b] }
+  b: { team: true, until: never }";
+
+fn version2(h: &Harness, text: &str) -> Arc<Mission> {
+    let g = load_str(&Arc::from("v2.yaml"), text)
+        .unwrap_or_else(|d| panic!("{d}"))
+        .with_team_size(h.kernels.len());
+    let g = g
+        .aligned_to(h.kernels[0].mission().graph())
+        .unwrap_or_else(|e| panic!("{e}"));
+    Arc::new(Mission::new(g, &registry()).unwrap_or_else(|d| panic!("{d}")))
+}
+
+#[test]
+fn a_team_switches_to_a_new_version_together_at_a_safe_point() {
+    let mut h = Harness::new(COURSE, 2);
+    h.tick(0, &[]);
+    let v2 = version2(
+        &h,
+        &COURSE.replace("next: [b]", "next: [c]").replace(
+            "  b: { team: true, until: never }",
+            "  c: { team: true, until: never }",
+        ),
+    );
+    for k in &mut h.kernels {
+        k.offer_change(Time::from_millis(50), 1, v2.clone())
+            .expect("offered");
+        assert_eq!(k.pending_version(), Some(1));
+    }
+    // The member reaches the boundary first: it holds for its leader.
+    h.tick_one(1, 100, &[("a_done", T)]);
+    assert_eq!(h.stack(1), ["root"], "r1 holds at the safe point");
+    assert_eq!(h.kernels[1].version(), 0);
+    // Heartbeats: the leader learns that every member holds version 1.
+    h.beacons();
+    h.tick_one(0, 200, &[("a_done", T)]);
+    assert_eq!(h.kernels[0].version(), 1);
+    assert_eq!(h.stack(0), ["root", "c"]);
+    // The member hears the leader's decision and follows.
+    h.beacons();
+    h.tick_one(1, 300, &[("a_done", T)]);
+    assert_eq!(h.kernels[1].version(), 1);
+    assert_eq!(h.stack(1), ["root", "c"]);
+    for r in 0..2 {
+        let changed: Vec<_> = h
+            .events_of(r)
+            .into_iter()
+            .filter_map(|e| match e {
+                Event::MissionChanged { version, after, .. } => Some((*version, *after)),
+                _ => None,
+            })
+            .collect();
+        let a = h.kernels[0].mission().graph().find("a").unwrap();
+        assert_eq!(
+            changed,
+            [(
+                1,
+                Some(crate::event::FrameRef {
+                    behavior: a,
+                    epoch: 1
+                })
+            )]
+        );
+    }
+    // The same version again, or one not numbered like the running one,
+    // is refused with the reason.
+    let again = h.kernels[0].offer_change(Time::from_millis(400), 1, v2.clone());
+    assert!(again.unwrap_err().0.contains("not newer"));
+    let stranger = load_str(
+        &Arc::from("x.yaml"),
+        "start: z\nbehaviors:\n  z: { until: never }",
+    )
+    .unwrap_or_else(|d| panic!("{d}"))
+    .with_team_size(2);
+    let stranger = Arc::new(Mission::new(stranger, &registry()).unwrap_or_else(|d| panic!("{d}")));
+    let e = h.kernels[0].offer_change(Time::from_millis(400), 2, stranger);
+    assert!(e.unwrap_err().0.contains("not numbered like"));
+}
+
+#[test]
+fn a_team_goes_on_in_the_running_version_until_every_member_holds_the_new_one() {
+    let mut h = Harness::new(COURSE, 2);
+    h.tick(0, &[]);
+    let v2 = version2(&h, &COURSE.replace("until: never", "until: b_done"));
+    // Only the leader holds version 1: it goes on in version 0 and says so.
+    h.kernels[0]
+        .offer_change(Time::from_millis(50), 1, v2)
+        .expect("offered");
+    h.beacons();
+    h.tick(100, &[("a_done", T)]);
+    for r in 0..2 {
+        assert_eq!(h.stack(r), ["root", "b"], "r{r}");
+        assert_eq!(h.kernels[r].version(), 0);
+    }
+    assert!(h.events_of(0).iter().any(|e| matches!(
+        e,
+        Event::MissionChangeDeferred {
+            timed_out: false,
+            ..
+        }
+    )));
+    assert_eq!(h.kernels[0].pending_version(), Some(1), "still pending");
+}
