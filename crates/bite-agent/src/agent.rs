@@ -266,8 +266,8 @@ pub struct Agent {
     percepts: Vec<(BeliefId, Value)>,
     own: Vec<(BeliefId, Value)>,
     told: Vec<(BeliefId, Value, bite_core::belief::Source)>,
-    /// A new version of the mission, held by the kernel until a safe point.
-    pending: Option<(u32, Arc<Shared>)>,
+    /// New versions of the mission, held by the kernel until a safe point.
+    pending: BTreeMap<u32, Arc<Shared>>,
 }
 
 impl std::fmt::Debug for Agent {
@@ -327,7 +327,7 @@ impl Agent {
             percepts: Vec::new(),
             own: Vec::new(),
             told: Vec::new(),
-            pending: None,
+            pending: BTreeMap::new(),
             shared,
         }
     }
@@ -562,7 +562,13 @@ impl Agent {
             .kernel
             .offer_change(now, version, shared.mission.clone());
         if r.is_ok() {
-            self.pending = Some((version, shared));
+            self.pending.insert(version, shared);
+            // What the kernel no longer holds goes (it keeps the newest few).
+            let held: Vec<u32> = self.pending.keys().copied().collect();
+            let oldest = held.len().saturating_sub(4);
+            for v in &held[..oldest] {
+                self.pending.remove(v);
+            }
         }
         self.drain(now);
         r
@@ -570,17 +576,18 @@ impl Agent {
 
     /// The kernel switched to `version`: the rest of the mind follows.
     fn switched(&mut self, version: u32) {
-        let Some((v, shared)) = self.pending.take() else {
+        let Some(shared) = self.pending.remove(&version) else {
             return;
         };
-        if v != version {
-            return;
+        self.pending.retain(|v, _| *v > version);
+        if let (Some(p), Some((_, tables))) = (self.pilot.as_mut(), shared.physics.as_ref()) {
+            p.set_tables(tables.clone());
         }
-        if let (Some(p), Some((spec, tables))) = (self.pilot.as_mut(), shared.physics.as_ref()) {
-            *p = Pilot::new(spec.clone(), tables.clone());
-        }
-        if let (Some(wm), Some((len, _, private))) = (self.wm.as_mut(), shared.wm.as_ref()) {
-            wm.grow(*len, private.clone());
+        // The world model (set up by the first version) takes every belief
+        // of the new one: the kernel hears its own readings through it.
+        if let Some(wm) = self.wm.as_mut() {
+            let len = shared.mission.graph().symbols().len();
+            wm.grow(len, shared.wm.as_ref().map(|w| w.2.clone()));
         }
         self.shared = shared;
         // The leaf's skill is looked up again in the new version.

@@ -390,6 +390,13 @@ impl Pilot {
         }
     }
 
+    /// Take the percept tables of a new version of the mission, keeping
+    /// what it has seen (objects, teammates, the map).
+    pub fn set_tables(&mut self, tables: Arc<PerceptTables>) {
+        self.values = vec![None; tables.percepts.names.len()];
+        self.tables = tables;
+    }
+
     /// The pilot of robot `robot` of the team `names`, for a process that
     /// runs that robot alone: from the scenario `spec` (read from `file`)
     /// and the symbol table of the beliefs its graph reads, with the same

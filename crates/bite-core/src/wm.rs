@@ -190,13 +190,16 @@ pub struct WorldModel {
 
 impl WorldModel {
     /// Take a new version of the mission with `beliefs` beliefs (at least
-    /// as many as before, numbered alike) and its privacy marks.
-    pub fn grow(&mut self, beliefs: usize, private: std::sync::Arc<[bool]>) {
+    /// as many as before, numbered alike) and, if it says, its privacy
+    /// marks (else the beliefs it adds are shared like any other).
+    pub fn grow(&mut self, beliefs: usize, private: Option<std::sync::Arc<[bool]>>) {
         let n = beliefs.max(self.own.len());
         self.own.resize(n, None);
         self.told.resize(n, None);
         self.given.resize(n, None);
-        self.private = private;
+        if let Some(p) = private {
+            self.private = p;
+        }
     }
 
     /// The world model of robot `me` for a graph with `beliefs` beliefs;

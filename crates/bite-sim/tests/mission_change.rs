@@ -48,6 +48,17 @@ fn run_alone(second: bool, seed: u64, faults: &[Fault]) -> Outcome {
 }
 
 fn run_change(at: f64, seed: u64, faults: &[Fault]) -> Run {
+    run_changes(&[at], seed, faults)
+}
+
+/// Version 3: the course shortened again to 7 m.
+fn v3_text() -> String {
+    V2.replace("distance_walked >= 8", "distance_walked >= 7")
+}
+
+/// Hand versions 2, 3, ... at the times `at` (the second and later ones
+/// from `v3_text`, each aligned to the one before).
+fn run_changes(at: &[f64], seed: u64, faults: &[Fault]) -> Run {
     let g = graph("formation-change.yaml", V1);
     let mut sc = scenario("formation-change.yaml", SCENARIO);
     // The test hands the change itself, at `at`.
@@ -57,18 +68,30 @@ fn run_change(at: f64, seed: u64, faults: &[Fault]) -> Run {
     let v1 = prepare(&g, &sc, None, &reg).unwrap_or_else(|d| panic!("{d}"));
     let v2 = prepare_change(&v1, &graph("formation-change-v2.yaml", V2), &reg)
         .unwrap_or_else(|e| panic!("{e}"));
+    let mut changes = Vec::new();
+    let mut base = v1.clone();
+    for (i, t) in at.iter().enumerate() {
+        let m = if i == 0 {
+            v2.clone()
+        } else {
+            prepare_change(&base, &graph("v3.yaml", &v3_text()), &reg)
+                .unwrap_or_else(|e| panic!("{e}"))
+        };
+        changes.push(Change {
+            at: bite_core::time::Time::ZERO + Duration::from_secs_f64(*t),
+            version: i as u32 + 1,
+            mission: m.clone(),
+            source: format!("version {}", i + 1),
+        });
+        base = m;
+    }
     let report = run(
         v1,
         &sc,
         RunOptions {
             seed: Some(seed),
             record: true,
-            changes: vec![Change {
-                at: bite_core::time::Time::ZERO + Duration::from_secs_f64(at),
-                version: 1,
-                mission: v2.clone(),
-                source: "formation-change-v2.yaml".into(),
-            }],
+            changes,
             ..RunOptions::default()
         },
     )
@@ -261,5 +284,50 @@ fn hot_change_under_loss_and_crashes_never_splits_or_stalls() {
     assert!(
         switched_runs * 10 >= runs * 9,
         "the change was applied in only {switched_runs} of {runs} runs"
+    );
+}
+
+/// Two versions in quick succession (the second while the first is still
+/// pending on some robots, or just applied on others): no split between
+/// versions, and the team ends on the newest.
+#[test]
+fn two_changes_in_quick_succession_leave_one_team_on_the_newest_version() {
+    let mut failures = Vec::new();
+    let mut runs = 0;
+    for (class, spec) in [
+        ("fault-free", ""),
+        ("loss", "loss=0.15"),
+        ("partition", "partition=r0|r1,r2@{p}+4s"),
+        ("restart", "restart=r1@{p}+3s"),
+    ] {
+        for seed in 1..=15u64 {
+            let at = 8.0 + (seed as f64 * 9.7) % 45.0;
+            let gap = 0.2 + (seed as f64 * 0.37) % 3.0;
+            let spec = spec.replace("{p}", &format!("{:.1}s", at - 0.5));
+            let r = run_changes(&[at, at + gap], seed, &faults(&spec));
+            runs += 1;
+            let what = format!(
+                "{class} seed {seed} changes at {at:.1}s and {:.1}s [{spec}]",
+                at + gap
+            );
+            if !r.violations.is_empty() {
+                failures.push(format!("{what}: {:?}", r.violations));
+            }
+            if !matches!(
+                r.summary.outcome,
+                Outcome::Completed | Outcome::CompletedWithTimeouts
+            ) {
+                failures.push(format!("{what}: {}", r.summary));
+            }
+            if r.versions.iter().any(|v| *v != 2) {
+                failures.push(format!("{what}: versions at the end {:?}", r.versions));
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{} of {runs} runs:\n{}",
+        failures.len(),
+        failures.join("\n")
     );
 }

@@ -172,6 +172,8 @@ struct Running {
     detects: bool,
     /// The first control tick has run.
     ticked: bool,
+    /// The scenario it runs in (new versions of the mission run in it too).
+    scenario: Scenario,
 }
 
 /// Run a robot until it is stopped (`stop`), its time limit passes, or
@@ -466,6 +468,7 @@ impl Node<'_> {
             payload_rejects: BTreeMap::new(),
             early: Vec::new(),
             names,
+            scenario: p.scenario,
         });
         Ok(())
     }
@@ -776,8 +779,10 @@ impl Node<'_> {
         let id = Some(body.id.clone());
         let version = body.version();
         let Some(r) = self.run.as_mut() else { return };
-        let prepared = loader(body, Some(r.agent.kernel().mission())).and_then(|p| {
-            bite_agent::agent::Shared::for_version(p.mission, &p.scenario, version)
+        // Numbered like the newest version it runs or holds; run in the
+        // world it runs in (a scenario sent with it is not used).
+        let prepared = loader(body, Some(r.agent.kernel().newest_mission())).and_then(|p| {
+            bite_agent::agent::Shared::for_version(p.mission, &r.scenario, version)
                 .map_err(|d| d.to_string())
         });
         let shared = match prepared {

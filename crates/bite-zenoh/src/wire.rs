@@ -14,7 +14,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 /// Version of the payloads inside frames.
-pub const PAYLOAD_VERSION: u8 = 2;
+pub const PAYLOAD_VERSION: u8 = 3;
 
 /// Who a kernel message is for.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

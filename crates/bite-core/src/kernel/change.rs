@@ -32,8 +32,12 @@ use crate::graph::Refused;
 use crate::kernel::position::{FRESH, FrameId, RECENT};
 use serde::Deserialize;
 
-/// How long a member holds at a boundary for its leader's decision.
+/// How long a member holds at a boundary for its leader's decision (four
+/// times as long while its leader is heard, short of the boundary).
 pub const FENCE_WAIT: Duration = Duration::from_secs(5);
+
+/// How many pending versions a robot holds (the newest).
+const HELD: usize = 4;
 
 /// What a robot did at one boundary while a version was pending.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -67,21 +71,28 @@ impl Kernel {
     /// restarted process given the newest version its team was handed).
     /// Ignored once the mission has started.
     pub fn start_on_version(&mut self, version: u32) {
-        if matches!(self.phase, Phase::NotStarted) && self.pending.is_none() {
+        if matches!(self.phase, Phase::NotStarted) && self.pending.is_empty() {
             self.version = version;
         }
     }
 
-    /// The version it holds pending, if any.
+    /// The newest version it holds pending, if any.
     pub fn pending_version(&self) -> Option<u32> {
-        self.pending.as_ref().map(|p| p.0)
+        self.pending.keys().next_back().copied()
+    }
+
+    /// The newest version of the mission it runs or holds: what a newer
+    /// one must be numbered like.
+    pub fn newest_mission(&self) -> &Arc<Mission> {
+        self.pending.values().next_back().unwrap_or(&self.mission)
     }
 
     /// Offer version `version` of the mission (its graph aligned to the
-    /// running one's, see [`crate::graph::BehaviorGraph::aligned_to`]). It
-    /// replaces any older pending version and is applied at this robot's
-    /// team's next safe point. Refused when it is not newer than what this
-    /// robot runs or holds, or not aligned to it.
+    /// newest one this robot runs or holds, see
+    /// [`crate::graph::BehaviorGraph::aligned_to`]). It is applied at this
+    /// robot's team's next safe point; older versions still held are kept
+    /// (a teammate may have switched to one of them already). Refused when
+    /// it is not newer than what this robot runs or holds, or not aligned.
     pub fn offer_change(
         &mut self,
         now: Time,
@@ -103,7 +114,7 @@ impl Kernel {
                 format!("version {version} is not newer than version {newest}, held here"),
             );
         }
-        let (old, new) = (self.mission.graph(), mission.graph());
+        let (old, new) = (self.newest_mission().graph(), mission.graph());
         let aligned = new.len() >= old.len()
             && new.roster().names() == old.roster().names()
             && old
@@ -118,11 +129,14 @@ impl Kernel {
             return refuse(
                 self,
                 format!(
-                    "version {version} is not numbered like the running version (align it first)"
+                    "version {version} is not numbered like version {newest} (align it to the newest version first)"
                 ),
             );
         }
-        self.pending = Some((version, mission));
+        self.pending.insert(version, mission);
+        while self.pending.len() > HELD {
+            self.pending.pop_first();
+        }
         self.emit(Event::MissionChangeOffered { version });
         self.step();
         Ok(())
@@ -134,39 +148,43 @@ impl Kernel {
         let Some(v) = self.pending_version() else {
             return true;
         };
-        if self
-            .fences
-            .iter()
-            .any(|f| f.version == v && f.after == after)
-        {
+        if self.fences.iter().any(|f| f.after == after) {
             return true;
         }
-        // 1. A teammate already applied a decision here.
-        let followed = self.peer_versions.values().find_map(|p| {
-            p.fences
-                .iter()
-                .find(|f| f.after == after && f.version == v)
-                .map(|f| f.switched)
-        });
+        let me = self.version;
+        let held = |w: u32| w <= me || self.pending.contains_key(&w);
+        // 1. A teammate already applied a decision here: switched to a
+        // version this robot holds (or runs), or went on without switching.
+        let here: Vec<Fence> = (self.peer_versions.values())
+            .flat_map(|p| p.fences.iter().filter(|f| f.after == after).copied())
+            .collect();
+        let followed: Option<Option<u32>> = here
+            .iter()
+            .find(|f| f.switched && held(f.version))
+            .map(|f| Some(f.version))
+            .or_else(|| here.iter().any(|f| !f.switched).then_some(None));
         let team = self.org.team(after.team).map(|t| t.members.clone());
         let depth = self.stack.len();
         let leader = self.heal_leader(after.team, depth);
         let in_team = |r: RobotId| team.as_ref().is_some_and(|t| t.contains(r));
-        // A teammate heard past `after`: in the running version (the team
-        // went on without switching there), or in `v` (it switched there).
-        let passed = |newer: bool| {
-            self.peer_versions
-                .iter()
-                .any(|(r, p)| in_team(*r) && (p.version >= v) == newer && p.past.contains(&after))
-        };
-        let (passed_old, passed_new) = (passed(false), passed(true));
-        // The team's leader runs `v` already (it switched on its side of a
-        // partition, or this robot is a restarted or late one): catch up.
-        let leader_ahead = leader.filter(|l| *l != self.me).is_some_and(|l| {
-            self.peer_versions
-                .get(&l)
-                .is_some_and(|p| self.now - p.heard <= FRESH && p.version >= v)
-        });
+        // A teammate heard past `after`: in this robot's version (the team
+        // went on without switching there), or in a newer one it holds (it
+        // switched there).
+        let past: Vec<u32> = (self.peer_versions.iter())
+            .filter(|(r, p)| in_team(**r) && p.past.contains(&after))
+            .map(|(_, p)| p.version)
+            .collect();
+        let passed_new = past.iter().copied().find(|w| *w > me && held(*w));
+        let passed_old = past.iter().any(|w| *w <= me);
+        // The team's leader runs a newer version this robot holds (it
+        // switched on its side of a partition, or this robot is a
+        // restarted or late one): catch up.
+        let leader_ahead = leader
+            .filter(|l| *l != self.me)
+            .and_then(|l| self.peer_versions.get(&l))
+            .filter(|p| self.now - p.heard <= FRESH && p.version > me)
+            .map(|p| p.version)
+            .filter(|w| held(*w));
         // The leader's view of its members: each fresh, holding `v` or not.
         let above = &self.stack[..depth];
         let members: Vec<RobotId> = team
@@ -191,15 +209,17 @@ impl Kernel {
         let all_fresh = members.iter().all(|r| fresh(r).is_some());
         let all_hold = members
             .iter()
-            .all(|r| fresh(r).is_some_and(|p| p.pending == v || p.version >= v));
+            .all(|r| fresh(r).is_some_and(|p| p.pending >= v || p.version >= v));
         let leads = leader == Some(self.me);
+        let leader_decides = all_hold.then_some(v);
+        // Some(Some(w)): switch to w; Some(None): go on; None: undecided.
         let decided = match followed {
             Some(s) => Some(s),
-            None if leader_ahead || passed_new => Some(true),
-            None if passed_old => Some(false),
+            None if leader_ahead.or(passed_new).is_some() => Some(leader_ahead.or(passed_new)),
+            None if passed_old => Some(None),
             // 2. The leader decides, on what it heard recently from every
             // member (back from a pause, it first hears them again).
-            None if leads && all_fresh => Some(all_hold),
+            None if leads && all_fresh => Some(leader_decides),
             // 3. Hold for the decision (a member), or for fresh news (the
             // leader), for a while.
             None => None,
@@ -215,11 +235,22 @@ impl Kernel {
                         self.now
                     }
                 };
-                if self.now - since < FENCE_WAIT {
+                // A member whose leader is heard, still short of the
+                // boundary, waits for it longer (bounded).
+                let leader_coming = !leads
+                    && leader
+                        .and_then(|l| self.peer_versions.get(&l))
+                        .is_some_and(|p| self.now - p.heard <= FRESH);
+                let wait = if leader_coming {
+                    FENCE_WAIT * 4
+                } else {
+                    FENCE_WAIT
+                };
+                if self.now - since < wait {
                     return false;
                 }
                 if leads {
-                    all_hold
+                    leader_decides
                 } else {
                     self.emit(Event::MissionChangeDeferred {
                         version: v,
@@ -239,15 +270,15 @@ impl Kernel {
                 }
             }
         };
+        let switch = switch.filter(|w| *w > me);
         self.record_fence(Fence {
-            version: v,
+            version: switch.unwrap_or(v),
             after,
-            switched: switch,
+            switched: switch.is_some(),
         });
-        if switch {
-            self.switch_version(Some(after));
-        } else {
-            self.emit(Event::MissionChangeDeferred {
+        match switch {
+            Some(w) => self.switch_version(w, Some(after)),
+            None => self.emit(Event::MissionChangeDeferred {
                 version: v,
                 team: after.team,
                 after: FrameRef {
@@ -255,7 +286,7 @@ impl Kernel {
                     epoch: after.epoch,
                 },
                 timed_out: false,
-            });
+            }),
         }
         true
     }
@@ -275,17 +306,19 @@ impl Kernel {
     /// holds a version its teammate already runs: it takes it before it
     /// joins the team where the team is.
     pub(super) fn rejoin_version(&mut self, pos: &Position) {
-        if self.pending_version().is_some_and(|v| pos.version >= v) {
-            self.switch_version(None);
+        if pos.version > self.version && self.pending.contains_key(&pos.version) {
+            self.switch_version(pos.version, None);
         }
     }
 
-    /// Run the pending version from now on: at the boundary after `after`,
-    /// or (`None`) as a restarted robot rejoins.
-    fn switch_version(&mut self, after: Option<FrameId>) {
-        let Some((version, mission)) = self.pending.take() else {
+    /// Run held version `version` from now on (older ones held are
+    /// dropped): at the boundary after `after`, or (`None`) as a restarted
+    /// robot rejoins.
+    fn switch_version(&mut self, version: u32, after: Option<FrameId>) {
+        let Some(mission) = self.pending.remove(&version) else {
             return;
         };
+        self.pending.retain(|w, _| *w > version);
         let old = self.mission.clone();
         let changed = mission.graph().changed_since(old.graph());
         self.beliefs
@@ -314,7 +347,8 @@ impl Kernel {
     /// it is read: it may name behaviors of a version this robot does not
     /// run yet).
     pub(super) fn peer_version(&mut self, from: RobotId, pos: &Position) {
-        if pos.version == 0 && pos.pending == 0 && pos.fences.is_empty() && self.pending.is_none() {
+        if pos.version == 0 && pos.pending == 0 && pos.fences.is_empty() && self.pending.is_empty()
+        {
             self.peer_versions.remove(&from);
             return;
         }

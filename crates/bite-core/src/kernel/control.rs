@@ -626,7 +626,8 @@ impl Kernel {
             return false;
         };
         let (b, team, epoch) = (frame.behavior, frame.team, frame.epoch);
-        if key.is_none() && self.pending.is_some() {
+        // An urgent end picks the successor alone: no fence there.
+        if key.is_none() && !self.pending.is_empty() && !frame.urgent {
             let after = FrameId {
                 team,
                 behavior: b,

@@ -103,10 +103,15 @@ impl Kernel {
             return self.drop_msg(from, DropReason::UnknownSender);
         }
         let key = env.instance;
-        let graph = self.mission.graph();
+        // A point of the running version, or of a newer one this robot
+        // holds (a teammate that switched first talks about it; the
+        // message waits in the buffer like any early one).
+        let point_of = |graph: &crate::graph::BehaviorGraph| {
+            graph.get(key.behavior).is_some() && graph.is_point(key.behavior, key.kind)
+        };
         let well_formed = key.epoch > 0
-            && graph.get(key.behavior).is_some()
-            && graph.is_point(key.behavior, key.kind);
+            && (point_of(self.mission.graph())
+                || self.pending.values().any(|m| point_of(m.graph())));
         if !well_formed {
             return self.drop_msg(from, DropReason::Malformed);
         }

@@ -401,8 +401,8 @@ pub struct Kernel {
     peer_moved: BTreeMap<RobotId, Time>,
     /// The version of the mission it runs (see `change.rs`).
     version: u32,
-    /// A newer version, held until a safe point.
-    pending: Option<(u32, Arc<Mission>)>,
+    /// Newer versions, held until a safe point (the newest few).
+    pending: BTreeMap<u32, Arc<Mission>>,
     /// What it did at recent safe points while a version was pending.
     fences: VecDeque<Fence>,
     /// What teammates did at recent safe points of its teams, passed on
@@ -461,7 +461,7 @@ impl Kernel {
             peers: BTreeMap::new(),
             peer_moved: BTreeMap::new(),
             version: 0,
-            pending: None,
+            pending: BTreeMap::new(),
             fences: VecDeque::new(),
             relayed: VecDeque::new(),
             fence_wait: None,

@@ -155,14 +155,12 @@ pub struct Position {
     /// Executions it (or a teammate it heard) burned recently.
     pub burned: Vec<FrameId>,
     /// The version of the mission it runs (0: the one it started with).
-    #[serde(default)]
     pub version: u32,
-    /// The newer version it holds, waiting for a safe point (0: none).
-    #[serde(default)]
+    /// The newest version it holds, waiting for a safe point (0: none).
     pub pending: u32,
     /// What it decided or followed at recent safe points while a version
-    /// was pending (see `kernel/change.rs`).
-    #[serde(default)]
+    /// was pending, and what it passes on from teammates (see
+    /// `kernel/change.rs`).
     pub fences: Vec<super::change::Fence>,
 }
 
@@ -280,7 +278,7 @@ impl Kernel {
             ended: self.recent_ended.iter().copied().collect(),
             burned: self.recent_burned.iter().copied().collect(),
             version: self.version,
-            pending: self.pending.as_ref().map_or(0, |p| p.0),
+            pending: self.pending_version().unwrap_or(0),
             fences: self.fences.iter().chain(&self.relayed).copied().collect(),
         }
     }
