@@ -136,31 +136,9 @@ pub struct Shared {
     /// policy, which beliefs are private.
     wm: Option<(usize, bite_core::wm::Sharing, Arc<[bool]>)>,
     root: Arc<MemberSet>,
-    /// Which version of the mission it is (0: the first).
-    version: u32,
 }
 
 impl Shared {
-    /// The shared parts of version `version` of a running mission (its
-    /// graph aligned to the versions before): a robot started on it (a
-    /// restarted process) runs that version from the start.
-    pub fn for_version(
-        mission: Arc<Mission>,
-        scenario: &Scenario,
-        version: u32,
-    ) -> Result<Arc<Shared>, bite_core::diag::Diagnostics> {
-        let mut s = Shared::new(mission, scenario)?;
-        if let Some(s) = Arc::get_mut(&mut s) {
-            s.version = version;
-        }
-        Ok(s)
-    }
-
-    /// Which version of the mission it is.
-    pub fn version(&self) -> u32 {
-        self.version
-    }
-
     /// The shared parts of `mission` run in `scenario`.
     pub fn new(
         mission: Arc<Mission>,
@@ -210,7 +188,6 @@ impl Shared {
             wm,
             root: Arc::new(MemberSet::all(n)),
             mission,
-            version: 0,
         }))
     }
 
@@ -295,13 +272,12 @@ impl Agent {
     /// process is a new incarnation with streams of its own).
     pub fn start(shared: Arc<Shared>, me: RobotId, seed: u64, incarnation: u32) -> Agent {
         let who = me.0 ^ (incarnation << 20);
-        let mut kernel = Kernel::with_root(
+        let kernel = Kernel::with_root(
             shared.mission.clone(),
             me,
             derive_seed(seed, "kernel", who),
             shared.root.clone(),
         );
-        kernel.start_on_version(shared.version);
         let pilot = shared
             .physics
             .as_ref()

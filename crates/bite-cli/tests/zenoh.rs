@@ -251,6 +251,20 @@ struct Team {
     out: PathBuf,
 }
 
+impl Team {
+    /// Every robot exits 0 (completed its mission) within `limit`.
+    fn all_complete(&mut self, limit: Duration) {
+        for (name, code) in self.procs.wait_all(limit) {
+            assert_eq!(
+                code,
+                Some(0),
+                "{name} did not complete; logs in {}",
+                self.out.display()
+            );
+        }
+    }
+}
+
 /// Three robots in the timed world, started by hand (no launcher), with
 /// or without a mission (a graph, run in the timed world next to it).
 fn team(name: &str, mission: Option<&str>, speed: &str) -> Team {
@@ -363,15 +377,7 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         "r0",
         seal_with(&t.key, &scope, FrameKind::Heartbeat, 1, unix_micros(), &hb),
     );
-    let codes = t.procs.wait_all(Duration::from_secs(240));
-    for (n, c) in &codes {
-        assert_eq!(
-            *c,
-            Some(0),
-            "{n} did not complete; logs in {}",
-            t.out.display()
-        );
-    }
+    t.all_complete(Duration::from_secs(240));
     // r1 and r2 each received every injected frame once.
     for r in ["r1", "r2"] {
         let log = read_jsonl(&t.out.join(format!("{r}.jsonl")));
@@ -823,15 +829,7 @@ fn a_running_team_takes_a_new_version_of_its_mission_over_zenoh() {
         "{}",
         String::from_utf8_lossy(&sub.stderr)
     );
-    let codes = t.procs.wait_all(Duration::from_secs(120));
-    for (name, code) in &codes {
-        assert_eq!(
-            *code,
-            Some(0),
-            "{name} did not complete; logs in {}",
-            t.out.display()
-        );
-    }
+    t.all_complete(Duration::from_secs(120));
     let mut switches = Vec::new();
     for r in ["r0", "r1", "r2"] {
         let log = read_jsonl(&t.out.join(format!("{r}.jsonl")));

@@ -967,7 +967,7 @@ pub fn run(
         handed: 0,
     };
     for c in opts.changes {
-        let shared = Shared::for_version(c.mission.clone(), scenario, c.version)?;
+        let shared = Shared::new(c.mission.clone(), scenario)?;
         sim.changes.push((c, shared));
     }
     let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);

@@ -135,6 +135,21 @@ fn run_changes(at: &[f64], seed: u64, faults: &[Fault]) -> Run {
     }
 }
 
+/// What run `what` broke: an invariant, or it stalled or ran out of time.
+fn broken(what: &str, r: &Run) -> Vec<String> {
+    let mut out = Vec::new();
+    if !r.violations.is_empty() {
+        out.push(format!("{what}: {:?}", r.violations));
+    }
+    if !matches!(
+        r.summary.outcome,
+        Outcome::Completed | Outcome::CompletedWithTimeouts
+    ) {
+        out.push(format!("{what}: {}", r.summary));
+    }
+    out
+}
+
 fn faults(spec: &str) -> Vec<Fault> {
     Fault::parse_all(spec).unwrap_or_else(|e| panic!("{spec}: {e}"))
 }
@@ -225,19 +240,11 @@ fn hot_change_under_loss_and_crashes_never_splits_or_stalls() {
             let r = run_change(at, seed, &faults(&spec));
             runs += 1;
             let what = format!("{class} seed {seed} change at {at:.1}s [{spec}]");
-            if !r.violations.is_empty() {
-                failures.push(format!("{what}: {:?}", r.violations));
-            }
-            // No stall, no time limit. Under heavy loss a barrier may need
-            // its deadline, with or without a change (the same seed runs
-            // into it on either version alone); the change itself never
-            // leaves a member waiting for its leader's decision.
-            if !matches!(
-                r.summary.outcome,
-                Outcome::Completed | Outcome::CompletedWithTimeouts
-            ) {
-                failures.push(format!("{what}: {}", r.summary));
-            }
+            // Under heavy loss a barrier may need its deadline, with or
+            // without a change (the same seed runs into it on either version
+            // alone); the change itself never leaves a member waiting for
+            // its leader's decision.
+            failures.extend(broken(&what, &r));
             if r.summary.outcome == Outcome::CompletedWithTimeouts {
                 with_deadlines.push(what.clone());
             }
@@ -310,15 +317,7 @@ fn two_changes_in_quick_succession_leave_one_team_on_the_newest_version() {
                 "{class} seed {seed} changes at {at:.1}s and {:.1}s [{spec}]",
                 at + gap
             );
-            if !r.violations.is_empty() {
-                failures.push(format!("{what}: {:?}", r.violations));
-            }
-            if !matches!(
-                r.summary.outcome,
-                Outcome::Completed | Outcome::CompletedWithTimeouts
-            ) {
-                failures.push(format!("{what}: {}", r.summary));
-            }
+            failures.extend(broken(&what, &r));
             if r.versions.iter().any(|v| *v != 2) {
                 failures.push(format!("{what}: versions at the end {:?}", r.versions));
             }

@@ -782,8 +782,7 @@ impl Node<'_> {
         // Numbered like the newest version it runs or holds; run in the
         // world it runs in (a scenario sent with it is not used).
         let prepared = loader(body, Some(r.agent.kernel().newest_mission())).and_then(|p| {
-            bite_agent::agent::Shared::for_version(p.mission, &r.scenario, version)
-                .map_err(|d| d.to_string())
+            bite_agent::agent::Shared::new(p.mission, &r.scenario).map_err(|d| d.to_string())
         });
         let shared = match prepared {
             Ok(s) => s,

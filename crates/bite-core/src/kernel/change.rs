@@ -67,15 +67,6 @@ impl Kernel {
         self.version
     }
 
-    /// Start a fresh kernel on version `version` of its mission (a
-    /// restarted process given the newest version its team was handed).
-    /// Ignored once the mission has started.
-    pub fn start_on_version(&mut self, version: u32) {
-        if matches!(self.phase, Phase::NotStarted) && self.pending.is_empty() {
-            self.version = version;
-        }
-    }
-
     /// The newest version it holds pending, if any.
     pub fn pending_version(&self) -> Option<u32> {
         self.pending.keys().next_back().copied()
