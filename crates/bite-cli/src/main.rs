@@ -51,6 +51,7 @@ mod experiment;
 mod stats;
 mod sweep;
 mod tune;
+mod viz;
 
 /// The formation example, built in so that `bite run` works anywhere.
 const FORMATION_GRAPH: &str = include_str!("../../../examples/formation.yaml");
@@ -178,10 +179,30 @@ enum Cmd {
         /// The record (`<robot>.inputs`).
         file: PathBuf,
     },
+    /// Run logs: convert them to other formats.
+    Log {
+        #[command(subcommand)]
+        which: LogCmd,
+    },
     /// Whole-system benchmarks.
     Bench {
         #[command(subcommand)]
         which: BenchCmd,
+    },
+}
+
+#[derive(Subcommand)]
+enum LogCmd {
+    /// Convert run logs (JSON lines: a simulated run's, or a launched
+    /// team's robot and server logs, merged in time order) to an MCAP file
+    /// that Foxglove and Lichtblick open (see `bite run --mcap`).
+    Convert {
+        /// The run logs.
+        #[arg(required = true)]
+        inputs: Vec<PathBuf>,
+        /// The MCAP file to write.
+        #[arg(short, long)]
+        output: PathBuf,
     },
 }
 
@@ -249,6 +270,8 @@ struct RunArgs {
     /// sweep` prints to replay a run.
     #[arg(long = "fault", value_parser = parse_fault)]
     faults: Vec<bite_sim::fault::Fault>,
+    #[command(flatten)]
+    viz: viz::VizArgs,
 }
 
 fn parse_fault(s: &str) -> Result<bite_sim::fault::Fault, String> {
@@ -674,6 +697,16 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         bar.set_message(format!("{}/{} robots done", p.finished, p.robots));
     };
     let changes = scenario_changes(&scenario, &mission)?;
+    let mut viz = viz::Viz::start(
+        &a.viz,
+        &format!("bite run {}", mission.graph().name()),
+        true,
+    )?;
+    let mut on_record = |r: &serde_json::Value| {
+        if let Some(v) = viz.as_mut() {
+            v.record(r)
+        }
+    };
     let report = run(
         mission.clone(),
         &scenario,
@@ -684,6 +717,12 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
             record: false,
             progress: Some(&mut on_progress),
             changes,
+            watch: (a.viz.mcap.is_some() || a.viz.foxglove.is_some()).then_some(
+                bite_sim::runner::Watch {
+                    on_record: &mut on_record,
+                    poses_every: Duration::from_millis(100),
+                },
+            ),
         },
     )
     .map_err(bad_input)?;
@@ -691,6 +730,10 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     drop(writer);
     print_diags(&report.warnings);
     let pictures = draw_pictures(&report, &mission, &a.svg, &a.frames, &a.gif, a.every)?;
+    let recorded = match viz {
+        Some(v) => v.finish()?,
+        None => Vec::new(),
+    };
     if a.json {
         outln!("{}", serde_json::to_string_pretty(&report.summary)?);
     } else {
@@ -698,6 +741,9 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         outln!("  run log          {}", log_path.display());
         for p in &pictures {
             outln!("  picture          {p}");
+        }
+        for p in &recorded {
+            outln!("  mcap             {p}");
         }
         if report.summary.outcome != bite_sim::summary::Outcome::Completed
             || !report.violations.is_empty()
@@ -1265,6 +1311,9 @@ fn main() -> ExitCode {
         Cmd::Experiment(a) => experiment::cmd_experiment(a),
         Cmd::Tune(a) => tune::cmd_tune(a),
         Cmd::Replay { file } => team::cmd_replay(&file),
+        Cmd::Log {
+            which: LogCmd::Convert { inputs, output },
+        } => viz::cmd_convert(&inputs, &output),
         Cmd::Graph {
             graph,
             config,

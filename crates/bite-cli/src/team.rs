@@ -280,6 +280,11 @@ pub struct LaunchArgs {
     /// replay`).
     #[arg(long)]
     pub record: bool,
+    /// `--mcap FILE`: the team's logs (robots' and the simulator
+    /// server's, merged in time order) as one MCAP file when the team is
+    /// done. `--foxglove [PORT]`: the team live, from its logs as they grow.
+    #[command(flatten)]
+    pub viz: crate::viz::VizArgs,
 }
 
 #[derive(clap::Args)]
@@ -348,7 +353,7 @@ fn new_key() -> Result<TeamKey> {
 }
 
 /// A flag set by SIGINT / SIGTERM (the handler is installed once per process).
-fn stop_flag() -> Result<Arc<AtomicBool>> {
+pub(crate) fn stop_flag() -> Result<Arc<AtomicBool>> {
     static STOP: std::sync::OnceLock<Arc<AtomicBool>> = std::sync::OnceLock::new();
     if let Some(s) = STOP.get() {
         return Ok(s.clone());
@@ -793,6 +798,18 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
     let exe = std::env::current_exe().context("finding the bite executable")?;
     let ports: Vec<u16> = (0..=n).map(|_| free_port()).collect::<Result<_>>()?;
     let ep = |i: usize| format!("tcp/127.0.0.1:{}", ports[i]);
+    // The live view first: the team starts once a viewer is connected.
+    let live_args = crate::viz::VizArgs {
+        mcap: None,
+        foxglove: a.viz.foxglove,
+        pace: a.viz.pace,
+    };
+    let mut live = crate::viz::Viz::start(&live_args, &format!("bite launch {team}"), false)?;
+    let mut tails = crate::viz::Tails::new(
+        std::iter::once(a.out.join("server.jsonl"))
+            .chain(names.iter().map(|n| a.out.join(format!("{n}.jsonl"))))
+            .collect(),
+    );
     // Everyone starts its clock at the same moment, once all are up.
     let start_ms = unix_micros() / 1000 + 2500;
     let stop = stop_flag()?;
@@ -945,6 +962,11 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             }
             break;
         }
+        if let Some(v) = live.as_mut() {
+            for r in tails.poll() {
+                v.record(&r);
+            }
+        }
         std::thread::sleep(Duration::from_millis(50));
     }
     bar.finish_and_clear();
@@ -1027,6 +1049,23 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         a.out.join("summary.json"),
         serde_json::to_string_pretty(&summary)?,
     )?;
+    if let Some(p) = &a.viz.mcap {
+        let mut all = vec![read_jsonl(&a.out.join("server.jsonl"))?];
+        all.extend(logs.into_iter().map(|(_, l)| l));
+        let (records, messages) = crate::viz::write_mcap(all, p)?;
+        if !quiet {
+            eprintln!(
+                "mcap: {} ({records} records, {messages} messages)",
+                p.display()
+            );
+        }
+    }
+    if let Some(mut v) = live {
+        for r in tails.poll() {
+            v.record(&r);
+        }
+        v.finish()?;
+    }
     let ok = survivors_completed && agreement.disagreements.is_empty() && violations.is_empty();
     Ok((summary, ok))
 }

@@ -267,6 +267,7 @@ pub fn cmd_bench_zenoh(
                 time_limit: Some(Duration::from_secs(120)),
                 json: false,
                 record: false,
+                viz: Default::default(),
             };
             let (summary, ok) = launch(&args, true)?;
             let logs: Vec<Vec<Value>> = (0..n)

@@ -18,6 +18,7 @@ use std::io::{self, Write};
 /// Writes JSON lines and keeps a fingerprint of everything written.
 pub struct RunLog<'w> {
     out: Option<&'w mut dyn Write>,
+    watch: Option<&'w mut dyn FnMut(&J)>,
     hash: Fnv1a,
     lines: u64,
     error: Option<io::Error>,
@@ -28,17 +29,40 @@ impl<'w> RunLog<'w> {
     pub fn new(out: Option<&'w mut dyn Write>) -> Self {
         RunLog {
             out,
+            watch: None,
             hash: Fnv1a::new(),
             lines: 0,
             error: None,
         }
     }
-    /// True when records are written somewhere.
-    pub fn is_writing(&self) -> bool {
-        self.out.is_some()
+    /// Also hand every record to `watch` as it is made (a live view, an
+    /// MCAP file). The fingerprint covers what is written, not what is
+    /// watched.
+    pub fn with_watch(mut self, watch: Option<&'w mut dyn FnMut(&J)>) -> Self {
+        self.watch = watch;
+        self
     }
-    /// Write one record.
+    /// True when records go somewhere (a log or a watcher).
+    pub fn is_writing(&self) -> bool {
+        self.out.is_some() || self.watch.is_some()
+    }
+    /// True when a watcher sees the records.
+    pub fn is_watched(&self) -> bool {
+        self.watch.is_some()
+    }
+    /// Write one record (and show it to the watcher).
     pub fn write(&mut self, record: &J) {
+        self.show(record);
+        self.write_only(record);
+    }
+    /// Show a record to the watcher only (not in the log).
+    pub fn show(&mut self, record: &J) {
+        if let Some(w) = self.watch.as_mut() {
+            w(record);
+        }
+    }
+    /// Write a record to the log only (not to the watcher).
+    pub fn write_only(&mut self, record: &J) {
         let Some(out) = self.out.as_mut() else {
             return;
         };

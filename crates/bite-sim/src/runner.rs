@@ -14,7 +14,7 @@ use bite_agent::scenario::{Resolved, Scenario};
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::event::{DropReason, Event};
 use bite_core::graph::BehaviorGraph;
-use bite_core::ids::RobotId;
+use bite_core::ids::{BehaviorId, RobotId};
 use bite_core::interaction::{Recipients, Registry};
 use bite_core::kernel::{Frame, Stats};
 use bite_core::mission::Mission;
@@ -72,6 +72,18 @@ pub struct RunOptions<'a> {
     /// New versions of the mission handed to the running team, in order
     /// (see [`prepare_change`]).
     pub changes: Vec<Change>,
+    /// Someone watching the run as it goes (a live view, an MCAP file).
+    pub watch: Option<Watch<'a>>,
+}
+
+/// A watcher of a run: sees every run-log record when it is made (whether
+/// or not a log is written), and in a physical world a `poses` record every
+/// `poses_every` of simulated time instead of the log's one a second.
+pub struct Watch<'a> {
+    /// Called with each record, in log order.
+    pub on_record: &'a mut dyn FnMut(&serde_json::Value),
+    /// How often the watcher sees where everything is (physical world).
+    pub poses_every: Duration,
 }
 
 /// A new version of the mission handed to the team at a time.
@@ -248,6 +260,8 @@ struct Sim<'a, 'w> {
     /// The physical world (the robots' bodies), if the scenario has one.
     physics: Option<crate::physics::World>,
     next_poses: Time,
+    /// How often, and when next, the watcher sees the poses.
+    watch_poses: Option<(Duration, Time)>,
     /// Heartbeat period (positions travel with heartbeats).
     beacon_period: Duration,
     /// Heartbeat copies sent, and their bytes.
@@ -691,14 +705,26 @@ impl Sim<'_, '_> {
                             },
                         );
                     }
-                    if self.now >= self.next_poses
-                        && let Some(w) = &self.physics
-                    {
-                        self.next_poses = self.now + Duration::from_secs(1);
-                        if self.log.is_writing() {
-                            let (robots, objects) = w.poses();
-                            let rec = json!({"t": self.now.as_secs_f64(), "event": "poses", "robots": robots, "objects": objects});
-                            self.log.write(&rec);
+                    if let Some(w) = &self.physics {
+                        let g = &self.graph;
+                        let name = |b: BehaviorId| g.name_of(b).to_string();
+                        let t = self.now.as_secs_f64();
+                        if self.now >= self.next_poses {
+                            self.next_poses = self.now + Duration::from_secs(1);
+                            if self.log.is_writing() {
+                                let rec = w.poses_record(t, &name);
+                                // A watcher with its own pace sees its own.
+                                match self.watch_poses {
+                                    Some(_) => self.log.write_only(&rec),
+                                    None => self.log.write(&rec),
+                                }
+                            }
+                        }
+                        if let Some((every, next)) = self.watch_poses.as_mut()
+                            && self.now >= *next
+                        {
+                            *next = self.now + *every;
+                            self.log.show(&w.poses_record(t, &name));
                         }
                     }
                     if self.live_all_finished() {
@@ -902,7 +928,8 @@ pub fn run(
     let agents = (0..n as u32)
         .map(|r| Agent::start(shared.clone(), RobotId(r), seed, 0))
         .collect();
-    let mut log = RunLog::new(opts.log);
+    let watch_poses = opts.watch.as_ref().map(|w| (w.poses_every, Time::ZERO));
+    let mut log = RunLog::new(opts.log).with_watch(opts.watch.map(|w| w.on_record));
     log.write(&json!({
         "t": 0.0,
         "event": "run_started",
@@ -928,6 +955,17 @@ pub fn run(
             )?)
         }
     };
+    let behavior_names: Vec<String> = (0..graph.len())
+        .map(|b| graph.name_of(BehaviorId(b as u32)).to_string())
+        .collect();
+    if let Some(w) = &physics
+        && log.is_writing()
+    {
+        let robots: Vec<String> = (0..n as u32)
+            .map(|r| graph.roster().name(RobotId(r)).to_string())
+            .collect();
+        log.write(&w.layout_record(&robots, &behavior_names));
+    }
     let mut sim = Sim {
         agents,
         shared,
@@ -950,6 +988,7 @@ pub fn run(
         seed,
         physics,
         next_poses: Time::ZERO,
+        watch_poses,
         beacon_period: scenario.failure_detector.map_or(
             bite_agent::scenario::FailureDetector::default().heartbeat,
             |d| d.heartbeat,

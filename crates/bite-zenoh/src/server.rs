@@ -160,6 +160,15 @@ pub fn serve(
                "robots": names, "seed": seed, "speed": opts.speed}),
     )
     .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
+    let behaviors: Vec<String> = (0..graph.len())
+        .map(|b| {
+            graph
+                .name_of(bite_core::ids::BehaviorId(b as u32))
+                .to_string()
+        })
+        .collect();
+    write(&mut log, world.layout_record(&names, &behaviors))
+        .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
     let end = loop {
         let now = clock.now();
         if stop.load(Ordering::Relaxed) {
@@ -186,9 +195,9 @@ pub fn serve(
             }
             if now >= next_world {
                 next_world = now + Duration::from_secs(1);
-                let (robots, objects) = world.poses();
-                let rec = json!({"t": now.as_secs_f64(), "event": "poses", "robots": robots,
-                                 "objects": objects, "stopped": stopped});
+                let name = |b: bite_core::ids::BehaviorId| graph.name_of(b).to_string();
+                let mut rec = world.poses_record(now.as_secs_f64(), &name);
+                rec["stopped"] = json!(stopped);
                 write(&mut log, rec)
                     .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
             }

@@ -599,6 +599,65 @@ impl World {
         (robots, objects)
     }
 
+    /// The run-log record of where everything is at `t` (what
+    /// [`World::poses`] gives), with what each robot is doing as the
+    /// pictures colour it: its leaf behavior (named by `behavior`, `null`
+    /// when idle) and the robot whose slot it keeps or whom it follows.
+    ///
+    /// ```text
+    /// {"t":1.0,"event":"poses","robots":[[0.97,1.52,4.845]],"objects":{},"behaviors":["walk"],"links":[null]}
+    /// ```
+    pub fn poses_record(
+        &self,
+        t: f64,
+        behavior: &dyn Fn(bite_core::ids::BehaviorId) -> String,
+    ) -> serde_json::Value {
+        let (robots, objects) = self.poses();
+        let behaviors: Vec<Option<String>> = (self.robots.iter())
+            .map(|r| r.cmd.label.behavior.map(behavior))
+            .collect();
+        let links: Vec<Option<u32>> = self.robots.iter().map(|r| r.cmd.label.link).collect();
+        serde_json::json!({"t": t, "event": "poses", "robots": robots, "objects": objects,
+                           "behaviors": behaviors, "links": links})
+    }
+
+    /// The run-log record that describes the world once, at the start:
+    /// arena size, robot radius, obstacles, objects (start, shape, colour),
+    /// zones, the robots' names in roster order (the order of `poses`) and
+    /// the graph's behaviors in id order (`palette` gives each its colour
+    /// in the pictures: `palette[id % palette.len()]`). What a viewer of
+    /// the log (MCAP, the studio) draws the arena from.
+    pub fn layout_record(&self, robots: &[String], behaviors: &[String]) -> serde_json::Value {
+        let body = |k: usize, b: &spec::Body, pos: DVec2| {
+            let (shape, size) = match b.shape {
+                Shape::Box(s) => ("box", vec![s.x, s.y]),
+                Shape::Disc(r) => ("disc", vec![r]),
+            };
+            serde_json::json!({"index": k, "name": b.name, "shape": shape, "size": size,
+                               "at": [pos.x, pos.y], "angle": b.angle, "colour": b.colour})
+        };
+        let obstacles: Vec<serde_json::Value> = (self.spec.obstacles.iter())
+            .enumerate()
+            .map(|(k, b)| body(k, b, b.at))
+            .collect();
+        let objects: Vec<serde_json::Value> = (self.spec.objects.iter())
+            .enumerate()
+            .map(|(k, b)| body(k, b, self.object_pos(k)))
+            .collect();
+        serde_json::json!({
+            "t": self.t,
+            "event": "world",
+            "arena": [self.spec.arena.x, self.spec.arena.y],
+            "robots": robots,
+            "robot_radius": self.spec.robot.radius,
+            "obstacles": obstacles,
+            "objects": objects,
+            "zones": self.spec.zones,
+            "behaviors": behaviors,
+            "palette": svg::PALETTE,
+        })
+    }
+
     /// Can `a` reach `b` by radio?
     pub fn in_radio_range(&self, a: usize, b: usize) -> bool {
         self.spec

@@ -9,7 +9,7 @@ use std::fmt::Write;
 
 /// Colours for behaviors (Okabe-Ito, then a few more), readable on white
 /// and by colour-blind readers.
-const PALETTE: &[&str] = &[
+pub const PALETTE: &[&str] = &[
     "#0072B2", "#E69F00", "#009E73", "#D55E00", "#CC79A7", "#56B4E9", "#F0E442", "#000000",
     "#7F3C8D", "#11A579", "#3969AC", "#F2B701", "#E73F74", "#80BA5A",
 ];
