@@ -114,8 +114,18 @@ fn the_simulator_links_no_transport() {
     never(
         "bite-sim",
         &[],
-        &[TRANSPORT, OS_RANDOM, "bite-zenoh", "tokio"],
+        &[TRANSPORT, OS_RANDOM, "bite-zenoh", "tokio", "foxglove"],
         "a simulated run is deterministic: its network is simulated, its randomness seeded",
+    );
+}
+
+#[test]
+fn the_foxglove_formats_read_records_not_the_engine() {
+    never(
+        "bite-foxglove",
+        &[],
+        &["bite-core", "bite-agent", "bite-sim", "bite-zenoh", PHYSICS, TRANSPORT],
+        "MCAP files and the live view are made from run-log records alone, whichever runtime wrote them",
     );
 }
 

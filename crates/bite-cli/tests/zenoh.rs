@@ -167,7 +167,8 @@ fn check_agreement(out: &Path, robots: &[&str]) -> usize {
 fn three_robot_processes_and_the_sim_server_complete_the_formation() {
     let _one = serial();
     let out = tmp("formation");
-    let s = launch(&out, &[]);
+    let mcap = out.join("team.mcap");
+    let s = launch(&out, &["--mcap", mcap.to_str().unwrap()]);
     assert_eq!(s["completed"], true, "{s:#}");
     let robots = s["robots"].as_array().unwrap();
     assert_eq!(robots.len(), 3);
@@ -197,6 +198,34 @@ fn three_robot_processes_and_the_sim_server_complete_the_formation() {
         .map(|p| p[0].as_f64().unwrap())
         .collect();
     assert!(xs.iter().any(|x| *x > 5.0), "nobody walked: {xs:?}");
+    // One MCAP file for the team: the server's world and every robot's
+    // records, in time order, with the Foxglove schemas.
+    let bytes = std::fs::read(&mcap).expect("the team's MCAP file");
+    let mut topics: std::collections::BTreeMap<String, (String, usize)> = Default::default();
+    let mut last = 0;
+    for m in mcap::MessageStream::new(&bytes).expect("an MCAP file") {
+        let m = m.expect("a message");
+        assert!(m.log_time >= last, "time order");
+        last = m.log_time;
+        let schema = m.channel.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default();
+        topics.entry(m.channel.topic.clone()).or_insert((schema, 0)).1 += 1;
+    }
+    assert_eq!(topics["/scene"].0, "foxglove.SceneUpdate");
+    assert_eq!(topics["/tf"].0, "foxglove.FrameTransforms");
+    let total: usize = topics.values().map(|t| t.1).sum();
+    assert!(total > 100, "{topics:?}");
+    let decided: usize = ["r0", "r1", "r2"]
+        .iter()
+        .map(|r| {
+            (read_jsonl(&out.join(format!("{r}.jsonl"))).iter())
+                .filter(|x| x["event"] == "interaction_decided")
+                .count()
+        })
+        .sum();
+    assert_eq!(topics["/bite/decisions"].1, decided);
+    for r in ["r0", "r1", "r2"] {
+        assert!(topics.contains_key(&format!("/bite/{r}/stack")), "{topics:?}");
+    }
 }
 
 #[test]
