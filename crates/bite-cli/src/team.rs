@@ -191,6 +191,14 @@ pub struct RobotArgs {
     /// This robot's name on the mission's roster (e.g. `r0`).
     #[arg(long)]
     pub name: String,
+    /// Speak ROS 2 for the robots' bodies, on rmw_zenoh's wire conventions,
+    /// in this ROS domain (default 0): `/<robot>/odom`
+    /// (`nav_msgs/msg/Odometry`), `/<robot>/scan` (`sensor_msgs/msg/LaserScan`),
+    /// `/<robot>/cmd_vel` (`geometry_msgs/msg/Twist`), `/<robot>/bite/status`
+    /// (`std_msgs/msg/String`). See docs/ros2.md.
+    #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0")]
+    pub ros2: Option<u32>,
+
     #[command(flatten)]
     pub mission: MissionArgs,
     #[command(flatten)]
@@ -229,6 +237,14 @@ pub struct RobotArgs {
 pub struct ServeArgs {
     #[command(flatten)]
     pub mission: MissionArgs,
+    /// Speak ROS 2 for the robots' bodies, on rmw_zenoh's wire conventions,
+    /// in this ROS domain (default 0): `/<robot>/odom`
+    /// (`nav_msgs/msg/Odometry`), `/<robot>/scan` (`sensor_msgs/msg/LaserScan`),
+    /// `/<robot>/cmd_vel` (`geometry_msgs/msg/Twist`), `/<robot>/bite/status`
+    /// (`std_msgs/msg/String`). See docs/ros2.md.
+    #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0")]
+    pub ros2: Option<u32>,
+
     #[command(flatten)]
     pub net: NetArgs,
     /// Team seconds per wall second.
@@ -276,6 +292,13 @@ pub struct LaunchArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Speak ROS 2 for the robots' bodies, on rmw_zenoh's wire conventions,
+    /// in this ROS domain (default 0): `/<robot>/odom`
+    /// (`nav_msgs/msg/Odometry`), `/<robot>/scan` (`sensor_msgs/msg/LaserScan`),
+    /// `/<robot>/cmd_vel` (`geometry_msgs/msg/Twist`), `/<robot>/bite/status`
+    /// (`std_msgs/msg/String`). See docs/ros2.md.
+    #[arg(long, value_name = "DOMAIN", num_args = 0..=1, default_missing_value = "0")]
+    pub ros2: Option<u32>,
     /// Record every robot's inputs to `<out>/<robot>.inputs` (for `bite
     /// replay`).
     #[arg(long)]
@@ -504,6 +527,9 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
         gather_timeout: a.gather_timeout,
         status_period: Duration::from_millis(500),
         record: a.record.clone(),
+        ros2: a
+            .ros2
+            .map(|domain| bite_zenoh::ros2::Ros2Options { domain }),
     };
     if first.is_none() {
         eprintln!(
@@ -551,6 +577,9 @@ pub fn cmd_serve(a: ServeArgs) -> Result<ExitCode> {
         time_limit: a.time_limit,
         deadman: a.deadman,
         log: a.log.clone(),
+        ros2: a
+            .ros2
+            .map(|domain| bite_zenoh::ros2::Ros2Options { domain }),
     };
     eprintln!(
         "simulator server for team {}: scenario `{}`, {} robots, seed {seed}",
@@ -838,6 +867,9 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             "--speed".into(),
             a.speed.to_string(),
         ]);
+        if let Some(d) = a.ros2 {
+            v.extend(["--ros2".into(), d.to_string()]);
+        }
         v.extend(["--start-at".into(), start_ms.to_string()]);
     };
     let mut server = if physical {

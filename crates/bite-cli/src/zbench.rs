@@ -268,6 +268,7 @@ pub fn cmd_bench_zenoh(
                 json: false,
                 record: false,
                 viz: Default::default(),
+                ros2: None,
             };
             let (summary, ok) = launch(&args, true)?;
             let logs: Vec<Vec<Value>> = (0..n)

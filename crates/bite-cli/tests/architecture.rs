@@ -124,7 +124,14 @@ fn the_foxglove_formats_read_records_not_the_engine() {
     never(
         "bite-foxglove",
         &[],
-        &["bite-core", "bite-agent", "bite-sim", "bite-zenoh", PHYSICS, TRANSPORT],
+        &[
+            "bite-core",
+            "bite-agent",
+            "bite-sim",
+            "bite-zenoh",
+            PHYSICS,
+            TRANSPORT,
+        ],
         "MCAP files and the live view are made from run-log records alone, whichever runtime wrote them",
     );
 }

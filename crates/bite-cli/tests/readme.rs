@@ -363,7 +363,10 @@ fn every_readme_command_works_as_written() {
         if let Some((_, why)) = PARSE_ONLY
             .iter()
             .find(|(s, _)| s.0 == c.sub().0 && (s.1.is_empty() || s.1 == c.sub().1))
-            .or(live.then_some(&(("", ""), "serves a live view until a viewer has come and gone")))
+            .or(live.then_some(&(
+                ("", ""),
+                "serves a live view until a viewer has come and gone",
+            )))
         {
             let out = run_with_limit(
                 bite()

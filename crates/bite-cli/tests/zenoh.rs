@@ -207,8 +207,16 @@ fn three_robot_processes_and_the_sim_server_complete_the_formation() {
         let m = m.expect("a message");
         assert!(m.log_time >= last, "time order");
         last = m.log_time;
-        let schema = m.channel.schema.as_ref().map(|s| s.name.clone()).unwrap_or_default();
-        topics.entry(m.channel.topic.clone()).or_insert((schema, 0)).1 += 1;
+        let schema = m
+            .channel
+            .schema
+            .as_ref()
+            .map(|s| s.name.clone())
+            .unwrap_or_default();
+        topics
+            .entry(m.channel.topic.clone())
+            .or_insert((schema, 0))
+            .1 += 1;
     }
     assert_eq!(topics["/scene"].0, "foxglove.SceneUpdate");
     assert_eq!(topics["/tf"].0, "foxglove.FrameTransforms");
@@ -224,7 +232,10 @@ fn three_robot_processes_and_the_sim_server_complete_the_formation() {
         .sum();
     assert_eq!(topics["/bite/decisions"].1, decided);
     for r in ["r0", "r1", "r2"] {
-        assert!(topics.contains_key(&format!("/bite/{r}/stack")), "{topics:?}");
+        assert!(
+            topics.contains_key(&format!("/bite/{r}/stack")),
+            "{topics:?}"
+        );
     }
 }
 
@@ -890,4 +901,145 @@ fn a_running_team_takes_a_new_version_of_its_mission_over_zenoh() {
         "not all at the same safe point: {switches:?}"
     );
     check_agreement(&t.out, &["r0", "r1", "r2"]);
+}
+
+/// A virtual environment with `eclipse-zenoh` and `rosbags` (an
+/// independent ROS 2 CDR codec and type-hash implementation), made once.
+fn python_with_ros2() -> PathBuf {
+    let venv = Path::new(env!("CARGO_TARGET_TMPDIR")).join("venv-ros2");
+    let py = venv.join("bin/python");
+    let ok = |py: &Path| {
+        Command::new(py)
+            .args(["-c", "import zenoh, rosbags.typesys"])
+            .status()
+            .is_ok_and(|s| s.success())
+    };
+    if !ok(&py) {
+        let s = Command::new("python3")
+            .args(["-m", "venv"])
+            .arg(&venv)
+            .status()
+            .expect("python3 is needed for the ROS 2 peer test");
+        assert!(s.success(), "python3 -m venv failed");
+        let s = Command::new(&py)
+            .args([
+                "-m",
+                "pip",
+                "install",
+                "--quiet",
+                "eclipse-zenoh==1.10.*",
+                "rosbags==0.11.*",
+            ])
+            .status()
+            .unwrap();
+        assert!(s.success(), "pip install eclipse-zenoh rosbags failed");
+    }
+    assert!(ok(&py), "eclipse-zenoh or rosbags does not import");
+    py
+}
+
+/// A ROS 2 peer written from rmw_zenoh's conventions with an independent
+/// CDR codec (Python: zenoh + rosbags) sees the simulator's bodies as ROS 2
+/// endpoints (liveliness tokens), reads their odometry and scans (every
+/// sample with rmw_zenoh's attachment), and drives one with Twist commands.
+#[test]
+fn a_ros2_peer_reads_odometry_and_scans_and_drives_a_body_by_cmd_vel() {
+    let _one = serial();
+    let py = python_with_ros2();
+    let out = tmp("ros2-body");
+    let port = free_port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let mut server = bite()
+        .current_dir(repo())
+        .args([
+            "sim",
+            "serve",
+            "examples/formation.yaml",
+            "--ros2",
+            "--team",
+            "ros2test",
+        ])
+        .args(["--listen", &endpoint, "--time-limit", "60s"])
+        .arg("--log")
+        .arg(out.join("server.jsonl"))
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let o = Command::new(&py)
+        .arg(repo().join("crates/bite-cli/tests/python/ros2_body.py"))
+        .args([&endpoint, "r0", "20"])
+        .output()
+        .unwrap();
+    let _ = nix::sys::signal::kill(
+        nix::unistd::Pid::from_raw(server.id() as i32),
+        nix::sys::signal::Signal::SIGTERM,
+    );
+    let _ = server.wait();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let tokens: Vec<&str> = r["tokens"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|t| t.as_str())
+        .collect();
+    assert!(
+        tokens.iter().any(|t| t
+            .contains("/MP/%/%r0/r0_body/%r0%odom/nav_msgs::msg::dds_::Odometry_/RIHS01_3cc97dc7")),
+        "{tokens:#?}"
+    );
+    assert!(
+        tokens
+            .iter()
+            .any(|t| t.contains("/MS/") && t.contains("%r0%cmd_vel")),
+        "{tokens:#?}"
+    );
+    assert!(r["odom"].as_u64().unwrap() > 10, "{r}");
+    assert!(r["scan"].as_u64().unwrap() > 10, "{r}");
+    assert_eq!(r["bad_attachments"], 0, "{r}");
+    assert_eq!(r["frame_id"], "r0/odom");
+    assert_eq!(r["child_frame_id"], "r0/base_link");
+    assert!(r["scan_rays"].as_u64().unwrap() >= 8, "{r}");
+    let moved = r["moved_forward"].as_f64().unwrap();
+    assert!(moved > 0.15, "the body did not follow cmd_vel: {r}");
+    // The server counted the Twist commands it applied.
+    let log = read_jsonl(&out.join("server.jsonl"));
+    let stopped = log.iter().find(|x| x["event"] == "server_stopped").unwrap();
+    assert!(stopped["commands"][0].as_u64().unwrap() >= 15, "{stopped}");
+    assert_eq!(stopped["ros2_rejected"], 0, "{stopped}");
+}
+
+/// The formation team with ROS 2 bodies: each robot's mind takes its
+/// odometry and scans from `/<robot>/odom` and `/<robot>/scan` and drives by
+/// `/<robot>/cmd_vel` (rmw_zenoh conventions), and the team completes.
+#[test]
+fn a_team_with_ros2_bodies_completes_the_formation() {
+    let _one = serial();
+    let out = tmp("ros2-team");
+    let s = launch(&out, &["--ros2", "7"]);
+    assert_eq!(s["completed"], true, "{s:#}");
+    assert_eq!(s["invariants"]["violations"], 0, "{s:#}");
+    let world = read_jsonl(&out.join("server.jsonl"));
+    let stopped = world
+        .iter()
+        .find(|r| r["event"] == "server_stopped")
+        .unwrap();
+    assert_eq!(stopped["ros2_rejected"], 0, "{stopped}");
+    let last = world.iter().rev().find(|r| r["event"] == "poses").unwrap();
+    let xs: Vec<f64> = (last["robots"].as_array().unwrap().iter())
+        .map(|p| p[0].as_f64().unwrap())
+        .collect();
+    assert!(xs.iter().any(|x| *x > 5.0), "nobody walked: {xs:?}");
+    for r in ["r0", "r1", "r2"] {
+        let log = read_jsonl(&out.join(format!("{r}.jsonl")));
+        let fin = log
+            .iter()
+            .rev()
+            .find(|x| x["event"] == "run_finished")
+            .unwrap();
+        assert_eq!(fin["payload_rejects"], serde_json::json!({}), "{fin}");
+    }
 }

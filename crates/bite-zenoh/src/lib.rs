@@ -18,6 +18,7 @@ pub mod agreement;
 pub mod auth;
 pub mod net;
 pub mod robot;
+pub mod ros2;
 #[cfg(feature = "sim-server")]
 pub mod server;
 pub mod wire;

@@ -86,6 +86,12 @@ pub struct RobotOptions {
     pub status_period: Duration,
     /// Record the mind's every input here (see `bite_agent::record`).
     pub record: Option<PathBuf>,
+    /// The body speaks ROS 2 (rmw_zenoh): odometry and range rays from
+    /// `/<name>/odom` and `/<name>/scan`, velocity commands to
+    /// `/<name>/cmd_vel`, the status on `/<name>/bite/status`
+    /// (docs/ros2.md). The camera's sightings, which ROS has no standard
+    /// message for, still come on BITE's sensor key when a body sends them.
+    pub ros2: Option<crate::ros2::Ros2Options>,
 }
 
 /// How a robot's run ended.
@@ -124,6 +130,13 @@ enum Input {
         at_us: u64,
     },
     Sensors(Vec<u8>),
+    /// A ROS 2 sample on `odom` or `scan` (`ok`: it carried rmw_zenoh's
+    /// attachment).
+    Ros2 {
+        odom: bool,
+        bytes: Vec<u8>,
+        ok: bool,
+    },
     Mission(Vec<u8>),
     Query(zenoh::query::Query),
 }
@@ -252,6 +265,59 @@ pub fn run(
             .wait()
             .map_err(z)?
     };
+    // The body in ROS 2 terms: subscribe to its odometry and scans,
+    // announce the command and status publishers.
+    let mut ros = None;
+    let mut _ros_subs = Vec::new();
+    if let Some(r) = opts.ros2 {
+        use crate::ros2;
+        let ns = format!("/{}", opts.name);
+        let mut node =
+            ros2::RosNode::declare(&session, r.domain, &ns, &format!("{}_bite", opts.name))
+                .map_err(z)?;
+        for (odom, name, ty) in [
+            (true, "odom", &ros2::ODOMETRY),
+            (false, "scan", &ros2::LASER_SCAN),
+        ] {
+            let key = node
+                .subscription(&session, &ros2::topic(&ns, name), ty)
+                .map_err(z)?;
+            let push = push.clone();
+            _ros_subs.push(
+                session
+                    .declare_subscriber(key)
+                    .callback(move |s| {
+                        if s.payload().len() <= MAX_JSON {
+                            let ok = s
+                                .attachment()
+                                .is_some_and(|a| ros2::parse_attachment(&a.to_bytes()).is_ok());
+                            push(Input::Ros2 {
+                                odom,
+                                bytes: s.payload().to_bytes().into_owned(),
+                                ok,
+                            })
+                        }
+                    })
+                    .wait()
+                    .map_err(z)?,
+            );
+        }
+        let cmd = node
+            .publisher(&session, &ros2::topic(&ns, "cmd_vel"), &ros2::TWIST)
+            .map_err(z)?;
+        let status = node
+            .publisher(&session, &ros2::topic(&ns, "bite/status"), &ros2::STRING)
+            .map_err(z)?;
+        ros = Some(RosBody {
+            _node: node,
+            cmd,
+            status,
+            scan: Vec::new(),
+            camera: None,
+            last_pos: None,
+            odometer: 0.0,
+        });
+    }
     drop(tx);
     let mut log = (opts.log.as_deref().map(crate::create_log))
         .transpose()
@@ -268,6 +334,7 @@ pub fn run(
         log_error: None,
         next_status: 0,
         last_auth: AuthStats::default(),
+        ros,
     };
     if let Some(p) = first {
         node.start(p, None, opts.start_at_us)?;
@@ -307,6 +374,20 @@ struct Node<'a> {
     log_error: Option<std::io::Error>,
     next_status: u64,
     last_auth: AuthStats,
+    /// The body over ROS 2, if it speaks it.
+    ros: Option<RosBody>,
+}
+
+/// A body that speaks ROS 2: the latest scan and camera sightings, the
+/// distance travelled (from odometry), the publishers.
+struct RosBody {
+    _node: crate::ros2::RosNode,
+    cmd: crate::ros2::RosPublisher,
+    status: crate::ros2::RosPublisher,
+    scan: Vec<(f64, f64)>,
+    camera: Option<Sensed>,
+    last_pos: Option<(f64, f64)>,
+    odometer: f64,
 }
 
 impl Node<'_> {
@@ -620,6 +701,12 @@ impl Node<'_> {
                         s.mates.retain(|(j, _)| *j < n && *j != me);
                         s.rays.truncate(MAX_READINGS);
                         s.objects.truncate(MAX_READINGS);
+                        // A ROS 2 body: these are the camera's sightings;
+                        // odometry drives the control ticks.
+                        if let Some(ros) = self.ros.as_mut() {
+                            ros.camera = Some(s);
+                            return;
+                        }
                         r.last_sensed = Some(s)
                     }
                     Err(_) => {
@@ -627,6 +714,83 @@ impl Node<'_> {
                         return;
                     }
                 }
+                self.control_tick();
+            }
+            Input::Ros2 { odom, bytes, ok } => self.ros2_sample(odom, &bytes, ok),
+            Input::Mission(bytes) => self.submission(&bytes, loader),
+            Input::Query(q) => {
+                let m = self.membership();
+                let body = serde_json::to_vec(&m).unwrap_or_default();
+                let _ = q.reply(self.keys.members(&self.opts.name), body).wait();
+            }
+        }
+    }
+
+    /// A ROS 2 odometry or scan sample: a scan is kept for the next tick;
+    /// odometry is the body's pose estimate, and makes the readings of a
+    /// control tick with the latest scan and camera sightings.
+    fn ros2_sample(&mut self, odom: bool, bytes: &[u8], ok: bool) {
+        use crate::ros2;
+        let (Some(r), Some(ros)) = (self.run.as_mut(), self.ros.as_mut()) else {
+            return;
+        };
+        if !ok {
+            *r.payload_rejects.entry("ros2-no-attachment").or_insert(0) += 1;
+            return;
+        }
+        if !odom {
+            match ros2::decode::<ros2::LaserScan>(&ros2::LASER_SCAN, bytes) {
+                Ok(scan) => {
+                    let mut hits = ros2::hits_of(&scan);
+                    hits.truncate(MAX_READINGS);
+                    ros.scan = hits;
+                }
+                Err(_) => *r.payload_rejects.entry("ros2-scan-malformed").or_insert(0) += 1,
+            }
+            return;
+        }
+        let o = match ros2::decode::<ros2::Odometry>(&ros2::ODOMETRY, bytes) {
+            Ok(o) => o,
+            Err(_) => {
+                *r.payload_rejects.entry("ros2-odom-malformed").or_insert(0) += 1;
+                return;
+            }
+        };
+        let p = o.pose.pose.position;
+        let heading = o.pose.pose.orientation.to_yaw();
+        if !(p.x.is_finite() && p.y.is_finite() && heading.is_finite()) {
+            *r.payload_rejects.entry("ros2-odom-malformed").or_insert(0) += 1;
+            return;
+        }
+        if let Some((x, y)) = ros.last_pos {
+            ros.odometer += ((p.x - x).powi(2) + (p.y - y).powi(2)).sqrt();
+        }
+        ros.last_pos = Some((p.x, p.y));
+        let camera = ros.camera.take();
+        r.last_sensed = Some(Sensed {
+            t: o.header.stamp.as_secs(),
+            pose: bite_agent::schema::Pose {
+                pos: glam::DVec2::new(p.x, p.y),
+                heading,
+            },
+            rays: ros.scan.clone(),
+            mates: camera.as_ref().map(|c| c.mates.clone()).unwrap_or_default(),
+            objects: camera
+                .as_ref()
+                .map(|c| c.objects.clone())
+                .unwrap_or_default(),
+            odometer: ros.odometer,
+            contact: camera.is_some_and(|c| c.contact),
+        });
+        self.control_tick();
+    }
+
+    /// The readings in `last_sensed` are in: run a control tick if one is
+    /// due.
+    fn control_tick(&mut self) {
+        {
+            {
+                let Some(r) = self.run.as_mut() else { return };
                 if r.gather_until.is_some() || !r.agent.has_body() {
                     return;
                 }
@@ -646,12 +810,6 @@ impl Node<'_> {
                 r.last_sensed = s;
                 self.flush_agent();
                 self.check_finished();
-            }
-            Input::Mission(bytes) => self.submission(&bytes, loader),
-            Input::Query(q) => {
-                let m = self.membership();
-                let body = serde_json::to_vec(&m).unwrap_or_default();
-                let _ = q.reply(self.keys.members(&self.opts.name), body).wait();
             }
         }
     }
@@ -864,6 +1022,48 @@ impl Node<'_> {
                     records.push(Namer::new(&r.graph).record(now, r.me, &e));
                 }
                 AgentOutput::Drive(cmd) => {
+                    // A ROS 2 body takes a body velocity: what the robot's
+                    // drive makes of the command at its estimated heading.
+                    if let Some(ros) = self.ros.as_mut()
+                        && let Some(body) = &r.scenario.physics
+                    {
+                        let heading = r.last_sensed.as_ref().map_or(0.0, |s| s.pose.heading);
+                        let m = body.robot;
+                        let twist = match m.drive {
+                            bite_agent::spec::Drive::Differential => {
+                                let (f, turn) = bite_agent::schema::differential(
+                                    &cmd,
+                                    heading,
+                                    m.max_speed,
+                                    m.max_turn,
+                                );
+                                (f, 0.0, turn)
+                            }
+                            bite_agent::spec::Drive::Holonomic => {
+                                let v = glam::DVec2::from_angle(-heading).rotate(cmd.v);
+                                let turn = cmd.face.map_or(0.0, |h| {
+                                    (bite_agent::schema::wrap(h - heading) * 3.0)
+                                        .clamp(-m.max_turn, m.max_turn)
+                                });
+                                (v.x, v.y, turn)
+                            }
+                        };
+                        let t = crate::ros2::Twist {
+                            linear: crate::ros2::Vector3 {
+                                x: twist.0,
+                                y: twist.1,
+                                z: 0.0,
+                            },
+                            angular: crate::ros2::Vector3 {
+                                x: 0.0,
+                                y: 0.0,
+                                z: twist.2,
+                            },
+                        };
+                        ros.cmd.put(self.session, &t);
+                    }
+                    // BITE's own command too: a simulated body colours its
+                    // trail with the label (a ROS body ignores it).
                     let body = serde_json::to_vec(&cmd).unwrap_or_default();
                     let _ = self
                         .session
@@ -959,6 +1159,11 @@ impl Node<'_> {
     fn publish_status(&mut self) {
         let s = self.status();
         let body = serde_json::to_vec(&s).unwrap_or_default();
+        if let Some(ros) = self.ros.as_mut() {
+            let data = String::from_utf8_lossy(&body).into_owned();
+            ros.status
+                .put(self.session, &crate::ros2::RosString { data });
+        }
         let _ = self
             .session
             .put(self.keys.status(&self.opts.name), body)

@@ -28,6 +28,9 @@ use std::sync::mpsc::{RecvTimeoutError, TrySendError};
 use std::time::Duration;
 use zenoh::Wait;
 
+/// Queue tag of a ROS 2 `cmd_vel` sample (a robot name cannot start so).
+const ROS_PREFIX: &str = "\u{0}ros2:";
+
 /// How the server runs.
 pub struct ServerOptions {
     /// The team (key prefix).
@@ -45,6 +48,10 @@ pub struct ServerOptions {
     pub deadman: Duration,
     /// Where to write the world's log (poses once a second, JSON lines).
     pub log: Option<PathBuf>,
+    /// Also be the bodies in ROS 2 terms (rmw_zenoh): each robot's
+    /// odometry and range rays on `/<robot>/odom` and `/<robot>/scan`,
+    /// driven by `/<robot>/cmd_vel` (docs/ros2.md).
+    pub ros2: Option<crate::ros2::Ros2Options>,
 }
 
 /// What the server saw.
@@ -117,6 +124,7 @@ pub fn serve(
     let (tx, rx) = std::sync::mpsc::sync_channel::<(String, Vec<u8>)>(4096);
     let overflow = Arc::new(AtomicU64::new(0));
     let _cmds = {
+        let tx = tx.clone();
         let overflow = overflow.clone();
         session
             .declare_subscriber(keys.all("sim/cmd"))
@@ -131,6 +139,65 @@ pub fn serve(
             .wait()
             .map_err(z)?
     };
+    // The ROS 2 side: one node per robot body, publishing its odometry and
+    // scans, driven by its cmd_vel (samples without rmw_zenoh's attachment
+    // are dropped and counted, as a ROS subscriber drops them).
+    let ros_rejected = Arc::new(AtomicU64::new(0));
+    let mut ros = Vec::new();
+    let _ros_cmds = match opts.ros2 {
+        None => None,
+        Some(r) => {
+            use crate::ros2;
+            for name in &names {
+                let ns = format!("/{name}");
+                let mut node =
+                    ros2::RosNode::declare(&session, r.domain, &ns, &format!("{name}_body"))
+                        .map_err(z)?;
+                let odom = node
+                    .publisher(&session, &ros2::topic(&ns, "odom"), &ros2::ODOMETRY)
+                    .map_err(z)?;
+                let scan = node
+                    .publisher(&session, &ros2::topic(&ns, "scan"), &ros2::LASER_SCAN)
+                    .map_err(z)?;
+                node.subscription(&session, &ros2::topic(&ns, "cmd_vel"), &ros2::TWIST)
+                    .map_err(z)?;
+                ros.push((node, odom, scan));
+            }
+            let tx = tx.clone();
+            let overflow = overflow.clone();
+            let rejected = ros_rejected.clone();
+            let all = format!(
+                "{}/*/cmd_vel/{}/{}",
+                r.domain,
+                ros2::TWIST.mangled,
+                ros2::TWIST.hash
+            );
+            Some(
+                session
+                    .declare_subscriber(all)
+                    .callback(move |s| {
+                        let ok = s
+                            .attachment()
+                            .is_some_and(|a| ros2::parse_attachment(&a.to_bytes()).is_ok());
+                        if !ok {
+                            rejected.fetch_add(1, Ordering::Relaxed);
+                            return;
+                        }
+                        // `<domain>/<robot>/cmd_vel/...`
+                        let robot = s.key_expr().as_str().split('/').nth(1).unwrap_or("");
+                        let from = format!("{ROS_PREFIX}{robot}");
+                        if let Err(TrySendError::Full(_)) =
+                            tx.try_send((from, s.payload().to_bytes().into_owned()))
+                        {
+                            overflow.fetch_add(1, Ordering::Relaxed);
+                        }
+                    })
+                    .wait()
+                    .map_err(z)?,
+            )
+        }
+    };
+    drop(tx);
     let mut log = (opts.log.as_deref().map(crate::create_log))
         .transpose()
         .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
@@ -189,6 +256,31 @@ pub fn serve(
             world.record();
             for (i, name) in names.iter().enumerate() {
                 let s = world.observe(i);
+                if let Some((_, odom, scan)) = ros.get_mut(i) {
+                    use crate::ros2;
+                    let t = now.as_secs_f64();
+                    let (forward, turn) = world.body_velocity(i);
+                    let o = ros2::odometry(
+                        t,
+                        &format!("{name}/odom"),
+                        &format!("{name}/base_link"),
+                        s.pose.pos.x,
+                        s.pose.pos.y,
+                        s.pose.heading,
+                        forward,
+                        turn,
+                    );
+                    odom.put(&session, &o);
+                    let sensors = spec.sensors;
+                    let l = ros2::scan_of(
+                        t,
+                        &format!("{name}/base_scan"),
+                        sensors.rays as usize,
+                        sensors.ray_range,
+                        &s.rays,
+                    );
+                    scan.put(&session, &l);
+                }
                 if let Ok(body) = serde_json::to_vec(&s) {
                     let _ = session.put(keys.sensors(name), body).wait();
                 }
@@ -213,6 +305,19 @@ pub fn serve(
                 }
                 let now = clock.now();
                 for (from, bytes) in batch {
+                    if let Some(robot) = from.strip_prefix(ROS_PREFIX) {
+                        let twist =
+                            crate::ros2::decode::<crate::ros2::Twist>(&crate::ros2::TWIST, &bytes);
+                        match (index.get(robot), twist) {
+                            (Some(&i), Ok(t)) => {
+                                world.actuate_twist(i, t.linear.x, t.linear.y, t.angular.z);
+                                last_cmd[i] = Some(now);
+                                commands[i] += 1;
+                            }
+                            _ => rejected += 1,
+                        }
+                        continue;
+                    }
                     let Some(&i) = index.get(&from) else {
                         rejected += 1;
                         continue;
@@ -232,7 +337,8 @@ pub fn serve(
         }
     };
     let rec = json!({"t": end.as_secs_f64(), "event": "server_stopped", "commands": commands,
-                     "rejected": rejected, "overflow": overflow.load(Ordering::Relaxed)});
+                     "rejected": rejected, "overflow": overflow.load(Ordering::Relaxed),
+                     "ros2_rejected": ros_rejected.load(Ordering::Relaxed)});
     write(&mut log, rec).map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
     if let Some(mut w) = log {
         w.flush()

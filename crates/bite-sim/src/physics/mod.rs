@@ -80,6 +80,9 @@ struct Robot {
     last_pos: DVec2,
     trail: Vec<Sample>,
     contact: bool,
+    /// A body velocity to drive by instead of `cmd`'s (forward, left,
+    /// turn): a ROS 2 `cmd_vel` (see [`World::actuate_twist`]).
+    twist: Option<(f64, f64, f64)>,
 }
 
 /// The physical world of a run.
@@ -303,6 +306,7 @@ impl World {
                 last_pos: at,
                 trail: Vec::new(),
                 contact: false,
+                twist: None,
             });
         }
         let tables = match PerceptTables::new(&spec, symbols, file) {
@@ -488,9 +492,40 @@ impl World {
         let heading = self.pose(i).heading;
         let r = &mut self.robots[i];
         let cmd = if stopped { Command::default() } else { r.cmd };
+        let twist = if stopped {
+            r.twist.map(|_| (0.0, 0.0, 0.0))
+        } else {
+            r.twist
+        };
         let step = m.max_accel * dt;
-        let (linvel, angvel) = match m.drive {
-            Drive::Differential => {
+        let (linvel, angvel) = match (m.drive, twist) {
+            (Drive::Differential, Some((f, _, turn))) => {
+                let f = f.clamp(-m.max_speed, m.max_speed);
+                let turn = turn.clamp(-m.max_turn, m.max_turn);
+                let cur = r.vel.x;
+                let f = cur + (f - cur).clamp(-step, step);
+                r.vel = DVec2::new(f, 0.0);
+                r.turn = turn;
+                (DVec2::from_angle(heading) * f, turn)
+            }
+            (Drive::Holonomic, Some((f, l, turn))) => {
+                let want = DVec2::from_angle(heading).rotate(DVec2::new(f, l));
+                let want = if want.length() > m.max_speed {
+                    want * (m.max_speed / want.length())
+                } else {
+                    want
+                };
+                let dv = want - r.vel;
+                let dv = if dv.length() > step {
+                    dv * (step / dv.length())
+                } else {
+                    dv
+                };
+                r.vel += dv;
+                r.turn = turn.clamp(-m.max_turn, m.max_turn);
+                (r.vel, r.turn)
+            }
+            (Drive::Differential, None) => {
                 let (f, turn) = schema::differential(&cmd, heading, m.max_speed, m.max_turn);
                 let cur = r.vel.x;
                 let f = cur + (f - cur).clamp(-step, step);
@@ -498,7 +533,7 @@ impl World {
                 r.turn = turn;
                 (DVec2::from_angle(heading) * f, turn)
             }
-            Drive::Holonomic => {
+            (Drive::Holonomic, None) => {
                 let want = {
                     let l = cmd.v.length();
                     if l > m.max_speed {
@@ -822,6 +857,27 @@ impl World {
     /// a robot process sends).
     pub fn actuate(&mut self, i: usize, cmd: Command) {
         self.robots[i].cmd = cmd;
+    }
+
+    /// Drive robot `i` by a body velocity from now on (a ROS 2 `cmd_vel`:
+    /// forward and leftward speed, m/s, turn rate, rad/s), within its
+    /// limits, instead of by its commands' velocity (their labels still
+    /// colour its trail).
+    pub fn actuate_twist(&mut self, i: usize, forward: f64, left: f64, turn: f64) {
+        let ok = |x: f64| if x.is_finite() { x } else { 0.0 };
+        self.robots[i].twist = Some((ok(forward), ok(left), ok(turn)));
+    }
+
+    /// Robot `i`'s body velocity: forward speed (m/s, along its heading)
+    /// and turn rate (rad/s).
+    pub fn body_velocity(&self, i: usize) -> (f64, f64) {
+        let r = &self.robots[i];
+        let heading = self.pose(i).heading;
+        let forward = match self.spec.robot.drive {
+            Drive::Differential => r.vel.x,
+            Drive::Holonomic => r.vel.dot(DVec2::from_angle(heading)),
+        };
+        (forward, r.turn)
     }
 
     /// The graph beliefs that are about the robot itself (its pose, its
