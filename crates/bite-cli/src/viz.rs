@@ -42,6 +42,7 @@ pub struct Viz {
 impl Viz {
     /// Set up what `args` asks for (`None` when nothing); `name` names the
     /// server. `pace` applies to a simulation; a team runs at its own pace.
+    #[allow(clippy::disallowed_methods)] // a live view is paced by the wall clock
     pub fn start(args: &VizArgs, name: &str, simulated: bool) -> Result<Option<Viz>> {
         if args.mcap.is_none() && args.foxglove.is_none() {
             if args.pace.is_some() {

@@ -3,6 +3,9 @@
 //! package from PyPI), `bite log convert`, and the live Foxglove WebSocket
 //! server driven by an independent client.
 
+// The live test is a network test: its deadlines are wall time.
+#![allow(clippy::disallowed_methods)]
+
 use prost::Message as _;
 use std::collections::BTreeMap;
 use std::io::{BufRead, BufReader};
@@ -24,13 +27,16 @@ fn scratch(name: &str) -> PathBuf {
 /// What an MCAP file holds, read with the `mcap` crate: per topic, the
 /// schema name, message encoding and messages (log time, bytes).
 struct Mcap {
-    topics: BTreeMap<String, (String, String, Vec<(u64, Vec<u8>)>)>,
+    topics: Topics,
 }
+
+/// Topic → (schema name, message encoding, messages as (log time, bytes)).
+type Topics = BTreeMap<String, (String, String, Vec<(u64, Vec<u8>)>)>;
 
 impl Mcap {
     fn read(p: &Path) -> Mcap {
         let bytes = std::fs::read(p).expect("mcap written");
-        let mut topics: BTreeMap<String, (String, String, Vec<(u64, Vec<u8>)>)> = BTreeMap::new();
+        let mut topics: Topics = BTreeMap::new();
         for m in mcap::MessageStream::new(&bytes).expect("an MCAP file") {
             let m = m.expect("a message");
             let e = topics.entry(m.channel.topic.clone()).or_insert_with(|| {

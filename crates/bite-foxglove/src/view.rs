@@ -136,10 +136,8 @@ impl View {
                 self.layout = Some(rec.clone());
                 changed.layout = true;
             }
-            "run_finished" => {
-                if rec["summary"].is_object() {
-                    self.summary = Some(rec["summary"].clone());
-                }
+            "run_finished" if rec["summary"].is_object() => {
+                self.summary = Some(rec["summary"].clone());
             }
             "poses" => {
                 self.poses(rec);

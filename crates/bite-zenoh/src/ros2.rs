@@ -449,17 +449,12 @@ pub fn hits_of(scan: &LaserScan) -> Vec<(f64, f64)> {
         .collect()
 }
 
-/// An `Odometry` of a planar pose and body velocity.
-pub fn odometry(
-    stamp: f64,
-    frame: &str,
-    child: &str,
-    x: f64,
-    y: f64,
-    heading: f64,
-    forward: f64,
-    turn: f64,
-) -> Odometry {
+/// An `Odometry` of a planar pose (`[x, y, heading]`) in `frames.0` and a
+/// body velocity (`[forward, turn]`) in `frames.1`.
+pub fn odometry(stamp: f64, frames: (&str, &str), pose: [f64; 3], velocity: [f64; 2]) -> Odometry {
+    let [x, y, heading] = pose;
+    let [forward, turn] = velocity;
+    let (frame, child) = frames;
     Odometry {
         header: Header {
             stamp: Time::from_secs(stamp),
@@ -502,9 +497,7 @@ pub struct Ros2Options {
 /// Wall time now, ns since the Unix epoch (for attachments' source
 /// timestamps, which rmw_zenoh takes from the system clock).
 fn wall_ns() -> i64 {
-    std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .map_or(0, |d| d.as_nanos().min(i64::MAX as u128) as i64)
+    (crate::net::unix_micros() as i64).saturating_mul(1000)
 }
 
 /// Entity ids, unique in every session of this process (rmw_zenoh keeps
@@ -690,7 +683,7 @@ mod tests {
         for ((a, d), (b, e)) in hits.iter().zip(&back) {
             assert!((a - b).abs() < 1e-6 && (d - e).abs() < 1e-6, "{back:?}");
         }
-        let o = odometry(1.5, "odom", "r0/base_link", 1.0, 2.0, 2.5, 0.3, -0.1);
+        let o = odometry(1.5, ("odom", "r0/base_link"), [1.0, 2.0, 2.5], [0.3, -0.1]);
         let o2: Odometry = decode(&ODOMETRY, &encode(&o)).unwrap();
         assert!((o2.pose.pose.orientation.to_yaw() - 2.5).abs() < 1e-12);
         assert_eq!(

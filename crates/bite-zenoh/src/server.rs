@@ -262,13 +262,9 @@ pub fn serve(
                     let (forward, turn) = world.body_velocity(i);
                     let o = ros2::odometry(
                         t,
-                        &format!("{name}/odom"),
-                        &format!("{name}/base_link"),
-                        s.pose.pos.x,
-                        s.pose.pos.y,
-                        s.pose.heading,
-                        forward,
-                        turn,
+                        (&format!("{name}/odom"), &format!("{name}/base_link")),
+                        [s.pose.pos.x, s.pose.pos.y, s.pose.heading],
+                        [forward, turn],
                     );
                     odom.put(&session, &o);
                     let sensors = spec.sensors;

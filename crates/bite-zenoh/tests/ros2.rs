@@ -52,7 +52,8 @@ fn rosbags_reads_what_bite_writes_and_agrees_on_type_hashes() {
             z: -0.25,
         },
     };
-    let mut odom: Odometry = ros2::odometry(12.5, "odom", "r0/base_link", 1.0, 2.0, 0.0, 0.5, 0.0);
+    let mut odom: Odometry =
+        ros2::odometry(12.5, ("odom", "r0/base_link"), [1.0, 2.0, 0.0], [0.5, 0.0]);
     odom.twist.twist = twist;
     let scan = ros2::LaserScan {
         header: Header {
