@@ -827,6 +827,17 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
     let exe = std::env::current_exe().context("finding the bite executable")?;
     let ports: Vec<u16> = (0..=n).map(|_| free_port()).collect::<Result<_>>()?;
     let ep = |i: usize| format!("tcp/127.0.0.1:{}", ports[i]);
+    // Logs of an earlier launch in the same directory are not this team's.
+    for p in std::iter::once(a.out.join("server.jsonl"))
+        .chain(names.iter().map(|n| a.out.join(format!("{n}.jsonl"))))
+    {
+        match std::fs::remove_file(&p) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(e).with_context(|| format!("removing the old log {}", p.display()));
+            }
+            _ => {}
+        }
+    }
     // The live view first: the team starts once a viewer is connected.
     let live_args = crate::viz::VizArgs {
         mcap: None,

@@ -54,7 +54,7 @@ impl Viz {
             (Some(_), true) => args.pace.unwrap_or(1.0),
             _ => 0.0,
         };
-        if !(pace.is_finite() && pace >= 0.0) {
+        if !(pace.is_finite() && (pace == 0.0 || pace >= 1e-3)) {
             anyhow::bail!(
                 "--pace must be a number of simulated seconds per wall second, 0 or more"
             );
@@ -106,14 +106,21 @@ impl Viz {
         }))
     }
 
-    /// Take one run-log record (pacing a simulation to the wall clock).
+    /// Take one run-log record (pacing a simulation to the wall clock;
+    /// after Ctrl-C the run finishes unpaced and nothing lingers).
     pub fn record(&mut self, rec: &J) {
         let t = rec["t"].as_f64().unwrap_or(0.0);
-        if self.pace > 0.0 && t.is_finite() && t > 0.0 {
-            let due = Duration::from_secs_f64(t / self.pace);
-            if let Some(wait) = due.checked_sub(self.began.elapsed()) {
-                std::thread::sleep(wait);
-            }
+        if self.pace > 0.0 && crate::team::stop_flag().is_ok_and(|s| s.load(Ordering::Relaxed)) {
+            eprintln!("foxglove: stopping; the run finishes unpaced");
+            self.pace = 0.0;
+        }
+        if self.pace > 0.0
+            && t.is_finite()
+            && t > 0.0
+            && let Ok(due) = Duration::try_from_secs_f64(t / self.pace)
+            && let Some(wait) = due.checked_sub(self.began.elapsed())
+        {
+            std::thread::sleep(wait);
         }
         self.recorder.record(rec);
         if let Some(l) = &self.live
@@ -168,6 +175,9 @@ pub fn read_logs(inputs: &[PathBuf]) -> Result<Vec<Vec<J>>> {
 
 /// Write `logs` (one run's, or a team's: merged in time order) as MCAP.
 pub fn write_mcap(logs: Vec<Vec<J>>, out: &Path) -> Result<(usize, u64)> {
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
     let records = bite_foxglove::merge(logs);
     let mut rec = Recorder::new().context("setting up the Foxglove channels")?;
     let file =
@@ -215,6 +225,11 @@ impl Tails {
             let Ok(mut f) = std::fs::File::open(&*path) else {
                 continue;
             };
+            // A file written anew: read it from its start.
+            if f.metadata().is_ok_and(|m| m.len() < *offset) {
+                *offset = 0;
+                partial.clear();
+            }
             if f.seek(SeekFrom::Start(*offset)).is_err() {
                 continue;
             }

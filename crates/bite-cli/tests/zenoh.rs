@@ -1008,7 +1008,7 @@ fn a_ros2_peer_reads_odometry_and_scans_and_drives_a_body_by_cmd_vel() {
     // The server counted the Twist commands it applied.
     let log = read_jsonl(&out.join("server.jsonl"));
     let stopped = log.iter().find(|x| x["event"] == "server_stopped").unwrap();
-    assert!(stopped["commands"][0].as_u64().unwrap() >= 15, "{stopped}");
+    assert!(stopped["twists"][0].as_u64().unwrap() >= 15, "{stopped}");
     assert_eq!(stopped["ros2_rejected"], 0, "{stopped}");
 }
 
@@ -1028,6 +1028,13 @@ fn a_team_with_ros2_bodies_completes_the_formation() {
         .find(|r| r["event"] == "server_stopped")
         .unwrap();
     assert_eq!(stopped["ros2_rejected"], 0, "{stopped}");
+    // The bodies were driven by cmd_vel, not by BITE's own commands.
+    for k in 0..3 {
+        let twists = stopped["twists"][k].as_u64().unwrap();
+        assert!(twists > 100, "{stopped}");
+        // (A BITE command may arrive before the first Twist.)
+        assert!(stopped["commands"][k].as_u64().unwrap() < 5, "{stopped}");
+    }
     let last = world.iter().rev().find(|r| r["event"] == "poses").unwrap();
     let xs: Vec<f64> = (last["robots"].as_array().unwrap().iter())
         .map(|p| p[0].as_f64().unwrap())

@@ -133,6 +133,12 @@ impl View {
                 }
             }
             "world" => {
+                // The roster, in order: what `poses` and `links` index.
+                for n in rec["robots"].as_array().into_iter().flatten() {
+                    if let Some(n) = n.as_str() {
+                        self.robot(n);
+                    }
+                }
                 self.layout = Some(rec.clone());
                 changed.layout = true;
             }
@@ -184,8 +190,9 @@ impl View {
                     r.lost.retain(|x| x != m);
                 }
             }
-            // A restarted robot starts with an empty mind.
-            "restarted" | "crashed" => {
+            // A restarted robot starts with an empty mind (a crashed one
+            // that resumes keeps its own).
+            "restarted" => {
                 r.stack.clear();
                 changed.stack = Some(i);
             }
@@ -227,10 +234,19 @@ impl View {
                 .and_then(|b| b.get(k))
                 .and_then(|b| b.as_str())
                 .map(String::from);
-            r.link = links
+            // Links name roster indices: the robot of that name here.
+            let link = links
                 .and_then(|l| l.get(k))
                 .and_then(|l| l.as_u64())
-                .map(|l| l as usize);
+                .map(|l| {
+                    names
+                        .get(l as usize)
+                        .cloned()
+                        .unwrap_or_else(|| format!("r{l}"))
+                });
+            let link = link.map(|n| self.robot(&n));
+            let r = &mut self.robots[i];
+            r.link = link;
             if r.trail.last().is_none_or(|p| t - p.t >= TRAIL_EVERY - 1e-9) {
                 r.trail.push(TrailPoint {
                     t,

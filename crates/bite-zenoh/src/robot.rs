@@ -741,9 +741,10 @@ impl Node<'_> {
         if !odom {
             match ros2::decode::<ros2::LaserScan>(&ros2::LASER_SCAN, bytes) {
                 Ok(scan) => {
-                    let mut hits = ros2::hits_of(&scan);
-                    hits.truncate(MAX_READINGS);
-                    ros.scan = hits;
+                    // A dense lidar: every n-th hit, round the whole circle.
+                    let hits = ros2::hits_of(&scan);
+                    let every = hits.len().div_ceil(MAX_READINGS).max(1);
+                    ros.scan = hits.into_iter().step_by(every).collect();
                 }
                 Err(_) => *r.payload_rejects.entry("ros2-scan-malformed").or_insert(0) += 1,
             }

@@ -22,7 +22,38 @@
 //! does the IO. Payloads were checked byte for byte against an independent
 //! codec (the Python `rosbags` package, `tests/ros2.rs`).
 
-use serde::{Deserialize, Serialize};
+use serde::{Deserialize, Deserializer, Serialize};
+
+/// The longest string taken from a ROS 2 message (frame ids, the status).
+pub const MAX_STRING: usize = 1 << 16;
+
+/// Read a CDR string as the sequence of bytes it is on the wire (length,
+/// bytes, NUL), so that a forged length allocates nothing: bytes are taken
+/// one at a time and the input ends first. (The `cdr` crate's own string
+/// reader allocates the claimed length before it reads.)
+fn cdr_string<'de, D: Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    struct Bytes;
+    impl<'de> serde::de::Visitor<'de> for Bytes {
+        type Value = String;
+        fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+            write!(f, "a CDR string of at most {MAX_STRING} bytes")
+        }
+        fn visit_seq<A: serde::de::SeqAccess<'de>>(self, mut seq: A) -> Result<String, A::Error> {
+            let mut v = Vec::new();
+            while let Some(b) = seq.next_element::<u8>()? {
+                if v.len() > MAX_STRING {
+                    return Err(serde::de::Error::custom("string too long"));
+                }
+                v.push(b);
+            }
+            if v.pop() != Some(0) {
+                return Err(serde::de::Error::custom("string without its NUL"));
+            }
+            String::from_utf8(v).map_err(serde::de::Error::custom)
+        }
+    }
+    d.deserialize_seq(Bytes)
+}
 
 /// `builtin_interfaces/msg/Time`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -55,6 +86,7 @@ pub struct Header {
     /// When.
     pub stamp: Time,
     /// The frame.
+    #[serde(deserialize_with = "cdr_string")]
     pub frame_id: String,
 }
 
@@ -158,6 +190,7 @@ pub struct Odometry {
     /// Stamp and the frame of the pose (`odom`).
     pub header: Header,
     /// The frame of the twist (the robot's base).
+    #[serde(deserialize_with = "cdr_string")]
     pub child_frame_id: String,
     /// Pose in `header.frame_id`.
     pub pose: PoseWithCovariance,
@@ -194,6 +227,7 @@ pub struct LaserScan {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct RosString {
     /// The text.
+    #[serde(deserialize_with = "cdr_string")]
     pub data: String,
 }
 
@@ -405,7 +439,8 @@ pub fn gid_of(token: &str) -> [u8; 16] {
 
 /// Range rays as a `LaserScan`: `hits` are (angle relative to the heading,
 /// distance) of the rays that hit something; `count` rays evenly spread
-/// over the full circle from `-π`; the others read `+inf`.
+/// over the full circle from straight ahead (ray `k` at `2πk/count`, as the
+/// simulator casts them); the others read `+inf`.
 pub fn scan_of(
     stamp: f64,
     frame: &str,
@@ -415,10 +450,9 @@ pub fn scan_of(
 ) -> LaserScan {
     let count = count.max(1);
     let inc = std::f64::consts::TAU / count as f64;
-    let min = -std::f64::consts::PI;
     let mut ranges = vec![f32::INFINITY; count];
     for &(a, d) in hits {
-        let k = (((a - min) / inc).round() as i64).rem_euclid(count as i64) as usize;
+        let k = ((a / inc).round() as i64).rem_euclid(count as i64) as usize;
         ranges[k] = ranges[k].min(d as f32);
     }
     LaserScan {
@@ -426,8 +460,8 @@ pub fn scan_of(
             stamp: Time::from_secs(stamp),
             frame_id: frame.into(),
         },
-        angle_min: min as f32,
-        angle_max: (min + inc * (count - 1) as f64) as f32,
+        angle_min: 0.0,
+        angle_max: (inc * (count - 1) as f64) as f32,
         angle_increment: inc as f32,
         time_increment: 0.0,
         scan_time: 0.0,
@@ -671,6 +705,33 @@ mod tests {
         );
         assert_eq!(parse_attachment(&a).unwrap(), (1, 1700000000123456789, gid));
         assert!(parse_attachment(&a[..20]).is_err());
+    }
+
+    #[test]
+    fn a_forged_string_length_is_an_error_not_an_allocation() {
+        let mut o = encode(&odometry(1.0, ("odom", "b"), [0.0; 3], [0.0; 2]));
+        // The frame id's length (after the header and the stamp).
+        o[12..16].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(decode::<Odometry>(&ODOMETRY, &o).is_err());
+        let mut s = encode(&RosString { data: "hi".into() });
+        s[4..8].copy_from_slice(&u32::MAX.to_le_bytes());
+        assert!(decode::<RosString>(&STRING, &s).is_err());
+        // A string without its NUL.
+        let bad = [0u8, 1, 0, 0, 2, 0, 0, 0, b'h', b'i'];
+        assert!(decode::<RosString>(&STRING, &bad).is_err());
+    }
+
+    #[test]
+    fn odd_ray_counts_keep_their_angles() {
+        let tau = std::f64::consts::TAU;
+        let hits: Vec<(f64, f64)> = (0..5)
+            .map(|k| (tau * k as f64 / 5.0, 1.0 + k as f64))
+            .collect();
+        let back = hits_of(&scan_of(0.0, "s", 5, 10.0, &hits));
+        assert_eq!(back.len(), 5);
+        for ((a, d), (b, e)) in hits.iter().zip(&back) {
+            assert!((a - b).abs() < 1e-5 && (d - e).abs() < 1e-5, "{back:?}");
+        }
     }
 
     #[test]

@@ -209,14 +209,20 @@ pub fn serve(
     let deadman = opts.deadman;
     let mut last_cmd: Vec<Option<Time>> = vec![None; n];
     let mut commands = vec![0u64; n];
+    // ROS 2 `cmd_vel` samples applied, and when the last came: a body
+    // follows them while they keep coming, and its commands again after.
+    let mut twists = vec![0u64; n];
+    let mut last_twist: Vec<Option<Time>> = vec![None; n];
     let mut rejected = 0u64;
     let mut next = Time::ZERO;
     let mut next_world = Time::ZERO;
     let write = |log: &mut Option<std::io::BufWriter<std::fs::File>>, rec: serde_json::Value| {
         let line = rec.to_string();
         let _ = session.put(keys.world(), line.clone()).wait();
+        // Flushed at once (a line a second): whoever follows the log
+        // (`bite launch --foxglove`) sees the world as it goes.
         if let Some(w) = log.as_mut() {
-            writeln!(w, "{line}")
+            writeln!(w, "{line}").and_then(|_| w.flush())
         } else {
             Ok(())
         }
@@ -252,6 +258,12 @@ pub fn serve(
                 .iter()
                 .map(|c| c.is_none_or(|c| now.saturating_since(c) > deadman))
                 .collect();
+            for (i, at) in last_twist.iter_mut().enumerate() {
+                if at.is_some_and(|t| now.saturating_since(t) > deadman) {
+                    world.clear_twist(i);
+                    *at = None;
+                }
+            }
             world.advance(now, &stopped);
             world.record();
             for (i, name) in names.iter().enumerate() {
@@ -308,7 +320,8 @@ pub fn serve(
                             (Some(&i), Ok(t)) => {
                                 world.actuate_twist(i, t.linear.x, t.linear.y, t.angular.z);
                                 last_cmd[i] = Some(now);
-                                commands[i] += 1;
+                                last_twist[i] = Some(now);
+                                twists[i] += 1;
                             }
                             _ => rejected += 1,
                         }
@@ -321,8 +334,12 @@ pub fn serve(
                     match serde_json::from_slice::<Command>(&bytes) {
                         Ok(cmd) => {
                             world.actuate(i, cmd);
-                            last_cmd[i] = Some(now);
-                            commands[i] += 1;
+                            // Driven by cmd_vel: the command only labels
+                            // the trail.
+                            if last_twist[i].is_none() {
+                                last_cmd[i] = Some(now);
+                                commands[i] += 1;
+                            }
                         }
                         Err(_) => rejected += 1,
                     }
@@ -333,7 +350,7 @@ pub fn serve(
         }
     };
     let rec = json!({"t": end.as_secs_f64(), "event": "server_stopped", "commands": commands,
-                     "rejected": rejected, "overflow": overflow.load(Ordering::Relaxed),
+                     "twists": twists, "rejected": rejected, "overflow": overflow.load(Ordering::Relaxed),
                      "ros2_rejected": ros_rejected.load(Ordering::Relaxed)});
     write(&mut log, rec).map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
     if let Some(mut w) = log {

@@ -868,6 +868,12 @@ impl World {
         self.robots[i].twist = Some((ok(forward), ok(left), ok(turn)));
     }
 
+    /// Stop driving robot `i` by a body velocity: its commands drive it
+    /// again (a `cmd_vel` that went silent).
+    pub fn clear_twist(&mut self, i: usize) {
+        self.robots[i].twist = None;
+    }
+
     /// Robot `i`'s body velocity: forward speed (m/s, along its heading)
     /// and turn rate (rad/s).
     pub fn body_velocity(&self, i: usize) -> (f64, f64) {
