@@ -13,6 +13,10 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod support {
+    pub mod venv;
+}
+
 fn bite() -> Command {
     Command::new(env!("CARGO_BIN_EXE_bite"))
 }
@@ -224,32 +228,9 @@ fn log_convert_gives_the_same_records_and_names_a_bad_line() {
     assert!(err.contains("bad.jsonl:2:"), "{err}");
 }
 
-/// A virtual environment with the `mcap` package from PyPI, made once under
-/// the target directory.
+/// A virtual environment with the `mcap` package from PyPI.
 fn python_with_mcap() -> PathBuf {
-    let venv = Path::new(env!("CARGO_TARGET_TMPDIR")).join("venv-formats");
-    let py = venv.join("bin/python");
-    let ok = |py: &Path| {
-        Command::new(py)
-            .args(["-c", "import mcap.reader"])
-            .status()
-            .is_ok_and(|s| s.success())
-    };
-    if !ok(&py) {
-        let s = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(&venv)
-            .status()
-            .expect("python3 is needed to read MCAP with the reference reader");
-        assert!(s.success(), "python3 -m venv failed");
-        let s = Command::new(&py)
-            .args(["-m", "pip", "install", "--quiet", "mcap==1.*"])
-            .status()
-            .unwrap();
-        assert!(s.success(), "pip install mcap failed");
-    }
-    assert!(ok(&py), "mcap does not import");
-    py
+    support::venv::python_venv("venv-formats", "import mcap.reader", &["mcap==1.*"])
 }
 
 #[test]

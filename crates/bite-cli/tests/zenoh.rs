@@ -7,6 +7,10 @@ use bite_zenoh::auth::{FrameKind, Scope, TeamKey, seal_with};
 use bite_zenoh::net::unix_micros;
 use bite_zenoh::zenoh::{self, Wait};
 use serde_json::Value;
+
+mod support {
+    pub mod venv;
+}
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -467,32 +471,9 @@ fn a_robot_without_a_valid_key_refuses_to_start() {
     }
 }
 
-/// A virtual environment with the `eclipse-zenoh` package from PyPI, made
-/// once under the target directory.
+/// A virtual environment with the `eclipse-zenoh` package from PyPI.
 fn python_with_zenoh() -> PathBuf {
-    let venv = Path::new(env!("CARGO_TARGET_TMPDIR")).join("venv-zenoh");
-    let py = venv.join("bin/python");
-    let ok = |py: &Path| {
-        Command::new(py)
-            .args(["-c", "import zenoh"])
-            .status()
-            .is_ok_and(|s| s.success())
-    };
-    if !ok(&py) {
-        let s = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(&venv)
-            .status()
-            .expect("python3 is needed for the outside-client test");
-        assert!(s.success(), "python3 -m venv failed");
-        let s = Command::new(&py)
-            .args(["-m", "pip", "install", "--quiet", "eclipse-zenoh==1.10.*"])
-            .status()
-            .unwrap();
-        assert!(s.success(), "pip install eclipse-zenoh failed");
-    }
-    assert!(ok(&py), "eclipse-zenoh does not import");
-    py
+    support::venv::python_venv("venv-zenoh", "import zenoh", &["eclipse-zenoh==1.10.*"])
 }
 
 #[test]
@@ -904,38 +885,13 @@ fn a_running_team_takes_a_new_version_of_its_mission_over_zenoh() {
 }
 
 /// A virtual environment with `eclipse-zenoh` and `rosbags` (an
-/// independent ROS 2 CDR codec and type-hash implementation), made once.
+/// independent ROS 2 CDR codec and type-hash implementation).
 fn python_with_ros2() -> PathBuf {
-    let venv = Path::new(env!("CARGO_TARGET_TMPDIR")).join("venv-ros2");
-    let py = venv.join("bin/python");
-    let ok = |py: &Path| {
-        Command::new(py)
-            .args(["-c", "import zenoh, rosbags.typesys"])
-            .status()
-            .is_ok_and(|s| s.success())
-    };
-    if !ok(&py) {
-        let s = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(&venv)
-            .status()
-            .expect("python3 is needed for the ROS 2 peer test");
-        assert!(s.success(), "python3 -m venv failed");
-        let s = Command::new(&py)
-            .args([
-                "-m",
-                "pip",
-                "install",
-                "--quiet",
-                "eclipse-zenoh==1.10.*",
-                "rosbags==0.11.*",
-            ])
-            .status()
-            .unwrap();
-        assert!(s.success(), "pip install eclipse-zenoh rosbags failed");
-    }
-    assert!(ok(&py), "eclipse-zenoh or rosbags does not import");
-    py
+    support::venv::python_venv(
+        "venv-ros2",
+        "import zenoh, rosbags.typesys",
+        &["eclipse-zenoh==1.10.*", "rosbags==0.11.*"],
+    )
 }
 
 /// A ROS 2 peer written from rmw_zenoh's conventions with an independent

@@ -8,30 +8,15 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 
+#[path = "../../bite-cli/tests/support/venv.rs"]
+mod venv;
+
 fn python_with_rosbags() -> PathBuf {
-    let venv = Path::new(env!("CARGO_TARGET_TMPDIR")).join("venv-rosbags");
-    let py = venv.join("bin/python");
-    let ok = |py: &Path| {
-        Command::new(py)
-            .args(["-c", "import rosbags.typesys, numpy"])
-            .status()
-            .is_ok_and(|s| s.success())
-    };
-    if !ok(&py) {
-        let s = Command::new("python3")
-            .args(["-m", "venv"])
-            .arg(&venv)
-            .status()
-            .expect("python3 is needed to check CDR with an independent codec");
-        assert!(s.success(), "python3 -m venv failed");
-        let s = Command::new(&py)
-            .args(["-m", "pip", "install", "--quiet", "rosbags==0.11.*"])
-            .status()
-            .unwrap();
-        assert!(s.success(), "pip install rosbags failed");
-    }
-    assert!(ok(&py), "rosbags does not import");
-    py
+    venv::python_venv(
+        "venv-rosbags",
+        "import rosbags.typesys, numpy",
+        &["rosbags==0.11.*"],
+    )
 }
 
 fn hex(b: &[u8]) -> String {
