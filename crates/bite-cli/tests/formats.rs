@@ -80,6 +80,15 @@ impl Mcap {
     }
 }
 
+/// The command exited 0 (else its standard error is the message).
+fn succeeded(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn run_formation(d: &Path, extra: &[&str]) -> (PathBuf, PathBuf) {
     let (log, mcap) = (d.join("run.jsonl"), d.join("run.mcap"));
     let out = bite()
@@ -91,11 +100,7 @@ fn run_formation(d: &Path, extra: &[&str]) -> (PathBuf, PathBuf) {
         .args(extra)
         .output()
         .expect("bite runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("run.mcap"), "{stdout}");
     (log, mcap)
@@ -197,11 +202,7 @@ fn log_convert_gives_the_same_records_and_names_a_bad_line() {
         .arg(&converted)
         .output()
         .expect("bite runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let (a, b) = (Mcap::read(&path), Mcap::read(&converted));
     // A timed world has no poses: both carry exactly the same messages.
     assert_eq!(a.count("/poses"), 0);
@@ -261,11 +262,7 @@ with open(sys.argv[1], "rb") as f:
         .arg(&path)
         .output()
         .expect("python runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON");
     let m = Mcap::read(&path);
     assert_eq!(v["schemas"]["/scene"], "foxglove.SceneUpdate");
