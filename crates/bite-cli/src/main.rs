@@ -49,6 +49,7 @@ macro_rules! out {
 
 mod experiment;
 mod stats;
+mod studio;
 mod sweep;
 mod tune;
 mod viz;
@@ -184,6 +185,11 @@ enum Cmd {
         #[command(subcommand)]
         which: LogCmd,
     },
+    /// The studio: a web editor for missions and graphs (command sidebar,
+    /// diagnostics as you type, the graph drawn, Run), a live monitor of
+    /// the team (a run it started, or a Zenoh team with `--connect`) and
+    /// replay of run logs; served on 127.0.0.1.
+    Studio(studio::StudioArgs),
     /// Whole-system benchmarks.
     Bench {
         #[command(subcommand)]
@@ -1311,6 +1317,7 @@ fn main() -> ExitCode {
         Cmd::Experiment(a) => experiment::cmd_experiment(a),
         Cmd::Tune(a) => tune::cmd_tune(a),
         Cmd::Replay { file } => team::cmd_replay(&file),
+        Cmd::Studio(a) => studio::cmd_studio(a),
         Cmd::Log {
             which: LogCmd::Convert { inputs, output },
         } => viz::cmd_convert(&inputs, &output),

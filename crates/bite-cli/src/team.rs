@@ -945,6 +945,12 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             a.out.display()
         );
     }
+    // Where an outside monitor joins the team (`bite studio`).
+    let endpoints: Vec<String> = (0..=n)
+        .filter(|&i| i > 0 || physical)
+        .map(|i| format!("--connect {}", ep(i)))
+        .collect();
+    eprintln!("monitor: bite studio --team {team} {}", endpoints.join(" "));
     let bar = if quiet {
         indicatif::ProgressBar::hidden()
     } else {

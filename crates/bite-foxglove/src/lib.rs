@@ -30,7 +30,7 @@ use serde_json::{Value as J, json};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::sync::Arc;
-pub use view::View;
+pub use view::{Decision, Instance, View};
 
 /// What can go wrong writing a run in these formats.
 #[derive(Debug, thiserror::Error)]

@@ -58,6 +58,58 @@ pub struct RobotView {
     pub lost: Vec<String>,
     /// It completed the mission.
     pub completed: bool,
+    /// Its mind crashed (and has not resumed).
+    pub crashed: bool,
+    /// Beliefs it has reported (a condition that held, a status), by name.
+    pub beliefs: BTreeMap<String, J>,
+    /// World-model informs it has sent (Algorithm 3).
+    pub informs: u64,
+    /// Its authentication counters (a robot process's status or last
+    /// record: `{"accepted": n, "rejected": {...}}`).
+    pub auth: Option<J>,
+    /// Where its control algorithm is (a robot process's status).
+    pub phase: Option<String>,
+}
+
+/// A protocol instance: one interaction at one point, as its
+/// participants logged it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Instance {
+    /// `behavior.kind` (`walk.sync`): the coordination point.
+    pub point: String,
+    /// The subteam deciding.
+    pub team: String,
+    /// Epoch and round of the instance.
+    pub epoch: u64,
+    /// Round of the instance.
+    pub round: u64,
+    /// The bound protocol.
+    pub protocol: String,
+    /// When the first participant started it, s.
+    pub started: f64,
+    /// Participants that started it.
+    pub waiting: Vec<String>,
+    /// Participants that decided, with their outcomes.
+    pub decided: Vec<(String, J)>,
+    /// Messages sent and received, bytes sent, over the decided
+    /// participants.
+    pub sent: u64,
+    /// Messages received.
+    pub received: u64,
+    /// Bytes sent.
+    pub bytes: u64,
+    /// Some participant decided on its deadline.
+    pub timed_out: bool,
+}
+
+/// One joint decision: an instance's first `interaction_decided`, with
+/// whether every participant that decided agreed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Decision {
+    /// When, s.
+    pub t: f64,
+    /// The instance's key in [`View::instances`].
+    pub key: String,
 }
 
 /// Seconds between two kept trajectory points.
@@ -93,6 +145,24 @@ pub struct View {
     pub started: Option<J>,
     /// The summary of `run_finished`.
     pub summary: Option<J>,
+    /// Protocol instances by key (`point/team/epoch/round`).
+    pub instances: BTreeMap<String, Instance>,
+    /// Joint decisions in the order they were first logged.
+    pub decisions: Vec<Decision>,
+    /// Records taken into account.
+    pub records: u64,
+}
+
+/// The key of an `interaction_*` record's instance.
+fn instance_key(rec: &J) -> Option<(String, String, u64, u64)> {
+    let i = &rec["instance"];
+    let point = format!("{}.{}", i["behavior"].as_str()?, i["kind"].as_str()?);
+    Some((
+        point,
+        i["team"].as_str().unwrap_or("").to_string(),
+        i["epoch"].as_u64().unwrap_or(0),
+        i["round"].as_u64().unwrap_or(0),
+    ))
 }
 
 impl View {
@@ -116,6 +186,7 @@ impl View {
     /// Take one record into account; says what changed.
     pub fn apply(&mut self, rec: &J) -> Changed {
         let mut changed = Changed::default();
+        self.records += 1;
         if let Some(t) = rec["t"].as_f64() {
             self.t = self.t.max(t);
         }
@@ -155,6 +226,9 @@ impl View {
             return changed;
         };
         let i = self.robot(name);
+        if event == "interaction_started" || event == "interaction_decided" {
+            self.interaction(name, event, rec);
+        }
         let r = &mut self.robots[i];
         match event {
             "selected" => {
@@ -194,11 +268,98 @@ impl View {
             // that resumes keeps its own).
             "restarted" => {
                 r.stack.clear();
+                r.crashed = false;
                 changed.stack = Some(i);
+            }
+            "crashed" => r.crashed = true,
+            "resumed" => r.crashed = false,
+            "condition_held" => {
+                for b in rec["beliefs"].as_array().into_iter().flatten() {
+                    if let Some(n) = b[0].as_str() {
+                        r.beliefs.insert(n.to_string(), b[1].clone());
+                    }
+                }
+            }
+            "inform" => r.informs += 1,
+            "run_finished" if rec["auth"].is_object() => r.auth = Some(rec["auth"].clone()),
+            // A robot process's status (`bite/T/status/<robot>`, given the
+            // event `status`): the whole of its state at once, for a
+            // monitor that joins a running team.
+            "status" => {
+                if let Some(stack) = rec["stack"].as_array() {
+                    r.stack = stack
+                        .iter()
+                        .map(|f| Frame {
+                            behavior: f["behavior"].as_str().unwrap_or("?").to_string(),
+                            team: f["team"].as_str().unwrap_or("").to_string(),
+                        })
+                        .collect();
+                    changed.stack = Some(i);
+                }
+                if let Some(b) = rec["beliefs"].as_object() {
+                    r.beliefs = b.iter().map(|(k, v)| (k.clone(), v.clone())).collect();
+                }
+                if let Some(l) = rec["lost"].as_array() {
+                    r.lost = l
+                        .iter()
+                        .filter_map(|x| x.as_str().map(String::from))
+                        .collect();
+                }
+                if rec["auth"].is_object() {
+                    r.auth = Some(rec["auth"].clone());
+                }
+                r.phase = rec["phase"].as_str().map(String::from);
+                r.completed = rec["state"].as_str() == Some("completed");
             }
             _ => {}
         }
         changed
+    }
+
+    fn interaction(&mut self, robot: &str, event: &str, rec: &J) {
+        let Some((point, team, epoch, round)) = instance_key(rec) else {
+            return;
+        };
+        let key = format!("{point}/{team}/{epoch}/{round}");
+        let t = rec["t"].as_f64().unwrap_or(self.t);
+        let inst = self
+            .instances
+            .entry(key.clone())
+            .or_insert_with(|| Instance {
+                point,
+                team,
+                epoch,
+                round,
+                protocol: rec["protocol"].as_str().unwrap_or("").to_string(),
+                started: t,
+                waiting: Vec::new(),
+                decided: Vec::new(),
+                sent: 0,
+                received: 0,
+                bytes: 0,
+                timed_out: false,
+            });
+        if event == "interaction_started" {
+            if !inst.waiting.iter().any(|r| r == robot) {
+                inst.waiting.push(robot.to_string());
+            }
+            return;
+        }
+        inst.waiting.retain(|r| r != robot);
+        if inst.decided.is_empty() {
+            self.decisions.push(Decision { t, key });
+        }
+        inst.decided
+            .push((robot.to_string(), rec["outcome"].clone()));
+        inst.sent += rec["sent"].as_u64().unwrap_or(0);
+        inst.received += rec["received"].as_u64().unwrap_or(0);
+        inst.bytes += rec["bytes"].as_u64().unwrap_or(0);
+        inst.timed_out |= rec["timed_out"].as_bool().unwrap_or(false);
+    }
+
+    /// Instances some participant has started and not yet decided.
+    pub fn in_flight(&self) -> impl Iterator<Item = (&String, &Instance)> {
+        self.instances.iter().filter(|(_, i)| !i.waiting.is_empty())
     }
 
     fn poses(&mut self, rec: &J) {
@@ -338,5 +499,42 @@ mod tests {
         assert_eq!(v.behavior_colour(Some("b")), "#222222");
         assert_eq!(v.behavior_colour(None), "#bbbbbb");
         assert_eq!(v.objects["box"], [2.0, 2.0]);
+    }
+
+    #[test]
+    fn instances_gather_their_participants_and_decisions_in_order() {
+        let mut v = View::new();
+        let inst = json!({"team":"root","behavior":"walk","kind":"sync","epoch":1,"round":0});
+        v.apply(&json!({"t":1.0,"robot":"r0","event":"interaction_started","instance":inst,"protocol":"sync.vote"}));
+        v.apply(&json!({"t":1.0,"robot":"r1","event":"interaction_started","instance":inst,"protocol":"sync.vote"}));
+        assert_eq!(v.in_flight().count(), 1);
+        v.apply(&json!({"t":1.2,"robot":"r0","event":"interaction_decided","instance":inst,"protocol":"sync.vote",
+                        "outcome":{"kind":"sync","behavior":"walk"},"sent":2,"received":1,"bytes":40,"timed_out":false}));
+        v.apply(&json!({"t":1.3,"robot":"r1","event":"interaction_decided","instance":inst,"protocol":"sync.vote",
+                        "outcome":{"kind":"sync","behavior":"walk"},"sent":2,"received":1,"bytes":40,"timed_out":true}));
+        assert_eq!(v.in_flight().count(), 0);
+        assert_eq!(v.decisions.len(), 1, "one decision per instance");
+        let i = &v.instances[&v.decisions[0].key];
+        assert_eq!(i.point, "walk.sync");
+        assert_eq!((i.sent, i.received, i.bytes, i.timed_out), (4, 2, 80, true));
+        assert_eq!(i.decided.len(), 2);
+        assert_eq!(v.decisions[0].t, 1.2);
+    }
+
+    #[test]
+    fn a_status_gives_the_whole_state_of_a_robot_process() {
+        let mut v = View::new();
+        let c = v.apply(
+            &json!({"t":3.0,"robot":"r2","event":"status","state":"running","phase":"running",
+            "stack":[{"behavior":"formation","team":"root"},{"behavior":"walk","team":"t1"}],
+            "beliefs":{"peers_located":true},"lost":["r0"],"auth":{"accepted":5,"rejected":{}}}),
+        );
+        assert_eq!(c.stack, Some(0));
+        let r = &v.robots[0];
+        assert_eq!(r.stack.len(), 2);
+        assert_eq!(r.beliefs["peers_located"], json!(true));
+        assert_eq!(r.lost, ["r0"]);
+        assert_eq!(r.phase.as_deref(), Some("running"));
+        assert_eq!(r.auth.as_ref().unwrap()["accepted"], 5);
     }
 }

@@ -240,7 +240,21 @@ pub fn serve(
                 .to_string()
         })
         .collect();
-    write(&mut log, world.layout_record(&names, &behaviors))
+    let layout = world.layout_record(&names, &behaviors);
+    // A viewer that joins later asks for the layout (`get` on the world's
+    // key); the poses follow once a second.
+    let _layout_queryable = {
+        let line = layout.to_string();
+        let key = keys.world();
+        session
+            .declare_queryable(keys.world())
+            .callback(move |q| {
+                let _ = q.reply(key.clone(), line.clone()).wait();
+            })
+            .wait()
+            .map_err(z)?
+    };
+    write(&mut log, layout)
         .map_err(|e| ServeError::Log(opts.log.clone().unwrap_or_default(), e))?;
     let end = loop {
         let now = clock.now();

@@ -23,6 +23,7 @@ pub mod dot;
 mod load;
 pub mod sharing;
 pub mod spec;
+pub mod svg;
 
 pub use align::Refused;
 pub use config::Config;

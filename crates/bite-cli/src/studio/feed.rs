@@ -1,0 +1,387 @@
+//! The records the monitor shows, and what each page is sent.
+//!
+//! One feed at a time: a run the studio started, a live Zenoh team, or a
+//! run log opened for replay. The feed is the run-log records in order
+//! (append-only until the next source); every page keeps its own
+//! [`View`] at its own time over it, so a live run, a Zenoh team and a
+//! replay are shown by the same code, and any of them can be scrubbed.
+
+use bite_foxglove::View;
+use serde_json::{Value as J, json};
+
+/// Where the records come from.
+#[derive(Clone, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Source {
+    /// Nothing yet.
+    None,
+    /// A run the studio started.
+    Run,
+    /// A team over Zenoh.
+    Zenoh,
+    /// A run log.
+    Replay,
+}
+
+/// The current source's records.
+pub struct Feed {
+    /// Bumped at every new source: pages start over.
+    pub generation: u64,
+    /// Where the records come from.
+    pub source: Source,
+    /// What it is (`bite run formation`, `team bite on tcp/...`, a file).
+    pub label: String,
+    /// Still growing.
+    pub live: bool,
+    /// The records, in order.
+    pub records: Vec<J>,
+    /// How a run the studio started ended (outcome, exit code, log path,
+    /// violations), once it has.
+    pub ended: Option<J>,
+    /// Lines of a replayed log that were not records (`file:line:col:
+    /// why`), the first 20.
+    pub problems: Vec<String>,
+}
+
+impl Feed {
+    /// No source.
+    pub fn new() -> Self {
+        Feed {
+            generation: 0,
+            source: Source::None,
+            label: String::new(),
+            live: false,
+            records: Vec::new(),
+            ended: None,
+            problems: Vec::new(),
+        }
+    }
+
+    /// Start over with a new source.
+    pub fn reset(&mut self, source: Source, label: String, live: bool) {
+        self.generation += 1;
+        self.source = source;
+        self.label = label;
+        self.live = live;
+        self.records.clear();
+        self.ended = None;
+        self.problems.clear();
+    }
+
+    /// The time of the last record, s.
+    pub fn end_time(&self) -> f64 {
+        self.records
+            .iter()
+            .rev()
+            .find_map(|r| r["t"].as_f64())
+            .unwrap_or(0.0)
+    }
+}
+
+/// Parse a run log (JSON lines); lines that are not JSON objects are
+/// reported by line and column and skipped (a torn last line of a killed
+/// process among them).
+pub fn parse_log(name: &str, text: &str) -> (Vec<J>, Vec<String>, usize) {
+    let mut records = Vec::new();
+    let mut problems = Vec::new();
+    let mut bad = 0;
+    for (i, line) in text.lines().enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        match serde_json::from_str::<J>(line) {
+            Ok(r) if r.is_object() => records.push(r),
+            Ok(_) => {
+                bad += 1;
+                if problems.len() < 20 {
+                    problems.push(format!(
+                        "{name}:{}:1: expected a JSON object (a run-log record)",
+                        i + 1
+                    ));
+                }
+            }
+            Err(e) => {
+                bad += 1;
+                if problems.len() < 20 {
+                    problems.push(format!("{name}:{}:{}: {e}", i + 1, e.column()));
+                }
+            }
+        }
+    }
+    // Several processes' logs concatenated: in time order (stable).
+    records.sort_by(|a, b| {
+        let t = |r: &J| r["t"].as_f64().unwrap_or(0.0);
+        t(a).total_cmp(&t(b))
+    });
+    (records, problems, bad)
+}
+
+/// One page's place in the feed.
+pub struct Cursor {
+    generation: u64,
+    /// Records applied to the view.
+    applied: usize,
+    /// The view at the page's time.
+    pub view: View,
+    /// `None`: follow the feed; `Some(t)`: show the run at time `t`.
+    pub at: Option<f64>,
+    trail_sent: Vec<usize>,
+    decisions_sent: usize,
+    layout_sent: bool,
+    /// The page must drop what it has (a new feed, or back in time).
+    fresh: bool,
+    /// Something changed since the last snapshot.
+    pub dirty: bool,
+}
+
+impl Cursor {
+    /// At the start of no feed.
+    pub fn new() -> Self {
+        Cursor {
+            generation: u64::MAX,
+            applied: 0,
+            view: View::new(),
+            at: None,
+            trail_sent: Vec::new(),
+            decisions_sent: 0,
+            layout_sent: false,
+            fresh: true,
+            dirty: true,
+        }
+    }
+
+    fn restart(&mut self, generation: u64) {
+        self.generation = generation;
+        self.applied = 0;
+        self.view = View::new();
+        self.trail_sent.clear();
+        self.decisions_sent = 0;
+        self.layout_sent = false;
+        self.fresh = true;
+        self.dirty = true;
+    }
+
+    /// Move to time `t` (`None`: follow the live end).
+    pub fn seek(&mut self, t: Option<f64>) {
+        if let Some(t) = t
+            && t < self.view.t
+        {
+            // Back in time: start over and apply up to `t`.
+            self.restart(self.generation);
+        }
+        self.at = t;
+        self.dirty = true;
+    }
+
+    /// Apply the feed's records up to the page's time.
+    pub fn catch_up(&mut self, feed: &Feed) {
+        if feed.generation != self.generation {
+            self.restart(feed.generation);
+            self.at = None;
+        }
+        while let Some(r) = feed.records.get(self.applied) {
+            if let Some(at) = self.at
+                && r["t"].as_f64().unwrap_or(0.0) > at + 1e-9
+            {
+                break;
+            }
+            self.view.apply(r);
+            self.applied += 1;
+            self.dirty = true;
+        }
+    }
+
+    /// What the page is sent: the whole state but trails and decisions,
+    /// which are sent as they grow (`reset`: drop what you have).
+    pub fn snapshot(&mut self, feed: &Feed) -> J {
+        let v = &self.view;
+        let reset = std::mem::take(&mut self.fresh);
+        let robots: Vec<J> = v
+            .names
+            .iter()
+            .zip(&v.robots)
+            .map(|(name, r)| {
+                let leaf = r.stack.last().map(|f| f.behavior.as_str());
+                json!({
+                    "name": name,
+                    "stack": r.stack.iter().map(|f| [&f.behavior, &f.team]).collect::<Vec<_>>(),
+                    "pose": r.pose.map(|p| [round3(p.x), round3(p.y), round3(p.heading)]),
+                    "colour": v.behavior_colour(r.moving_as.as_deref().or(leaf)),
+                    "moving_as": r.moving_as,
+                    "link": r.link,
+                    "lost": r.lost,
+                    "completed": r.completed,
+                    "crashed": r.crashed,
+                    "beliefs": r.beliefs,
+                    "informs": r.informs,
+                    "auth": r.auth,
+                    "phase": r.phase,
+                })
+            })
+            .collect();
+        self.trail_sent.resize(v.robots.len(), 0);
+        let trails: Vec<J> = v
+            .robots
+            .iter()
+            .zip(self.trail_sent.iter_mut())
+            .enumerate()
+            .filter(|(_, (r, sent))| r.trail.len() > **sent)
+            .map(|(i, (r, sent))| {
+                let pts: Vec<J> = r.trail[*sent..]
+                    .iter()
+                    .map(|p| {
+                        json!([
+                            round3(p.x),
+                            round3(p.y),
+                            v.behavior_colour(p.behavior.as_deref())
+                        ])
+                    })
+                    .collect();
+                *sent = r.trail.len();
+                json!([i, pts])
+            })
+            .collect();
+        let decisions: Vec<J> = v.decisions[self.decisions_sent..]
+            .iter()
+            .filter_map(|d| {
+                let i = v.instances.get(&d.key)?;
+                let outcomes: Vec<&J> = i.decided.iter().map(|(_, o)| o).collect();
+                let agree = outcomes.windows(2).all(|w| w[0] == w[1]);
+                Some(json!({
+                    "key": d.key, "t": d.t, "point": i.point, "team": i.team,
+                    "epoch": i.epoch, "round": i.round, "protocol": i.protocol,
+                    "outcome": outcomes.first(), "agree": agree, "robots": i.decided.len(),
+                    "waiting": i.waiting, "timed_out": i.timed_out,
+                    "sent": i.sent, "received": i.received, "bytes": i.bytes,
+                }))
+            })
+            .collect();
+        // Decisions some participant has still to log are sent again.
+        self.decisions_sent = v.decisions[self.decisions_sent..]
+            .iter()
+            .position(|d| {
+                v.instances
+                    .get(&d.key)
+                    .is_some_and(|i| !i.waiting.is_empty())
+            })
+            .map_or(v.decisions.len(), |k| self.decisions_sent + k);
+        let in_flight: Vec<J> = v
+            .in_flight()
+            .map(|(k, i)| {
+                json!({"key": k, "point": i.point, "team": i.team, "protocol": i.protocol,
+                       "started": i.started, "waiting": i.waiting, "decided": i.decided.len(),
+                       "sent": i.sent, "received": i.received})
+            })
+            .collect();
+        let layout = if self.layout_sent {
+            J::Null
+        } else {
+            v.layout.clone().unwrap_or(J::Null)
+        };
+        if v.layout.is_some() {
+            self.layout_sent = true;
+        }
+        self.dirty = false;
+        json!({
+            "type": "snapshot",
+            "generation": feed.generation,
+            "source": feed.source,
+            "label": feed.label,
+            "live": feed.live,
+            "end": feed.end_time(),
+            "at": self.at,
+            "t": v.t,
+            "records": v.records,
+            "reset": reset,
+            "robots": robots,
+            "objects": v.objects,
+            "layout": layout,
+            "trails": trails,
+            "decisions": decisions,
+            "in_flight": in_flight,
+            "summary": v.summary,
+            "ended": feed.ended,
+            "problems": feed.problems,
+        })
+    }
+}
+
+fn round3(x: f64) -> f64 {
+    (x * 1000.0).round() / 1000.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn feed_of(lines: &str) -> Feed {
+        let mut f = Feed::new();
+        f.reset(Source::Replay, "test".into(), false);
+        let (r, p, _) = parse_log("test.jsonl", lines);
+        f.records = r;
+        f.problems = p;
+        f
+    }
+
+    const LOG: &str = r##"{"t":0.0,"event":"run_started","robots":1}
+{"t":0.0,"event":"world","robots":["r0"],"behaviors":["walk"],"palette":["#ff0000"]}
+{"t":0.0,"robot":"r0","event":"selected","behavior":"walk","team":"root","depth":0}
+{"t":0.0,"event":"poses","robots":[[0.0,0.0,0.0]],"behaviors":["walk"],"links":[null]}
+{"t":1.0,"event":"poses","robots":[[1.0,0.0,0.0]],"behaviors":["walk"],"links":[null]}
+not json
+{"t":2.0,"event":"poses","robots":[[2.0,0.0,0.0]],"behaviors":["walk"],"links":[null]}
+"##;
+
+    #[test]
+    fn a_bad_line_is_named_and_skipped() {
+        let f = feed_of(LOG);
+        assert_eq!(f.records.len(), 6);
+        assert_eq!(f.problems.len(), 1);
+        assert!(
+            f.problems[0].starts_with("test.jsonl:6:"),
+            "{:?}",
+            f.problems
+        );
+    }
+
+    #[test]
+    fn seeking_moves_the_robots_and_back_again() {
+        let f = feed_of(LOG);
+        let mut c = Cursor::new();
+        c.catch_up(&f);
+        let s = c.snapshot(&f);
+        assert_eq!(s["robots"][0]["pose"][0], 2.0);
+        assert_eq!(s["robots"][0]["colour"], "#ff0000");
+        c.seek(Some(1.0));
+        c.catch_up(&f);
+        let s = c.snapshot(&f);
+        assert_eq!(s["robots"][0]["pose"][0], 1.0);
+        assert_eq!(s["reset"], true, "going back resends the trails");
+        c.seek(Some(0.5));
+        c.catch_up(&f);
+        assert_eq!(c.snapshot(&f)["robots"][0]["pose"][0], 0.0);
+        c.seek(None);
+        c.catch_up(&f);
+        assert_eq!(c.snapshot(&f)["robots"][0]["pose"][0], 2.0);
+    }
+
+    #[test]
+    fn trails_are_sent_as_they_grow() {
+        let f = feed_of(LOG);
+        let mut c = Cursor::new();
+        c.seek(Some(0.0));
+        c.catch_up(&f);
+        let s = c.snapshot(&f);
+        assert_eq!(s["trails"][0][1].as_array().map(|a| a.len()), Some(1));
+        c.seek(Some(1.0));
+        c.catch_up(&f);
+        let s = c.snapshot(&f);
+        assert_eq!(s["reset"], false);
+        assert_eq!(
+            s["trails"][0][1].as_array().map(|a| a.len()),
+            Some(1),
+            "only the new point"
+        );
+        assert!(s["layout"].is_null(), "the layout is sent once");
+    }
+}

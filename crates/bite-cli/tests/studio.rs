@@ -1,0 +1,239 @@
+//! `bite studio` in a real browser: Debian's chromium, driven by
+//! playwright-core (npm, installed by `npm ci` from the lockfile in
+//! `tests/studio/` into the target directory's test scratch space).
+//!
+//! Each test starts its own studio on a free port of 127.0.0.1 and runs one
+//! scenario of `tests/studio/studio.mjs`. Screenshots go to the scratch
+//! space, or to `$BITE_SCREENSHOTS` (`BITE_SCREENSHOTS=docs/figures cargo
+//! test -p bite-cli --test studio` refreshes the ones the docs show).
+//!
+//! The browser is needed: CI installs it (`.ci/run`: `apt-get install
+//! chromium`); without it these tests fail and say how to get it.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::sync::OnceLock;
+use std::time::Duration;
+
+const BITE: &str = env!("CARGO_BIN_EXE_bite");
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn chromium() -> String {
+    let path = std::env::var("BITE_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    assert!(
+        Path::new(&path).exists(),
+        "the browser tests need Debian's chromium at {path}: `apt-get install chromium` \
+         (or set BITE_CHROMIUM)"
+    );
+    path
+}
+
+/// The test scripts' directory, with playwright-core installed (once per
+/// target directory and lockfile).
+fn node_dir() -> &'static Path {
+    static DIR: OnceLock<PathBuf> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/studio");
+        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("studio-node");
+        std::fs::create_dir_all(&dir).expect("scratch space");
+        let lock = std::fs::read(src.join("package-lock.json")).expect("the lockfile");
+        let installed = std::fs::read(dir.join("package-lock.json")).ok();
+        for f in ["package.json", "package-lock.json", "studio.mjs"] {
+            std::fs::copy(src.join(f), dir.join(f)).expect("copying the test scripts");
+        }
+        if installed.as_deref() != Some(&lock[..])
+            || !dir.join("node_modules/playwright-core").exists()
+        {
+            let s = Command::new("npm")
+                .args(["ci", "--no-audit", "--no-fund", "--loglevel=error"])
+                .current_dir(&dir)
+                .status()
+                .expect("npm (Node.js) is needed for the browser tests");
+            assert!(s.success(), "npm ci in {} failed", dir.display());
+        }
+        dir
+    })
+}
+
+fn shots_dir() -> PathBuf {
+    let d = match std::env::var("BITE_SCREENSHOTS") {
+        Ok(d) => root().join(d),
+        Err(_) => Path::new(env!("CARGO_TARGET_TMPDIR")).join("studio-screenshots"),
+    };
+    std::fs::create_dir_all(&d).expect("screenshot directory");
+    d
+}
+
+/// A process killed when the test ends, however it ends.
+struct Kill(Child);
+impl Drop for Kill {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Start `bite studio ARGS` on a free port; its URL.
+fn studio(args: &[&str], cwd: &Path) -> (Kill, String) {
+    let mut child = Command::new(BITE)
+        .arg("studio")
+        .args(["--port", "0"])
+        .args(args)
+        .current_dir(cwd)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("bite studio starts");
+    let err = child.stderr.take().expect("stderr");
+    let mut lines = BufReader::new(err).lines();
+    let url = loop {
+        let line = lines
+            .next()
+            .expect("bite studio said where it serves")
+            .expect("stderr readable");
+        if let Some(at) = line.find("http://") {
+            let url = line[at..]
+                .split_whitespace()
+                .next()
+                .unwrap_or("")
+                .to_string();
+            assert!(
+                url.starts_with("http://127.0.0.1:"),
+                "served on loopback only: {line}"
+            );
+            break url;
+        }
+    };
+    // Keep draining its stderr so it never blocks on a full pipe.
+    std::thread::spawn(move || for _ in lines.by_ref() {});
+    (Kill(child), url)
+}
+
+/// Run scenario `name` of studio.mjs against `url`; its output.
+fn browse(name: &str, url: &str, arg: Option<&str>) -> String {
+    let dir = node_dir();
+    let mut cmd = Command::new("node");
+    cmd.arg("studio.mjs")
+        .args([name, url])
+        .arg(shots_dir())
+        .current_dir(dir)
+        .env("BITE_CHROMIUM", chromium());
+    if let Some(a) = arg {
+        cmd.arg(a);
+    }
+    let out = cmd.output().expect("node runs");
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "browser scenario `{name}` failed:\n{stdout}\n{stderr}"
+    );
+    eprintln!("{stdout}");
+    stdout
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join("studio-runs")
+        .join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("scratch dir");
+    d
+}
+
+#[test]
+fn the_editor_shows_a_misspelled_command_at_its_line_and_a_dropped_command_lands_there() {
+    let mission = root().join("examples/search-rescue.rtcl");
+    let (_s, url) = studio(&[mission.to_str().expect("path")], &scratch("editor"));
+    let out = browse("editor", &url, None);
+    assert!(out.contains("did you mean `move`"), "{out}");
+}
+
+#[test]
+fn run_from_the_page_shows_three_robots_stacks_changing_until_it_completes() {
+    let dir = scratch("run");
+    let (_s, url) = studio(&[], &dir);
+    let out = browse("run", &url, Some("5"));
+    assert!(out.contains("ok: 3 robots"), "{out}");
+    // The run wrote its log where the page said.
+    let logs: Vec<_> = std::fs::read_dir(dir.join("out/studio"))
+        .expect("the run's log directory")
+        .collect();
+    assert_eq!(logs.len(), 1, "one run log");
+}
+
+#[test]
+fn replaying_a_run_log_moves_the_robots_with_the_scrubber() {
+    let dir = scratch("replay");
+    let log = dir.join("formation.jsonl");
+    let s = Command::new(BITE)
+        .args(["run", "--log"])
+        .arg(&log)
+        .current_dir(&dir)
+        .output()
+        .expect("bite run");
+    assert!(s.status.success(), "{}", String::from_utf8_lossy(&s.stderr));
+    // Opened from the page's file input.
+    let (_s, url) = studio(&[], &dir);
+    browse("replay", &url, Some(log.to_str().expect("path")));
+    // And given on the command line.
+    let (_s2, url2) = studio(&[log.to_str().expect("path")], &dir);
+    browse("replay", &url2, None);
+}
+
+#[test]
+fn a_live_zenoh_team_started_by_bite_launch_appears_in_the_monitor() {
+    let dir = scratch("team");
+    let mut launch = Command::new(BITE)
+        .args([
+            "launch",
+            "--robots",
+            "3",
+            "--speed",
+            "1",
+            "--time-limit",
+            "40s",
+        ])
+        .arg("--out")
+        .arg(dir.join("team"))
+        .args(["--team", "studiotest"])
+        .current_dir(&dir)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("bite launch");
+    let err = launch.stderr.take().expect("stderr");
+    let launch = Kill(launch);
+    let mut lines = BufReader::new(err).lines();
+    let monitor = loop {
+        let line = lines
+            .next()
+            .expect("bite launch says how to monitor its team")
+            .expect("stderr");
+        if let Some(cmd) = line.strip_prefix("monitor: bite studio ") {
+            break cmd.to_string();
+        }
+    };
+    std::thread::spawn(move || for _ in lines.by_ref() {});
+    let args: Vec<&str> = monitor.split_whitespace().collect();
+    let (_s, url) = studio(&args, &dir);
+    browse("team", &url, Some("3"));
+    drop(launch);
+    std::thread::sleep(Duration::from_millis(100));
+}
+
+/// The monitor's rate with 100 simulated robots (a measurement for
+/// docs/performance.md, not a check): `cargo test -p bite-cli --release
+/// --test studio -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn measure_the_monitor_rate_with_100_robots() {
+    let dir = scratch("rate");
+    let graph = root().join("examples/coverage.yaml");
+    let (_s, url) = studio(&[graph.to_str().expect("path"), "--robots", "100"], &dir);
+    browse("rate", &url, Some("1"));
+}
