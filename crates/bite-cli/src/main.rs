@@ -101,9 +101,13 @@ enum Cmd {
         /// A configuration file binding protocols to points.
         #[arg(long)]
         config: Option<PathBuf>,
-        /// Graphviz DOT output (the only format so far).
+        /// Graphviz DOT output (the default).
         #[arg(long, default_value_t = true)]
         dot: bool,
+        /// SVG instead, drawn without Graphviz (the picture `bite studio`
+        /// shows: the decomposition top-down, chains left to right).
+        #[arg(long)]
+        svg: bool,
         /// Write to this file instead of standard output.
         #[arg(short, long)]
         output: Option<PathBuf>,
@@ -950,8 +954,21 @@ fn cmd_check(graph: &Path, config: Option<&Path>) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Result<ExitCode> {
+fn cmd_graph(
+    graph: &Path,
+    config: Option<&Path>,
+    output: Option<&Path>,
+    svg: bool,
+) -> Result<ExitCode> {
     if config.is_none() && is_protocol_file(graph) {
+        if svg {
+            eprintln!(
+                "error: --svg draws behavior graphs; {} is a protocol file",
+                graph.display()
+            );
+            eprintln!("  = hint: draw it with Graphviz: bite graph FILE | dot -Tsvg");
+            return Ok(ExitCode::from(2));
+        }
         let dot = load_protocol(graph)?.to_dot();
         match output {
             Some(p) => {
@@ -963,11 +980,18 @@ fn cmd_graph(graph: &Path, config: Option<&Path>, output: Option<&Path>) -> Resu
     }
     let g = load_graph_or_mission(graph, config)?;
     let mission = Mission::new(g, &registry()).map_err(bad_input)?;
-    let dot = bite_core::graph::dot::to_dot_with(mission.graph(), &|b, k| {
+    let protocol = |b, k| {
         mission
             .bound(b, k)
-            .map_or("?".into(), |x| x.protocol.name().to_string())
-    });
+            .map_or("?".into(), |x: &bite_core::mission::Bound| {
+                x.protocol.name().to_string()
+            })
+    };
+    let dot = if svg {
+        bite_core::graph::svg::to_svg_with(mission.graph(), &protocol)
+    } else {
+        bite_core::graph::dot::to_dot_with(mission.graph(), &protocol)
+    };
     match output {
         Some(p) => std::fs::write(p, dot).with_context(|| format!("writing {}", p.display()))?,
         None => out!("{dot}"),
@@ -1325,8 +1349,9 @@ fn main() -> ExitCode {
             graph,
             config,
             output,
+            svg,
             ..
-        } => cmd_graph(&graph, config.as_deref(), output.as_deref()),
+        } => cmd_graph(&graph, config.as_deref(), output.as_deref(), svg),
         Cmd::Compile {
             mission,
             dot,

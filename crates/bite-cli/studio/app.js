@@ -203,8 +203,12 @@ $("#live").onclick = () => fetch("/api/live", { method: "POST" });
 $("#open-log").onchange = async (e) => {
   const f = e.target.files[0];
   if (!f) return;
-  const text = await f.text();
-  await fetch(`/api/replay?name=${encodeURIComponent(f.name)}`, { method: "POST", body: text });
+  const res = await fetch(`/api/replay?name=${encodeURIComponent(f.name)}`, { method: "POST", body: await f.arrayBuffer() });
+  if (!res.ok) {
+    const why = (await res.json()).error;
+    $("#outcome").textContent = why;
+    $("#outcome").className = "failed";
+  }
   e.target.value = "";
 };
 
@@ -501,7 +505,7 @@ async function start() {
     cm.setOption("mode", kind === "rtcl" ? "rtcl" : "yaml");
     cm.setValue(info.file.text);
   } else {
-    cm.setValue("");
+    cm.setValue("# A mission in the robot team command language: one command per line.\n# Drag commands from the left, or click one to insert it.\n");
   }
   $("#pace").value = String(info.pace);
   connect();

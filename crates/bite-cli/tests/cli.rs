@@ -438,3 +438,48 @@ fn check_refuses_a_loop_back_to_an_ancestor() {
         "{err}"
     );
 }
+
+#[test]
+fn graph_svg_draws_every_behavior_with_its_bound_protocols() {
+    let out = bite()
+        .args(["graph", "--svg", "--config"])
+        .arg(root().join("examples/configs/7.yaml"))
+        .arg(root().join("examples/formation.yaml"))
+        .output()
+        .expect("bite graph");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let svg = String::from_utf8_lossy(&out.stdout);
+    assert!(svg.starts_with("<svg"), "{svg}");
+    for b in [
+        "formation",
+        "triangle",
+        "line",
+        "search",
+        "walk",
+        "linewalk",
+        "lead",
+    ] {
+        assert!(svg.contains(&format!("data-behavior=\"{b}\"")), "{b}");
+    }
+    // The protocols of the configuration, not the graph's defaults.
+    let check = bite()
+        .args(["check", "--config"])
+        .arg(root().join("examples/configs/7.yaml"))
+        .arg(root().join("examples/formation.yaml"))
+        .output()
+        .expect("bite check");
+    let listing = String::from_utf8_lossy(&check.stdout);
+    let bound: Vec<&str> = listing
+        .lines()
+        .filter_map(|l| l.split_whitespace().nth(2))
+        .filter(|p| p.contains('.') && !p.ends_with(':'))
+        .collect();
+    assert!(!bound.is_empty(), "{listing}");
+    for p in bound {
+        assert!(svg.contains(&format!(": {p}<")), "{p} not drawn");
+    }
+}

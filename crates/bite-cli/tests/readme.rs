@@ -322,6 +322,7 @@ const PARSE_ONLY: &[((&str, &str), &str)] = &[
     (("sim", "serve"), "a server that runs until stopped"),
     (("robot", ""), "a robot process that waits for its team"),
     (("submit", ""), "needs a running team"),
+    (("studio", ""), "a web server that runs until stopped"),
 ];
 
 /// Longest a command that the test runs may take (debug build, 2 cores).

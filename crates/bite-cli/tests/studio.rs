@@ -170,9 +170,12 @@ fn run_from_the_page_shows_three_robots_stacks_changing_until_it_completes() {
 fn replaying_a_run_log_moves_the_robots_with_the_scrubber() {
     let dir = scratch("replay");
     let log = dir.join("formation.jsonl");
+    let mcap = dir.join("formation.mcap");
     let s = Command::new(BITE)
         .args(["run", "--log"])
         .arg(&log)
+        .arg("--mcap")
+        .arg(&mcap)
         .current_dir(&dir)
         .output()
         .expect("bite run");
@@ -183,6 +186,25 @@ fn replaying_a_run_log_moves_the_robots_with_the_scrubber() {
     // And given on the command line.
     let (_s2, url2) = studio(&[log.to_str().expect("path")], &dir);
     browse("replay", &url2, None);
+    // An MCAP file BITE wrote: its records are the log's.
+    let (_s3, url3) = studio(&[mcap.to_str().expect("path")], &dir);
+    browse("replay", &url3, None);
+}
+
+#[test]
+fn a_file_that_is_no_run_log_is_refused_with_where_and_why() {
+    let dir = scratch("bad-log");
+    let bad = dir.join("bad.mcap");
+    std::fs::write(&bad, b"\x89MCAP0\r\nnot really").expect("write");
+    let out = Command::new(BITE)
+        .args(["studio", "--port", "0"])
+        .arg(&bad)
+        .current_dir(&dir)
+        .output()
+        .expect("bite studio");
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.mcap: not a readable MCAP file"), "{err}");
 }
 
 #[test]

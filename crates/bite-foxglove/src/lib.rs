@@ -58,6 +58,41 @@ pub enum Error {
         /// What the JSON parser said.
         message: String,
     },
+    /// An MCAP file that cannot be read.
+    #[error("{path}: not a readable MCAP file: {message}")]
+    Mcap {
+        /// The file.
+        path: String,
+        /// What the reader said.
+        message: String,
+    },
+}
+
+/// The first bytes of every MCAP file.
+pub const MCAP_MAGIC: &[u8] = b"\x89MCAP0\r\n";
+
+/// The run-log records of an MCAP file written by [`Recorder`] (`--mcap`,
+/// `bite log convert`): its `/bite/events` channel, in order.
+pub fn read_mcap(path: &str, bytes: &[u8]) -> Result<Vec<J>, Error> {
+    let bad = |message: String| Error::Mcap {
+        path: path.to_string(),
+        message,
+    };
+    let stream = mcap::MessageStream::new(bytes).map_err(|e| bad(e.to_string()))?;
+    let mut out = Vec::new();
+    for m in stream {
+        let m = m.map_err(|e| bad(e.to_string()))?;
+        if m.channel.topic != "/bite/events" {
+            continue;
+        }
+        let rec: J = serde_json::from_slice(&m.data)
+            .map_err(|e| bad(format!("a /bite/events message is not JSON: {e}")))?;
+        out.push(rec);
+    }
+    if out.is_empty() {
+        return Err(bad("no /bite/events channel (not written by BITE?)".into()));
+    }
+    Ok(out)
 }
 
 /// The JSON-schema channels: topic, schema name, the record kinds they

@@ -141,7 +141,25 @@ fn kind_of(p: &Path) -> Kind {
 
 fn is_log(p: &Path) -> bool {
     p.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("jsonl"))
+        .is_some_and(|e| e.eq_ignore_ascii_case("jsonl") || e.eq_ignore_ascii_case("mcap"))
+}
+
+/// A run log's records: JSON lines, or an MCAP file BITE wrote (its
+/// `/bite/events` channel). Lines that are not records are reported
+/// (`file:line:col: why`, the first 20) and skipped.
+fn read_log(name: &str, bytes: &[u8]) -> Result<(Vec<J>, Vec<String>, usize), String> {
+    if bytes.starts_with(bite_foxglove::MCAP_MAGIC) {
+        return bite_foxglove::read_mcap(name, bytes)
+            .map(|r| (r, Vec::new(), 0))
+            .map_err(|e| e.to_string());
+    }
+    let text = std::str::from_utf8(bytes).map_err(|e| {
+        format!(
+            "{name}: not UTF-8 text (byte {}): expected JSON lines or an MCAP file",
+            e.valid_up_to()
+        )
+    })?;
+    Ok(feed::parse_log(name, text))
 }
 
 /// `bite studio`.
@@ -155,9 +173,13 @@ pub fn cmd_studio(a: StudioArgs) -> Result<ExitCode> {
     let mut scenario_path = a.scenario.clone();
     if let Some(p) = &a.file {
         if is_log(p) {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("reading the run log {}", p.display()))?;
-            let (records, problems, bad) = feed::parse_log(&p.display().to_string(), &text);
+            let bytes =
+                std::fs::read(p).with_context(|| format!("reading the run log {}", p.display()))?;
+            let (records, problems, bad) =
+                read_log(&p.display().to_string(), &bytes).map_err(|e| {
+                    eprintln!("error: {e}");
+                    anyhow::Error::new(crate::Reported(2))
+                })?;
             for x in &problems {
                 eprintln!("warning: {x}");
             }
@@ -555,16 +577,21 @@ struct ReplayQuery {
 async fn replay(
     State(s): State<Arc<Studio>>,
     Query(q): Query<ReplayQuery>,
-    body: String,
-) -> Json<J> {
+    body: axum::body::Bytes,
+) -> Response {
     let name = q.name.unwrap_or_else(|| "run log".into());
-    let (records, problems, bad) = feed::parse_log(&name, &body);
+    let (records, problems, bad) = match read_log(&name, &body) {
+        Ok(x) => x,
+        Err(e) => {
+            return (StatusCode::UNPROCESSABLE_ENTITY, Json(json!({"error": e}))).into_response();
+        }
+    };
     let n = records.len();
     let mut f = s.feed();
     f.reset(Source::Replay, name, false);
     f.records = records;
     f.problems = problems;
-    Json(json!({"ok": true, "records": n, "bad_lines": bad, "end": f.end_time()}))
+    Json(json!({"ok": true, "records": n, "bad_lines": bad, "end": f.end_time()})).into_response()
 }
 
 async fn monitor(State(s): State<Arc<Studio>>, ws: WebSocketUpgrade) -> Response {
