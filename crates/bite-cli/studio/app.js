@@ -4,10 +4,15 @@
 /* global CodeMirror */
 
 const $ = (sel) => document.querySelector(sel);
+// Robot names, a dozen at most (a 100-robot subteam in one line).
+const names = (list) => {
+  const a = [...list];
+  return a.length > 12 ? `${a.slice(0, 10).join(", ")}, … (${a.length} in all)` : a.join(", ");
+};
 const esc = (s) => String(s ?? "").replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" })[c]);
 
 // What tests and curious users can read: snapshots received, frames drawn.
-const stats = { snapshots: 0, frames: 0, since: performance.now() };
+const stats = { snapshots: 0, frames: 0, bytes: 0, applyMs: 0, drawMs: {}, since: performance.now() };
 window.studio = { stats };
 
 // ---------------------------------------------------------------- editor
@@ -223,8 +228,10 @@ window.studio.hasLayout = () => !!M.layout;
 window.studio.positions = () => Object.fromEntries(M.robots.map((r) => [r.name, r.pose]));
 const palette = new Map();
 
+// A colour from a record, only if it is one (`#rrggbb`).
+const hex = (c) => (/^#[0-9a-f]{6}$/i.test(c ?? "") ? c : "#dddddd");
 function colourOf(behavior) {
-  return palette.get(behavior) || "#dddddd";
+  return hex(palette.get(behavior));
 }
 // Black or white text, whichever reads on `bg` (#rrggbb).
 function inkOn(bg) {
@@ -237,7 +244,12 @@ function inkOn(bg) {
 let ws;
 function connect() {
   ws = new WebSocket(`ws://${location.host}/api/monitor`);
-  ws.onmessage = (e) => onSnapshot(JSON.parse(e.data));
+  ws.onmessage = (e) => {
+    const t0 = performance.now();
+    stats.bytes += e.data.length;
+    onSnapshot(JSON.parse(e.data));
+    stats.applyMs += performance.now() - t0;
+  };
   ws.onclose = () => setTimeout(connect, 1000);
 }
 function seek(t) {
@@ -246,7 +258,18 @@ function seek(t) {
 }
 function follow() { seek(null); }
 $("#follow").onclick = follow;
-$("#scrubber").oninput = (e) => seek(Number(e.target.value));
+// Scrubbing sends at most one seek a frame.
+let seekTo = null;
+$("#scrubber").oninput = (e) => {
+  const first = seekTo === null;
+  seekTo = Number(e.target.value);
+  if (first) {
+    requestAnimationFrame(() => {
+      seek(seekTo);
+      seekTo = null;
+    });
+  }
+};
 
 function onSnapshot(s) {
   stats.snapshots++;
@@ -306,12 +329,16 @@ function scheduleDraw() {
   requestAnimationFrame(() => {
     drawPending = false;
     stats.frames++;
-    drawArena();
-    drawRobots();
-    drawOrg();
-    drawInFlight();
-    drawTimeline();
-    markActive();
+    for (const f of [drawArena, drawRobots, drawOrg, drawInFlight, drawTimeline, markActive]) {
+      const t0 = performance.now();
+      try {
+        f();
+      } catch (e) {
+        // One panel's trouble (a malformed record) must not stop the others.
+        console.error(e);
+      }
+      stats.drawMs[f.name] = (stats.drawMs[f.name] || 0) + performance.now() - t0;
+    }
   });
 }
 
@@ -374,7 +401,7 @@ function drawArena() {
   for (const pts of M.trails) {
     if (!pts) continue;
     for (let i = 1; i < pts.length; i++) {
-      g.strokeStyle = pts[i][2]; g.globalAlpha = 0.55;
+      g.strokeStyle = hex(pts[i][2]); g.globalAlpha = 0.55;
       g.beginPath(); g.moveTo(X(pts[i - 1][0]), Y(pts[i - 1][1])); g.lineTo(X(pts[i][0]), Y(pts[i][1])); g.stroke();
     }
   }
@@ -393,7 +420,7 @@ function drawArena() {
   for (const r of M.robots) {
     if (!r.pose) continue;
     const [x, y, th] = r.pose;
-    g.fillStyle = r.colour; g.strokeStyle = r.crashed ? "#c0392b" : "#222"; g.lineWidth = r.crashed ? 2 : 1;
+    g.fillStyle = hex(r.colour); g.strokeStyle = r.crashed ? "#c0392b" : "#222"; g.lineWidth = r.crashed ? 2 : 1;
     g.beginPath(); g.arc(X(x), Y(y), rr, 0, 2 * Math.PI); g.fill(); g.stroke();
     g.beginPath(); g.moveTo(X(x), Y(y)); g.lineTo(X(x) + Math.cos(th) * rr * 1.6, Y(y) - Math.sin(th) * rr * 1.6); g.stroke();
     if (labels) { g.fillStyle = "#111"; g.font = "10px sans-serif"; g.fillText(r.name, X(x) + rr + 2, Y(y) + 3); }
@@ -409,12 +436,12 @@ function drawRobots() {
       r.completed ? `<span class="flag-done">completed</span>` : "",
       r.crashed ? `<span class="flag-lost">crashed</span>` : "",
       r.phase ? esc(r.phase) : "",
-      r.lost.length ? `<span class="flag-lost">lost: ${esc(r.lost.join(", "))}</span>` : "",
+      r.lost.length ? `<span class="flag-lost">lost: ${esc(names(r.lost))}</span>` : "",
       r.informs ? `${r.informs} informs` : "",
     ].filter(Boolean).join("<br>");
     const beliefs = Object.entries(r.beliefs || {}).slice(0, 6)
       .map(([k, v]) => `${esc(k)}=${esc(typeof v === "number" ? +v.toFixed(2) : JSON.stringify(v))}`).join("<br>");
-    const auth = r.auth ? `${r.auth.accepted ?? 0} ok` + Object.entries(r.auth.rejected || {}).map(([k, v]) => `<br>${esc(k)}: ${v}`).join("") : "";
+    const auth = r.auth ? `${esc(r.auth.accepted ?? 0)} ok` + Object.entries(r.auth.rejected || {}).map(([k, v]) => `<br>${esc(k)}: ${esc(v)}`).join("") : "";
     return `<tr data-robot="${esc(r.name)}"><td>${esc(r.name)}</td><td class="stack">${stack || "<span class=muted>idle</span>"}</td><td>${state}</td><td>${beliefs}</td><td>${auth}</td></tr>`;
   });
   const html = rows.join("");
@@ -443,7 +470,7 @@ function drawOrg() {
       parent = n;
     }
   }
-  const render = (n) => `<li><b>${esc(n.team)}</b> ${esc([...n.behaviors].join(", "))} <span class="muted">[${esc([...n.members].join(", "))}]</span>` +
+  const render = (n) => `<li><b>${esc(n.team)}</b> ${esc([...n.behaviors].join(", "))} <span class="muted">[${esc(names(n.members))}]</span>` +
     (n.kids.length ? `<ul>${n.kids.map(render).join("")}</ul>` : "") + `</li>`;
   const html = roots.length ? `<ul>${roots.map(render).join("")}</ul>` : `<span class="muted">no team behavior running</span>`;
   if (rowCache.get("org") !== html) { $("#org").innerHTML = html; rowCache.set("org", html); }
@@ -451,7 +478,7 @@ function drawOrg() {
 
 function drawInFlight() {
   const html = M.inFlight.slice(0, 40).map((i) =>
-    `<li><b>${esc(i.point)}</b> ${esc(i.protocol)} <span class="muted">subteam ${esc(i.team)}, since ${i.started.toFixed(1)} s; waiting: ${esc(i.waiting.join(", "))}; decided: ${i.decided}; messages ${i.sent} sent, ${i.received} received</span></li>`).join("")
+    `<li><b>${esc(i.point)}</b> ${esc(i.protocol)} <span class="muted">subteam ${esc(i.team)}, since ${i.started.toFixed(1)} s; waiting: ${esc(names(i.waiting))}; decided: ${i.decided}; messages ${i.sent} sent, ${i.received} received</span></li>`).join("")
     || `<li class="muted">none</li>`;
   if (rowCache.get("flight") !== html) { $("#in-flight").innerHTML = html; rowCache.set("flight", html); }
 }

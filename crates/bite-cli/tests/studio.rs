@@ -4,8 +4,8 @@
 //!
 //! Each test starts its own studio on a free port of 127.0.0.1 and runs one
 //! scenario of `tests/studio/studio.mjs`. Screenshots go to the scratch
-//! space, or to `$BITE_SCREENSHOTS` (`BITE_SCREENSHOTS=docs/figures cargo
-//! test -p bite-cli --test studio` refreshes the ones the docs show).
+//! space, or to `$BITE_SCREENSHOTS` (`BITE_SCREENSHOTS=docs/figures/studio
+//! cargo test -p bite-cli --test studio` refreshes the ones the docs show).
 //!
 //! The browser is needed: CI installs it (`.ci/run`: `apt-get install
 //! chromium`); without it these tests fail and say how to get it.
@@ -19,11 +19,29 @@ use std::time::Duration;
 const BITE: &str = env!("CARGO_BIN_EXE_bite");
 
 fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    let r = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    r.canonicalize().unwrap_or(r)
 }
 
+/// Debian's chromium: installed with apt-get when missing and the tests
+/// run as root (the README's test command does all set-up).
 fn chromium() -> String {
+    static INSTALL: OnceLock<()> = OnceLock::new();
     let path = std::env::var("BITE_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    INSTALL.get_or_init(|| {
+        let root = Command::new("id")
+            .arg("-u")
+            .output()
+            .is_ok_and(|o| o.stdout.trim_ascii() == b"0");
+        if !Path::new(&path).exists() && root {
+            eprintln!("installing Debian's chromium for the browser tests");
+            let _ = Command::new("apt-get").args(["update", "-qq"]).status();
+            let _ = Command::new("apt-get")
+                .args(["install", "-y", "-qq", "chromium"])
+                .env("DEBIAN_FRONTEND", "noninteractive")
+                .status();
+        }
+    });
     assert!(
         Path::new(&path).exists(),
         "the browser tests need Debian's chromium at {path}: `apt-get install chromium` \
@@ -210,6 +228,9 @@ fn a_file_that_is_no_run_log_is_refused_with_where_and_why() {
 #[test]
 fn a_live_zenoh_team_started_by_bite_launch_appears_in_the_monitor() {
     let dir = scratch("team");
+    // The browser and its driver first: the team's clock starts at launch.
+    node_dir();
+    chromium();
     let mut launch = Command::new(BITE)
         .args([
             "launch",
@@ -218,7 +239,7 @@ fn a_live_zenoh_team_started_by_bite_launch_appears_in_the_monitor() {
             "--speed",
             "1",
             "--time-limit",
-            "40s",
+            "90s",
         ])
         .arg("--out")
         .arg(dir.join("team"))
@@ -250,12 +271,65 @@ fn a_live_zenoh_team_started_by_bite_launch_appears_in_the_monitor() {
 
 /// The monitor's rate with 100 simulated robots (a measurement for
 /// docs/performance.md, not a check): `cargo test -p bite-cli --release
-/// --test studio -- --ignored --nocapture`.
+/// --test studio -- --ignored --nocapture` (`BITE_STUDIO_PACE=5` for five
+/// times real time).
 #[test]
 #[ignore]
 fn measure_the_monitor_rate_with_100_robots() {
     let dir = scratch("rate");
     let graph = root().join("examples/coverage.yaml");
     let (_s, url) = studio(&[graph.to_str().expect("path"), "--robots", "100"], &dir);
-    browse("rate", &url, Some("1"));
+    let pace = std::env::var("BITE_STUDIO_PACE").unwrap_or_else(|_| "1".into());
+    browse("rate", &url, Some(&pace));
+}
+
+/// A raw HTTP/1.1 request to the studio; the status line and headers.
+fn http(url: &str, request: &str) -> String {
+    use std::io::{Read, Write};
+    let addr = url
+        .trim_start_matches("http://")
+        .trim_end_matches('/')
+        .to_string();
+    let mut s = std::net::TcpStream::connect(&addr).expect("connects");
+    s.set_read_timeout(Some(Duration::from_secs(10)))
+        .expect("timeout");
+    s.write_all(request.replace("{addr}", &addr).as_bytes())
+        .expect("sends");
+    let mut out = Vec::new();
+    let _ = s.read_to_end(&mut out);
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[test]
+fn only_the_studios_own_page_may_use_it() {
+    let dir = scratch("origin");
+    let (_s, url) = studio(&[], &dir);
+    let page = http(
+        &url,
+        "GET / HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n",
+    );
+    assert!(page.starts_with("HTTP/1.1 200"), "{page}");
+    assert!(
+        page.to_ascii_lowercase()
+            .contains("content-security-policy: default-src 'self'; script-src 'self'"),
+        "{page}"
+    );
+    // Another site's page posting a run log (a "simple" request, no CORS
+    // preflight), and a DNS-rebinding page (its own host name).
+    let cross = http(
+        &url,
+        "POST /api/replay HTTP/1.1\r\nHost: {addr}\r\nOrigin: http://evil.example\r\n\
+         Content-Type: text/plain\r\nContent-Length: 2\r\nConnection: close\r\n\r\n{}",
+    );
+    assert!(cross.starts_with("HTTP/1.1 403"), "{cross}");
+    let rebound = http(
+        &url,
+        "GET /api/info HTTP/1.1\r\nHost: evil.example:80\r\nConnection: close\r\n\r\n",
+    );
+    assert!(rebound.starts_with("HTTP/1.1 403"), "{rebound}");
+    let own = http(
+        &url,
+        "GET /api/info HTTP/1.1\r\nHost: {addr}\r\nOrigin: http://{addr}\r\nConnection: close\r\n\r\n",
+    );
+    assert!(own.starts_with("HTTP/1.1 200"), "{own}");
 }

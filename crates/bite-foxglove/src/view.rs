@@ -186,7 +186,7 @@ impl View {
     /// Take one record into account; says what changed.
     pub fn apply(&mut self, rec: &J) -> Changed {
         let mut changed = Changed::default();
-        self.records += 1;
+        self.records = self.records.saturating_add(1);
         if let Some(t) = rec["t"].as_f64() {
             self.t = self.t.max(t);
         }
@@ -280,7 +280,7 @@ impl View {
                     }
                 }
             }
-            "inform" => r.informs += 1,
+            "inform" => r.informs = r.informs.saturating_add(1),
             "run_finished" if rec["auth"].is_object() => r.auth = Some(rec["auth"].clone()),
             // A robot process's status (`bite/T/status/<robot>`, given the
             // event `status`): the whole of its state at once, for a
@@ -351,9 +351,11 @@ impl View {
         }
         inst.decided
             .push((robot.to_string(), rec["outcome"].clone()));
-        inst.sent += rec["sent"].as_u64().unwrap_or(0);
-        inst.received += rec["received"].as_u64().unwrap_or(0);
-        inst.bytes += rec["bytes"].as_u64().unwrap_or(0);
+        // Counts from a file or the network: saturating, never a panic.
+        let count = |k: &str| rec[k].as_u64().unwrap_or(0);
+        inst.sent = inst.sent.saturating_add(count("sent"));
+        inst.received = inst.received.saturating_add(count("received"));
+        inst.bytes = inst.bytes.saturating_add(count("bytes"));
         inst.timed_out |= rec["timed_out"].as_bool().unwrap_or(false);
     }
 

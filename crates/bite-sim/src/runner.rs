@@ -688,6 +688,18 @@ impl Sim<'_, '_> {
             match s.what {
                 What::Control => {
                     if let Some(w) = self.physics.as_mut() {
+                        // A watcher that asked to see the world more often
+                        // than the control rate sees it between ticks too
+                        // (the physics steps the same either way).
+                        if let Some((every, next)) = self.watch_poses.as_mut() {
+                            let g = &self.graph;
+                            let name = |b: BehaviorId| g.name_of(b).to_string();
+                            while *next < self.now && !every.is_zero() {
+                                w.step_until(*next, &self.crashed);
+                                self.log.show(&w.poses_record(next.as_secs_f64(), &name));
+                                *next = *next + *every;
+                            }
+                        }
                         w.advance(self.now, &self.crashed);
                         w.record();
                     }

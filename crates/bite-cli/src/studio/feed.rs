@@ -27,6 +27,9 @@ pub enum Source {
 pub struct Feed {
     /// Bumped at every new source: pages start over.
     pub generation: u64,
+    /// Bumped at every change (a record, the end of a run): pages are sent
+    /// a snapshot.
+    pub version: u64,
     /// Where the records come from.
     pub source: Source,
     /// What it is (`bite run formation`, `team bite on tcp/...`, a file).
@@ -48,6 +51,7 @@ impl Feed {
     pub fn new() -> Self {
         Feed {
             generation: 0,
+            version: 0,
             source: Source::None,
             label: String::new(),
             live: false,
@@ -60,12 +64,19 @@ impl Feed {
     /// Start over with a new source.
     pub fn reset(&mut self, source: Source, label: String, live: bool) {
         self.generation += 1;
+        self.version += 1;
         self.source = source;
         self.label = label;
         self.live = live;
         self.records.clear();
         self.ended = None;
         self.problems.clear();
+    }
+
+    /// Add a record.
+    pub fn push(&mut self, rec: J) {
+        self.records.push(rec);
+        self.version += 1;
     }
 
     /// The time of the last record, s.
@@ -116,11 +127,20 @@ pub fn parse_log(name: &str, text: &str) -> (Vec<J>, Vec<String>, usize) {
     (records, problems, bad)
 }
 
+/// Records a page applies per snapshot at most.
+pub const BATCH: usize = 20_000;
+
+/// Seconds after which a decision some participant never logged (it
+/// crashed, or lost the instance) is not sent again.
+const DECISION_SETTLES: f64 = 30.0;
+
 /// One page's place in the feed.
 pub struct Cursor {
     generation: u64,
     /// Records applied to the view.
     applied: usize,
+    /// The feed's version last seen.
+    version: u64,
     /// The view at the page's time.
     pub view: View,
     /// `None`: follow the feed; `Some(t)`: show the run at time `t`.
@@ -140,6 +160,7 @@ impl Cursor {
         Cursor {
             generation: u64::MAX,
             applied: 0,
+            version: u64::MAX,
             view: View::new(),
             at: None,
             trail_sent: Vec::new(),
@@ -173,13 +194,22 @@ impl Cursor {
         self.dirty = true;
     }
 
-    /// Apply the feed's records up to the page's time.
+    /// Apply the feed's records up to the page's time, at most
+    /// [`BATCH`] of them (the rest at the next call: a long rebuild never
+    /// holds the feed for long).
     pub fn catch_up(&mut self, feed: &Feed) {
         if feed.generation != self.generation {
             self.restart(feed.generation);
             self.at = None;
         }
-        while let Some(r) = feed.records.get(self.applied) {
+        if feed.version != self.version {
+            self.version = feed.version;
+            self.dirty = true;
+        }
+        let until = self.applied.saturating_add(BATCH);
+        while self.applied < until
+            && let Some(r) = feed.records.get(self.applied)
+        {
             if let Some(at) = self.at
                 && r["t"].as_f64().unwrap_or(0.0) > at + 1e-9
             {
@@ -256,13 +286,15 @@ impl Cursor {
                 }))
             })
             .collect();
-        // Decisions some participant has still to log are sent again.
+        // Decisions some participant has still to log are sent again
+        // (for a while: one that never will does not hold the rest back).
         self.decisions_sent = v.decisions[self.decisions_sent..]
             .iter()
             .position(|d| {
-                v.instances
-                    .get(&d.key)
-                    .is_some_and(|i| !i.waiting.is_empty())
+                v.t - d.t < DECISION_SETTLES
+                    && v.instances
+                        .get(&d.key)
+                        .is_some_and(|i| !i.waiting.is_empty())
             })
             .map_or(v.decisions.len(), |k| self.decisions_sent + k);
         let in_flight: Vec<J> = v

@@ -39,7 +39,7 @@ use std::time::Duration;
 #[derive(clap::Args, Debug)]
 pub struct StudioArgs {
     /// A mission (`.rtcl`) or behavior graph (YAML) to open in the editor,
-    /// or a run log (`.jsonl`) to replay.
+    /// or a run log to replay (`.jsonl`, or an `.mcap` file BITE wrote).
     pub file: Option<PathBuf>,
     /// The port on 127.0.0.1 (0: any free port).
     #[arg(long, default_value_t = 7700)]
@@ -114,8 +114,8 @@ struct Studio {
     robots: Option<usize>,
     file: Option<(String, Kind, String)>,
     feed: Mutex<Feed>,
-    /// The run in progress: asked to stop (finish unpaced).
-    stop: Mutex<Option<Arc<AtomicBool>>>,
+    /// The run in progress: asked to stop (finish unpaced), and its thread.
+    run: Mutex<Option<(Arc<AtomicBool>, std::thread::JoinHandle<()>)>>,
     /// Pace of runs, simulated seconds per wall second (f64 bits).
     pace: AtomicU64,
     connected: Option<String>,
@@ -233,7 +233,7 @@ pub fn cmd_studio(a: StudioArgs) -> Result<ExitCode> {
         robots: a.robots,
         file,
         feed: Mutex::new(feed),
-        stop: Mutex::new(None),
+        run: Mutex::new(None),
         pace: AtomicU64::new(a.pace.to_bits()),
         connected,
         team: a.team.clone(),
@@ -255,6 +255,10 @@ pub fn cmd_studio(a: StudioArgs) -> Result<ExitCode> {
 }
 
 async fn serve(studio: Arc<Studio>, port: u16) -> Result<()> {
+    let listener = tokio::net::TcpListener::bind(("127.0.0.1", port))
+        .await
+        .with_context(|| format!("listening on 127.0.0.1:{port}"))?;
+    let addr = listener.local_addr()?;
     let app = Router::new()
         .route("/", get(|| async { html(INDEX) }))
         .route(
@@ -268,14 +272,17 @@ async fn serve(studio: Arc<Studio>, port: u16) -> Result<()> {
         .route("/api/run", post(run_text))
         .route("/api/stop", post(stop_run))
         .route("/api/live", post(live))
-        .route("/api/replay", post(replay))
+        .route(
+            "/api/replay",
+            post(replay).layer(DefaultBodyLimit::max(MAX_LOG_BYTES)),
+        )
         .route("/api/monitor", get(monitor))
-        .layer(DefaultBodyLimit::max(512 << 20))
+        .layer(DefaultBodyLimit::max(MAX_TEXT_BYTES))
+        .layer(axum::middleware::from_fn_with_state(
+            addr.port(),
+            same_origin,
+        ))
         .with_state(studio);
-    let listener = tokio::net::TcpListener::bind(("127.0.0.1", port))
-        .await
-        .with_context(|| format!("listening on 127.0.0.1:{port}"))?;
-    let addr = listener.local_addr()?;
     eprintln!("BITE Studio: http://{addr}/ (served on 127.0.0.1 only; Ctrl-C stops it)");
     axum::serve(listener, app)
         .with_graceful_shutdown(async {
@@ -286,8 +293,59 @@ async fn serve(studio: Arc<Studio>, port: u16) -> Result<()> {
     Ok(())
 }
 
+/// Largest mission or graph text the editor sends.
+const MAX_TEXT_BYTES: usize = 4 << 20;
+/// Largest run log a page uploads for replay.
+const MAX_LOG_BYTES: usize = 512 << 20;
+
+/// Only the studio's own page may use it: the `Host` must be this
+/// loopback address (a DNS-rebinding page names another host) and an
+/// `Origin`, when sent (every cross-site request and WebSocket carries
+/// one), must be the studio's own.
+async fn same_origin(
+    State(port): State<u16>,
+    req: axum::extract::Request,
+    next: axum::middleware::Next,
+) -> Response {
+    let ok = {
+        let ours = |v: &str, scheme: &str| {
+            v == format!("{scheme}127.0.0.1:{port}") || v == format!("{scheme}localhost:{port}")
+        };
+        let h = req.headers();
+        let host_ok = h
+            .get(header::HOST)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|v| ours(v, ""));
+        let origin_ok = h
+            .get(header::ORIGIN)
+            .is_none_or(|v| v.to_str().is_ok_and(|v| ours(v, "http://")));
+        host_ok && origin_ok
+    };
+    if !ok {
+        return (
+            StatusCode::FORBIDDEN,
+            "the studio answers its own page only (Host and Origin 127.0.0.1 or localhost)",
+        )
+            .into_response();
+    }
+    next.run(req).await
+}
+
 fn html(body: &'static str) -> Response {
-    asset("text/html; charset=utf-8", body)
+    (
+        [
+            (header::CONTENT_TYPE, "text/html; charset=utf-8"),
+            (header::CACHE_CONTROL, "no-cache"),
+            // Scripts from the studio only: a record's text can never run.
+            (
+                header::CONTENT_SECURITY_POLICY,
+                "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; \
+                 img-src 'self' data:; connect-src 'self'; object-src 'none'; base-uri 'none'",
+            ),
+        ],
+        body,
+    )
+        .into_response()
 }
 
 fn asset(mime: &'static str, body: &'static str) -> Response {
@@ -415,15 +473,25 @@ async fn analyze_text(State(s): State<Arc<Studio>>, Json(req): Json<TextReq>) ->
 
 async fn run_text(State(s): State<Arc<Studio>>, Json(req): Json<TextReq>) -> Response {
     let label = req.label();
-    let a = analyze::analyze(
-        req.kind,
-        &label,
-        &req.text,
-        &s.lib,
-        &s.scenario,
-        s.robots,
-        &crate::registry(),
-    );
+    let s2 = s.clone();
+    let text = req.text.clone();
+    let kind = req.kind;
+    let label2 = label.clone();
+    let Ok(a) = tokio::task::spawn_blocking(move || {
+        analyze::analyze(
+            kind,
+            &label2,
+            &text,
+            &s2.lib,
+            &s2.scenario,
+            s2.robots,
+            &crate::registry(),
+        )
+    })
+    .await
+    else {
+        return (StatusCode::INTERNAL_SERVER_ERROR, "the compiler failed").into_response();
+    };
     let Some((mission, scenario)) = a.mission.clone() else {
         return (StatusCode::UNPROCESSABLE_ENTITY, Json(analysis_json(&a))).into_response();
     };
@@ -434,26 +502,49 @@ async fn run_text(State(s): State<Arc<Studio>>, Json(req): Json<TextReq>) -> Res
         s.pace.store(p.to_bits(), Ordering::Relaxed);
     }
     let seed = req.seed.unwrap_or(scenario.seed);
-    let stop = Arc::new(AtomicBool::new(false));
-    if let Some(old) = s
-        .stop
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .replace(stop.clone())
-    {
-        // One run at a time: the one before finishes unpaced, unseen.
-        old.store(true, Ordering::Relaxed);
-    }
-    let name = mission.graph().name().to_string();
+    // The log's name: the graph's, reduced to a safe file name (a graph
+    // names itself; the name must not climb out of `out/studio`).
+    let name: String = mission
+        .graph()
+        .name()
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .take(80)
+        .collect();
     let log = PathBuf::from("out")
         .join("studio")
         .join(format!("{name}-seed{seed}.jsonl"));
-    s.feed()
-        .reset(Source::Run, format!("bite run {label} (seed {seed})"), true);
-    let generation = s.feed().generation;
+    let stop = Arc::new(AtomicBool::new(false));
+    // One run at a time, and the feed switched to it under one lock.
+    let mut run = s.run.lock().unwrap_or_else(|e| e.into_inner());
+    let previous = run.take().map(|(flag, handle)| {
+        // The one before finishes unpaced, unseen; the new one waits for
+        // it (they may write the same log).
+        flag.store(true, Ordering::Relaxed);
+        handle
+    });
+    let generation = {
+        let mut f = s.feed();
+        f.reset(Source::Run, format!("bite run {label} (seed {seed})"), true);
+        f.generation
+    };
     let s2 = s.clone();
     let log2 = log.clone();
-    std::thread::spawn(move || run_mission(s2, mission, scenario, seed, log2, stop, generation));
+    let stop2 = stop.clone();
+    let handle = std::thread::spawn(move || {
+        if let Some(h) = previous {
+            let _ = h.join();
+        }
+        run_mission(s2, mission, scenario, seed, log2, stop2, generation)
+    });
+    *run = Some((stop, handle));
+    drop(run);
     Json(json!({"ok": true, "log": log.display().to_string(), "seed": seed, "graph": analysis_json(&a)["graph"]}))
         .into_response()
 }
@@ -473,21 +564,22 @@ fn run_mission(
     let began = std::time::Instant::now();
     let mut shown = true;
     let mut on_record = |r: &J| {
-        if stop.load(Ordering::Relaxed) {
-            shown = false;
+        if !shown {
             return;
         }
         {
             let mut f = s.feed();
             if f.generation != generation {
-                // Replaced by another source: finish unseen.
-                stop.store(true, Ordering::Relaxed);
+                // Replaced by another source: finish unseen, unpaced.
+                shown = false;
                 return;
             }
-            f.records.push(r.clone());
+            f.push(r.clone());
         }
         let pace = f64::from_bits(s.pace.load(Ordering::Relaxed));
+        // Stop: the run finishes without pacing (still shown).
         if pace > 0.0
+            && !stop.load(Ordering::Relaxed)
             && let Some(t) = r["t"].as_f64()
             && let Ok(due) = Duration::try_from_secs_f64(t / pace)
             && let Some(wait) = due.checked_sub(began.elapsed())
@@ -531,6 +623,7 @@ fn run_mission(
     let mut f = s.feed();
     if f.generation == generation {
         f.live = false;
+        f.version += 1;
         f.ended = Some(match result {
             Ok(mut j) => {
                 j["shown"] = json!(shown);
@@ -543,11 +636,11 @@ fn run_mission(
 
 async fn stop_run(State(s): State<Arc<Studio>>) -> Json<J> {
     let stopped = s
-        .stop
+        .run
         .lock()
         .unwrap_or_else(|e| e.into_inner())
         .as_ref()
-        .map(|f| f.store(true, Ordering::Relaxed))
+        .map(|(f, _)| f.store(true, Ordering::Relaxed))
         .is_some();
     Json(json!({"ok": stopped}))
 }
@@ -591,6 +684,7 @@ async fn replay(
     f.reset(Source::Replay, name, false);
     f.records = records;
     f.problems = problems;
+    f.version += 1;
     Json(json!({"ok": true, "records": n, "bad_lines": bad, "end": f.end_time()})).into_response()
 }
 
@@ -658,7 +752,7 @@ fn fetch_layout(studio: &Arc<Studio>) {
                     {
                         let mut f = st.feed();
                         if f.source == Source::Zenoh && f.generation == generation {
-                            f.records.push(rec);
+                            f.push(rec);
                         }
                         got = true;
                     }
@@ -711,7 +805,7 @@ fn subscribe(
                 }
                 let mut f = st.feed();
                 if f.source == Source::Zenoh {
-                    f.records.push(rec);
+                    f.push(rec);
                 }
             })
             .wait()

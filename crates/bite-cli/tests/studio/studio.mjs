@@ -192,8 +192,12 @@ try {
     const secs = (b.now - a.now) / 1000;
     const robots = await page.$$eval("#robots tbody tr", (r) => r.length);
     await shot("studio-100");
+    const per = (x) => +(x / Math.max(1, b.snapshots - a.snapshots)).toFixed(2);
+    const drawMs = Object.fromEntries(Object.keys(b.drawMs).map((k) => [k, per(b.drawMs[k] - (a.drawMs[k] || 0))]));
     console.log(JSON.stringify({
       robots, seconds: +secs.toFixed(2),
+      kbytes_per_snapshot: +((b.bytes - a.bytes) / 1024 / Math.max(1, b.snapshots - a.snapshots)).toFixed(1),
+      apply_ms_per_snapshot: per(b.applyMs - a.applyMs), draw_ms_per_frame: drawMs,
       snapshots_per_s: +((b.snapshots - a.snapshots) / secs).toFixed(1),
       frames_per_s: +((b.frames - a.frames) / secs).toFixed(1),
     }));

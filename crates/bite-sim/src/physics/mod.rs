@@ -448,7 +448,17 @@ impl World {
     /// Step the physics up to `now`, driving each robot by its command
     /// (robots in `stopped` stand still).
     pub fn advance(&mut self, now: Time, stopped: &[bool]) {
-        let until = now.as_secs_f64();
+        self.step_until(now, stopped);
+        self.settle();
+    }
+
+    /// Step the physics up to `until` only: the bodies move, nothing is
+    /// judged (contacts, the goal). [`World::advance`] in several calls of
+    /// this then one of `advance` steps exactly as one `advance` does, so a
+    /// watcher can see the world between two control ticks without
+    /// changing the run.
+    pub fn step_until(&mut self, until: Time, stopped: &[bool]) {
+        let until = until.as_secs_f64();
         while self.t + self.dt <= until + 1e-9 {
             for i in 0..self.robots.len() {
                 self.drive(i, stopped.get(i).copied().unwrap_or(false));
@@ -462,7 +472,10 @@ impl World {
                 r.last_pos = p;
             }
         }
-        // Contacts and the goal, as of now.
+    }
+
+    /// Contacts and the goal, as of the physics' time.
+    fn settle(&mut self) {
         for i in 0..self.robots.len() {
             let c = self.robots[i].collider;
             let touching = self
