@@ -32,6 +32,8 @@ CodeMirror.defineSimpleMode("rtcl", {
 let kind = "rtcl";
 let fileName = null;
 let lastAnalysis = null;
+// Only the latest analysis is shown (answers may come back out of order).
+let analyzing = 0;
 
 function lintAsync(text, update, _opts, cm) {
   analyze(text).then((a) => {
@@ -61,7 +63,6 @@ const cm = CodeMirror($("#editor-host"), {
 });
 window.studio.cm = cm;
 
-let analyzing = 0;
 async function analyze(text) {
   const my = ++analyzing;
   const res = await fetch("/api/analyze", {

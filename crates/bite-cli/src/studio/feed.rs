@@ -44,6 +44,8 @@ pub struct Feed {
     /// Lines of a replayed log that were not records (`file:line:col:
     /// why`), the first 20.
     pub problems: Vec<String>,
+    /// Tells the pages' monitors that something changed (the version).
+    changed: tokio::sync::watch::Sender<u64>,
 }
 
 impl Feed {
@@ -58,25 +60,37 @@ impl Feed {
             records: Vec::new(),
             ended: None,
             problems: Vec::new(),
+            changed: tokio::sync::watch::Sender::new(0),
         }
+    }
+
+    /// Something changed: the pages are told.
+    pub fn touch(&mut self) {
+        self.version += 1;
+        self.changed.send_replace(self.version);
+    }
+
+    /// Be told when something changes.
+    pub fn subscribe(&self) -> tokio::sync::watch::Receiver<u64> {
+        self.changed.subscribe()
     }
 
     /// Start over with a new source.
     pub fn reset(&mut self, source: Source, label: String, live: bool) {
         self.generation += 1;
-        self.version += 1;
         self.source = source;
         self.label = label;
         self.live = live;
         self.records.clear();
         self.ended = None;
         self.problems.clear();
+        self.touch();
     }
 
     /// Add a record.
     pub fn push(&mut self, rec: J) {
         self.records.push(rec);
-        self.version += 1;
+        self.touch();
     }
 
     /// The time of the last record, s.
@@ -192,6 +206,15 @@ impl Cursor {
         }
         self.at = t;
         self.dirty = true;
+    }
+
+    /// Records of the feed the page has still to apply (up to its time).
+    pub fn behind(&self, feed: &Feed) -> bool {
+        feed.generation == self.generation
+            && feed.records.get(self.applied).is_some_and(|r| {
+                self.at
+                    .is_none_or(|at| r["t"].as_f64().unwrap_or(0.0) <= at + 1e-9)
+            })
     }
 
     /// Apply the feed's records up to the page's time, at most

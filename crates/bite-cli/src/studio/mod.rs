@@ -104,8 +104,9 @@ const VENDOR: &[(&str, &str, &str)] = &[
     ),
 ];
 
-/// Snapshots sent to a page at most this often (25 per second).
-const FRAME: Duration = Duration::from_millis(40);
+/// Snapshots sent to a page at most this often (50 per second): one per
+/// change (a pose record 25 times a simulated second), never faster.
+const FRAME: Duration = Duration::from_millis(20);
 
 /// The studio's state, shared by every request.
 struct Studio {
@@ -623,7 +624,7 @@ fn run_mission(
     let mut f = s.feed();
     if f.generation == generation {
         f.live = false;
-        f.version += 1;
+        f.touch();
         f.ended = Some(match result {
             Ok(mut j) => {
                 j["shown"] = json!(shown);
@@ -684,7 +685,7 @@ async fn replay(
     f.reset(Source::Replay, name, false);
     f.records = records;
     f.problems = problems;
-    f.version += 1;
+    f.touch();
     Json(json!({"ok": true, "records": n, "bad_lines": bad, "end": f.end_time()})).into_response()
 }
 
@@ -697,32 +698,47 @@ async fn monitor(State(s): State<Arc<Studio>>, ws: WebSocketUpgrade) -> Response
 /// `{"seek": null}` to follow the end).
 async fn watch(s: Arc<Studio>, mut socket: WebSocket) {
     let mut cursor = Cursor::new();
-    let mut tick = tokio::time::interval(FRAME);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Skip);
+    let mut changed = s.feed().subscribe();
+    let mut last: Option<tokio::time::Instant> = None;
+    // The first snapshot at once: the feed may be full already.
+    let mut behind = true;
     loop {
-        tokio::select! {
-            msg = socket.recv() => match msg {
-                Some(Ok(Message::Text(t))) => {
-                    if let Ok(m) = serde_json::from_str::<J>(t.as_str())
-                        && m.get("seek").is_some()
-                    {
-                        cursor.seek(m["seek"].as_f64());
+        // Wait for a change or a request (not when records are still to
+        // be applied: a long rebuild goes on at once).
+        if !behind {
+            tokio::select! {
+                msg = socket.recv() => match msg {
+                    Some(Ok(Message::Text(t))) => {
+                        if let Ok(m) = serde_json::from_str::<J>(t.as_str())
+                            && m.get("seek").is_some()
+                        {
+                            cursor.seek(m["seek"].as_f64());
+                        }
                     }
-                }
-                Some(Ok(_)) => {}
-                _ => break,
-            },
-            _ = tick.tick() => {
-                let snap = {
-                    let f = s.feed();
-                    cursor.catch_up(&f);
-                    cursor.dirty.then(|| cursor.snapshot(&f))
-                };
-                if let Some(snap) = snap
-                    && socket.send(Message::Text(snap.to_string().into())).await.is_err()
-                {
-                    break;
-                }
+                    Some(Ok(_)) => continue,
+                    _ => break,
+                },
+                r = changed.changed() => if r.is_err() { break },
+            }
+        }
+        if let Some(at) = last {
+            tokio::time::sleep_until(at + FRAME).await;
+        }
+        let snap = {
+            let f = s.feed();
+            changed.mark_unchanged();
+            cursor.catch_up(&f);
+            behind = cursor.behind(&f);
+            cursor.dirty.then(|| cursor.snapshot(&f))
+        };
+        if let Some(snap) = snap {
+            last = Some(tokio::time::Instant::now());
+            if socket
+                .send(Message::Text(snap.to_string().into()))
+                .await
+                .is_err()
+            {
+                break;
             }
         }
     }
