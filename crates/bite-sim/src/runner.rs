@@ -697,7 +697,7 @@ impl Sim<'_, '_> {
                             while *next < self.now && !every.is_zero() {
                                 w.step_until(*next, &self.crashed);
                                 self.log.show(&w.poses_record(next.as_secs_f64(), &name));
-                                *next = *next + *every;
+                                *next += *every;
                             }
                         }
                         w.advance(self.now, &self.crashed);
