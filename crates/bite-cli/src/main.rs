@@ -307,6 +307,9 @@ enum BenchCmd {
         /// this SVG file.
         #[arg(long)]
         plot: Option<PathBuf>,
+        /// Print the results as JSON (`{"rows": [...]}`) instead of a table.
+        #[arg(long)]
+        json: bool,
     },
     /// Every protocol of the library, one decision each in the
     /// discrete-event runner: messages and rounds per decision by team size;
@@ -321,6 +324,10 @@ enum BenchCmd {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Print the results as JSON (`{"rows": [...], "large": [...]}`)
+        /// instead of tables.
+        #[arg(long)]
+        json: bool,
     },
     /// Decision latency over Zenoh between robot processes on 127.0.0.1
     /// (sync.leader, sync.vote, alloc.auction), next to a raw Zenoh
@@ -338,6 +345,10 @@ enum BenchCmd {
         /// Where to keep the teams' logs and the results.
         #[arg(long, default_value = "out/bench-zenoh")]
         out: PathBuf,
+        /// Print the results as JSON (`{"rtt_median_us": ..., "rows":
+        /// [...]}`) instead of a table.
+        #[arg(long)]
+        json: bool,
     },
     /// The echo side of `bench zenoh`'s ping-pong.
     #[command(hide = true)]
@@ -367,6 +378,10 @@ enum BenchCmd {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Print the result as JSON (`{"rows": [{"robots": N,
+        /// "real_time_factor": F, ...}]}`) instead of text.
+        #[arg(long)]
+        json: bool,
     },
 }
 
@@ -1084,6 +1099,7 @@ fn cmd_bench_sim(
     seconds: f64,
     seed: u64,
     plot_to: Option<&Path>,
+    json: bool,
 ) -> Result<ExitCode> {
     let mut cases: Vec<(String, String, String)> = vec![
         (
@@ -1108,8 +1124,13 @@ fn cmd_bench_sim(
     }
     let at_scale = cases.len() - robots.len();
     let mut curve = Vec::new();
-    outln!("| run | robots | simulated | wall | real-time factor | physics steps/s | completed |");
-    outln!("| --- | ---: | ---: | ---: | ---: | ---: | --- |");
+    let mut rows = Vec::new();
+    if !json {
+        outln!(
+            "| run | robots | simulated | wall | real-time factor | physics steps/s | completed |"
+        );
+        outln!("| --- | ---: | ---: | ---: | ---: | ---: | --- |");
+    }
     for (k, (name, g, s)) in cases.into_iter().enumerate() {
         let graph = bite_core::graph::load_str(&Arc::from(format!("{name} (built in)")), &g)
             .map_err(bad_input)?;
@@ -1145,15 +1166,25 @@ fn cmd_bench_sim(
         if k >= at_scale {
             curve.push((n, factor));
         }
-        outln!(
-            "| {name} | {n} | {sim:.1} s | {wall:.2} s | {factor:.1}× | {:.0} | {} |",
-            sim * hz / wall.max(1e-9),
-            if report.summary.completed {
-                "yes"
-            } else {
-                "no"
-            }
-        );
+        let steps = sim * hz / wall.max(1e-9);
+        rows.push(serde_json::json!({
+            "run": name, "robots": n, "simulated_s": sim, "wall_s": wall,
+            "real_time_factor": factor, "physics_steps_per_s": steps,
+            "completed": report.summary.completed,
+        }));
+        if !json {
+            outln!(
+                "| {name} | {n} | {sim:.1} s | {wall:.2} s | {factor:.1}× | {steps:.0} | {} |",
+                if report.summary.completed {
+                    "yes"
+                } else {
+                    "no"
+                }
+            );
+        }
+    }
+    if json {
+        outln!("{}", serde_json::json!({ "rows": rows }));
     }
     if let Some(path) = plot_to {
         plot::scaling(
@@ -1174,6 +1205,7 @@ fn cmd_bench_team(
     config: Option<&Path>,
     sim_time: Option<Duration>,
     seed: u64,
+    json: bool,
 ) -> Result<ExitCode> {
     let g = load_graph(graph, config)?;
     let sc = match (graph, scenario) {
@@ -1218,6 +1250,17 @@ fn cmd_bench_team(
     bar.finish_and_clear();
     let sim = report.end.as_secs_f64();
     let s = &report.summary;
+    if json {
+        let row = serde_json::json!({
+            "robots": robots, "simulated_s": sim, "wall_s": wall,
+            "real_time_factor": sim / wall.max(1e-9),
+            "robot_ticks_per_s": robots as f64 * sim * sc.control_hz / wall.max(1e-9),
+            "completed": s.completed, "messages": s.messages.total(),
+            "delivered": s.network.delivered, "seed": seed,
+        });
+        outln!("{}", serde_json::json!({ "rows": [row] }));
+        return Ok(ExitCode::SUCCESS);
+    }
     outln!("robots               {robots}");
     outln!(
         "simulated time       {sim:.1} s ({})",
@@ -1245,7 +1288,7 @@ fn cmd_bench_team(
 }
 
 #[allow(clippy::disallowed_methods)] // a benchmark measures wall time
-fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitCode> {
+fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64, json: bool) -> Result<ExitCode> {
     use bite_sim::probe::{GRAPH_LIBRARY, LIBRARY, ProbeSpec, probe};
     let reg = registry();
     let all: Vec<_> = LIBRARY.iter().chain(GRAPH_LIBRARY).collect();
@@ -1268,11 +1311,22 @@ fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitC
         }
     }
     bar.finish_and_clear();
-    outln!("One decision per protocol, fault-free, 3 children / successors, 10 ms latency.");
-    outln!("| protocol | n | messages | rounds | decided | wall |");
-    outln!("| --- | ---: | ---: | ---: | --- | ---: |");
+    let mut json_rows = Vec::new();
+    let mut json_large = Vec::new();
+    if !json {
+        outln!("One decision per protocol, fault-free, 3 children / successors, 10 ms latency.");
+        outln!("| protocol | n | messages | rounds | decided | wall |");
+        outln!("| --- | ---: | ---: | ---: | --- | ---: |");
+    }
     for (protocol, n, r, wall) in &rows {
         let ok = r.completed && r.violations.is_empty() && r.timeouts == 0;
+        json_rows.push(serde_json::json!({
+            "protocol": protocol, "robots": n, "messages": r.messages, "rounds": r.rounds,
+            "decided": ok, "wall_s": wall,
+        }));
+        if json {
+            continue;
+        }
         outln!(
             "| `{protocol}` | {n} | {} | {:.0} | {} | {:.1} ms |",
             r.messages,
@@ -1281,13 +1335,15 @@ fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitC
             wall * 1e3
         );
     }
-    if large > 0 {
+    if large > 0 && !json {
         outln!("");
         outln!(
             "{large} robots, {large} tasks (one robot each, utilities from positions), one allocation:"
         );
         outln!("| protocol | messages | messages / task | rounds | total utility | wall |");
         outln!("| --- | ---: | ---: | ---: | ---: | ---: |");
+    }
+    if large > 0 {
         for protocol in ["alloc.auction", "alloc.token", "alloc.optimal"] {
             eprintln!("{protocol}: {large} robots x {large} tasks ...");
             let mut spec = ProbeSpec::new(bite_core::msg::Kind::Allocate, protocol, large);
@@ -1299,6 +1355,13 @@ fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitC
             let start = std::time::Instant::now();
             let r = probe(&spec, &reg).map_err(bad_input)?;
             let wall = start.elapsed().as_secs_f64();
+            json_large.push(serde_json::json!({
+                "protocol": protocol, "robots": large, "tasks": large, "messages": r.messages,
+                "rounds": r.rounds, "total_utility": r.utility, "wall_s": wall,
+            }));
+            if json {
+                continue;
+            }
             outln!(
                 "| `{protocol}` | {} | {:.2} | {:.0} | {:.0} | {:.2} s |",
                 r.messages,
@@ -1308,6 +1371,12 @@ fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64) -> Result<ExitC
                 wall
             );
         }
+    }
+    if json {
+        outln!(
+            "{}",
+            serde_json::json!({ "rows": json_rows, "large": json_large })
+        );
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -1388,6 +1457,7 @@ fn main() -> ExitCode {
                     config,
                     sim_time,
                     seed,
+                    json,
                 },
         } => cmd_bench_team(
             robots,
@@ -1396,6 +1466,7 @@ fn main() -> ExitCode {
             config.as_deref(),
             sim_time,
             seed,
+            json,
         ),
         Cmd::Bench {
             which:
@@ -1404,8 +1475,9 @@ fn main() -> ExitCode {
                     seconds,
                     seed,
                     plot,
+                    json,
                 },
-        } => cmd_bench_sim(&robots, seconds, seed, plot.as_deref()),
+        } => cmd_bench_sim(&robots, seconds, seed, plot.as_deref(), json),
         Cmd::Bench {
             which:
                 BenchCmd::Zenoh {
@@ -1413,8 +1485,9 @@ fn main() -> ExitCode {
                     decisions,
                     pings,
                     out,
+                    json,
                 },
-        } => zbench::cmd_bench_zenoh(&robots, decisions, pings, &out),
+        } => zbench::cmd_bench_zenoh(&robots, decisions, pings, &out, json),
         Cmd::Bench {
             which: BenchCmd::Pong { team, listen },
         } => zbench::cmd_pong(&team, &listen),
@@ -1424,8 +1497,9 @@ fn main() -> ExitCode {
                     robots,
                     large,
                     seed,
+                    json,
                 },
-        } => cmd_bench_protocols(&robots, large, seed),
+        } => cmd_bench_protocols(&robots, large, seed, json),
     };
     match result {
         Ok(code) => code,

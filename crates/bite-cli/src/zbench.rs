@@ -8,8 +8,9 @@
 //! instance's latency is the time from the first member entering it to the
 //! last member deciding, read from the robots' run logs (one team clock).
 //! The same graph in the discrete-event simulator with a fixed 1 ms
-//! one-way latency gives the protocol's critical path in message hops
-//! ("rounds"), so the latency per round can be set against the raw round trip.
+//! one-way latency gives the protocol's critical path in one-way message
+//! hops, so the latency per hop can be set against a raw one-way trip (half
+//! the ping-pong round trip).
 
 use anyhow::{Context, Result};
 use bite_zenoh::zenoh::Wait;
@@ -231,6 +232,7 @@ pub fn cmd_bench_zenoh(
     decisions: usize,
     pings: usize,
     out: &Path,
+    as_json: bool,
 ) -> Result<ExitCode> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let exe = std::env::current_exe()?;
@@ -281,24 +283,37 @@ pub fn cmd_bench_zenoh(
             };
             let mut l: Vec<f64> = latencies(&logs, kind).iter().map(|s| s * 1e6).collect();
             let (med, p90) = (quantile(&mut l, 0.5), quantile(&mut l, 0.9));
-            let per_round = med / rounds.max(1.0);
+            // `rounds` counts one-way hops (a call, its answers): each is
+            // compared with a one-way trip, half the ping-pong round trip.
+            let per_hop = med / rounds.max(1.0);
+            let one_way = rtt_med / 2.0;
             rows.push(json!({
                 "protocol": protocol, "robots": n, "completed": ok,
-                "decisions": l.len(), "rounds": rounds,
+                "decisions": l.len(), "hops": rounds,
                 "latency_median_us": med, "latency_p90_us": p90,
-                "per_round_us": per_round, "per_round_over_rtt": per_round / rtt_med,
+                "per_hop_us": per_hop, "one_way_us": one_way,
+                "per_hop_over_one_way": per_hop / one_way,
                 "joint_decisions": summary["joint_decisions"],
             }));
             bar.inc(1);
         }
     }
     bar.finish_and_clear();
+    let report = json!({"rtt_median_us": rtt_med, "rtt_p90_us": rtt_p90, "rows": rows});
+    std::fs::write(
+        out.join("bench-zenoh.json"),
+        serde_json::to_string_pretty(&report)?,
+    )?;
+    if as_json {
+        println!("{report}");
+        return Ok(ExitCode::SUCCESS);
+    }
     println!(
         "Raw Zenoh round trip (ping-pong, two processes, 96-byte payload): median {rtt_med:.0} µs, p90 {rtt_p90:.0} µs ({} samples).",
         rtt.len()
     );
     println!(
-        "| protocol | robot processes | decisions | rounds (hops) | decision latency median | p90 | per round | per round / round trip |"
+        "| protocol | robot processes | decisions | hops (one-way) | decision latency median | p90 | per hop | per hop / one-way trip (half the round trip) |"
     );
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     for r in &rows {
@@ -312,18 +327,13 @@ pub fn cmd_bench_zenoh(
             } else {
                 " (incomplete)"
             },
-            r["rounds"],
+            r["hops"],
             r["latency_median_us"].as_f64().unwrap_or(f64::NAN),
             r["latency_p90_us"].as_f64().unwrap_or(f64::NAN),
-            r["per_round_us"].as_f64().unwrap_or(f64::NAN),
-            r["per_round_over_rtt"].as_f64().unwrap_or(f64::NAN),
+            r["per_hop_us"].as_f64().unwrap_or(f64::NAN),
+            r["per_hop_over_one_way"].as_f64().unwrap_or(f64::NAN),
         );
     }
-    let report = json!({"rtt_median_us": rtt_med, "rtt_p90_us": rtt_p90, "rows": rows});
-    std::fs::write(
-        out.join("bench-zenoh.json"),
-        serde_json::to_string_pretty(&report)?,
-    )?;
     println!("details: {}", out.join("bench-zenoh.json").display());
     Ok(ExitCode::SUCCESS)
 }

@@ -483,3 +483,48 @@ fn graph_svg_draws_every_behavior_with_its_bound_protocols() {
         assert!(svg.contains(&format!(": {p}<")), "{p} not drawn");
     }
 }
+
+#[test]
+fn bench_commands_print_json_rows_for_scripts() {
+    let parse = |args: &[&str]| -> serde_json::Value {
+        let out = bite().args(args).output().expect("bite bench");
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stdout)))
+    };
+    let team = parse(&["bench", "team", "--robots", "20", "--json"]);
+    assert_eq!(team["rows"][0]["robots"], 20);
+    assert!(
+        team["rows"][0]["real_time_factor"]
+            .as_f64()
+            .is_some_and(|f| f > 0.0)
+    );
+    assert_eq!(team["rows"][0]["completed"], true);
+    let protocols = parse(&[
+        "bench",
+        "protocols",
+        "--robots",
+        "3",
+        "--large",
+        "0",
+        "--json",
+    ]);
+    let rows = protocols["rows"].as_array().expect("rows");
+    assert!(rows.len() >= 10, "{rows:?}");
+    assert!(
+        rows.iter()
+            .all(|r| r["decided"] == true && r["robots"] == 3)
+    );
+    let sim = parse(&["bench", "sim", "--robots", "10", "--seconds", "3", "--json"]);
+    let rows = sim["rows"].as_array().expect("rows");
+    assert_eq!(
+        rows.len(),
+        4,
+        "three shipped scenarios and one coverage size"
+    );
+    assert_eq!(rows[3]["robots"], 10);
+}
