@@ -194,9 +194,10 @@ $("#run").onclick = async () => {
     headers: { "content-type": "application/json" },
     body: JSON.stringify({ kind, file: fileName, text: cm.getValue(), pace: Number($("#pace").value) }),
   });
-  const a = await res.json();
+  const a = await res.json().catch(async () => ({ error: `${res.status} ${res.statusText}` }));
   if (!res.ok) {
     showDiagnostics(a.diagnostics || []);
+    if (a.error) $("#outcome").title = a.error;
     $("#outcome").textContent = "the mission has errors: not run";
     $("#outcome").className = "failed";
     return;
@@ -211,7 +212,8 @@ $("#open-log").onchange = async (e) => {
   if (!f) return;
   const res = await fetch(`/api/replay?name=${encodeURIComponent(f.name)}`, { method: "POST", body: await f.arrayBuffer() });
   if (!res.ok) {
-    const why = (await res.json()).error;
+    const why = res.status === 413 ? "the log is larger than the studio takes (512 MiB)"
+      : (await res.json().catch(() => ({ error: `${res.status} ${res.statusText}` }))).error;
     $("#outcome").textContent = why;
     $("#outcome").className = "failed";
   }
@@ -243,6 +245,7 @@ function inkOn(bg) {
 }
 
 let ws;
+let seekTo = null;
 function connect() {
   ws = new WebSocket(`ws://${location.host}/api/monitor`);
   ws.onmessage = (e) => {
@@ -251,16 +254,34 @@ function connect() {
     onSnapshot(JSON.parse(e.data));
     stats.applyMs += performance.now() - t0;
   };
-  ws.onclose = () => setTimeout(connect, 1000);
+  ws.onclose = () => {
+    seekInFlight = false;
+    setTimeout(connect, 1000);
+  };
 }
+// One seek in flight at a time: the next goes when the studio has
+// answered the last (a drag sends far more than it can rebuild).
+let seekInFlight = false;
+let seekSent = null;
+let seekQueued;
 function seek(t) {
   M.following = t === null;
-  if (ws?.readyState === 1) ws.send(JSON.stringify({ seek: t }));
+  if (seekInFlight) {
+    seekQueued = t;
+    return;
+  }
+  if (ws?.readyState === 1) {
+    seekInFlight = true;
+    seekSent = t;
+    ws.send(JSON.stringify({ seek: t }));
+  }
 }
-function follow() { seek(null); }
+function follow() {
+  seekTo = null;
+  seek(null);
+}
 $("#follow").onclick = follow;
 // Scrubbing sends at most one seek a frame.
-let seekTo = null;
 $("#scrubber").oninput = (e) => {
   const first = seekTo === null;
   seekTo = Number(e.target.value);
@@ -274,11 +295,23 @@ $("#scrubber").oninput = (e) => {
 
 function onSnapshot(s) {
   stats.snapshots++;
+  // The studio has moved to the time asked for: the next seek may go.
+  if (seekInFlight && (s.at ?? null) === seekSent) {
+    seekInFlight = false;
+    if (seekQueued !== undefined) {
+      const t = seekQueued;
+      seekQueued = undefined;
+      seek(t);
+    }
+  }
   if (s.generation !== M.generation || s.reset) {
     if (s.generation !== M.generation) {
       M.layout = null;
       palette.clear();
       M.following = true;
+      // A new source starts at its live end: seeks of the old one are moot.
+      seekInFlight = false;
+      seekQueued = undefined;
     }
     M.generation = s.generation;
     M.trails = [];

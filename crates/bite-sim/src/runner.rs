@@ -696,7 +696,9 @@ impl Sim<'_, '_> {
                             let name = |b: BehaviorId| g.name_of(b).to_string();
                             while *next < self.now && !every.is_zero() {
                                 w.step_until(*next, &self.crashed);
-                                self.log.show(&w.poses_record(next.as_secs_f64(), &name));
+                                // Stamped with the step it shows (whole
+                                // physics steps only).
+                                self.log.show(&w.poses_record(w.time(), &name));
                                 *next += *every;
                             }
                         }

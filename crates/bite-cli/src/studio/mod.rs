@@ -309,8 +309,11 @@ async fn same_origin(
     next: axum::middleware::Next,
 ) -> Response {
     let ok = {
+        // Browsers leave out the default port.
         let ours = |v: &str, scheme: &str| {
-            v == format!("{scheme}127.0.0.1:{port}") || v == format!("{scheme}localhost:{port}")
+            ["127.0.0.1", "localhost"].iter().any(|h| {
+                v == format!("{scheme}{h}:{port}") || (port == 80 && v == format!("{scheme}{h}"))
+            })
         };
         let h = req.headers();
         let host_ok = h
@@ -341,7 +344,8 @@ fn html(body: &'static str) -> Response {
             (
                 header::CONTENT_SECURITY_POLICY,
                 "default-src 'self'; script-src 'self'; style-src 'self' 'unsafe-inline'; \
-                 img-src 'self' data:; connect-src 'self'; object-src 'none'; base-uri 'none'",
+                 img-src 'self' data:; connect-src 'self'; object-src 'none'; base-uri 'none'; \
+                 frame-ancestors 'none'",
             ),
         ],
         body,
@@ -542,7 +546,21 @@ async fn run_text(State(s): State<Arc<Studio>>, Json(req): Json<TextReq>) -> Res
         if let Some(h) = previous {
             let _ = h.join();
         }
-        run_mission(s2, mission, scenario, seed, log2, stop2, generation)
+        let s3 = s2.clone();
+        let ran = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            run_mission(s2, mission, scenario, seed, log2, stop2, generation)
+        }));
+        if ran.is_err() {
+            // The page must not say "running" for ever.
+            let mut f = s3.feed();
+            if f.generation == generation {
+                f.live = false;
+                f.ended = Some(
+                    json!({"outcome": "error", "error": "the run panicked (see the studio's output)"}),
+                );
+                f.touch();
+            }
+        }
     });
     *run = Some((stop, handle));
     drop(run);
@@ -674,19 +692,35 @@ async fn replay(
     body: axum::body::Bytes,
 ) -> Response {
     let name = q.name.unwrap_or_else(|| "run log".into());
-    let (records, problems, bad) = match read_log(&name, &body) {
-        Ok(x) => x,
-        Err(e) => {
+    // Parsing a large log is long work: off the server's threads.
+    let name2 = name.clone();
+    let parsed = tokio::task::spawn_blocking(move || read_log(&name2, &body)).await;
+    let (records, problems, bad) = match parsed {
+        Ok(Ok(x)) => x,
+        Ok(Err(e)) => {
             return (StatusCode::UNPROCESSABLE_ENTITY, Json(json!({"error": e}))).into_response();
+        }
+        Err(e) => {
+            return (
+                StatusCode::INTERNAL_SERVER_ERROR,
+                Json(json!({"error": format!("reading the log failed: {e}")})),
+            )
+                .into_response();
         }
     };
     let n = records.len();
-    let mut f = s.feed();
-    f.reset(Source::Replay, name, false);
-    f.records = records;
-    f.problems = problems;
-    f.touch();
-    Json(json!({"ok": true, "records": n, "bad_lines": bad, "end": f.end_time()})).into_response()
+    let (old, end) = {
+        let mut f = s.feed();
+        let old = std::mem::take(&mut f.records);
+        f.reset(Source::Replay, name, false);
+        f.records = records;
+        f.problems = problems;
+        f.touch();
+        (old, f.end_time())
+    };
+    // The old records are freed here, not under the feed's lock.
+    drop(old);
+    Json(json!({"ok": true, "records": n, "bad_lines": bad, "end": end})).into_response()
 }
 
 async fn monitor(State(s): State<Arc<Studio>>, ws: WebSocketUpgrade) -> Response {

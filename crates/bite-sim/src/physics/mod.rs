@@ -474,6 +474,11 @@ impl World {
         }
     }
 
+    /// The physics' own time: the last whole step taken, s.
+    pub fn time(&self) -> f64 {
+        self.t
+    }
+
     /// Contacts and the goal, as of the physics' time.
     fn settle(&mut self) {
         for i in 0..self.robots.len() {
