@@ -766,34 +766,43 @@ pub fn convert(jsonl: &Path, mcap: &Path) -> Result<(u64, u64), Error> {
 /// mid-write) is left out; any other line that is not a JSON object is an
 /// error naming its line and column.
 pub fn parse_records(path: &str, text: &str) -> Result<Vec<J>, Error> {
+    let (records, mut bad) = read_records(path, text);
+    if bad.is_empty() {
+        Ok(records)
+    } else {
+        Err(bad.swap_remove(0))
+    }
+}
+
+/// The records of a run log that are records, and an [`Error::Malformed`]
+/// for every line that is not (in file order); a torn last line (a killed
+/// process) is skipped without one.
+pub fn read_records(path: &str, text: &str) -> (Vec<J>, Vec<Error>) {
     let lines: Vec<&str> = text.lines().collect();
     let mut out = Vec::with_capacity(lines.len());
+    let mut bad = Vec::new();
     for (k, line) in lines.iter().enumerate() {
         if line.trim().is_empty() {
             continue;
         }
         match serde_json::from_str::<J>(line) {
             Ok(v @ J::Object(_)) => out.push(v),
-            Ok(_) => {
-                return Err(Error::Malformed {
-                    path: path.into(),
-                    line: k + 1,
-                    column: 1,
-                    message: "a JSON value that is not an object".into(),
-                });
-            }
+            Ok(_) => bad.push(Error::Malformed {
+                path: path.into(),
+                line: k + 1,
+                column: 1,
+                message: "a JSON value that is not an object".into(),
+            }),
             Err(_) if k + 1 == lines.len() && !text.ends_with('\n') => {}
-            Err(e) => {
-                return Err(Error::Malformed {
-                    path: path.into(),
-                    line: k + 1,
-                    column: e.column(),
-                    message: e.to_string(),
-                });
-            }
+            Err(e) => bad.push(Error::Malformed {
+                path: path.into(),
+                line: k + 1,
+                column: e.column(),
+                message: e.to_string(),
+            }),
         }
     }
-    Ok(out)
+    (out, bad)
 }
 
 /// Merge the logs of a team (each robot's, the simulator server's) into one

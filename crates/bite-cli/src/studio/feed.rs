@@ -103,42 +103,14 @@ impl Feed {
     }
 }
 
-/// Parse a run log (JSON lines); lines that are not JSON objects are
-/// reported by line and column and skipped (a torn last line of a killed
-/// process among them).
+/// Parse a run log (JSON lines) as `bite log convert` reads one; lines
+/// that are not records are reported (`file:line:col: why`, the first 20)
+/// and skipped, and the records put in time order (several processes'
+/// logs concatenated).
 pub fn parse_log(name: &str, text: &str) -> (Vec<J>, Vec<String>, usize) {
-    let mut records = Vec::new();
-    let mut problems = Vec::new();
-    let mut bad = 0;
-    for (i, line) in text.lines().enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        match serde_json::from_str::<J>(line) {
-            Ok(r) if r.is_object() => records.push(r),
-            Ok(_) => {
-                bad += 1;
-                if problems.len() < 20 {
-                    problems.push(format!(
-                        "{name}:{}:1: expected a JSON object (a run-log record)",
-                        i + 1
-                    ));
-                }
-            }
-            Err(e) => {
-                bad += 1;
-                if problems.len() < 20 {
-                    problems.push(format!("{name}:{}:{}: {e}", i + 1, e.column()));
-                }
-            }
-        }
-    }
-    // Several processes' logs concatenated: in time order (stable).
-    records.sort_by(|a, b| {
-        let t = |r: &J| r["t"].as_f64().unwrap_or(0.0);
-        t(a).total_cmp(&t(b))
-    });
-    (records, problems, bad)
+    let (records, bad) = bite_foxglove::read_records(name, text);
+    let problems = bad.iter().take(20).map(|e| e.to_string()).collect();
+    (bite_foxglove::merge(vec![records]), problems, bad.len())
 }
 
 /// Records a page applies per snapshot at most.
