@@ -95,6 +95,25 @@ impl Drop for Kill {
     }
 }
 
+/// The first thing `pick` finds in a child's standard error, line by line;
+/// the rest is drained on a thread so the child never blocks on the pipe.
+fn stderr_line(
+    child: &mut Child,
+    what: &str,
+    mut pick: impl FnMut(&str) -> Option<String>,
+) -> String {
+    let err = child.stderr.take().expect("stderr piped");
+    let mut lines = BufReader::new(err).lines();
+    let found = loop {
+        let line = lines.next().expect(what).expect("stderr readable");
+        if let Some(x) = pick(&line) {
+            break x;
+        }
+    };
+    std::thread::spawn(move || for _ in lines.by_ref() {});
+    found
+}
+
 /// Start `bite studio ARGS` on a free port; its URL.
 fn studio(args: &[&str], cwd: &Path) -> (Kill, String) {
     let mut child = Command::new(BITE)
@@ -106,28 +125,19 @@ fn studio(args: &[&str], cwd: &Path) -> (Kill, String) {
         .stderr(Stdio::piped())
         .spawn()
         .expect("bite studio starts");
-    let err = child.stderr.take().expect("stderr");
-    let mut lines = BufReader::new(err).lines();
-    let url = loop {
-        let line = lines
+    let url = stderr_line(&mut child, "bite studio said where it serves", |line| {
+        let at = line.find("http://")?;
+        let url = line[at..]
+            .split_whitespace()
             .next()
-            .expect("bite studio said where it serves")
-            .expect("stderr readable");
-        if let Some(at) = line.find("http://") {
-            let url = line[at..]
-                .split_whitespace()
-                .next()
-                .unwrap_or("")
-                .to_string();
-            assert!(
-                url.starts_with("http://127.0.0.1:"),
-                "served on loopback only: {line}"
-            );
-            break url;
-        }
-    };
-    // Keep draining its stderr so it never blocks on a full pipe.
-    std::thread::spawn(move || for _ in lines.by_ref() {});
+            .unwrap_or("")
+            .to_string();
+        assert!(
+            url.starts_with("http://127.0.0.1:"),
+            "served on loopback only: {line}"
+        );
+        Some(url)
+    });
     (Kill(child), url)
 }
 
@@ -249,19 +259,12 @@ fn a_live_zenoh_team_started_by_bite_launch_appears_in_the_monitor() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("bite launch");
-    let err = launch.stderr.take().expect("stderr");
+    let monitor = stderr_line(
+        &mut launch,
+        "bite launch says how to monitor its team",
+        |line| line.strip_prefix("monitor: bite studio ").map(String::from),
+    );
     let launch = Kill(launch);
-    let mut lines = BufReader::new(err).lines();
-    let monitor = loop {
-        let line = lines
-            .next()
-            .expect("bite launch says how to monitor its team")
-            .expect("stderr");
-        if let Some(cmd) = line.strip_prefix("monitor: bite studio ") {
-            break cmd.to_string();
-        }
-    };
-    std::thread::spawn(move || for _ in lines.by_ref() {});
     let args: Vec<&str> = monitor.split_whitespace().collect();
     let (_s, url) = studio(&args, &dir);
     browse("team", &url, Some("3"));
