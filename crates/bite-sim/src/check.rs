@@ -693,6 +693,9 @@ impl Checker {
         };
         let mut v = Vec::new();
         for ((team, point, epoch), members) in &self.legs {
+            if !may_split(members, end, &crashed) {
+                continue;
+            }
             let robots: Vec<&RobotId> = members.keys().collect();
             'pairs: for (i, a) in robots.iter().enumerate() {
                 for b in &robots[i + 1..] {
@@ -789,5 +792,103 @@ impl Checker {
             }
         }
         self.v.extend(v);
+    }
+}
+
+/// Could two robots' legs after one point be a split (different behaviors
+/// side by side for longer than [`SPLIT_BOUND`])? Legs `[f, u)` overlap by
+/// more than the bound exactly when `[f + bound, u)` intersect, so one
+/// sweep in start order over those finds a pair of different behaviors in
+/// O(k log k) for k legs; the exact check over pairs (quadratic in the
+/// team) then runs only where this says yes. Conservative: it does not
+/// ask whether the two are different robots that could talk.
+fn may_split(
+    members: &BTreeMap<RobotId, Vec<Leg>>,
+    end: Time,
+    crashed: &dyn Fn(RobotId) -> bool,
+) -> bool {
+    use std::cmp::Reverse;
+    let mut spans: Vec<(Time, Time, BehaviorId)> = Vec::new();
+    for (r, legs) in members {
+        if crashed(*r) {
+            continue;
+        }
+        for l in legs {
+            let from = l.from + SPLIT_BOUND;
+            let until = l.until.unwrap_or(end);
+            if until > from {
+                spans.push((from, until, l.behavior));
+            }
+        }
+    }
+    let Some(first) = spans.first().map(|s| s.2) else {
+        return false;
+    };
+    if spans.iter().all(|s| s.2 == first) {
+        return false; // the usual case: one successor for everyone
+    }
+    spans.sort_unstable();
+    // Active spans: ends (earliest first) and how many per behavior.
+    let mut ends: std::collections::BinaryHeap<Reverse<(Time, BehaviorId)>> =
+        std::collections::BinaryHeap::new();
+    let mut active: BTreeMap<BehaviorId, usize> = BTreeMap::new();
+    for (from, until, b) in spans {
+        while let Some(Reverse((e, eb))) = ends.peek().copied()
+            && e <= from
+        {
+            ends.pop();
+            if let Some(c) = active.get_mut(&eb) {
+                *c -= 1;
+                if *c == 0 {
+                    active.remove(&eb);
+                }
+            }
+        }
+        if active.keys().any(|x| *x != b) {
+            return true;
+        }
+        *active.entry(b).or_insert(0) += 1;
+        ends.push(Reverse((until, b)));
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    /// The pairs the exact check would look at, without the who-could-talk
+    /// part: two legs of different behaviors overlapping by more than the
+    /// bound.
+    fn brute(members: &BTreeMap<RobotId, Vec<Leg>>, end: Time) -> bool {
+        let legs: Vec<&Leg> = members.values().flatten().collect();
+        legs.iter().any(|a| {
+            legs.iter().any(|b| {
+                let from = a.from.max(b.from);
+                let until = a.until.unwrap_or(end).min(b.until.unwrap_or(end));
+                a.behavior != b.behavior && until > from && until - from > SPLIT_BOUND
+            })
+        })
+    }
+
+    proptest! {
+        #[test]
+        fn the_sweep_finds_exactly_the_overlapping_pairs(
+            legs in proptest::collection::vec((0u32..6, 0u32..3, 0u32..40, 0u32..20, any::<bool>()), 0..14),
+        ) {
+            let end = Time::from_secs_f64(50.0);
+            let mut members: BTreeMap<RobotId, Vec<Leg>> = BTreeMap::new();
+            for (r, b, from, len, open) in legs {
+                let from = Time::from_secs_f64(f64::from(from));
+                members.entry(RobotId(r)).or_default().push(Leg {
+                    behavior: BehaviorId(b),
+                    epoch: 1,
+                    from,
+                    until: (!open).then(|| from + Duration::from_secs(u64::from(len))),
+                });
+            }
+            prop_assert_eq!(may_split(&members, end, &|_| false), brute(&members, end));
+        }
     }
 }

@@ -413,7 +413,7 @@ mod tests {
                 anchor: None,
                 state: FrameState::Running,
                 alloc: None,
-                departed: vec![RobotId(1)],
+                departed: Some(bite_core::org::MemberSet::from_iter(3, [RobotId(1)])),
             }],
             ended: vec![],
             burned: vec![],

@@ -189,26 +189,26 @@ impl Kernel {
             let Some(team) = self.org.team(f.team) else {
                 continue;
             };
-            let mut who: Vec<RobotId> = Vec::new();
+            let known = f.departed.as_ref();
+            let mut who: Vec<RobotId> = match pos.frames.iter().find(|g| g.id == id) {
+                Some(g) => (g.departed.as_ref())
+                    .map(|d| d.fresh_in(&team.members, known))
+                    .unwrap_or_default(),
+                None => Vec::new(),
+            };
             let ended = pos.ended.iter().any(|e| e.id == id)
                 || pos.burned.contains(&id)
                 || pos
                     .frames
                     .iter()
                     .any(|g| g.id == id && g.state != FrameState::Running);
-            if ended {
-                who.push(from);
+            if ended && team.contains(from) && !known.is_some_and(|d| d.contains(from)) {
+                // In id order with the rest, once.
+                if let Err(at) = who.binary_search(&from) {
+                    who.insert(at, from);
+                }
             }
-            if let Some(g) = pos.frames.iter().find(|g| g.id == id) {
-                who.extend(g.departed.iter().copied());
-            }
-            who.retain(|r| {
-                *r != self.me
-                    && team.contains(*r)
-                    && !f.departed.as_ref().is_some_and(|d| d.contains(*r))
-            });
-            who.sort_unstable();
-            who.dedup();
+            who.retain(|r| *r != self.me);
             if who.is_empty() {
                 continue;
             }
