@@ -11,6 +11,7 @@ use crate::net::SimNet;
 use crate::summary::{Aggregator, Summary};
 use bite_agent::agent::{Agent, AgentOutput, Input, Shared};
 use bite_agent::scenario::{Resolved, Scenario};
+use bite_agent::schema::Sensed;
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::event::{DropReason, Event};
 use bite_core::graph::BehaviorGraph;
@@ -26,6 +27,10 @@ use std::cmp::{Ordering, Reverse};
 use std::collections::{BTreeMap, BinaryHeap};
 use std::io::Write;
 use std::sync::Arc;
+
+/// From how many robots their control ticks run on several threads (below,
+/// the threads would cost more than they save; the run is the same).
+const PARALLEL_FROM: usize = 64;
 use std::time::Duration;
 
 pub use bite_agent::agent::derive_seed;
@@ -321,6 +326,43 @@ impl Sim<'_, '_> {
     /// Robot `i`'s clock now.
     fn clock(&self, i: usize) -> Time {
         self.local(i, self.now)
+    }
+
+    /// Every live robot's control tick: each senses the world and its
+    /// mind ticks, side by side on the threads of the current rayon pool
+    /// for a large team (a robot's mind reads nothing of the others', and
+    /// the world does not change while they think); then what each asks is
+    /// carried out in robot order, one robot after the other. The run is
+    /// the same whatever the number of threads, and the same as handing
+    /// the robots their ticks one by one (nothing a mind asks reaches
+    /// another mind or the world before the tick ends).
+    fn control_tick(&mut self) {
+        use rayon::prelude::*;
+        let n = self.agents.len();
+        let sensed: Vec<Option<Sensed>> = match self.physics.as_mut() {
+            Some(w) => w.observe_all(&self.crashed),
+            None => Vec::new(),
+        };
+        let clocks: Vec<Time> = (0..n).map(|i| self.clock(i)).collect();
+        let (world, crashed) = (self.now, &self.crashed);
+        let tick = |(i, a): (usize, &mut Agent)| {
+            if !crashed[i] {
+                let sensed = sensed.get(i).and_then(Option::as_ref);
+                a.handle(clocks[i], Input::Tick { world, sensed });
+            }
+        };
+        if n >= PARALLEL_FROM {
+            (self.agents.par_iter_mut().enumerate())
+                .with_min_len(16)
+                .for_each(tick);
+        } else {
+            self.agents.iter_mut().enumerate().for_each(tick);
+        }
+        for i in 0..n {
+            if !self.crashed[i] {
+                self.drain(RobotId(i as u32));
+            }
+        }
     }
 
     /// Hand robot `r` one input at its own clock, then carry out what
@@ -705,20 +747,7 @@ impl Sim<'_, '_> {
                         w.advance(self.now, &self.crashed);
                         w.record();
                     }
-                    for i in 0..n {
-                        if self.crashed[i] {
-                            continue;
-                        }
-                        let sensed = self.physics.as_mut().map(|w| w.observe(i));
-                        let world = self.now;
-                        self.input(
-                            RobotId(i as u32),
-                            Input::Tick {
-                                world,
-                                sensed: sensed.as_ref(),
-                            },
-                        );
-                    }
+                    self.control_tick();
                     if let Some(w) = &self.physics {
                         let g = &self.graph;
                         let name = |b: BehaviorId| g.name_of(b).to_string();

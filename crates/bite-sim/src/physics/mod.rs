@@ -70,7 +70,6 @@ pub struct Sample {
 struct Robot {
     body: rp::RigidBodyHandle,
     collider: rp::ColliderHandle,
-    rng: Rng,
     /// Current forward speed and turn rate (differential) or velocity.
     vel: DVec2,
     turn: f64,
@@ -85,14 +84,19 @@ struct Robot {
     twist: Option<(f64, f64, f64)>,
 }
 
+/// From how many robots sensing runs on several threads (below, the
+/// threads would cost more than they save; the readings are the same).
+const PARALLEL_FROM: usize = 64;
+
 /// The physical world of a run.
 pub struct World {
     spec: Arc<PhysicsSpec>,
     rw: rp::PhysicsWorld,
     /// What each collider is, by collider index (none is ever removed).
     kinds: Vec<Option<Kind>>,
-    /// Scratch: what is near the robot being sensed.
-    near: Vec<(Kind, rp::ColliderHandle)>,
+    /// Each robot's sensor noise (apart from the bodies, so that robots
+    /// can be sensed side by side on several threads).
+    rngs: Vec<Rng>,
     coverage: Coverage,
     /// When the next trajectory sample is due (`spec.trail`).
     next_trail: f64,
@@ -298,7 +302,6 @@ impl World {
             robots.push(Robot {
                 body: b,
                 collider: c,
-                rng: Rng::seed_from_u64(derive_seed(seed, "sensors", i as u32)),
                 vel: DVec2::ZERO,
                 turn: 0.0,
                 cmd: Command::default(),
@@ -386,7 +389,9 @@ impl World {
             spec,
             rw,
             kinds,
-            near: Vec::new(),
+            rngs: (0..robots.len())
+                .map(|i| Rng::seed_from_u64(derive_seed(seed, "sensors", i as u32)))
+                .collect(),
             coverage,
             next_trail: 0.0,
             robots,
@@ -783,8 +788,8 @@ impl World {
     /// target's position if it is in range, in the field of view and in
     /// sight (the first thing a ray toward it hits is the target itself).
     fn sighting(
-        &mut self,
-        i: usize,
+        &self,
+        rng: &mut Rng,
         near: &[(Kind, rp::ColliderHandle)],
         from: Pose,
         at: DVec2,
@@ -803,7 +808,6 @@ impl World {
         {
             return None;
         }
-        let rng = &mut self.robots[i].rng;
         Some(at + DVec2::new(gauss(rng), gauss(rng)) * s.camera_noise * len)
     }
 
@@ -812,13 +816,66 @@ impl World {
     /// and whether it touches something (the world's side of sensing; the
     /// noise comes from the robot's own seeded stream).
     pub fn observe(&mut self, i: usize) -> Sensed {
+        let mut rng = std::mem::replace(&mut self.rngs[i], Rng::seed_from_u64(0));
+        let (sensed, seen) = self.sense(i, &mut rng, &mut Vec::new());
+        self.rngs[i] = rng;
+        self.mark_seen(&seen);
+        sensed
+    }
+
+    /// Every robot's sensors now ([`World::observe`] for each robot not
+    /// `skip`ped), on the threads of the current rayon pool when the team
+    /// is large: each robot draws its own noise and the world does not
+    /// change while they sense, so the readings are the same for any
+    /// number of threads.
+    pub fn observe_all(&mut self, skip: &[bool]) -> Vec<Option<Sensed>> {
+        use rayon::prelude::*;
+        let mut rngs = std::mem::take(&mut self.rngs);
+        let this = &*self;
+        let sense = |near: &mut Vec<(Kind, rp::ColliderHandle)>, (i, rng): (usize, &mut Rng)| {
+            (!skip.get(i).copied().unwrap_or(false)).then(|| this.sense(i, rng, near))
+        };
+        let out: Vec<Option<(Sensed, Vec<usize>)>> = if rngs.len() >= PARALLEL_FROM {
+            (rngs.par_iter_mut().enumerate())
+                .with_min_len(16)
+                .map_init(Vec::new, sense)
+                .collect()
+        } else {
+            let mut near = Vec::new();
+            (rngs.iter_mut().enumerate())
+                .map(|x| sense(&mut near, x))
+                .collect()
+        };
+        self.rngs = rngs;
+        out.into_iter()
+            .map(|o| {
+                o.map(|(sensed, seen)| {
+                    self.mark_seen(&seen);
+                    sensed
+                })
+            })
+            .collect()
+    }
+
+    /// Objects some camera saw now.
+    fn mark_seen(&mut self, seen: &[usize]) {
+        for &k in seen {
+            self.first_seen[k].get_or_insert(self.t);
+        }
+    }
+
+    /// Robot `i`'s sensors with its noise `rng` (`near`: scratch), and
+    /// the objects its camera saw.
+    fn sense(
+        &self,
+        i: usize,
+        rng: &mut Rng,
+        near: &mut Vec<(Kind, rp::ColliderHandle)>,
+    ) -> (Sensed, Vec<usize>) {
         let s = self.spec.sensors;
         let truth = self.pose(i);
         // Pose estimate.
-        let (nx, ny, nh) = {
-            let rng = &mut self.robots[i].rng;
-            (gauss(rng), gauss(rng), gauss(rng))
-        };
+        let (nx, ny, nh) = (gauss(rng), gauss(rng), gauss(rng));
         let pose = Pose {
             pos: truth.pos + DVec2::new(nx, ny) * s.pose_noise,
             heading: truth.heading + nh * s.pose_noise,
@@ -827,39 +884,38 @@ impl World {
         // bounding boxes as of the last step: a margin covers what moved.
         let radius = self.spec.robot.radius;
         let reach = s.camera_range.max(s.ray_range + radius) + 0.5;
-        let mut near = std::mem::take(&mut self.near);
-        self.near(i, truth.pos, reach, &mut near);
+        self.near(i, truth.pos, reach, near);
         // Range rays, all round.
         let mut rays = Vec::new();
         for k in 0..s.rays {
             let a = std::f64::consts::TAU * k as f64 / s.rays.max(1) as f64;
             let dir = DVec2::from_angle(truth.heading + a);
-            if let Some((_, toi)) = self.cast(&near, truth.pos, dir, s.ray_range + radius) {
-                let noise = gauss(&mut self.robots[i].rng) * s.ray_noise;
+            if let Some((_, toi)) = self.cast(near, truth.pos, dir, s.ray_range + radius) {
+                let noise = gauss(rng) * s.ray_noise;
                 rays.push((a, (toi - radius + noise).max(0.0)));
             }
         }
         // Camera: teammates, then objects, in the field of view, in sight.
         let mut mates = Vec::new();
-        for &(k, _) in &near {
+        for &(k, _) in near.iter() {
             let Kind::Robot(j) = k else { continue };
             let p = self.pose(j).pos;
-            if let Some(est) = self.sighting(i, &near, truth, p, Kind::Robot(j)) {
+            if let Some(est) = self.sighting(rng, near, truth, p, Kind::Robot(j)) {
                 mates.push((j as u32, est));
             }
         }
         let mut objects = Vec::new();
-        for &(o, _) in &near {
+        let mut seen = Vec::new();
+        for &(o, _) in near.iter() {
             let Kind::Object(k) = o else { continue };
             let p = self.object_pos(k);
-            if let Some(est) = self.sighting(i, &near, truth, p, Kind::Object(k)) {
+            if let Some(est) = self.sighting(rng, near, truth, p, Kind::Object(k)) {
                 objects.push((k, est));
-                self.first_seen[k].get_or_insert(self.t);
+                seen.push(k);
             }
         }
-        self.near = near;
         let r = &self.robots[i];
-        Sensed {
+        let sensed = Sensed {
             t: self.t,
             pose,
             rays,
@@ -867,7 +923,8 @@ impl World {
             objects,
             odometer: r.odometer,
             contact: r.contact,
-        }
+        };
+        (sensed, seen)
     }
 
     /// Robot `i`'s velocity command, which its drive follows from the
