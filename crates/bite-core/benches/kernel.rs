@@ -34,7 +34,7 @@ fn formation() -> Arc<Mission> {
     // Silent protocols everywhere, so that one kernel runs alone.
     let cfg = Config::load_str(
         &Arc::from("silent.yaml"),
-        "defaults: { terminate: term.local }",
+        "defaults: { terminate: term.local }\nbindings: { formation.terminate: term.local }",
     )
     .expect("config");
     let g = g.with_config(&cfg).expect("config applies");
