@@ -406,12 +406,24 @@ impl Kernel {
             return;
         }
         self.stats.positions += 1;
-        let engaged: Vec<(FrameId, FrameState)> =
-            pos.frames.iter().map(|f| (f.id, f.state)).collect();
-        if self.peers.get(&from).is_none_or(|(_, old)| *old != engaged) {
-            self.peer_moved.insert(from, self.now);
+        // What it is engaged in, compared and kept in place (no vector
+        // made per heartbeat: a team leader hears one from every member).
+        let engaged = || pos.frames.iter().map(|f| (f.id, f.state));
+        let now = self.now;
+        match self.peers.get_mut(&from) {
+            Some((at, old)) => {
+                *at = now;
+                if !old.iter().copied().eq(engaged()) {
+                    old.clear();
+                    old.extend(engaged());
+                    self.peer_moved.insert(from, now);
+                }
+            }
+            None => {
+                self.peers.insert(from, (now, engaged().collect()));
+                self.peer_moved.insert(from, now);
+            }
         }
-        self.peers.insert(from, (self.now, engaged));
         self.apply_burns(pos);
         self.count_past(pos);
         self.catch_up(pos);
