@@ -1,15 +1,19 @@
-//! The linear assignment problem: Jonker-Volgenant (LAPJV).
+//! The linear assignment problem: Jonker-Volgenant (LAPJV), rectangular.
 //!
 //! R. Jonker and A. Volgenant, *A shortest augmenting path algorithm for
 //! dense and sparse linear assignment problems*, Computing 38 (1987). The
-//! phases are column reduction, reduction transfer, two rounds of
-//! augmenting row reduction (which assign most rows cheaply), then a
-//! Dijkstra-like shortest augmenting path for each row still free. Dense,
-//! `O(n³)` worst case, far faster on typical instances (1,000 × 1,000
-//! random costs: see `docs/performance.md`).
+//! phases are an initialisation (column reduction and reduction transfer
+//! on a square matrix), two rounds of augmenting row reduction (which
+//! assign most rows cheaply), then a Dijkstra-like shortest augmenting path
+//! for each row still free. Dense, `O(n²m)` worst case, far faster on
+//! typical instances (see `docs/performance.md`, where it is measured
+//! against SciPy's `linear_sum_assignment`).
 //!
-//! Rectangular problems are solved by padding to a square with zero-cost
-//! dummy rows or columns.
+//! Rectangular problems are solved as they are, not padded to a square:
+//! with `n` rows and `m ≥ n` columns only `n` rows are assigned, so the
+//! initialisation starts every column's dual at 0 and the duals of the
+//! columns left unassigned stay there (see [`lapjv`]). More rows than
+//! columns is solved on the transpose.
 
 // The algorithm walks parallel arrays (costs, duals, row and column
 // assignments) by index; iterator rewrites would obscure it.
@@ -38,22 +42,50 @@ pub fn solve(rows: usize, cols: usize, cost: &[f64]) -> Solution {
     let n = rows.max(cols);
     // Finite stand-in for impossible pairs, large enough never to be chosen
     // over a finite one when a finite one exists.
-    let finite_max = cost
-        .iter()
-        .filter(|c| c.is_finite())
-        .fold(0.0f64, |m, c| m.max(c.abs()));
-    let big = (finite_max + 1.0) * (n as f64 + 1.0);
-    let mut c = vec![0.0f64; n * n];
-    for i in 0..rows {
-        for j in 0..cols {
-            let v = cost[i * cols + j];
-            c[i * n + j] = if v.is_finite() { v } else { big };
+    // (A fold without early exit, so that it vectorizes: this pass is a
+    // visible share of the time on easy instances.)
+    let all_finite = cost.iter().fold(true, |ok, c| ok & c.is_finite());
+    let big = if all_finite {
+        0.0 // not used
+    } else {
+        let finite_max = cost
+            .iter()
+            .filter(|c| c.is_finite())
+            .fold(0.0f64, |m, c| m.max(c.abs()));
+        (finite_max + 1.0) * (n as f64 + 1.0)
+    };
+    let fix = |v: f64| if v.is_finite() { v } else { big };
+    let row_to_col: Vec<Option<usize>> = if rows <= cols {
+        // The caller's matrix is used as it is unless a cost must be replaced.
+        let owned: Vec<f64>;
+        let c: &[f64] = if all_finite {
+            cost
+        } else {
+            owned = cost.iter().map(|v| fix(*v)).collect();
+            &owned
+        };
+        lapjv(rows, cols, c).into_iter().map(Some).collect()
+    } else {
+        // Columns become rows: `cols × rows`, copied in blocks so that both
+        // sides stay in cache.
+        const B: usize = 32;
+        let mut t = vec![0.0f64; rows * cols];
+        for i0 in (0..rows).step_by(B) {
+            for j0 in (0..cols).step_by(B) {
+                for i in i0..(i0 + B).min(rows) {
+                    let src = &cost[i * cols..(i + 1) * cols];
+                    for j in j0..(j0 + B).min(cols) {
+                        t[j * rows + i] = fix(src[j]);
+                    }
+                }
+            }
         }
-    }
-    let x = lapjv(n, &c);
-    let row_to_col: Vec<Option<usize>> = (0..rows)
-        .map(|i| x.get(i).copied().filter(|j| *j < cols))
-        .collect();
+        let mut r = vec![None; rows];
+        for (j, i) in lapjv(cols, rows, &t).into_iter().enumerate() {
+            r[i] = Some(j);
+        }
+        r
+    };
     let total = row_to_col
         .iter()
         .enumerate()
@@ -70,63 +102,54 @@ const NONE: usize = usize::MAX;
 /// Bound on the augmenting row reduction's steps, per row of the problem.
 const ARR_STEPS_PER_ROW: usize = 4;
 
-/// Square LAPJV on an `n × n` row-major matrix; returns the column of each row.
-fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
-    let cost = |i: usize, j: usize| c[i * n + j];
+/// Evictions between tied columns the augmenting row reduction makes on a
+/// square problem before it leaves such rows to the shortest-path phase.
+const ARR_TIE_EVICTIONS: usize = 512;
+
+/// LAPJV on an `n × m` row-major matrix of finite costs, `n ≤ m`; returns
+/// the column of each row.
+///
+/// Why the rectangular case is correct: the shortest-path phase keeps every
+/// reduced cost `c[i][j] − u[i] − v[j]` non-negative and zero on assigned
+/// pairs, and only ever lowers the duals `v` of columns that are assigned
+/// (and stay assigned). A column left unassigned thus keeps the highest
+/// dual, which is the optimality condition when not every column is used
+/// (complementary slackness: only assigned columns may have `v` below the
+/// free ones). The square initialisation (column reduction) gives every
+/// column its own dual, so it is used only when `n = m`, where every column
+/// ends up assigned; otherwise all duals start at 0.
+fn lapjv(n: usize, m: usize, c: &[f64]) -> Vec<usize> {
+    debug_assert!(n <= m && c.len() == n * m);
+    let row = |i: usize| &c[i * m..(i + 1) * m];
     let mut x = vec![NONE; n]; // row -> column
-    let mut y = vec![NONE; n]; // column -> row
-    let mut v = vec![0.0f64; n]; // column duals
-    let mut matches = vec![0u32; n];
+    let mut y = vec![NONE; m]; // column -> row
+    let mut v = vec![0.0f64; m]; // column duals
+    let mut free: Vec<usize> = if n == m {
+        column_reduction(n, c, &mut x, &mut y, &mut v)
+    } else {
+        (0..n).collect()
+    };
 
-    // Column reduction: each column's cheapest row.
-    for j in (0..n).rev() {
-        let mut imin = 0;
-        let mut min = cost(0, j);
-        for i in 1..n {
-            if cost(i, j) < min {
-                min = cost(i, j);
-                imin = i;
-            }
-        }
-        v[j] = min;
-        matches[imin] += 1;
-        if matches[imin] == 1 {
-            x[imin] = j;
-            y[j] = imin;
-        } else {
-            y[j] = NONE;
-        }
-    }
-    // A row that is the cheapest of several columns keeps the first one
-    // (x was set only when matches reached 1); the other columns are free.
-
-    // Reduction transfer.
-    let mut free: Vec<usize> = Vec::with_capacity(n);
-    for i in 0..n {
-        if x[i] == NONE {
-            free.push(i);
-        } else if matches[i] == 1 {
-            let j1 = x[i];
-            let mut min = f64::INFINITY;
-            for j in 0..n {
-                if j != j1 {
-                    let h = cost(i, j) - v[j];
-                    if h < min {
-                        min = h;
-                    }
-                }
-            }
-            if min.is_finite() {
-                v[j1] -= min;
-            }
-        }
-    }
-
+    // Ties in the augmenting row reduction: a row whose two cheapest
+    // columns tie and are both taken can only evict a row without lowering
+    // any dual, i.e. without progress. On integer or constant costs nearly
+    // every step is such a tie and the phase only shuffles rows. The first
+    // `tie_budget` of these evictions are made as JV makes them (so square
+    // problems up to about 150 × 150 get the very assignment this solver
+    // always gave them, ties included: `alloc.optimal`'s decisions); after
+    // that the row is left to the shortest-path phase, which settles a tie
+    // in one pass over the row. Rectangular problems have no earlier
+    // assignment to keep.
+    let mut tie_budget = if n == m { ARR_TIE_EVICTIONS } else { 0 };
+    let mut left_on_ties = false;
     // Augmenting row reduction, twice.
     for _ in 0..2 {
+        if left_on_ties {
+            // The second round would meet the same ties again.
+            break;
+        }
         let mut k = 0;
-        let prv: Vec<usize> = std::mem::take(&mut free);
-        let mut current = prv;
+        let mut current: Vec<usize> = std::mem::take(&mut free);
         // On costs with many near-ties (distances between random points)
         // rows can evict each other for a very long time, lowering a dual
         // by a hair each time. Every step keeps each assigned row on its
@@ -141,10 +164,11 @@ fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
             }
             let i = current[k];
             k += 1;
-            let (mut umin, mut j1) = (cost(i, 0) - v[0], 0);
+            let ci = row(i);
+            let (mut umin, mut j1) = (ci[0] - v[0], 0);
             let (mut usubmin, mut j2) = (f64::INFINITY, NONE);
-            for j in 1..n {
-                let h = cost(i, j) - v[j];
+            for j in 1..m {
+                let h = ci[j] - v[j];
                 if h < usubmin {
                     if h >= umin {
                         usubmin = h;
@@ -162,6 +186,17 @@ fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
                 // Make j1 as attractive as the second best for the others.
                 v[j1] -= usubmin - umin;
             } else if i0 != NONE && j2 != NONE {
+                if y[j2] != NONE {
+                    if tie_budget == 0 {
+                        // The rows left are as likely to tie: all of them
+                        // go to the shortest-path phase.
+                        left_on_ties = true;
+                        free.push(i);
+                        free.extend(current[k..].iter().copied().filter(|i| x[*i] == NONE));
+                        break;
+                    }
+                    tie_budget -= 1;
+                }
                 // Tie: take the second best column instead of evicting.
                 j1 = j2;
                 i0 = y[j2];
@@ -182,15 +217,16 @@ fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
     }
 
     // Shortest augmenting paths for the remaining free rows.
-    let mut d = vec![0.0f64; n];
-    let mut pred = vec![0usize; n];
-    let mut collist = vec![0usize; n];
+    let mut d = vec![0.0f64; m];
+    let mut pred = vec![0usize; m];
+    let mut collist = vec![0usize; m];
     for &freerow in &free {
         if x[freerow] != NONE {
             continue;
         }
-        for j in 0..n {
-            d[j] = cost(freerow, j) - v[j];
+        let cf = row(freerow);
+        for j in 0..m {
+            d[j] = cf[j] - v[j];
             pred[j] = freerow;
             collist[j] = j;
         }
@@ -202,40 +238,46 @@ fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
             if up == low {
                 // Collect the columns at the new minimum distance. The scan
                 // starts where `up` was; moving `up` inside is intended.
+                // The first unassigned column met at the minimum (in the
+                // order the set is collected) ends the path, as JV's scan
+                // of the set after collecting it would find; noting it on
+                // the way saves that second pass.
                 last = low;
-                min = d[collist[up]];
+                let first = collist[up];
+                min = d[first];
+                let mut free_at_min = if y[first] == NONE { first } else { NONE };
                 up += 1;
                 #[allow(clippy::mut_range_bound)]
-                for k in up..n {
+                for k in up..m {
                     let j = collist[k];
                     let h = d[j];
                     if h <= min {
                         if h < min {
                             up = low;
                             min = h;
+                            free_at_min = NONE;
+                        }
+                        if free_at_min == NONE && y[j] == NONE {
+                            free_at_min = j;
                         }
                         collist[k] = collist[up];
                         collist[up] = j;
                         up += 1;
                     }
                 }
-                for &j in &collist[low..up] {
-                    if y[j] == NONE {
-                        endofpath = j;
-                        break;
-                    }
-                }
+                endofpath = free_at_min;
             }
             if endofpath == NONE {
                 // Scan one column of the minimum set.
                 let j1 = collist[low];
                 low += 1;
                 let i = y[j1];
-                let h = cost(i, j1) - v[j1] - min;
+                let ci = row(i);
+                let h = ci[j1] - v[j1] - min;
                 let mut k = up;
-                while k < n {
+                while k < m {
                     let j = collist[k];
-                    let v2 = cost(i, j) - v[j] - h;
+                    let v2 = ci[j] - v[j] - h;
                     if v2 < d[j] {
                         pred[j] = i;
                         if v2 == min {
@@ -271,6 +313,66 @@ fn lapjv(n: usize, c: &[f64]) -> Vec<usize> {
         }
     }
     x
+}
+
+/// The square initialisation: column reduction (each column's dual is its
+/// cheapest cost, and the row of that cost takes it if it has no column
+/// yet), then reduction transfer. Returns the rows left free.
+fn column_reduction(
+    n: usize,
+    c: &[f64],
+    x: &mut [usize],
+    y: &mut [usize],
+    v: &mut [f64],
+) -> Vec<usize> {
+    // Each column's minimum and its first row, found row by row (the
+    // matrix is row-major: walking it by columns would miss the cache).
+    let mut imin = vec![0usize; n];
+    v.copy_from_slice(&c[..n]);
+    for i in 1..n {
+        let ci = &c[i * n..(i + 1) * n];
+        // Branch-free, so that it compiles to vector selects.
+        for ((vj, mj), cij) in v.iter_mut().zip(imin.iter_mut()).zip(ci) {
+            let lower = *cij < *vj;
+            *vj = if lower { *cij } else { *vj };
+            *mj = if lower { i } else { *mj };
+        }
+    }
+    let mut matches = vec![0u32; n];
+    // Columns from the last: a row that is the cheapest of several columns
+    // keeps the last of them; the other columns are free.
+    for j in (0..n).rev() {
+        let i = imin[j];
+        matches[i] += 1;
+        if matches[i] == 1 {
+            x[i] = j;
+            y[j] = i;
+        }
+    }
+
+    // Reduction transfer.
+    let mut free: Vec<usize> = Vec::with_capacity(n);
+    for i in 0..n {
+        if x[i] == NONE {
+            free.push(i);
+        } else if matches[i] == 1 {
+            let j1 = x[i];
+            let ci = &c[i * n..(i + 1) * n];
+            let mut min = f64::INFINITY;
+            for j in 0..n {
+                if j != j1 {
+                    let h = ci[j] - v[j];
+                    if h < min {
+                        min = h;
+                    }
+                }
+            }
+            if min.is_finite() {
+                v[j1] -= min;
+            }
+        }
+    }
+    free
 }
 
 #[cfg(test)]
@@ -443,5 +545,111 @@ mod tests {
         let s = solve(2, 2, &c);
         assert_eq!(s.row_to_col, vec![Some(1), Some(0)]);
         assert_eq!(s.cost, 3.0);
+    }
+
+    /// The transpose of a row-major `rows × cols` matrix.
+    fn transpose(rows: usize, cols: usize, c: &[f64]) -> Vec<f64> {
+        (0..cols)
+            .flat_map(|j| (0..rows).map(move |i| c[i * cols + j]))
+            .collect()
+    }
+
+    fn random_costs(rows: usize, cols: usize, kind: u8, seed: u64) -> Vec<f64> {
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+        (0..rows * cols)
+            .map(|_| match kind {
+                0 => rng.random_range(0.0..100.0),
+                1 => f64::from(rng.random_range(0..11u8)),
+                2 => f64::from(rng.random_range(0..2u8)),
+                _ => 5.0,
+            })
+            .collect()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 1000, ..ProptestConfig::default() })]
+        /// Rectangular both ways, tied and integer costs (0..10, 0..1,
+        /// constant), small enough for brute force.
+        #[test]
+        fn rectangular_and_tied_match_brute_force(
+            rows in 1usize..=8, cols in 1usize..=8, kind in 0u8..4, seed in any::<u64>()
+        ) {
+            let c = random_costs(rows, cols, kind, seed);
+            let s = solve(rows, cols, &c);
+            prop_assert!(valid(rows, cols, &s), "{s:?}");
+            let b = brute(rows, cols, &c);
+            prop_assert!((s.cost - b).abs() < 1e-9, "lapjv {} brute {} on {rows}x{cols} {c:?}", s.cost, b);
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig { cases: 200, ..ProptestConfig::default() })]
+        /// Larger rectangular problems, wide and tall (the latter against
+        /// the reference on the transpose), on real, integer, 0/1 and
+        /// constant costs; and the same matrix gives the same total
+        /// whichever way round it is given.
+        #[test]
+        fn rectangular_matches_the_reference(
+            short in 1usize..40, extra in 1usize..80, kind in 0u8..4, tall in any::<bool>(), seed in any::<u64>()
+        ) {
+            let (n, m) = (short, short + extra);
+            let c = random_costs(n, m, kind, seed);
+            let h = hungarian(n, m, &c);
+            let s = if tall {
+                let t = transpose(n, m, &c);
+                let s = solve(m, n, &t);
+                prop_assert!(valid(m, n, &s), "{s:?}");
+                s
+            } else {
+                let s = solve(n, m, &c);
+                prop_assert!(valid(n, m, &s), "{s:?}");
+                s
+            };
+            prop_assert!((s.cost - h).abs() < 1e-6, "lapjv {} reference {} ({}x{}, tall {tall})", s.cost, h, n, m);
+        }
+
+        /// Square problems with heavy ties (where the row reduction's tie
+        /// budget runs out), against the reference.
+        #[test]
+        fn tied_square_matches_the_reference(n in 60usize..140, kind in 1u8..4, seed in any::<u64>()) {
+            let c = random_costs(n, n, kind, seed);
+            let s = solve(n, n, &c);
+            prop_assert!(valid(n, n, &s));
+            prop_assert!((s.cost - hungarian(n, n, &c)).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn infinite_costs_are_avoided_in_rectangular_problems() {
+        let inf = f64::INFINITY;
+        // Wide: row 0 can only take column 2.
+        let c = [inf, inf, 3.0, 1.0, 1.0, 1.0];
+        let s = solve(2, 3, &c);
+        assert_eq!(s.row_to_col[0], Some(2));
+        assert_eq!(s.cost, 4.0);
+        // Tall: column 1 only from row 2; a column nobody can take still
+        // gets a row (the least bad).
+        let c = [1.0, inf, 1.0, inf, inf, 2.0, inf, inf];
+        let s = solve(4, 2, &c);
+        assert_eq!(s.row_to_col[2], Some(1));
+        assert_eq!(s.row_to_col.iter().flatten().count(), 2);
+        assert_eq!(s.cost, 3.0);
+        let s = solve(2, 2, &[f64::NAN, f64::NEG_INFINITY, 1.0, 1.0]);
+        assert!(valid(2, 2, &s));
+    }
+
+    /// Square problems keep the assignment the solver always gave on ties
+    /// while the tie budget lasts (the small teams of `alloc.optimal`).
+    #[test]
+    fn small_square_ties_keep_their_assignment() {
+        // Constant 3 × 3, as `alloc.optimal` without utilities.
+        let s = solve(3, 3, &[0.0; 9]);
+        assert_eq!(s.row_to_col, vec![Some(2), Some(0), Some(1)]);
+        let s = solve(10, 10, &[0.0; 100]);
+        assert_eq!(
+            s.row_to_col,
+            [9, 0, 3, 4, 5, 6, 7, 8, 1, 2].map(Some).to_vec()
+        );
     }
 }
