@@ -48,6 +48,7 @@ macro_rules! out {
 }
 
 mod experiment;
+mod lapbench;
 mod stats;
 mod studio;
 mod sweep;
@@ -329,6 +330,19 @@ enum BenchCmd {
         #[arg(long)]
         json: bool,
     },
+    /// `alloc.optimal`'s assignment solver on cost matrices read from a
+    /// file: per matrix, the best-of-K solve time and the total cost, as
+    /// JSON (`scripts/lap_vs_scipy.py` compares it with SciPy). The file:
+    /// one or more matrices, each a line `rows cols` then rows × cols
+    /// little-endian f64, row-major.
+    Lap {
+        /// The matrices.
+        #[arg(long)]
+        input: PathBuf,
+        /// Solves per matrix; the best time is reported.
+        #[arg(long, default_value_t = 5)]
+        repeat: usize,
+    },
     /// Decision latency over Zenoh between robot processes on 127.0.0.1
     /// (sync.leader, sync.vote, alloc.auction), next to a raw Zenoh
     /// ping-pong round trip measured in the same run.
@@ -349,6 +363,9 @@ enum BenchCmd {
         /// [...]}`) instead of a table.
         #[arg(long)]
         json: bool,
+        /// The variant measured (as `bite launch` takes it).
+        #[command(flatten)]
+        tuning: team::Tuning,
     },
     /// The echo side of `bench zenoh`'s ping-pong.
     #[command(hide = true)]
@@ -1486,11 +1503,15 @@ fn main() -> ExitCode {
                     pings,
                     out,
                     json,
+                    tuning,
                 },
-        } => zbench::cmd_bench_zenoh(&robots, decisions, pings, &out, json),
+        } => zbench::cmd_bench_zenoh(&robots, decisions, pings, &out, json, &tuning),
         Cmd::Bench {
             which: BenchCmd::Pong { team, listen },
         } => zbench::cmd_pong(&team, &listen),
+        Cmd::Bench {
+            which: BenchCmd::Lap { input, repeat },
+        } => lapbench::cmd_bench_lap(&input, repeat),
         Cmd::Bench {
             which:
                 BenchCmd::Protocols {

@@ -186,11 +186,134 @@ impl MissionArgs {
     }
 }
 
+/// How a robot publishes its authenticated frames.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum FramesArg {
+    /// `put` on the session, frame by frame.
+    Put,
+    /// A publisher declared once (Zenoh may batch frames when the link is busy).
+    #[default]
+    Declared,
+    /// A publisher declared once, express: each frame leaves at once.
+    Express,
+}
+
+impl FramesArg {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        self.publish().name()
+    }
+
+    pub fn publish(self) -> bite_zenoh::robot::Publish {
+        use bite_zenoh::robot::Publish;
+        match self {
+            FramesArg::Put => Publish::Put,
+            FramesArg::Declared => Publish::Declared,
+            FramesArg::Express => Publish::Express,
+        }
+    }
+}
+
+/// The threads Zenoh's runtime runs its network tasks on in each robot
+/// process launched (the `ZENOH_RUNTIME` environment variable of Zenoh 1.x,
+/// which `bite robot` reads too).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RuntimeArg {
+    /// Zenoh's defaults: five runtimes, six worker threads (rx two).
+    Zenoh,
+    /// Every runtime handed over to one, with one worker thread.
+    #[default]
+    Shared1,
+    /// Every runtime handed over to one, with two worker threads.
+    Shared2,
+}
+
+impl RuntimeArg {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            RuntimeArg::Zenoh => "zenoh",
+            RuntimeArg::Shared1 => "shared1",
+            RuntimeArg::Shared2 => "shared2",
+        }
+    }
+
+    /// The value of `ZENOH_RUNTIME` (RON), if any.
+    pub fn env(self) -> Option<String> {
+        let shared = |n: usize| {
+            format!(
+                "(app: (worker_threads: {n}), acc: (handover: app), tx: (handover: app), \
+                 rx: (handover: app), net: (handover: app))"
+            )
+        };
+        match self {
+            RuntimeArg::Zenoh => None,
+            RuntimeArg::Shared1 => Some(shared(1)),
+            RuntimeArg::Shared2 => Some(shared(2)),
+        }
+    }
+}
+
+/// How a launched team's robots are laid out in processes and talk to
+/// each other (docs/performance.md measures each).
+#[derive(clap::Args, Clone, Debug)]
+pub struct Tuning {
+    /// Robots per process: N robots in each `bite robot` process (each
+    /// robot its own thread, keys, status and log, the N sharing one
+    /// Zenoh session). `--kill` kills a robot's process, so its N robots.
+    #[arg(long, default_value_t = 1, value_parser = parse_per_process)]
+    pub per_process: usize,
+    /// How the robots publish their frames.
+    #[arg(long, value_enum, default_value_t)]
+    pub frames: FramesArg,
+    /// Zenoh's runtime threads in each robot process (sets `ZENOH_RUNTIME`
+    /// for them; `zenoh`: leave it as it is).
+    #[arg(long, value_enum, default_value_t)]
+    pub zenoh_runtime: RuntimeArg,
+}
+
+impl Default for Tuning {
+    fn default() -> Self {
+        Tuning {
+            per_process: 1,
+            frames: FramesArg::default(),
+            zenoh_runtime: RuntimeArg::default(),
+        }
+    }
+}
+
+impl Tuning {
+    /// A short label, e.g. `per-process 1, frames express, runtime shared1`.
+    pub fn label(&self) -> String {
+        format!(
+            "per-process {}, frames {}, runtime {}",
+            self.per_process,
+            self.frames.name(),
+            self.zenoh_runtime.name()
+        )
+    }
+}
+
+fn parse_per_process(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(n) if (1..=1000).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{s}`: robots per process is a number from 1 to 1000"
+        )),
+    }
+}
+
 #[derive(clap::Args)]
 pub struct RobotArgs {
-    /// This robot's name on the mission's roster (e.g. `r0`).
-    #[arg(long)]
-    pub name: String,
+    /// This robot's name on the mission's roster (e.g. `r0`). Repeat it to
+    /// run several robots in this one process, sharing one Zenoh session
+    /// (each its own thread, keys, status and log: `--log` and `--record`
+    /// then name each robot's file with `{name}`, e.g. `out/{name}.jsonl`).
+    #[arg(long, required = true)]
+    pub name: Vec<String>,
+    /// How the robots publish their frames.
+    #[arg(long, value_enum, default_value_t)]
+    pub frames: FramesArg,
     /// Speak ROS 2 for the robots' bodies, on rmw_zenoh's wire conventions,
     /// in this ROS domain (default 0): `/<robot>/odom`
     /// (`nav_msgs/msg/Odometry`), `/<robot>/scan` (`sensor_msgs/msg/LaserScan`),
@@ -292,6 +415,8 @@ pub struct LaunchArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub tuning: Tuning,
     /// Speak ROS 2 for the robots' bodies, on rmw_zenoh's wire conventions,
     /// in this ROS domain (default 0): `/<robot>/odom`
     /// (`nav_msgs/msg/Odometry`), `/<robot>/scan` (`sensor_msgs/msg/LaserScan`),
@@ -491,14 +616,43 @@ fn loader(
     )
 }
 
-/// `bite robot`.
+/// `bite robot`: one robot, or several sharing this process's Zenoh
+/// session (`--name` repeated), each on its own thread.
 pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
     let key = team_key(a.key.as_deref())?;
+    let names = &a.name;
+    for (i, n) in names.iter().enumerate() {
+        if names[..i].contains(n) {
+            bail!("--name {n} is given twice");
+        }
+    }
+    let several = names.len() > 1;
+    let per_robot = |what: &str, p: &Option<PathBuf>, name: &str| -> Result<Option<PathBuf>> {
+        let Some(p) = p else { return Ok(None) };
+        let text = p.display().to_string();
+        if several && !text.contains("{name}") {
+            bail!(
+                "{what} {text}: with several robots in one process, name each robot's file \
+                 with `{{name}}` (e.g. out/{{name}}.jsonl)"
+            );
+        }
+        Ok(Some(PathBuf::from(text.replace("{name}", name))))
+    };
     let first = if a.mission.graph.is_some() || a.mission.built_in {
         let (graph, scenario) = a.mission.load()?;
         let mission =
             bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())
                 .map_err(crate::bad_input)?;
+        let roster = mission.graph().roster();
+        if let Some(n) = names.iter().find(|n| roster.find(n).is_none()) {
+            bail!(
+                "robot `{n}` is not on the roster of mission `{}` ({})",
+                mission.graph().name(),
+                (roster.iter().map(|(_, r)| r.name.clone()))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
         let seed = a.mission.seed.unwrap_or(scenario.seed);
         Some(Prepared {
             mission,
@@ -514,47 +668,120 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
         None => a.mission.own_scenario()?,
     };
     let stop = stop_flag()?;
-    let opts = RobotOptions {
-        team: a.net.team.clone(),
-        name: a.name.clone(),
-        key,
-        net: a.net.options(),
-        speed: a.speed,
-        start_at_us: a.start_at.map(|ms| ms.saturating_mul(1000)),
-        log: a.log.clone(),
-        exit_when_done: a.exit_when_done,
-        time_limit: a.time_limit,
-        gather_timeout: a.gather_timeout,
-        status_period: Duration::from_millis(500),
-        record: a.record.clone(),
-        ros2: a
-            .ros2
-            .map(|domain| bite_zenoh::ros2::Ros2Options { domain }),
-    };
-    if first.is_none() {
-        eprintln!(
-            "robot {} of team {}: waiting for a mission on bite/{}/mission",
-            a.name, a.net.team, a.net.team
-        );
+    let mut robots = Vec::new();
+    for name in names {
+        let opts = RobotOptions {
+            team: a.net.team.clone(),
+            name: name.clone(),
+            key: key.clone(),
+            net: a.net.options(),
+            speed: a.speed,
+            start_at_us: a.start_at.map(|ms| ms.saturating_mul(1000)),
+            log: per_robot("--log", &a.log, name)?,
+            exit_when_done: a.exit_when_done,
+            time_limit: a.time_limit,
+            gather_timeout: a.gather_timeout,
+            status_period: Duration::from_millis(500),
+            record: per_robot("--record", &a.record, name)?,
+            ros2: a
+                .ros2
+                .map(|domain| bite_zenoh::ros2::Ros2Options { domain }),
+            publish: a.frames.publish(),
+        };
+        let prepared = first.as_ref().map(|p| Prepared {
+            mission: p.mission.clone(),
+            scenario: p.scenario.clone(),
+            seed: p.seed,
+            origin: p.origin.clone(),
+        });
+        let load = loader(a.mission.clone(), own.clone(), a.mission.robots);
+        robots.push((opts, prepared, load));
+        if first.is_none() {
+            eprintln!(
+                "robot {name} of team {}: waiting for a mission on bite/{}/mission",
+                a.net.team, a.net.team
+            );
+        }
     }
-    let out = bite_zenoh::robot::run(
-        opts,
-        first,
-        loader(a.mission.clone(), own, a.mission.robots),
-        stop,
-    )?;
-    eprintln!(
-        "robot {}: {} ({} frames accepted, {} rejected)",
-        a.name,
-        if out.completed {
-            "mission completed"
-        } else {
-            "stopped before completing"
-        },
-        out.auth.accepted,
-        out.auth.rejected_total()
-    );
-    Ok(if out.completed {
+    let outcomes: Vec<(String, Result<bite_zenoh::robot::Outcome, _>)> = if several {
+        let session = a.net.options().open()?;
+        let outs = std::thread::scope(|s| {
+            let handles: Vec<_> = robots
+                .into_iter()
+                .map(|(opts, prepared, load)| {
+                    let (session, stop) = (&session, stop.clone());
+                    let name = opts.name.clone();
+                    let h = std::thread::Builder::new()
+                        .name(format!("robot {name}"))
+                        .spawn_scoped(s, move || {
+                            bite_zenoh::robot::run_on(session, opts, prepared, load, stop)
+                        });
+                    (name, h)
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|(name, h)| {
+                    let out = match h {
+                        Ok(h) => h.join().unwrap_or_else(|_| {
+                            Err(bite_zenoh::robot::RobotError::Options(
+                                "the robot's thread panicked".into(),
+                            ))
+                        }),
+                        Err(e) => Err(bite_zenoh::robot::RobotError::Options(format!(
+                            "cannot start its thread: {e}"
+                        ))),
+                    };
+                    (name, out)
+                })
+                .collect()
+        });
+        {
+            use bite_zenoh::zenoh::Wait as _;
+            let _ = session.close().wait();
+        }
+        outs
+    } else {
+        robots
+            .into_iter()
+            .map(|(opts, prepared, load)| {
+                let name = opts.name.clone();
+                (
+                    name,
+                    bite_zenoh::robot::run(opts, prepared, load, stop.clone()),
+                )
+            })
+            .collect()
+    };
+    let mut all = true;
+    let mut failed = None;
+    for (name, out) in outcomes {
+        match out {
+            Ok(out) => {
+                all &= out.completed;
+                eprintln!(
+                    "robot {name}: {} ({} frames accepted, {} rejected)",
+                    if out.completed {
+                        "mission completed"
+                    } else {
+                        "stopped before completing"
+                    },
+                    out.auth.accepted,
+                    out.auth.rejected_total()
+                );
+            }
+            Err(e) => {
+                if several {
+                    eprintln!("robot {name}: {e}");
+                }
+                failed.get_or_insert(anyhow::anyhow!("robot {name}: {e}"));
+            }
+        }
+    }
+    if let Some(e) = failed {
+        return Err(e);
+    }
+    Ok(if all {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
@@ -691,7 +918,10 @@ pub fn free_port() -> Result<u16> {
 }
 
 struct Proc {
+    /// Its name: its robot's, or its robots' joined by `+`.
     name: String,
+    /// The robots it runs.
+    robots: Vec<String>,
     child: Child,
     exit: Option<std::process::ExitStatus>,
     killed_at: Option<f64>,
@@ -825,7 +1055,14 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
     };
     let limit = a.time_limit.unwrap_or(scenario.time_limit);
     let exe = std::env::current_exe().context("finding the bite executable")?;
-    let ports: Vec<u16> = (0..=n).map(|_| free_port()).collect::<Result<_>>()?;
+    // Robots per process: r0..r(N-1) in the first, and so on.
+    let groups: Vec<Vec<String>> = names
+        .chunks(a.tuning.per_process.max(1))
+        .map(<[String]>::to_vec)
+        .collect();
+    let ports: Vec<u16> = (0..=groups.len())
+        .map(|_| free_port())
+        .collect::<Result<_>>()?;
     let ep = |i: usize| format!("tcp/127.0.0.1:{}", ports[i]);
     // Logs of an earlier launch in the same directory are not this team's.
     for p in std::iter::once(a.out.join("server.jsonl"))
@@ -854,18 +1091,23 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
     let start_ms = unix_micros() / 1000 + 2500;
     let stop = stop_flag()?;
     let mut procs: Vec<Proc> = Vec::new();
-    let spawn = |name: &str, args: Vec<String>| -> Result<Proc> {
+    let spawn = |name: &str, robots: &[String], args: Vec<String>| -> Result<Proc> {
         let out = std::fs::File::create(a.out.join(format!("{name}.log")))?;
         let err = out.try_clone()?;
-        let child = std::process::Command::new(&exe)
-            .args(&args)
+        let mut cmd = std::process::Command::new(&exe);
+        cmd.args(&args)
             .stdin(Stdio::null())
             .stdout(Stdio::from(out))
-            .stderr(Stdio::from(err))
-            .spawn()
-            .with_context(|| format!("starting {name}"))?;
+            .stderr(Stdio::from(err));
+        if !robots.is_empty()
+            && let Some(rt) = a.tuning.zenoh_runtime.env()
+        {
+            cmd.env("ZENOH_RUNTIME", rt);
+        }
+        let child = cmd.spawn().with_context(|| format!("starting {name}"))?;
         Ok(Proc {
             name: name.to_string(),
+            robots: robots.to_vec(),
             child,
             exit: None,
             killed_at: None,
@@ -901,12 +1143,21 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             "--time-limit".into(),
             format!("{}s", limit.as_secs_f64() + 10.0 * a.speed),
         ]);
-        Some(spawn("server", args)?)
+        Some(spawn("server", &[], args)?)
     } else {
         None
     };
-    for (k, name) in names.iter().enumerate() {
-        let mut args = vec!["robot".to_string(), "--name".into(), name.clone()];
+    for (k, group) in groups.iter().enumerate() {
+        let mut args = vec!["robot".to_string()];
+        for name in group {
+            args.extend(["--name".into(), name.clone()]);
+        }
+        // One robot: its own name; several: `{name}`, which each makes its own.
+        let name = if group.len() == 1 {
+            group[0].clone()
+        } else {
+            "{name}".to_string()
+        };
         args.extend(a.mission.to_args());
         common(&mut args);
         args.extend(["--listen".into(), ep(k + 1)]);
@@ -932,11 +1183,13 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
                 a.out.join(format!("{name}.inputs")).display().to_string(),
             ]);
         }
-        procs.push(spawn(name, args)?);
+        args.extend(["--frames".into(), a.tuning.frames.name().into()]);
+        procs.push(spawn(&group.join("+"), group, args)?);
     }
     if !quiet {
         eprintln!(
-            "team {team}: {n} robot processes{} on 127.0.0.1, logs in {}",
+            "team {team}: {n} robots in {} processes{} on 127.0.0.1, logs in {}",
+            procs.len(),
             if physical {
                 " and the simulator server"
             } else {
@@ -946,7 +1199,7 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         );
     }
     // Where an outside monitor joins the team (`bite studio`).
-    let endpoints: Vec<String> = (0..=n)
+    let endpoints: Vec<String> = (0..=groups.len())
         .filter(|&i| i > 0 || physical)
         .map(|i| format!("--connect {}", ep(i)))
         .collect();
@@ -972,9 +1225,10 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             if p.exit.is_none() {
                 p.exit = p.child.try_wait()?;
             }
+            // Killing a robot kills its process, and so every robot in it.
             if p.exit.is_none()
                 && p.killed_at.is_none()
-                && kills.get(&p.name).is_some_and(|at| t >= *at)
+                && (p.robots.iter()).any(|r| kills.get(r).is_some_and(|at| t >= *at))
             {
                 let _ = p.child.kill();
                 p.killed_at = Some(t);
@@ -982,7 +1236,7 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             }
         }
         let done = procs.iter().filter(|p| p.exit.is_some()).count();
-        bar.set_message(format!("{done}/{n} robot processes ended"));
+        bar.set_message(format!("{done}/{} robot processes ended", procs.len()));
         if done == procs.len() {
             break;
         }
@@ -1043,14 +1297,15 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
     let stopped: Vec<&str> = procs
         .iter()
         .filter(|p| p.killed_at.is_some())
-        .map(|p| p.name.as_str())
+        .flat_map(|p| p.robots.iter().map(String::as_str))
         .collect();
     let (violations, records_checked) = bite_sim::check::check_logs(&mission, &logs, &stopped);
     let invariants = bite_sim::check::Invariants::of(&violations);
     let robots: Vec<serde_json::Value> = procs
         .iter()
-        .map(|p| {
-            let log = &logs.iter().find(|(n, _)| *n == p.name).map(|(_, l)| l.as_slice()).unwrap_or(&[]);
+        .flat_map(|p| p.robots.iter().map(move |name| (p, name)))
+        .map(|(p, name)| {
+            let log = &logs.iter().find(|(n, _)| n == name).map(|(_, l)| l.as_slice()).unwrap_or(&[]);
             let completed = log.iter().any(|r| r["event"] == "mission_completed");
             let lost: Vec<&serde_json::Value> = log
                 .iter()
@@ -1064,7 +1319,8 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
                 .and_then(|r| r["auth"]["rejected"].as_object())
                 .map_or(0, |m| m.iter().filter(|(k, _)| *k != "own").filter_map(|(_, v)| v.as_u64()).sum());
             json!({
-                "robot": p.name,
+                "robot": name,
+                "process": p.name,
                 "exit": p.exit.and_then(|e| e.code()),
                 "killed_at": p.killed_at,
                 "completed": completed,
@@ -1083,6 +1339,8 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         "graph": graph.name(),
         "scenario": scenario.name,
         "speed": a.speed,
+        "processes": procs.len(),
+        "tuning": a.tuning.label(),
         "robots": robots,
         "server": server_exit.map(|e| e.and_then(|e| e.code())),
         "completed": survivors_completed,

@@ -21,7 +21,7 @@ use std::process::{ExitCode, Stdio};
 use std::sync::Arc;
 use std::time::Duration;
 
-use crate::team::{LaunchArgs, MissionArgs, launch, read_jsonl};
+use crate::team::{LaunchArgs, MissionArgs, Tuning, launch, read_jsonl};
 
 /// The protocols measured.
 pub const PROTOCOLS: [&str; 3] = ["sync.leader", "sync.vote", "alloc.auction"];
@@ -233,7 +233,9 @@ pub fn cmd_bench_zenoh(
     pings: usize,
     out: &Path,
     as_json: bool,
+    tuning: &Tuning,
 ) -> Result<ExitCode> {
+    let variant = tuning.label();
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let exe = std::env::current_exe()?;
     eprintln!("raw Zenoh ping-pong between two processes ({pings} round trips)...");
@@ -247,7 +249,7 @@ pub fn cmd_bench_zenoh(
     let mut rows = Vec::new();
     for protocol in PROTOCOLS {
         for &n in robots {
-            bar.set_message(format!("{protocol} with {n} robot processes"));
+            bar.set_message(format!("{protocol} with {n} robots ({variant})"));
             let dir = out.join(format!("{protocol}-{n}"));
             std::fs::create_dir_all(&dir)?;
             let graph = graph_yaml(protocol, n, decisions);
@@ -268,6 +270,7 @@ pub fn cmd_bench_zenoh(
                 kill: Vec::new(),
                 time_limit: Some(Duration::from_secs(120)),
                 json: false,
+                tuning: tuning.clone(),
                 record: false,
                 viz: Default::default(),
                 ros2: None,
@@ -288,6 +291,9 @@ pub fn cmd_bench_zenoh(
             let per_hop = med / rounds.max(1.0);
             let one_way = rtt_med / 2.0;
             rows.push(json!({
+                "variant": variant, "per_process": tuning.per_process,
+                "frames": tuning.frames.name(), "runtime": tuning.zenoh_runtime.name(),
+                "processes": summary["processes"],
                 "protocol": protocol, "robots": n, "completed": ok,
                 "decisions": l.len(), "hops": rounds,
                 "latency_median_us": med, "latency_p90_us": p90,
@@ -299,7 +305,12 @@ pub fn cmd_bench_zenoh(
         }
     }
     bar.finish_and_clear();
-    let report = json!({"rtt_median_us": rtt_med, "rtt_p90_us": rtt_p90, "rows": rows});
+    let report = json!({
+        "variant": variant,
+        "rtt_median_us": rtt_med,
+        "rtt_p90_us": rtt_p90,
+        "rows": rows,
+    });
     std::fs::write(
         out.join("bench-zenoh.json"),
         serde_json::to_string_pretty(&report)?,
@@ -313,14 +324,16 @@ pub fn cmd_bench_zenoh(
         rtt.len()
     );
     println!(
-        "| protocol | robot processes | decisions | hops (one-way) | decision latency median | p90 | per hop | per hop / one-way trip (half the round trip) |"
+        "| variant | protocol | robots | processes | decisions | hops (one-way) | decision latency median | p90 | per hop | per hop / one-way trip (half the round trip) |"
     );
-    println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
+    println!("| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |");
     for r in &rows {
         println!(
-            "| `{}` | {} | {}{} | {} | {:.0} µs | {:.0} µs | {:.0} µs | {:.2}× |",
+            "| {} | `{}` | {} | {} | {}{} | {} | {:.0} µs | {:.0} µs | {:.0} µs | {:.2}× |",
+            r["variant"].as_str().unwrap_or("?"),
             r["protocol"].as_str().unwrap_or("?"),
             r["robots"],
+            r["processes"],
             r["decisions"],
             if r["completed"] == true {
                 ""

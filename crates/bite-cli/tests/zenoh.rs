@@ -286,6 +286,113 @@ fn killing_a_robot_the_survivors_detect_it_reallocate_and_complete() {
     check_agreement(&out, &["r0", "r1"]);
 }
 
+/// `bite launch --per-process 2`: three robots in two processes (r0 and r1
+/// sharing one Zenoh session, r2 alone) and the simulator server complete
+/// the formation, each robot with its own log, agreeing on every joint
+/// decision. The launcher is killed if it has not ended within three
+/// minutes (its own limits end the team well before).
+#[test]
+#[allow(clippy::disallowed_methods)] // a wall-clock timeout on a real team
+fn two_robots_per_process_complete_the_formation() {
+    let _one = serial();
+    let out = tmp("per-process");
+    let child = bite()
+        .current_dir(repo())
+        .args([
+            "launch",
+            "examples/formation.yaml",
+            "--speed",
+            "2",
+            "--json",
+            "--per-process",
+            "2",
+            "--time-limit",
+            "120s",
+        ])
+        .arg("--out")
+        .arg(&out)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut procs = Procs(vec![("launch".into(), child)]);
+    let exits = procs.wait_all(Duration::from_secs(180));
+    assert!(
+        exits[0].1.is_some(),
+        "bite launch did not end within 3 minutes"
+    );
+    let (_, child) = procs.0.pop().unwrap();
+    let o = child.wait_with_output().unwrap();
+    let text = String::from_utf8_lossy(&o.stdout);
+    let s: Value = serde_json::from_str(&text).unwrap_or_else(|e| {
+        panic!(
+            "no summary ({e}): {}\n{text}",
+            String::from_utf8_lossy(&o.stderr)
+        )
+    });
+    assert_eq!(s["completed"], true, "{s:#}");
+    assert_eq!(s["processes"], 2, "{s:#}");
+    let robots = s["robots"].as_array().unwrap();
+    assert_eq!(robots.len(), 3);
+    for r in robots {
+        let name = r["robot"].as_str().unwrap();
+        let process = if name == "r2" { "r2" } else { "r0+r1" };
+        assert_eq!(r["process"], process, "{r}");
+        assert_eq!(r["completed"], true, "{r}");
+        assert_eq!(r["exit"], 0, "{r}");
+        assert_eq!(r["lost"].as_array().unwrap().len(), 0, "{r}");
+        assert_eq!(r["frames_rejected"], 0, "{r}");
+        // Its own log, started and finished as its own.
+        let log = read_jsonl(&out.join(format!("{name}.jsonl")));
+        assert!(log.iter().all(|e| e["robot"] == name), "{name}");
+        assert!(
+            log.iter()
+                .any(|e| e["event"] == "run_finished" && e["completed"] == true),
+            "{name}"
+        );
+    }
+    assert_eq!(s["disagreements"].as_array().unwrap().len(), 0, "{s:#}");
+    assert_eq!(s["invariants"]["violations"], 0, "{s:#}");
+    assert!(check_agreement(&out, &["r0", "r1", "r2"]) >= 3);
+    // The shared process says how each of its robots ended.
+    let shared = std::fs::read_to_string(out.join("r0+r1.log")).unwrap();
+    for name in ["r0", "r1"] {
+        assert!(
+            shared.contains(&format!("robot {name}: mission completed")),
+            "{shared}"
+        );
+    }
+}
+
+/// Several robots in one process need one log file each: a `--log`
+/// without `{name}` is refused before anything starts, as is a name
+/// given twice or one not on the roster.
+#[test]
+fn several_robots_in_one_process_are_checked_before_they_start() {
+    let d = tmp("per-process-args");
+    let key = d.join("team.key");
+    std::fs::write(&key, "ab".repeat(32)).unwrap();
+    for (extra, says) in [
+        (&["--name", "r1", "--log", "one.jsonl"][..], "{name}"),
+        (&["--name", "r0"][..], "given twice"),
+        (&["--name", "r9"][..], "not on the roster"),
+    ] {
+        let o = bite()
+            .current_dir(repo())
+            .args(["robot", "examples/formation.yaml", "--name", "r0"])
+            .args(extra)
+            .arg("--key")
+            .arg(&key)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{extra:?}: {err}");
+        assert!(err.contains(says), "{extra:?}: {err}");
+    }
+}
+
 struct Team {
     procs: Procs,
     endpoints: Vec<String>,

@@ -92,6 +92,68 @@ pub struct RobotOptions {
     /// (docs/ros2.md). The camera's sightings, which ROS has no standard
     /// message for, still come on BITE's sensor key when a body sends them.
     pub ros2: Option<crate::ros2::Ros2Options>,
+    /// How its authenticated frames are published.
+    pub publish: Publish,
+}
+
+/// How a robot publishes its authenticated frames (kernel messages,
+/// informs, heartbeats) on its `net` key. See docs/performance.md for what
+/// each costs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Publish {
+    /// `Session::put` per frame.
+    Put,
+    /// A publisher declared once (Zenoh resolves its routes once); Zenoh
+    /// may hold a frame back to batch it with the next ones when the link
+    /// is busy (the default).
+    #[default]
+    Declared,
+    /// A publisher declared once, express: every frame leaves at once,
+    /// never held back for batching.
+    Express,
+}
+
+impl Publish {
+    /// Its name on the command line (`put`, `declared`, `express`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Publish::Put => "put",
+            Publish::Declared => "declared",
+            Publish::Express => "express",
+        }
+    }
+}
+
+/// The robot's JSON publications: run-log records, status, velocity
+/// commands.
+struct Outlets {
+    log: zenoh::pubsub::Publisher<'static>,
+    status: zenoh::pubsub::Publisher<'static>,
+    cmd: zenoh::pubsub::Publisher<'static>,
+}
+
+/// Where a robot's frames go.
+struct Frames {
+    key: String,
+    publisher: Option<zenoh::pubsub::Publisher<'static>>,
+    /// Frames published.
+    sent: u64,
+    /// Bursts: calls of `flush_agent` that published at least one frame,
+    /// and heartbeats (`sent / bursts` is what batching the frames of one
+    /// burst in one publication would save).
+    bursts: u64,
+}
+
+impl Frames {
+    fn send(&mut self, session: &zenoh::Session, frame: Vec<u8>) {
+        self.sent += 1;
+        // A frame that cannot be sent is lost, as on a lossy network: the
+        // protocols' timeouts and retries cover it.
+        let _ = match &self.publisher {
+            Some(p) => p.put(frame).wait(),
+            None => session.put(&self.key, frame).wait(),
+        };
+    }
 }
 
 /// How a robot's run ended.
@@ -190,7 +252,8 @@ struct Running {
 }
 
 /// Run a robot until it is stopped (`stop`), its time limit passes, or
-/// (with `exit_when_done`) it completes its mission.
+/// (with `exit_when_done`) it completes its mission, on a Zenoh session of
+/// its own (`opts.net`).
 pub fn run(
     opts: RobotOptions,
     first: Option<Prepared>,
@@ -198,8 +261,26 @@ pub fn run(
     stop: Arc<AtomicBool>,
 ) -> Result<Outcome, RobotError> {
     crate::check_team(&opts.team, &[&opts.name], opts.speed).map_err(RobotError::Options)?;
-    let keys = Keys::new(&opts.team);
     let session = opts.net.open()?;
+    let out = run_on(&session, opts, first, loader, stop);
+    let _ = session.close().wait();
+    out
+}
+
+/// [`run`] on a session the caller opened and closes, which several robots
+/// of one process may share (`bite robot --name r0 --name r1`): each robot
+/// keeps its own keys, subscriptions, status and log, and hears its
+/// housemates' frames through the session, as it hears the others' over the
+/// network. `opts.net` is not used.
+pub fn run_on(
+    session: &zenoh::Session,
+    opts: RobotOptions,
+    first: Option<Prepared>,
+    loader: Loader,
+    stop: Arc<AtomicBool>,
+) -> Result<Outcome, RobotError> {
+    crate::check_team(&opts.team, &[&opts.name], opts.speed).map_err(RobotError::Options)?;
+    let keys = Keys::new(&opts.team);
     let (tx, rx) = std::sync::mpsc::sync_channel::<Input>(QUEUE);
     let overflow = Arc::new(AtomicU64::new(0));
     let z = |e: zenoh::Error| RobotError::Zenoh(e.to_string());
@@ -215,17 +296,22 @@ pub fn run(
     let push = Arc::new(push);
     let _frames = {
         let push = push.clone();
+        let me = opts.name.clone();
         session
             .declare_subscriber(keys.all("net"))
             .callback(move |s| {
-                // Oversized frames are dropped before they are copied.
+                // Oversized frames are dropped before they are copied; the
+                // robot's own (Zenoh hands a session its own publications)
+                // before they wake its thread.
+                let from = Keys::robot_of(s.key_expr().as_str());
                 if s.payload().len()
                     > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC
+                    || from == me
                 {
                     return;
                 }
                 push(Input::Frame {
-                    from: Keys::robot_of(s.key_expr().as_str()).to_string(),
+                    from: from.to_string(),
                     bytes: s.payload().to_bytes().into_owned(),
                     at_us: unix_micros(),
                 })
@@ -273,14 +359,14 @@ pub fn run(
         use crate::ros2;
         let ns = format!("/{}", opts.name);
         let mut node =
-            ros2::RosNode::declare(&session, r.domain, &ns, &format!("{}_bite", opts.name))
+            ros2::RosNode::declare(session, r.domain, &ns, &format!("{}_bite", opts.name))
                 .map_err(z)?;
         for (odom, name, ty) in [
             (true, "odom", &ros2::ODOMETRY),
             (false, "scan", &ros2::LASER_SCAN),
         ] {
             let key = node
-                .subscription(&session, &ros2::topic(&ns, name), ty)
+                .subscription(session, &ros2::topic(&ns, name), ty)
                 .map_err(z)?;
             let push = push.clone();
             _ros_subs.push(
@@ -303,10 +389,10 @@ pub fn run(
             );
         }
         let cmd = node
-            .publisher(&session, &ros2::topic(&ns, "cmd_vel"), &ros2::TWIST)
+            .publisher(session, &ros2::topic(&ns, "cmd_vel"), &ros2::TWIST)
             .map_err(z)?;
         let status = node
-            .publisher(&session, &ros2::topic(&ns, "bite/status"), &ros2::STRING)
+            .publisher(session, &ros2::topic(&ns, "bite/status"), &ros2::STRING)
             .map_err(z)?;
         ros = Some(RosBody {
             _node: node,
@@ -319,12 +405,38 @@ pub fn run(
         });
     }
     drop(tx);
+    let net_key = keys.net(&opts.name);
+    let publisher = match opts.publish {
+        Publish::Put => None,
+        Publish::Declared | Publish::Express => Some(
+            session
+                .declare_publisher(net_key.clone())
+                .express(opts.publish == Publish::Express)
+                .wait()
+                .map_err(z)?,
+        ),
+    };
+    let frames = Frames {
+        key: net_key,
+        publisher,
+        sent: 0,
+        bursts: 0,
+    };
+    // Declared once: Zenoh resolves their routes once, not at every put.
+    let declare = |key: String| session.declare_publisher(key).wait().map_err(z);
+    let outlets = Outlets {
+        log: declare(keys.log(&opts.name))?,
+        status: declare(keys.status(&opts.name))?,
+        cmd: declare(keys.cmd(&opts.name))?,
+    };
     let mut log = (opts.log.as_deref().map(crate::create_log))
         .transpose()
         .map_err(|e| RobotError::Log(opts.log.clone().unwrap_or_default(), e))?;
     let mut node = Node {
         keys,
-        session: &session,
+        frames,
+        outlets,
+        session,
         opts: &opts,
         run: None,
         seen_missions: BTreeSet::new(),
@@ -354,7 +466,6 @@ pub fn run(
     {
         return Err(RobotError::Log(opts.log.clone().unwrap_or_default(), e));
     }
-    let _ = session.close().wait();
     Ok(Outcome {
         completed,
         auth,
@@ -364,6 +475,8 @@ pub fn run(
 
 struct Node<'a> {
     keys: Keys,
+    frames: Frames,
+    outlets: Outlets,
     session: &'a zenoh::Session,
     opts: &'a RobotOptions,
     run: Option<Running>,
@@ -588,8 +701,8 @@ impl Node<'_> {
             let frame = r
                 .sealer
                 .seal(FrameKind::Heartbeat, &wire::encode_heartbeat(&hb), now_us);
-            let key = self.keys.net(&self.opts.name);
-            let _ = self.session.put(key, frame).wait();
+            self.frames.send(self.session, frame);
+            self.frames.bursts += 1;
         }
         wake = wake.min(r.next_heartbeat);
         if let Some(until) = r.gather_until {
@@ -682,6 +795,7 @@ impl Node<'_> {
                 "auth": r.opener.stats(),
                 "payload_rejects": r.payload_rejects,
                 "messages": r.agent.kernel().stats().sent,
+                "frames": {"sent": self.frames.sent, "bursts": self.frames.bursts},
             });
             self.log_record(rec);
             self.publish_status();
@@ -989,9 +1103,9 @@ impl Node<'_> {
     /// Send and log what the agent produced.
     fn flush_agent(&mut self) {
         let Some(r) = self.run.as_mut() else { return };
-        let net = self.keys.net(&self.opts.name);
         let now = r.clock.now();
         let mut records = Vec::new();
+        let sent = self.frames.sent;
         while let Some(o) = r.agent.poll() {
             match o {
                 AgentOutput::Send { to, envelope, .. } => {
@@ -1000,7 +1114,7 @@ impl Node<'_> {
                         &wire::encode_kernel(&to, &envelope),
                         unix_micros(),
                     );
-                    let _ = self.session.put(&net, frame).wait();
+                    self.frames.send(self.session, frame);
                 }
                 AgentOutput::Inform(o) => {
                     records.push(json!({
@@ -1017,7 +1131,7 @@ impl Node<'_> {
                         &wire::encode_inform(&o.to, &o.msg),
                         unix_micros(),
                     );
-                    let _ = self.session.put(&net, frame).wait();
+                    self.frames.send(self.session, frame);
                 }
                 AgentOutput::Event(e) => {
                     records.push(Namer::new(&r.graph).record(now, r.me, &e));
@@ -1066,12 +1180,12 @@ impl Node<'_> {
                     // BITE's own command too: a simulated body colours its
                     // trail with the label (a ROS body ignores it).
                     let body = serde_json::to_vec(&cmd).unwrap_or_default();
-                    let _ = self
-                        .session
-                        .put(self.keys.cmd(&self.opts.name), body)
-                        .wait();
+                    let _ = self.outlets.cmd.put(body).wait();
                 }
             }
+        }
+        if self.frames.sent > sent {
+            self.frames.bursts += 1;
         }
         for rec in records {
             self.log_record(rec);
@@ -1100,10 +1214,8 @@ impl Node<'_> {
         {
             self.log_error = Some(e);
         }
-        let _ = self
-            .session
-            .put(self.keys.log(&self.opts.name), line.trim_end().to_string())
-            .wait();
+        line.pop();
+        let _ = self.outlets.log.put(line).wait();
     }
 
     fn status(&self) -> Status {
@@ -1165,10 +1277,7 @@ impl Node<'_> {
             ros.status
                 .put(self.session, &crate::ros2::RosString { data });
         }
-        let _ = self
-            .session
-            .put(self.keys.status(&self.opts.name), body)
-            .wait();
+        let _ = self.outlets.status.put(body).wait();
     }
 
     fn membership(&self) -> Membership {
