@@ -31,6 +31,15 @@ use std::sync::Arc;
 /// From how many robots their control ticks run on several threads (below,
 /// the threads would cost more than they save; the run is the same).
 const PARALLEL_FROM: usize = 64;
+
+/// Should a team of `n` tick on several threads? Only from
+/// [`PARALLEL_FROM`] robots, and never from inside a rayon pool's worker
+/// (`bite sweep`, `bite experiment` already run whole runs side by side:
+/// a worker waiting for its robots could steal another run's job and
+/// block it under locks that run holds). The run is the same either way.
+pub(crate) fn parallel(n: usize) -> bool {
+    n >= PARALLEL_FROM && rayon::current_thread_index().is_none()
+}
 use std::time::Duration;
 
 pub use bite_agent::agent::derive_seed;
@@ -351,7 +360,7 @@ impl Sim<'_, '_> {
                 a.handle(clocks[i], Input::Tick { world, sensed });
             }
         };
-        if n >= PARALLEL_FROM {
+        if parallel(n) {
             (self.agents.par_iter_mut().enumerate())
                 .with_min_len(16)
                 .for_each(tick);

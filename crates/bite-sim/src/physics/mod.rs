@@ -84,10 +84,6 @@ struct Robot {
     twist: Option<(f64, f64, f64)>,
 }
 
-/// From how many robots sensing runs on several threads (below, the
-/// threads would cost more than they save; the readings are the same).
-const PARALLEL_FROM: usize = 64;
-
 /// The physical world of a run.
 pub struct World {
     spec: Arc<PhysicsSpec>,
@@ -835,7 +831,7 @@ impl World {
         let sense = |near: &mut Vec<(Kind, rp::ColliderHandle)>, (i, rng): (usize, &mut Rng)| {
             (!skip.get(i).copied().unwrap_or(false)).then(|| this.sense(i, rng, near))
         };
-        let out: Vec<Option<(Sensed, Vec<usize>)>> = if rngs.len() >= PARALLEL_FROM {
+        let out: Vec<Option<(Sensed, Vec<usize>)>> = if crate::runner::parallel(rngs.len()) {
             (rngs.par_iter_mut().enumerate())
                 .with_min_len(16)
                 .map_init(Vec::new, sense)
