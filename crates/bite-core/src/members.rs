@@ -3,6 +3,7 @@
 
 use crate::ids::{BehaviorId, Fnv1a, RobotId};
 use fixedbitset::FixedBitSet;
+use serde::de::{self, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
 use std::sync::Weak;
@@ -434,22 +435,152 @@ impl Serialize for MemberSet {
     }
 }
 
+/// Reads the wire form written above (`length`, then the blocks as
+/// little-endian bytes) from a binary format and from JSON alike (JSON
+/// writes the bytes as a list of numbers), and refuses, instead of
+/// allocating, a roster larger than any graph may have
+/// ([`crate::graph::MAX_ROBOTS`]) or bytes past the roster's end: a forged
+/// message is an error, never a huge allocation.
 impl<'de> Deserialize<'de> for MemberSet {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        #[derive(Deserialize)]
-        #[serde(rename = "MemberSet")]
-        struct Wire(FixedBitSet);
-        let Wire(b) = Wire::deserialize(d)?;
-        let roster = b.len();
-        let n = b.count_ones(..);
-        Ok(if Self::dense(n, roster) {
-            MemberSet {
-                roster: roster as u32,
-                repr: Repr::Bits(b),
+        struct Outer;
+        impl<'de> Visitor<'de> for Outer {
+            type Value = MemberSet;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a member set")
             }
-        } else {
-            Self::from_sorted(roster, b.ones().map(|i| i as u32).collect())
-        })
+            fn visit_newtype_struct<D: serde::Deserializer<'de>>(
+                self,
+                d: D,
+            ) -> Result<MemberSet, D::Error> {
+                d.deserialize_struct("FixedBitset", &["length", "data"], Fields)
+            }
+            // Self-describing formats (JSON) may present the newtype's
+            // content directly.
+            fn visit_map<A: MapAccess<'de>>(self, m: A) -> Result<MemberSet, A::Error> {
+                Fields.visit_map(m)
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, s: A) -> Result<MemberSet, A::Error> {
+                Fields.visit_seq(s)
+            }
+        }
+        d.deserialize_newtype_struct("MemberSet", Outer)
+    }
+}
+
+/// `length` and `data` of the wire form, in order or by name.
+struct Fields;
+
+impl Fields {
+    fn build<E: de::Error>(length: u64, data: Vec<u8>) -> Result<MemberSet, E> {
+        let roster = usize::try_from(length)
+            .ok()
+            .filter(|n| *n <= crate::graph::MAX_ROBOTS)
+            .ok_or_else(|| {
+                E::custom(format!(
+                    "a member set of {length} robots (the limit is {})",
+                    crate::graph::MAX_ROBOTS
+                ))
+            })?;
+        // No bit past the roster's end.
+        let used = roster.div_ceil(8);
+        let tail = u8::MAX.checked_shl((roster % 8) as u32).filter(|_| roster % 8 != 0);
+        if data.iter().skip(used).any(|b| *b != 0)
+            || tail.is_some_and(|mask| data.get(used - 1).is_some_and(|b| b & mask != 0))
+        {
+            return Err(E::custom(format!(
+                "a member set names a robot beyond its roster of {roster}"
+            )));
+        }
+        let data = &data[..data.len().min(used)];
+        let n: usize = data.iter().map(|b| b.count_ones() as usize).sum();
+        if MemberSet::dense(n, roster) {
+            let blocks: Vec<usize> = data
+                .chunks(std::mem::size_of::<usize>())
+                .map(|c| {
+                    let mut w = [0u8; std::mem::size_of::<usize>()];
+                    w[..c.len()].copy_from_slice(c);
+                    usize::from_le_bytes(w)
+                })
+                .collect();
+            return Ok(MemberSet {
+                roster: roster as u32,
+                repr: Repr::Bits(FixedBitSet::with_capacity_and_blocks(roster, blocks)),
+            });
+        }
+        let mut ids = Vec::with_capacity(n);
+        for (i, byte) in data.iter().enumerate().filter(|(_, b)| **b != 0) {
+            for bit in 0..8 {
+                if byte & (1 << bit) != 0 {
+                    ids.push((i * 8 + bit) as u32);
+                }
+            }
+        }
+        Ok(MemberSet::from_sorted(roster, ids))
+    }
+}
+
+impl<'de> Visitor<'de> for Fields {
+    type Value = MemberSet;
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a member set: `length` and `data`")
+    }
+    fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<MemberSet, A::Error> {
+        let length: u64 = s
+            .next_element()?
+            .ok_or_else(|| de::Error::invalid_length(0, &self))?;
+        let Bytes(data) = s
+            .next_element()?
+            .ok_or_else(|| de::Error::invalid_length(1, &self))?;
+        Self::build(length, data)
+    }
+    fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<MemberSet, A::Error> {
+        let (mut length, mut data) = (None, None);
+        while let Some(key) = m.next_key::<std::borrow::Cow<'de, str>>()? {
+            match &*key {
+                "length" if length.is_none() => length = Some(m.next_value::<u64>()?),
+                "data" if data.is_none() => data = Some(m.next_value::<Bytes>()?.0),
+                "length" | "data" => return Err(de::Error::duplicate_field("length or data")),
+                other => return Err(de::Error::unknown_field(other, &["length", "data"])),
+            }
+        }
+        let length = length.ok_or_else(|| de::Error::missing_field("length"))?;
+        let data = data.ok_or_else(|| de::Error::missing_field("data"))?;
+        Self::build(length, data)
+    }
+}
+
+/// Bytes, written as bytes (binary formats) or as a list of numbers (JSON).
+struct Bytes(Vec<u8>);
+
+impl<'de> Deserialize<'de> for Bytes {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Bytes;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("bytes")
+            }
+            fn visit_bytes<E: de::Error>(self, b: &[u8]) -> Result<Bytes, E> {
+                Ok(Bytes(b.to_vec()))
+            }
+            fn visit_byte_buf<E: de::Error>(self, b: Vec<u8>) -> Result<Bytes, E> {
+                Ok(Bytes(b))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<Bytes, A::Error> {
+                // Bounded by the largest roster, whatever the sender claims.
+                let cap = crate::graph::MAX_ROBOTS / 8 + 8;
+                let mut v = Vec::with_capacity(s.size_hint().unwrap_or(0).min(cap));
+                while let Some(b) = s.next_element::<u8>()? {
+                    if v.len() >= cap {
+                        return Err(de::Error::invalid_length(v.len() + 1, &self));
+                    }
+                    v.push(b);
+                }
+                Ok(Bytes(v))
+            }
+        }
+        d.deserialize_bytes(V)
     }
 }
 
@@ -613,5 +744,57 @@ impl ByIdMemo {
             assignment: Arc::downgrade(&a),
         });
         a
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn set(roster: usize, ids: &[u32]) -> MemberSet {
+        MemberSet::from_iter(roster, ids.iter().map(|i| RobotId(*i)))
+    }
+
+    #[test]
+    fn every_form_round_trips_through_the_wire_and_json() {
+        let cases = [
+            set(3, &[2]),
+            set(3, &[]),
+            set(70, &[0, 63, 64, 69]),
+            set(1000, &(0..40).map(|i| i * 7).collect::<Vec<_>>()),
+            set(130, &(0..130).collect::<Vec<_>>()),
+            set(64, &(0..64).step_by(2).collect::<Vec<_>>()),
+        ];
+        for m in cases {
+            let wire = postcard::to_allocvec(&m).expect("encodes");
+            let back: MemberSet = postcard::from_bytes(&wire).expect("decodes");
+            assert_eq!(back, m);
+            assert_eq!(back.roster, m.roster);
+            let json = serde_json::to_string(&m).expect("encodes");
+            let back: MemberSet = serde_json::from_str(&json).expect("decodes from JSON");
+            assert_eq!(back, m, "{json}");
+        }
+    }
+
+    #[test]
+    fn forged_sets_are_refused_without_allocating() {
+        let e = serde_json::from_str::<MemberSet>(r#"{"length":1099511627776,"data":[1]}"#)
+            .expect_err("roster too large");
+        assert!(e.to_string().contains("limit"), "{e}");
+        let e = serde_json::from_str::<MemberSet>(r#"{"length":3,"data":[8]}"#)
+            .expect_err("robot 3 of 3");
+        assert!(e.to_string().contains("beyond"), "{e}");
+        let e = serde_json::from_str::<MemberSet>(r#"{"length":8,"data":[0,1]}"#)
+            .expect_err("a byte past the end");
+        assert!(e.to_string().contains("beyond"), "{e}");
+        // Trailing zero bytes (a whole block) are harmless.
+        let m: MemberSet =
+            serde_json::from_str(r#"{"length":3,"data":[4,0,0,0,0,0,0,0]}"#).expect("decodes");
+        assert_eq!(m, set(3, &[2]));
+        // A forged binary length is refused the same way.
+        let mut wire = postcard::to_allocvec(&set(3, &[1])).expect("encodes");
+        wire[0] = 0xff;
+        wire.splice(1..1, [0xff, 0xff, 0xff, 0x0f]);
+        assert!(postcard::from_bytes::<MemberSet>(&wire).is_err());
     }
 }
