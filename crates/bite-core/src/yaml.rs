@@ -427,3 +427,347 @@ mod tests {
         assert_eq!(e.0[0].code, "io");
     }
 }
+
+/// A fast reader for the plain subset of YAML that generated graphs (and
+/// most hand-written ones) use, for large files: block mappings of plain
+/// keys, single-line flow sequences and mappings, plain and double-quoted
+/// single-line scalars, comments.
+///
+/// It answers `None` for anything outside that subset (block sequences,
+/// anchors, tags, single quotes, block or multi-line scalars, empty
+/// values, tabs, `\r`, directives, duplicate keys, odd plain scalars...)
+/// and for anything wrong: the caller then parses the text with the full
+/// YAML library, which gives the same value, or the error message with
+/// its location, as it always did. What it accepts it reads as that
+/// library does, with the same line and column for every node.
+pub(crate) mod fast {
+    use serde_saphyr::Location;
+    use std::borrow::Cow;
+
+    /// A scalar and where it starts (1-based line and column, characters).
+    #[derive(Debug)]
+    pub struct Scalar<'a> {
+        pub text: Cow<'a, str>,
+        pub quoted: bool,
+        pub line: u32,
+        pub col: u32,
+    }
+
+    /// A node of the subset.
+    #[derive(Debug)]
+    pub enum Node<'a> {
+        Scalar(Scalar<'a>),
+        /// A flow sequence, its items, and where its `[` is.
+        Seq(Vec<Node<'a>>, u32, u32),
+        /// A mapping (block or flow), its entries in order, and where it
+        /// starts: its first key (block) or its `{` (flow).
+        Map(Vec<(Scalar<'a>, Node<'a>)>, u32, u32),
+    }
+
+    impl<'a> Node<'a> {
+        pub fn loc(&self) -> (u32, u32) {
+            match self {
+                Node::Scalar(s) => (s.line, s.col),
+                Node::Seq(_, l, c) | Node::Map(_, l, c) => (*l, *c),
+            }
+        }
+    }
+
+    /// A location as the YAML library makes it (line and column only).
+    pub fn location(line: u32, col: u32) -> Location {
+        use serde::Deserialize as _;
+        use serde::de::value::{Error, MapDeserializer};
+        let d = MapDeserializer::<_, Error>::new([("line", line), ("column", col)].into_iter());
+        Location::deserialize(d).unwrap_or(Location::UNKNOWN)
+    }
+
+    struct Line<'a> {
+        no: u32,
+        indent: usize,
+        /// The line from its first non-space character.
+        body: &'a str,
+        ascii: bool,
+        full: &'a str,
+    }
+
+    impl Line<'_> {
+        /// 1-based column (characters) of byte `at` of the body.
+        fn col(&self, at: usize) -> u32 {
+            let byte = self.indent + at;
+            let n = if self.ascii {
+                byte
+            } else {
+                self.full.get(..byte).map_or(byte, |p| p.chars().count())
+            };
+            u32::try_from(n + 1).unwrap_or(u32::MAX)
+        }
+    }
+
+    /// The root block mapping of `text`, or `None` (see the module).
+    pub fn parse(text: &str) -> Option<Node<'_>> {
+        if text.contains(['\r', '\t', '\u{feff}']) {
+            return None;
+        }
+        let mut lines = Vec::new();
+        for (i, full) in text.split('\n').enumerate() {
+            let body = full.trim_start_matches(' ');
+            if body.is_empty() || body.starts_with('#') {
+                continue;
+            }
+            let indent = full.len() - body.len();
+            if indent == 0
+                && (body.starts_with("---") || body.starts_with("...") || body.starts_with('%'))
+            {
+                return None;
+            }
+            lines.push(Line {
+                no: u32::try_from(i + 1).ok()?,
+                indent,
+                body,
+                ascii: full.is_ascii(),
+                full,
+            });
+        }
+        if lines.first()?.indent != 0 {
+            return None;
+        }
+        let mut pos = 0;
+        let root = block_map(&lines, &mut pos, 0)?;
+        (pos == lines.len()).then_some(root)
+    }
+
+    fn block_map<'a>(lines: &[Line<'a>], pos: &mut usize, indent: usize) -> Option<Node<'a>> {
+        let first = lines.get(*pos)?;
+        let (line0, col0) = (first.no, first.col(0));
+        let mut entries: Vec<(Scalar<'a>, Node<'a>)> = Vec::new();
+        while let Some(l) = lines.get(*pos) {
+            if l.indent < indent {
+                break;
+            }
+            if l.indent > indent {
+                return None;
+            }
+            let body = l.body;
+            let klen = body
+                .bytes()
+                .position(|b| !(b.is_ascii_alphanumeric() || matches!(b, b'_' | b'-' | b'.')))?;
+            if klen == 0
+                || !(body.as_bytes()[0].is_ascii_alphabetic() || body.as_bytes()[0] == b'_')
+            {
+                return None;
+            }
+            let rest = body[klen..].strip_prefix(':')?;
+            let key = Scalar {
+                text: Cow::Borrowed(&body[..klen]),
+                quoted: false,
+                line: l.no,
+                col: l.col(0),
+            };
+            *pos += 1;
+            let after = rest.trim_start_matches(' ');
+            let value = if after.is_empty() || (after.starts_with('#') && rest.starts_with(' ')) {
+                // A nested block mapping on the lines below.
+                let next = lines.get(*pos)?;
+                if next.indent <= indent {
+                    return None;
+                }
+                block_map(lines, pos, next.indent)?
+            } else {
+                if !rest.starts_with(' ') {
+                    return None;
+                }
+                let at = body.len() - after.len();
+                let mut cur = Cursor { line: l, at };
+                let v = cur.value(false)?;
+                cur.end_of_line()?;
+                if lines.get(*pos).is_some_and(|n| n.indent > indent) {
+                    return None;
+                }
+                v
+            };
+            entries.push((key, value));
+        }
+        unique(&entries)?;
+        Some(Node::Map(entries, line0, col0))
+    }
+
+    /// `None` when a key is given twice (the library says where).
+    fn unique(entries: &[(Scalar<'_>, Node<'_>)]) -> Option<()> {
+        if entries.len() <= 16 {
+            for (i, (k, _)) in entries.iter().enumerate() {
+                if entries[..i].iter().any(|(o, _)| o.text == k.text) {
+                    return None;
+                }
+            }
+            return Some(());
+        }
+        let mut keys: Vec<&str> = entries.iter().map(|(k, _)| k.text.as_ref()).collect();
+        keys.sort_unstable();
+        keys.windows(2).all(|w| w[0] != w[1]).then_some(())
+    }
+
+    struct Cursor<'l, 'a> {
+        line: &'l Line<'a>,
+        at: usize,
+    }
+
+    impl<'a> Cursor<'_, 'a> {
+        fn rest(&self) -> &'a str {
+            &self.line.body[self.at..]
+        }
+        fn skip_spaces(&mut self) {
+            let r = self.rest();
+            self.at += r.len() - r.trim_start_matches(' ').len();
+        }
+        /// Only spaces and a comment may follow.
+        fn end_of_line(&mut self) -> Option<()> {
+            let before = self.at;
+            self.skip_spaces();
+            let r = self.rest();
+            (r.is_empty() || (r.starts_with('#') && self.at > before)).then_some(())
+        }
+        fn value(&mut self, flow: bool) -> Option<Node<'a>> {
+            let (line, col) = (self.line.no, self.line.col(self.at));
+            let r = self.rest();
+            match r.as_bytes().first()? {
+                b'[' => {
+                    self.at += 1;
+                    let mut items = Vec::new();
+                    self.skip_spaces();
+                    if self.rest().starts_with(']') {
+                        self.at += 1;
+                        return Some(Node::Seq(items, line, col));
+                    }
+                    loop {
+                        self.skip_spaces();
+                        items.push(self.value(true)?);
+                        self.skip_spaces();
+                        match self.rest().as_bytes().first()? {
+                            b',' => self.at += 1,
+                            b']' => {
+                                self.at += 1;
+                                return Some(Node::Seq(items, line, col));
+                            }
+                            _ => return None,
+                        }
+                    }
+                }
+                b'{' => {
+                    self.at += 1;
+                    let mut entries = Vec::new();
+                    self.skip_spaces();
+                    if self.rest().starts_with('}') {
+                        self.at += 1;
+                        return Some(Node::Map(entries, line, col));
+                    }
+                    loop {
+                        self.skip_spaces();
+                        let Node::Scalar(key) = self.value(true)? else {
+                            return None;
+                        };
+                        if key.quoted || !self.rest().starts_with(": ") {
+                            return None;
+                        }
+                        self.at += 2;
+                        self.skip_spaces();
+                        let v = self.value(true)?;
+                        entries.push((key, v));
+                        self.skip_spaces();
+                        match self.rest().as_bytes().first()? {
+                            b',' => self.at += 1,
+                            b'}' => {
+                                self.at += 1;
+                                unique(&entries)?;
+                                return Some(Node::Map(entries, line, col));
+                            }
+                            _ => return None,
+                        }
+                    }
+                }
+                b'"' => {
+                    let (text, len) = double_quoted(r)?;
+                    self.at += len;
+                    Some(Node::Scalar(Scalar {
+                        text,
+                        quoted: true,
+                        line,
+                        col,
+                    }))
+                }
+                c if c.is_ascii_alphanumeric() || *c == b'_' => {
+                    let b = r.as_bytes();
+                    let mut end = 0;
+                    while end < b.len() {
+                        match b[end] {
+                            b':' if b.get(end + 1).is_none_or(|n| {
+                                *n == b' ' || (flow && matches!(n, b',' | b']' | b'}'))
+                            }) =>
+                            {
+                                break;
+                            }
+                            b'#' if b[end - 1] == b' ' => break,
+                            b',' | b']' | b'}' if flow => break,
+                            b'[' | b'{' if flow => return None,
+                            b'"' | b'\'' | b'`' | b'@' | b'|' | b'>' | b'!' | b'&' | b'*'
+                            | b'%' | b'\\' => return None,
+                            c if c < b' ' || c == 0x7f => return None,
+                            _ => {}
+                        }
+                        end += 1;
+                    }
+                    let text = r[..end].trim_end_matches(' ');
+                    self.at += text.len();
+                    Some(Node::Scalar(Scalar {
+                        text: Cow::Borrowed(text),
+                        quoted: false,
+                        line,
+                        col,
+                    }))
+                }
+                _ => None,
+            }
+        }
+    }
+
+    /// A double-quoted scalar at the start of `s`: its text and length.
+    fn double_quoted(s: &str) -> Option<(Cow<'_, str>, usize)> {
+        let body = &s[1..];
+        let end = body.find(['"', '\\'])?;
+        if body.as_bytes()[end] == b'"' {
+            let t = &body[..end];
+            if t.chars().any(|c| c.is_control()) {
+                return None;
+            }
+            return Some((Cow::Borrowed(t), end + 2));
+        }
+        let mut out = String::with_capacity(body.len());
+        let mut chars = body.char_indices();
+        while let Some((i, c)) = chars.next() {
+            match c {
+                '"' => return Some((Cow::Owned(out), i + 2)),
+                '\\' => {
+                    let (_, e) = chars.next()?;
+                    match e {
+                        '"' => out.push('"'),
+                        '\\' => out.push('\\'),
+                        '/' => out.push('/'),
+                        'n' => out.push('\n'),
+                        't' => out.push('\t'),
+                        'u' => {
+                            let mut v = 0u32;
+                            for _ in 0..4 {
+                                let (_, h) = chars.next()?;
+                                v = v * 16 + h.to_digit(16)?;
+                            }
+                            out.push(char::from_u32(v)?);
+                        }
+                        _ => return None,
+                    }
+                }
+                c if c.is_control() => return None,
+                c => out.push(c),
+            }
+        }
+        None
+    }
+}

@@ -27,7 +27,7 @@ pub mod svg;
 
 pub use align::Refused;
 pub use config::Config;
-pub use load::{load, load_str};
+pub use load::{load, load_spec, load_str};
 
 use crate::belief::Symbols;
 use crate::cond::Expr;

@@ -141,12 +141,14 @@ pub struct BehaviorSpec {
     pub skill: Option<Spanned<SkillSpec>>,
     /// How many members it takes when allocated (`1`, `2..4`, `2..`).
     pub members: Option<Spanned<MembersSpec>>,
-    /// Binding of its synchronization point.
-    pub sync: Option<Spanned<BindingSpec>>,
+    /// Binding of its synchronization point (boxed, as the other two: a
+    /// binding with its locations is ~400 bytes, and most behaviors have
+    /// none; a graph of 100,000 behaviors holds all their specs at once).
+    pub sync: Option<Box<Spanned<BindingSpec>>>,
     /// Binding of its allocation point.
-    pub allocate: Option<Spanned<BindingSpec>>,
+    pub allocate: Option<Box<Spanned<BindingSpec>>>,
     /// Binding of its termination point.
-    pub terminate: Option<Spanned<BindingSpec>>,
+    pub terminate: Option<Box<Spanned<BindingSpec>>>,
 }
 
 /// `skill: name` or `skill: {name, params}`.
@@ -331,4 +333,199 @@ pub struct ConfigSpec {
     pub bindings: Ordered<BindingSpec>,
     /// Overrides of the graph's world-model settings.
     pub world_model: Option<Spanned<WorldModelSpec>>,
+}
+
+/// Graph specs from the fast YAML subset ([`crate::yaml::fast`]): the
+/// common keys and plain values only; `None` for anything else, and the
+/// caller parses the text with the YAML library instead.
+pub(crate) mod fast {
+    use super::{
+        BehaviorSpec, BindingSpec, DefaultsSpec, GraphSpec, MembersSpec, Ordered, RobotsSpec,
+        SkillSpec, TeamSpec,
+    };
+    use crate::yaml::fast::{Node, Scalar, location};
+    use serde_saphyr::Spanned;
+    use std::collections::BTreeMap;
+
+    fn at<T>(value: T, (line, col): (u32, u32)) -> Spanned<T> {
+        let l = location(line, col);
+        Spanned::new(value, l, l)
+    }
+
+    fn scalar<'n, 'a>(n: &'n Node<'a>) -> Option<&'n Scalar<'a>> {
+        match n {
+            Node::Scalar(s) => Some(s),
+            _ => None,
+        }
+    }
+
+    /// Text, where the YAML library would read text: quoted, or plain and
+    /// neither a number nor a word it might read as something else.
+    fn text(n: &Node<'_>) -> Option<String> {
+        let s = scalar(n)?;
+        if s.quoted {
+            return Some(s.text.to_string());
+        }
+        let t: &str = &s.text;
+        let first = t.bytes().next()?;
+        if !(first.is_ascii_alphabetic() || first == b'_') {
+            return None;
+        }
+        if t.len() <= 5
+            && matches!(
+                t.to_ascii_lowercase().as_str(),
+                "true" | "false" | "null" | "yes" | "no" | "on" | "off" | "y" | "n"
+            )
+        {
+            return None;
+        }
+        Some(t.to_string())
+    }
+
+    fn spanned_text(n: &Node<'_>) -> Option<Spanned<String>> {
+        Some(at(text(n)?, n.loc()))
+    }
+
+    /// A plain decimal count (no sign, no leading zero).
+    fn count(n: &Node<'_>) -> Option<u64> {
+        let s = scalar(n)?;
+        let t: &str = &s.text;
+        if s.quoted || t.is_empty() || !t.bytes().all(|b| b.is_ascii_digit()) {
+            return None;
+        }
+        if t.len() > 1 && t.starts_with('0') {
+            return None;
+        }
+        t.parse().ok()
+    }
+
+    fn names(n: &Node<'_>) -> Option<Vec<Spanned<String>>> {
+        match n {
+            Node::Seq(items, ..) => items.iter().map(spanned_text).collect(),
+            _ => None,
+        }
+    }
+
+    fn binding(n: &Node<'_>) -> Option<Spanned<BindingSpec>> {
+        let protocol = text(n)?;
+        Some(at(
+            BindingSpec {
+                protocol: Some(protocol),
+                ..BindingSpec::default()
+            },
+            n.loc(),
+        ))
+    }
+
+    fn entries<'n, 'a>(n: &'n Node<'a>) -> Option<&'n [(Scalar<'a>, Node<'a>)]> {
+        match n {
+            Node::Map(e, ..) => Some(e),
+            _ => None,
+        }
+    }
+
+    fn behavior(n: &Node<'_>) -> Option<BehaviorSpec> {
+        let mut b = BehaviorSpec::default();
+        for (k, v) in entries(n)? {
+            match k.text.as_ref() {
+                "description" => b.description = Some(text(v)?),
+                "team" => {
+                    let s = scalar(v)?;
+                    b.team = match (s.quoted, s.text.as_ref()) {
+                        (false, "true") => true,
+                        (false, "false") => false,
+                        _ => return None,
+                    };
+                }
+                "children" => b.children = names(v)?,
+                "next" => b.next = names(v)?,
+                "pre" => b.pre = Some(spanned_text(v)?),
+                "until" => b.until = Some(spanned_text(v)?),
+                "urgent" => b.urgent = Some(spanned_text(v)?),
+                "utility" => b.utility = Some(spanned_text(v)?),
+                "skill" => {
+                    let name = text(v)?;
+                    let params = BTreeMap::new();
+                    b.skill = Some(at(SkillSpec { name, params }, v.loc()));
+                }
+                "members" => {
+                    let s = scalar(v)?;
+                    let m = if s.quoted {
+                        MembersSpec::parse(&s.text).ok()?
+                    } else {
+                        let n = u32::try_from(count(v)?).ok()?;
+                        MembersSpec::parse(&n.to_string()).ok()?
+                    };
+                    b.members = Some(at(m, v.loc()));
+                }
+                "sync" => b.sync = Some(Box::new(binding(v)?)),
+                "allocate" => b.allocate = Some(Box::new(binding(v)?)),
+                "terminate" => b.terminate = Some(Box::new(binding(v)?)),
+                _ => return None,
+            }
+        }
+        Some(b)
+    }
+
+    /// The graph spec of a fast-parsed file, or `None`.
+    pub(crate) fn graph(root: &Node<'_>) -> Option<GraphSpec> {
+        let mut g = GraphSpec {
+            graph: None,
+            description: None,
+            team: None,
+            start: None,
+            defaults: DefaultsSpec::default(),
+            beliefs: Ordered::default(),
+            world_model: None,
+            behaviors: None,
+        };
+        for (k, v) in entries(root)? {
+            match k.text.as_ref() {
+                "graph" => g.graph = Some(text(v)?),
+                "description" => g.description = Some(text(v)?),
+                "start" => g.start = Some(spanned_text(v)?),
+                "team" => {
+                    let [(rk, rv)] = entries(v)? else {
+                        return None;
+                    };
+                    if rk.text != "robots" {
+                        return None;
+                    }
+                    g.team = Some(TeamSpec {
+                        robots: at(RobotsSpec::Count(count(rv)?), rv.loc()),
+                    });
+                }
+                "defaults" => {
+                    for (dk, dv) in entries(v)? {
+                        let b = Some(binding(dv)?);
+                        match dk.text.as_ref() {
+                            "sync" => g.defaults.sync = b,
+                            "allocate" => g.defaults.allocate = b,
+                            "terminate" => g.defaults.terminate = b,
+                            _ => return None,
+                        }
+                    }
+                }
+                "behaviors" => {
+                    let list = entries(v)?;
+                    let mut out = Vec::with_capacity(list.len());
+                    for (name, body) in list {
+                        let key = Node::Scalar(Scalar {
+                            text: name.text.clone(),
+                            quoted: false,
+                            line: name.line,
+                            col: name.col,
+                        });
+                        // A name the library might read as a number or a
+                        // boolean is left to it.
+                        let key = spanned_text(&key)?;
+                        out.push((key, at(behavior(body)?, body.loc())));
+                    }
+                    g.behaviors = Some(at(Ordered(out), v.loc()));
+                }
+                _ => return None,
+            }
+        }
+        Some(g)
+    }
 }
