@@ -3,8 +3,12 @@
 //! - `compile`: the whole pipeline (lex, parse, check, generate the graph,
 //!   skills and beliefs);
 //! - `lex`, `parse`, `check`: the front-end stages alone;
-//! - `load_generated_graph`: for scale, `bite_core::graph::load_str` on the
-//!   generated graph (what `bite run` does next).
+//! - `load_generated_graph`: `bite_core::graph::load_str` on the generated
+//!   graph's YAML (what `bite run graph.yaml` does with an emitted graph);
+//! - `load_compiled_graph`: `Compiled::load_graph`, the same graph handed
+//!   over as data (what `bite run mission.rtcl` does after compiling);
+//! - `compile_and_load_10k_lines`: both, what `bite run mission.rtcl` needs
+//!   before the run starts (goal: under 50 ms).
 
 use bite_rtcl::{CompileOptions, Library, compile};
 use std::sync::{Arc, LazyLock};
@@ -72,4 +76,23 @@ fn load_generated_graph(b: divan::Bencher) {
     let out = compile("bench.rtcl", &MISSION, &LIB, &CompileOptions::default()).expect("compiles");
     let file: Arc<str> = Arc::from("bench.yaml");
     b.bench(|| bite_core::graph::load_str(&file, divan::black_box(&out.graph)).expect("loads"));
+}
+
+#[divan::bench(sample_count = 20)]
+fn load_compiled_graph(b: divan::Bencher) {
+    let out = compile("bench.rtcl", &MISSION, &LIB, &CompileOptions::default()).expect("compiles");
+    let file: Arc<str> = Arc::from("bench.rtcl (compiled)");
+    b.bench(|| divan::black_box(&out).load_graph(&file).expect("loads"));
+}
+
+#[divan::bench(sample_count = 20)]
+fn compile_and_load_10k_lines(b: divan::Bencher) {
+    let opts = CompileOptions::default();
+    let file: Arc<str> = Arc::from("bench.rtcl (compiled)");
+    b.bench(|| {
+        let out = compile("bench.rtcl", divan::black_box(&MISSION), &LIB, &opts).expect("compiles");
+        let graph = out.load_graph(&file).expect("loads");
+        // Both dropped after the measurement, as `compile_10k_lines`'s output.
+        (out, graph)
+    });
 }

@@ -18,12 +18,16 @@ use crate::source::{SourceMap, printable};
 use crate::template::{Env, EvalError, Template, Val, fmt_num};
 use crate::{CompileOptions, Compiled, StepInfo, Target};
 use bite_core::diag::{Diagnostic, Loc};
-use bite_core::graph::spec::MembersSpec;
+use bite_core::graph::spec::{
+    BehaviorSpec, BindingSpec, DefaultsSpec, GraphSpec, MembersSpec, Ordered, RobotsSpec,
+    SkillSpec, TeamSpec,
+};
+use serde_saphyr::{Location, Spanned};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 
 /// One behavior of the generated graph.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 struct Beh {
     name: String,
     description: Option<String>,
@@ -32,7 +36,7 @@ struct Beh {
     next: Vec<String>,
     until: Option<String>,
     skill: Option<String>,
-    members: Option<String>,
+    members: Option<MembersSpec>,
     terminate: Option<String>,
     /// The first behavior of a command (a blank line before it).
     first: bool,
@@ -160,8 +164,16 @@ pub fn generate(
         g.behs[w[0].0].next.push(next);
     }
     let graph = g.yaml(steps.len());
+    let file = printable(map.file());
+    let generated = GeneratedGraph {
+        name: printable(&stem(map.file())),
+        description: format!("compiled from {file}"),
+        robots: opts.robots,
+        behaviors: g.behs,
+    };
     Ok(Compiled {
         graph,
+        generated,
         skills: g.skills,
         beliefs: g.beliefs,
         targets: g.targets,
@@ -525,7 +537,7 @@ impl Gen<'_, '_> {
                     team: false,
                     until,
                     skill: Some(name),
-                    members: ch.members.map(members_text),
+                    members: ch.members,
                     next: ch
                         .then
                         .first()
@@ -568,12 +580,7 @@ impl Gen<'_, '_> {
 
     fn yaml(&self, commands: usize) -> String {
         let file = printable(self.map.file());
-        let stem = std::path::Path::new(self.map.file().as_ref())
-            .file_stem()
-            .map_or_else(
-                || "mission".to_string(),
-                |s| s.to_string_lossy().into_owned(),
-            );
+        let stem = stem(self.map.file());
         let mut y = String::with_capacity(self.behs.len() * 160 + 512);
         let _ = writeln!(
             y,
@@ -615,8 +622,8 @@ impl Gen<'_, '_> {
             if let Some(s) = &b.skill {
                 let _ = writeln!(y, "    skill: {s}");
             }
-            if let Some(m) = &b.members {
-                let _ = writeln!(y, "    members: {m}");
+            if let Some(m) = b.members {
+                let _ = writeln!(y, "    members: {}", members_text(m));
             }
             if let Some(u) = &b.until {
                 let _ = writeln!(y, "    until: {}", scalar(u));
@@ -629,6 +636,111 @@ impl Gen<'_, '_> {
             }
         }
         y
+    }
+}
+
+/// The graph's name: the mission file's stem.
+fn stem(file: &str) -> String {
+    std::path::Path::new(file).file_stem().map_or_else(
+        || "mission".to_string(),
+        |s| s.to_string_lossy().into_owned(),
+    )
+}
+
+/// The generated graph as data: the graph [`Compiled::graph`] writes in
+/// YAML, to hand to the graph loader without writing and parsing text
+/// ([`Compiled::load_graph`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneratedGraph {
+    name: String,
+    description: String,
+    robots: usize,
+    behaviors: Vec<Beh>,
+}
+
+impl GeneratedGraph {
+    /// Number of behaviors.
+    pub fn len(&self) -> usize {
+        self.behaviors.len()
+    }
+
+    /// True when it has no behavior (never for a compiled mission).
+    pub fn is_empty(&self) -> bool {
+        self.behaviors.is_empty()
+    }
+
+    /// The graph as the loader's input, as if parsed from
+    /// [`Compiled::graph`]; its values carry no file location
+    /// (`Location::UNKNOWN`).
+    pub fn spec(&self) -> GraphSpec {
+        let at = |value: String| Spanned::new(value, Location::UNKNOWN, Location::UNKNOWN);
+        let protocol = |p: &str| {
+            Some(Spanned::new(
+                BindingSpec {
+                    protocol: Some(p.to_string()),
+                    ..BindingSpec::default()
+                },
+                Location::UNKNOWN,
+                Location::UNKNOWN,
+            ))
+        };
+        let names = |v: &[String]| v.iter().map(|n| at(n.clone())).collect::<Vec<_>>();
+        let behaviors = self
+            .behaviors
+            .iter()
+            .map(|b| {
+                let spec = BehaviorSpec {
+                    description: b.description.clone(),
+                    team: b.team,
+                    children: names(&b.children),
+                    next: names(&b.next),
+                    until: b.until.clone().map(at),
+                    skill: b.skill.as_ref().map(|s| {
+                        Spanned::new(
+                            SkillSpec {
+                                name: s.clone(),
+                                params: BTreeMap::new(),
+                            },
+                            Location::UNKNOWN,
+                            Location::UNKNOWN,
+                        )
+                    }),
+                    members: b
+                        .members
+                        .map(|m| Spanned::new(m, Location::UNKNOWN, Location::UNKNOWN)),
+                    terminate: b.terminate.as_deref().and_then(protocol).map(Box::new),
+                    ..BehaviorSpec::default()
+                };
+                (
+                    at(b.name.clone()),
+                    Spanned::new(spec, Location::UNKNOWN, Location::UNKNOWN),
+                )
+            })
+            .collect();
+        GraphSpec {
+            graph: Some(self.name.clone()),
+            description: Some(self.description.clone()),
+            team: Some(TeamSpec {
+                robots: Spanned::new(
+                    RobotsSpec::Count(self.robots as u64),
+                    Location::UNKNOWN,
+                    Location::UNKNOWN,
+                ),
+            }),
+            start: Some(at("mission".to_string())),
+            defaults: DefaultsSpec {
+                sync: protocol("sync.by-rule"),
+                allocate: protocol("alloc.by-id"),
+                terminate: protocol("term.wait-all"),
+            },
+            beliefs: Ordered::default(),
+            world_model: None,
+            behaviors: Some(Spanned::new(
+                Ordered(behaviors),
+                Location::UNKNOWN,
+                Location::UNKNOWN,
+            )),
+        }
     }
 }
 

@@ -121,6 +121,9 @@ pub struct Compiled {
     /// The behavior graph, YAML in the `bite-core` format, with a header
     /// comment naming the mission file.
     pub graph: String,
+    /// The same graph as data, to load without parsing [`Compiled::graph`]
+    /// ([`Compiled::load_graph`]).
+    pub generated: codegen::GeneratedGraph,
     /// For every skill the graph uses: its motor schemas, in the scenario
     /// format (`{"schema": "wander", "speed": 0.25, "layer": 1}`).
     pub skills: BTreeMap<String, Vec<serde_json::Value>>,
@@ -137,6 +140,18 @@ pub struct Compiled {
 }
 
 impl Compiled {
+    /// The compiled graph, validated as any graph is: the same
+    /// [`BehaviorGraph`](bite_core::BehaviorGraph) (and warnings) as
+    /// `bite_core::graph::load_str(file, &self.graph)`, without writing and
+    /// parsing YAML. `file` names it in messages; its diagnostics have no
+    /// line or column (`Loc::UNKNOWN`), the behaviors' names say where.
+    pub fn load_graph(
+        &self,
+        file: &std::sync::Arc<str>,
+    ) -> Result<bite_core::BehaviorGraph, Diagnostics> {
+        bite_core::graph::load_spec(file, self.generated.spec())
+    }
+
     /// The skills, beliefs and targets as a YAML fragment in the scenario
     /// format, to read or to merge into a physical-world scenario:
     ///
