@@ -35,10 +35,12 @@ pub fn compile(path: &Path, lib: &Library, opts: &CompileOptions) -> Result<Comp
     Ok(compiled)
 }
 
-/// The compiled graph, loaded and validated as any graph file is.
+/// The compiled graph, validated as any graph file is; handed over as
+/// data, not parsed back from its YAML (`Compiled::load_graph`: the same
+/// graph, its diagnostics without line and column).
 pub fn graph(path: &Path, compiled: &Compiled) -> Result<BehaviorGraph> {
     let name: Arc<str> = Arc::from(format!("{} (compiled)", path.display()));
-    let g = bite_core::graph::load_str(&name, &compiled.graph).map_err(bad_input)?;
+    let g = compiled.load_graph(&name).map_err(bad_input)?;
     print_diags(g.warnings());
     Ok(g)
 }

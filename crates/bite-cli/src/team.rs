@@ -579,7 +579,8 @@ fn loader(
                 let opts = rtcl::options_for(&scenario, robots);
                 let compiled =
                     bite_rtcl::compile(&label, src, &lib, &opts).map_err(|d| d.to_string())?;
-                let g = bite_core::graph::load_str(&Arc::from(label.as_str()), &compiled.graph)
+                let g = compiled
+                    .load_graph(&Arc::from(label.as_str()))
                     .map_err(|d| d.to_string())?;
                 let s =
                     rtcl::bind_parts(&label, &compiled, &scenario).map_err(|d| d.to_string())?;
