@@ -505,7 +505,14 @@ pub(crate) mod fast {
 
     /// The root block mapping of `text`, or `None` (see the module).
     pub fn parse(text: &str) -> Option<Node<'_>> {
-        if text.contains(['\r', '\t', '\u{feff}']) {
+        // Only printable characters (as YAML defines them) and `\n`: tabs,
+        // `\r`, a byte-order mark and the rest are the library's to read.
+        if text.bytes().any(|b| (b < b' ' && b != b'\n') || b == 0x7f)
+            || (!text.is_ascii()
+                && text.chars().any(|c| {
+                    matches!(c, '\u{80}'..='\u{84}' | '\u{86}'..='\u{9f}' | '\u{feff}' | '\u{fffe}' | '\u{ffff}')
+                }))
+        {
             return None;
         }
         let mut lines = Vec::new();

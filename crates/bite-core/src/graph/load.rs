@@ -1210,6 +1210,18 @@ mod fast_tests {
         for text in cases {
             same(&f, text);
         }
+        // What the library reads differently or refuses is left to it.
+        for text in [
+            "start: a\nbehaviors:\n  a: { description: x\u{86}y }\n",
+            "start: a\r\nbehaviors:\r\n  a: {}\r\n",
+            "start: a\nbehaviors:\n\ta: {}\n",
+            "start: a\nbehaviors:\n  a: { description: 'q' }\n",
+            "start: a\nbehaviors:\n  a: &x { }\n",
+            "---\nstart: a\nbehaviors:\n  a: {}\n",
+            "start: a\nbehaviors:\n  a:\n    next:\n      - a\n",
+        ] {
+            assert!(!same(&f, text), "{text:?}");
+        }
         eprintln!("the fast reader took {taken} of {all} files");
         assert!(taken >= 10, "the fast reader took {taken} of {all} files");
     }
