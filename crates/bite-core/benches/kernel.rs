@@ -165,6 +165,31 @@ fn decision_step(b: divan::Bencher) {
     });
 }
 
+/// The same decision step over and over on one kernel (each step ends where
+/// the next begins: walking a leg as the lead), without the setup that
+/// `decision_step` pays outside its measurement: the figure to profile.
+#[divan::bench]
+fn decision_cycle(b: divan::Bencher) {
+    let mut w = walking();
+    b.bench_local(|| {
+        w.now += std::time::Duration::from_millis(200);
+        decide(&mut w);
+        divan::black_box(w.kernel.leaf().map(|f| f.behavior));
+    });
+    let g = w.kernel.mission().graph().clone();
+    let names: Vec<&str> = w
+        .kernel
+        .stack()
+        .iter()
+        .map(|f| g.name_of(f.behavior))
+        .collect();
+    assert_eq!(
+        names,
+        ["formation", "triangle", "walk", "lead"],
+        "each cycle ends walking"
+    );
+}
+
 /// Conditions of increasing complexity, on beliefs that are all set.
 #[divan::bench(args = [
     "distance_walked >= 6 && peers_located",

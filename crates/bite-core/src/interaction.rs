@@ -472,7 +472,8 @@ impl<'a> Cx<'a> {
             excluded: p.excluded,
             lost: p.lost,
             live: match p.excluded {
-                Some(x) => p.team.members.iter().filter(|r| !x.contains(*r)).count() as u32,
+                // Word by word: a context is made for every message.
+                Some(x) => (p.team.members.len() - p.team.members.count_common(x)) as u32,
                 None => p.team.size,
             },
             org: p.org,

@@ -308,6 +308,14 @@ impl MemberSet {
             _ => self.iter().all(|r| !other.contains(r)),
         }
     }
+    /// How many robots are in both sets (word by word for two bit sets).
+    pub fn count_common(&self, other: &MemberSet) -> usize {
+        match (&self.repr, &other.repr) {
+            (Repr::Bits(a), Repr::Bits(b)) => a.intersection_count(b),
+            (Repr::Bits(_), _) => other.iter().filter(|r| self.contains(*r)).count(),
+            _ => self.iter().filter(|r| other.contains(*r)).count(),
+        }
+    }
     /// Add every member of `other`.
     pub fn union_with(&mut self, other: &MemberSet) {
         match (&mut self.repr, &other.repr) {
@@ -484,7 +492,9 @@ impl Fields {
             })?;
         // No bit past the roster's end.
         let used = roster.div_ceil(8);
-        let tail = u8::MAX.checked_shl((roster % 8) as u32).filter(|_| roster % 8 != 0);
+        let tail = u8::MAX
+            .checked_shl((roster % 8) as u32)
+            .filter(|_| roster % 8 != 0);
         if data.iter().skip(used).any(|b| *b != 0)
             || tail.is_some_and(|mask| data.get(used - 1).is_some_and(|b| b & mask != 0))
         {
@@ -773,6 +783,22 @@ mod tests {
             let json = serde_json::to_string(&m).expect("encodes");
             let back: MemberSet = serde_json::from_str(&json).expect("decodes from JSON");
             assert_eq!(back, m, "{json}");
+        }
+    }
+
+    #[test]
+    fn common_members_are_counted_in_every_form() {
+        let forms = [
+            set(200, &[1, 5, 64, 150]),
+            set(200, &(0..200).step_by(3).collect::<Vec<_>>()),
+            set(200, &(0..30).map(|i| i * 5).collect::<Vec<_>>()),
+            set(200, &[]),
+        ];
+        for a in &forms {
+            for b in &forms {
+                let brute = a.iter().filter(|r| b.contains(*r)).count();
+                assert_eq!(a.count_common(b), brute);
+            }
         }
     }
 

@@ -153,6 +153,9 @@ struct Barrier {
     mode: Mode,
     /// Leader only: members that arrived.
     arrived: Option<MemberSet>,
+    /// How many robots `arrived` holds (counted as they arrive, so that a
+    /// leader of n members does not count n members at each of n arrivals).
+    arrived_n: usize,
     me_done: bool,
     acked: bool,
     /// Resends so far (for the exponential backoff).
@@ -180,6 +183,7 @@ impl Barrier {
         Barrier {
             mode,
             arrived: None,
+            arrived_n: 0,
             me_done: false,
             acked: false,
             resends: 0,
@@ -194,11 +198,25 @@ impl Barrier {
             .get_or_insert_with(|| MemberSet::empty(cx.team().members.roster_len()))
     }
 
+    /// `r` arrived (leader only).
+    fn arrive(&mut self, cx: &Cx<'_>, r: RobotId) {
+        if self.arrived(cx).insert(r) {
+            self.arrived_n += 1;
+        }
+    }
+
     fn try_release(&mut self, cx: &mut Cx<'_>) {
         if cx.is_decided() || cx.is_aborted() {
             return;
         }
         let size = cx.team_size();
+        // Fewer arrivals than live members: not all of them arrived, and
+        // the count below can wait.
+        if matches!(self.mode, Mode::All | Mode::FirstWins)
+            && (!self.me_done || self.arrived_n < size)
+        {
+            return;
+        }
         let arrived = self.arrived(cx).clone();
         // Members presumed lost are not waited for.
         let live_arrived = cx.members().filter(|m| arrived.contains(*m)).count();
@@ -261,7 +279,7 @@ impl Interaction for Barrier {
         }
         if cx.is_leader() {
             let me = cx.me();
-            self.arrived(cx).insert(me);
+            self.arrive(cx, me);
             self.try_release(cx);
         } else {
             let leader = cx.leader();
@@ -286,7 +304,7 @@ impl Interaction for Barrier {
                     }
                     return;
                 }
-                self.arrived(cx).insert(from);
+                self.arrive(cx, from);
                 // It is done here: whatever this robot still runs below
                 // this behavior will not wait for it.
                 cx.member_done(from);
@@ -377,7 +395,7 @@ impl Interaction for Barrier {
             // Leading now (or still): count who is left.
             if self.me_done {
                 let me = cx.me();
-                self.arrived(cx).insert(me);
+                self.arrive(cx, me);
             }
             self.try_release(cx);
         } else if self.reported_to.is_some_and(|r| r != leader)
@@ -406,7 +424,7 @@ impl Interaction for Barrier {
             // to the next lowest member.
             self.me_done = true;
             let me = cx.me();
-            self.arrived(cx).insert(me);
+            self.arrive(cx, me);
             let arrived = self.arrived(cx).clone();
             if cx.members().all(|m| arrived.contains(m)) {
                 self.released_on_leave = true;

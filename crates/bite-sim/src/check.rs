@@ -459,6 +459,13 @@ impl Checker {
     /// own side).
     fn check_versions(&mut self) {
         for (point, members) in std::mem::take(&mut self.chosen_in) {
+            // Usually everyone chose in the same version: one linear pass
+            // settles it (the pairwise search below is quadratic).
+            let mut versions = members.values().map(|(v, _)| *v);
+            let first = versions.next();
+            if versions.all(|v| Some(v) == first) {
+                continue;
+            }
             let mut clash = None;
             for (a, (va, lost_a)) in &members {
                 for (b, (vb, lost_b)) in members.range(*a..) {

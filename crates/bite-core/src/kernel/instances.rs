@@ -142,7 +142,7 @@ impl Kernel {
             received: 0,
         };
         let protocol = inst.protocol;
-        self.instances.insert(key, inst);
+        self.instances.insert(key, Box::new(inst));
         if !armed {
             let excluded = self.instances[&key].excluded_members();
             let options: LogList<BehaviorId> = match &self.instances[&key].input {

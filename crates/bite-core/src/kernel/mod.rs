@@ -353,7 +353,7 @@ pub struct Kernel {
     rng: Rng,
     stack: Vec<Frame>,
     phase: Phase,
-    instances: BTreeMap<InstanceKey, Instance>,
+    instances: BTreeMap<InstanceKey, Box<Instance>>,
     /// Highest epoch known to be over, per (team, behavior, kind).
     closed: BTreeMap<(TeamId, BehaviorId, Kind), (u32, u32)>,
     /// Messages buffered for instances not started yet.
