@@ -447,7 +447,7 @@ impl Serialize for MemberSet {
 /// little-endian bytes) from a binary format and from JSON alike (JSON
 /// writes the bytes as a list of numbers), and refuses, instead of
 /// allocating, a roster larger than any graph may have
-/// ([`crate::graph::MAX_ROBOTS`]) or bytes past the roster's end: a forged
+/// ([`crate::roster::MAX_ROBOTS`]) or bytes past the roster's end: a forged
 /// message is an error, never a huge allocation.
 impl<'de> Deserialize<'de> for MemberSet {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
@@ -483,11 +483,11 @@ impl Fields {
     fn build<E: de::Error>(length: u64, data: Vec<u8>) -> Result<MemberSet, E> {
         let roster = usize::try_from(length)
             .ok()
-            .filter(|n| *n <= crate::graph::MAX_ROBOTS)
+            .filter(|n| *n <= crate::roster::MAX_ROBOTS)
             .ok_or_else(|| {
                 E::custom(format!(
                     "a member set of {length} robots (the limit is {})",
-                    crate::graph::MAX_ROBOTS
+                    crate::roster::MAX_ROBOTS
                 ))
             })?;
         // No bit past the roster's end.
@@ -579,7 +579,7 @@ impl<'de> Deserialize<'de> for Bytes {
             }
             fn visit_seq<A: SeqAccess<'de>>(self, mut s: A) -> Result<Bytes, A::Error> {
                 // Bounded by the largest roster, whatever the sender claims.
-                let cap = crate::graph::MAX_ROBOTS / 8 + 8;
+                let cap = crate::roster::MAX_ROBOTS / 8 + 8;
                 let mut v = Vec::with_capacity(s.size_hint().unwrap_or(0).min(cap));
                 while let Some(b) = s.next_element::<u8>()? {
                     if v.len() >= cap {

@@ -8,6 +8,10 @@ use crate::value::Value;
 use serde::Serialize;
 use std::collections::BTreeMap;
 
+/// Largest team accepted (a graph's roster, a member set read from the
+/// network).
+pub const MAX_ROBOTS: usize = 1_000_000;
+
 /// One robot of the team.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RobotInfo {

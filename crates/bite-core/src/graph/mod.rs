@@ -50,8 +50,7 @@ use std::time::Duration;
 pub const MAX_BEHAVIORS: usize = 100_000;
 /// Deepest decomposition accepted (levels below the start behavior).
 pub const MAX_DEPTH: usize = 64;
-/// Largest team accepted.
-pub const MAX_ROBOTS: usize = 1_000_000;
+pub use crate::roster::MAX_ROBOTS;
 
 /// A skill: what an atomic behavior makes the robot do.
 #[derive(Clone, Debug, PartialEq)]
