@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 
 mod anim;
+mod benchkit;
 mod plot;
 mod rtcl;
 mod team;
@@ -304,8 +305,16 @@ enum BenchCmd {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Also draw the scaling curve (real-time factor by team size) to
-        /// this SVG file.
+        /// Runs of each (the same run: their spread is the machine's).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        repeat: u32,
+        /// Thread counts to run each on (default: rayon's, one per core);
+        /// e.g. `--threads 1,2` to compare one core with two.
+        #[arg(long, num_args = 1.., value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
+        threads: Vec<u32>,
+        /// Also draw the scaling curve (real-time factor by team size, one
+        /// curve per thread count, with the run-to-run spread) to this SVG
+        /// file.
         #[arg(long)]
         plot: Option<PathBuf>,
         /// Print the results as JSON (`{"rows": [...]}`) instead of a table.
@@ -375,11 +384,13 @@ enum BenchCmd {
         #[arg(long)]
         listen: String,
     },
-    /// A whole team in the timed-skill world: simulated seconds per wall second.
+    /// A whole team in the timed-skill world: simulated seconds per wall
+    /// second, robot-ticks per second and peak memory, for each team size,
+    /// thread count and repetition.
     Team {
-        /// Team size.
-        #[arg(long, default_value_t = 1000, value_parser = parse_robots)]
-        robots: usize,
+        /// Team sizes (one run each, or `--repeat` runs).
+        #[arg(long, num_args = 1.., value_delimiter = ',', default_values_t = [1000usize], value_parser = parse_robots)]
+        robots: Vec<usize>,
         /// The behavior graph (default: the built-in formation example).
         #[arg(long)]
         graph: Option<PathBuf>,
@@ -395,6 +406,18 @@ enum BenchCmd {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Runs per team size and thread count (the same run: their
+        /// spread is the machine's, not the mission's).
+        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+        repeat: u32,
+        /// Thread counts to run each size on (default: rayon's, one per
+        /// core); e.g. `--threads 1,2` to compare one core with two.
+        #[arg(long, num_args = 1.., value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
+        threads: Vec<u32>,
+        /// Also draw the real-time factor by team size, one curve per
+        /// thread count with the run-to-run spread, to this SVG file.
+        #[arg(long)]
+        plot: Option<PathBuf>,
         /// Print the result as JSON (`{"rows": [{"robots": N,
         /// "real_time_factor": F, ...}]}`) instead of text.
         #[arg(long)]
@@ -1110,14 +1133,20 @@ const BOX_PUSH_PHYSICS: &str = include_str!("../../../examples/scenarios/box-pus
 const COVERAGE_GRAPH: &str = include_str!("../../../examples/coverage.yaml");
 const COVERAGE_PHYSICS: &str = include_str!("../../../examples/scenarios/coverage-physics.yaml");
 
-#[allow(clippy::disallowed_methods)] // a benchmark measures wall time
-fn cmd_bench_sim(
-    robots: &[usize],
+/// What `bite bench sim` runs.
+struct SimBench<'a> {
+    robots: &'a [usize],
     seconds: f64,
     seed: u64,
-    plot_to: Option<&Path>,
+    repeat: u32,
+    threads: &'a [u32],
+    plot: Option<&'a Path>,
     json: bool,
-) -> Result<ExitCode> {
+}
+
+#[allow(clippy::disallowed_methods)] // a benchmark measures wall time
+fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
+    let (robots, seconds) = (b.robots, b.seconds);
     let mut cases: Vec<(String, String, String)> = vec![
         (
             "formation".into(),
@@ -1140,167 +1169,253 @@ fn cmd_bench_sim(
         cases.push((format!("coverage {n}"), g, s));
     }
     let at_scale = cases.len() - robots.len();
-    let mut curve = Vec::new();
     let mut rows = Vec::new();
-    if !json {
+    if !b.json {
         outln!(
-            "| run | robots | simulated | wall | real-time factor | physics steps/s | completed |"
+            "| run | robots | threads | simulated | wall | real-time factor | physics steps/s | completed |"
         );
-        outln!("| --- | ---: | ---: | ---: | ---: | ---: | --- |");
+        outln!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |");
     }
-    for (k, (name, g, s)) in cases.into_iter().enumerate() {
+    let threads: Vec<Option<usize>> = if b.threads.is_empty() {
+        vec![None]
+    } else {
+        b.threads.iter().map(|t| Some(*t as usize)).collect()
+    };
+    let mut loaded = Vec::new();
+    for (name, g, s) in cases {
         let graph = bite_core::graph::load_str(&Arc::from(format!("{name} (built in)")), &g)
             .map_err(bad_input)?;
         let sc = Scenario::load_str(&Arc::from(format!("{name} scenario (built in)")), &s)
             .map_err(bad_input)?;
         let mission = prepare(&graph, &sc, None, &registry()).map_err(bad_input)?;
-        let bar = ProgressBar::new(sc.time_limit.as_secs().max(1));
-        bar.set_style(
-            ProgressStyle::with_template(
-                "{prefix:>16} simulated {pos}/{len} s [{bar:30}] ({elapsed})",
-            )
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
-        bar.set_prefix(name.clone());
-        let mut on_progress = |p: Progress| bar.set_position(p.now.as_secs_f64() as u64);
-        let start = std::time::Instant::now();
-        let report = run(
-            mission.clone(),
-            &sc,
-            RunOptions {
-                seed: Some(seed),
-                progress: Some(&mut on_progress),
-                ..RunOptions::default()
-            },
-        )
-        .map_err(bad_input)?;
-        let wall = start.elapsed().as_secs_f64();
-        bar.finish_and_clear();
-        let sim = report.end.as_secs_f64();
-        let hz = sc.physics.as_ref().map_or(0.0, |p| p.hz);
-        let factor = sim / wall.max(1e-9);
-        let n = mission.graph().roster().len();
-        if k >= at_scale {
-            curve.push((n, factor));
-        }
-        let steps = sim * hz / wall.max(1e-9);
-        rows.push(serde_json::json!({
-            "run": name, "robots": n, "simulated_s": sim, "wall_s": wall,
-            "real_time_factor": factor, "physics_steps_per_s": steps,
-            "completed": report.summary.completed,
-        }));
-        if !json {
-            outln!(
-                "| {name} | {n} | {sim:.1} s | {wall:.2} s | {factor:.1}× | {steps:.0} | {} |",
-                if report.summary.completed {
-                    "yes"
-                } else {
-                    "no"
-                }
-            );
-        }
+        loaded.push((name, sc, mission));
     }
-    if json {
+    let mut curves = Vec::new();
+    for t in &threads {
+        let threads_used = t.unwrap_or_else(rayon::current_num_threads);
+        let mut points = Vec::new();
+        for (k, (name, sc, mission)) in loaded.iter().enumerate() {
+            let mut factors = Vec::new();
+            for rep in 0..b.repeat {
+                let bar = ProgressBar::new(sc.time_limit.as_secs().max(1));
+                bar.set_style(
+                    ProgressStyle::with_template(
+                        "{prefix:>16} simulated {pos}/{len} s [{bar:30}] ({elapsed})",
+                    )
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                );
+                bar.set_prefix(name.clone());
+                let (mission2, bar2, seed) = (mission.clone(), bar.clone(), b.seed);
+                benchkit::reset_peak_memory();
+                let start = std::time::Instant::now();
+                let report = benchkit::on_threads(*t, move || {
+                    let mut on_progress =
+                        |p: Progress| bar2.set_position(p.now.as_secs_f64() as u64);
+                    run(
+                        mission2,
+                        sc,
+                        RunOptions {
+                            seed: Some(seed),
+                            progress: Some(&mut on_progress),
+                            ..RunOptions::default()
+                        },
+                    )
+                })?
+                .map_err(bad_input)?;
+                let wall = start.elapsed().as_secs_f64();
+                let peak = benchkit::peak_memory_kb();
+                bar.finish_and_clear();
+                let sim = report.end.as_secs_f64();
+                let hz = sc.physics.as_ref().map_or(0.0, |p| p.hz);
+                let factor = sim / wall.max(1e-9);
+                let n = mission.graph().roster().len();
+                factors.push(factor);
+                let steps = sim * hz / wall.max(1e-9);
+                rows.push(serde_json::json!({
+                    "run": name, "robots": n, "threads": threads_used, "repeat": rep,
+                    "simulated_s": sim, "wall_s": wall,
+                    "real_time_factor": factor, "physics_steps_per_s": steps,
+                    "peak_rss_kb": peak,
+                    "completed": report.summary.completed,
+                }));
+                if !b.json {
+                    outln!(
+                        "| {name} | {n} | {threads_used} | {sim:.1} s | {wall:.2} s | {factor:.1}× | {steps:.0} | {} |",
+                        if report.summary.completed {
+                            "yes"
+                        } else {
+                            "no"
+                        }
+                    );
+                }
+            }
+            if k >= at_scale {
+                points.push((mission.graph().roster().len(), factors));
+            }
+        }
+        curves.push(plot::Curve {
+            label: match t {
+                Some(1) => "coverage mission, one thread".to_string(),
+                Some(t) => format!("coverage mission, {t} threads"),
+                None => format!("coverage mission, {threads_used} threads (rayon's default)"),
+            },
+            points,
+        });
+    }
+    if b.json {
         outln!("{}", serde_json::json!({ "rows": rows }));
     }
-    if let Some(path) = plot_to {
+    if let Some(path) = b.plot {
         plot::scaling(
             path,
-            &format!("bite bench sim: coverage mission, {seconds} s simulated"),
-            &curve,
+            &format!(
+                "bite bench sim: coverage mission, {} s simulated, {} run(s) each",
+                b.seconds, b.repeat
+            ),
+            &curves,
         )?;
         eprintln!("wrote {}", path.display());
     }
     Ok(ExitCode::SUCCESS)
 }
 
-#[allow(clippy::disallowed_methods)] // a benchmark measures wall time
-fn cmd_bench_team(
-    robots: usize,
-    graph: Option<&Path>,
-    scenario: Option<&Path>,
-    config: Option<&Path>,
+/// What `bite bench team` runs.
+struct TeamBench<'a> {
+    robots: &'a [usize],
+    graph: Option<&'a Path>,
+    scenario: Option<&'a Path>,
+    config: Option<&'a Path>,
     sim_time: Option<Duration>,
     seed: u64,
+    repeat: u32,
+    threads: &'a [u32],
+    plot: Option<&'a Path>,
     json: bool,
-) -> Result<ExitCode> {
-    let g = load_graph(graph, config)?;
-    let sc = match (graph, scenario) {
+}
+
+#[allow(clippy::disallowed_methods)] // a benchmark measures wall time
+fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
+    let g = load_graph(b.graph, b.config)?;
+    let sc = match (b.graph, b.scenario) {
         (_, Some(s)) => Scenario::load(s).map_err(bad_input)?,
         (None, None) => load_scenario(None, None, &g, true)?,
         (Some(p), None) => load_scenario(Some(p), None, &g, true)?,
     };
-    let mission = prepare(&g, &sc, Some(robots), &registry()).map_err(bad_input)?;
-    eprintln!(
-        "bench team: {} robots, graph `{}`, scenario `{}`, control at {} Hz, seed {seed}",
-        robots,
-        mission.graph().name(),
-        sc.name,
-        sc.control_hz
-    );
-    let bar = ProgressBar::new(sim_time.unwrap_or(sc.time_limit).as_secs().max(1));
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} simulated {pos}/{len} s [{bar:30}] {msg} ({elapsed})",
-        )
-        .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let mut on_progress = |p: Progress| {
-        bar.set_position(p.now.as_secs_f64() as u64);
-        bar.set_message(format!("{}/{} done", p.finished, p.robots));
+    let threads: Vec<Option<usize>> = if b.threads.is_empty() {
+        vec![None]
+    } else {
+        b.threads.iter().map(|t| Some(*t as usize)).collect()
     };
-    let start = std::time::Instant::now();
-    let report = run(
-        mission,
-        &sc,
-        RunOptions {
-            seed: Some(seed),
-            time_limit: sim_time,
-            log: None,
-            record: false,
-            progress: Some(&mut on_progress),
-            ..Default::default()
-        },
-    )
-    .map_err(bad_input)?;
-    let wall = start.elapsed().as_secs_f64();
-    bar.finish_and_clear();
-    let sim = report.end.as_secs_f64();
-    let s = &report.summary;
-    if json {
-        let row = serde_json::json!({
-            "robots": robots, "simulated_s": sim, "wall_s": wall,
-            "real_time_factor": sim / wall.max(1e-9),
-            "robot_ticks_per_s": robots as f64 * sim * sc.control_hz / wall.max(1e-9),
-            "completed": s.completed, "messages": s.messages.total(),
-            "delivered": s.network.delivered, "seed": seed,
-        });
-        outln!("{}", serde_json::json!({ "rows": [row] }));
-        return Ok(ExitCode::SUCCESS);
+    let mut rows = Vec::new();
+    let mut curves = Vec::new();
+    if !b.json {
+        outln!(
+            "| robots | threads | simulated | wall | simulated s per wall s | robot-ticks per s | peak memory | messages sent / delivered | completed |"
+        );
+        outln!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |");
     }
-    outln!("robots               {robots}");
-    outln!(
-        "simulated time       {sim:.1} s ({})",
-        if s.completed {
-            "mission completed"
-        } else {
-            "stopped at the limit"
+    for t in &threads {
+        let mut points = Vec::new();
+        for &robots in b.robots {
+            let mission = prepare(&g, &sc, Some(robots), &registry()).map_err(bad_input)?;
+            eprintln!(
+                "bench team: {robots} robots, graph `{}`, scenario `{}`, control at {} Hz, seed {}, {} thread(s)",
+                mission.graph().name(),
+                sc.name,
+                sc.control_hz,
+                b.seed,
+                t.unwrap_or_else(rayon::current_num_threads),
+            );
+            let mut factors = Vec::new();
+            for rep in 0..b.repeat {
+                let bar = ProgressBar::new(b.sim_time.unwrap_or(sc.time_limit).as_secs().max(1));
+                bar.set_style(
+                    ProgressStyle::with_template(
+                        "{spinner} simulated {pos}/{len} s [{bar:30}] {msg} ({elapsed})",
+                    )
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                );
+                benchkit::reset_peak_memory();
+                let start = std::time::Instant::now();
+                let (mission, sc, bar2) = (mission.clone(), &sc, bar.clone());
+                let (seed, sim_time) = (b.seed, b.sim_time);
+                let report = benchkit::on_threads(*t, move || {
+                    let mut on_progress = |p: Progress| {
+                        bar2.set_position(p.now.as_secs_f64() as u64);
+                        bar2.set_message(format!("{}/{} done", p.finished, p.robots));
+                    };
+                    run(
+                        mission,
+                        sc,
+                        RunOptions {
+                            seed: Some(seed),
+                            time_limit: sim_time,
+                            log: None,
+                            record: false,
+                            progress: Some(&mut on_progress),
+                            ..Default::default()
+                        },
+                    )
+                })?
+                .map_err(bad_input)?;
+                let wall = start.elapsed().as_secs_f64();
+                let peak = benchkit::peak_memory_kb();
+                bar.finish_and_clear();
+                let sim = report.end.as_secs_f64();
+                let s = &report.summary;
+                let factor = sim / wall.max(1e-9);
+                let ticks = robots as f64 * sim * sc.control_hz / wall.max(1e-9);
+                factors.push(factor);
+                let threads_used = t.unwrap_or_else(rayon::current_num_threads);
+                if !b.json {
+                    outln!(
+                        "| {robots} | {threads_used} | {sim:.1} s | {wall:.2} s | {factor:.2}× | {ticks:.0} | {} | {} / {} | {} |",
+                        peak.map_or("?".to_string(), |kb| format!("{} MB", kb / 1024)),
+                        s.messages.total(),
+                        s.network.delivered,
+                        if s.completed { "yes" } else { "no" },
+                    );
+                }
+                rows.push(serde_json::json!({
+                    "robots": robots, "threads": threads_used, "repeat": rep,
+                    "simulated_s": sim, "wall_s": wall,
+                    "real_time_factor": factor, "robot_ticks_per_s": ticks,
+                    "peak_rss_kb": peak,
+                    "completed": s.completed, "messages": s.messages.total(),
+                    "delivered": s.network.delivered, "seed": b.seed,
+                }));
+            }
+            points.push((robots, factors));
         }
-    );
-    outln!("wall time            {wall:.2} s");
-    outln!(
-        "speed                {:.1}x real time (simulated s per wall s)",
-        sim / wall.max(1e-9)
-    );
-    outln!(
-        "robot-ticks per s    {:.0}",
-        robots as f64 * sim * sc.control_hz / wall.max(1e-9)
-    );
-    outln!(
-        "messages             {} sent, {} delivered",
-        s.messages.total(),
-        s.network.delivered
-    );
+        curves.push(plot::Curve {
+            label: match t {
+                Some(1) => "one thread".to_string(),
+                Some(t) => format!("{t} threads"),
+                None => format!("{} threads (rayon's default)", rayon::current_num_threads()),
+            },
+            points,
+        });
+    }
+    if b.json {
+        outln!("{}", serde_json::json!({ "rows": rows }));
+    }
+    if let Some(path) = b.plot {
+        let span = b
+            .sim_time
+            .map_or("until the mission completes".to_string(), |d| {
+                format!("{} s simulated", d.as_secs_f64())
+            });
+        plot::scaling(
+            path,
+            &format!(
+                "bite bench team: `{}`, {span}, {} run(s) each",
+                g.name(),
+                b.repeat
+            ),
+            &curves,
+        )?;
+        eprintln!("wrote {}", path.display());
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -1474,27 +1589,43 @@ fn main() -> ExitCode {
                     config,
                     sim_time,
                     seed,
+                    repeat,
+                    threads,
+                    plot,
                     json,
                 },
-        } => cmd_bench_team(
-            robots,
-            graph.as_deref(),
-            scenario.as_deref(),
-            config.as_deref(),
+        } => cmd_bench_team(TeamBench {
+            robots: &robots,
+            graph: graph.as_deref(),
+            scenario: scenario.as_deref(),
+            config: config.as_deref(),
             sim_time,
             seed,
+            repeat,
+            threads: &threads,
+            plot: plot.as_deref(),
             json,
-        ),
+        }),
         Cmd::Bench {
             which:
                 BenchCmd::Sim {
                     robots,
                     seconds,
                     seed,
+                    repeat,
+                    threads,
                     plot,
                     json,
                 },
-        } => cmd_bench_sim(&robots, seconds, seed, plot.as_deref(), json),
+        } => cmd_bench_sim(SimBench {
+            robots: &robots,
+            seconds,
+            seed,
+            repeat,
+            threads: &threads,
+            plot: plot.as_deref(),
+            json,
+        }),
         Cmd::Bench {
             which:
                 BenchCmd::Zenoh {

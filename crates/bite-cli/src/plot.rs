@@ -4,21 +4,44 @@ use anyhow::{Context, Result};
 use plotters::prelude::*;
 use std::path::Path;
 
-/// The scaling curve of `bite bench sim`: simulated seconds per wall second
-/// against team size, both on log scales, with real time marked.
-pub fn scaling(path: &Path, title: &str, points: &[(usize, f64)]) -> Result<()> {
+/// Colors of the curves, in order (red marks real time).
+const CURVE_COLORS: [RGBColor; 4] = [
+    RGBColor(31, 90, 200),
+    RGBColor(0, 140, 60),
+    RGBColor(170, 40, 170),
+    RGBColor(200, 120, 0),
+];
+
+/// One curve of a scaling figure: its label, and for each team size the
+/// real-time factors of the runs repeated at that size.
+pub struct Curve {
+    /// What the curve shows (e.g. "one thread").
+    pub label: String,
+    /// Team size, and the factor of every run at that size.
+    pub points: Vec<(usize, Vec<f64>)>,
+}
+
+/// The scaling figure of `bite bench sim` and `bite bench team`: simulated
+/// seconds per wall second against team size, both on log scales, with
+/// real time marked; one curve per thread count through the median of the
+/// repeated runs, with a bar from the slowest to the fastest run (the
+/// run-to-run spread).
+pub fn scaling(path: &Path, title: &str, curves: &[Curve]) -> Result<()> {
     let root = SVGBackend::new(path, (720, 440)).into_drawing_area();
+    let all = || curves.iter().flat_map(|c| &c.points);
+    let values = || all().flat_map(|(_, v)| v.iter().copied());
     let draw = || -> Result<(), Box<dyn std::error::Error>> {
         root.fill(&WHITE)?;
-        let xmax = points.iter().map(|p| p.0).max().unwrap_or(10).max(10) as f64 * 2.0;
-        let ymax = points.iter().map(|p| p.1).fold(10.0, f64::max) * 3.0;
-        let ymin = points.iter().map(|p| p.1).fold(1.0, f64::min) / 3.0;
+        let xmax = all().map(|p| p.0).max().unwrap_or(10).max(10) as f64 * 2.0;
+        let xmin = (all().map(|p| p.0).min().unwrap_or(10) as f64 / 2.0).clamp(1.0, 5.0);
+        let ymax = values().fold(10.0, f64::max) * 3.0;
+        let ymin = values().fold(1.0, f64::min) / 3.0;
         let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 20))
+            .caption(title, ("sans-serif", 18))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(60)
-            .build_cartesian_2d((5.0..xmax).log_scale(), (ymin..ymax).log_scale())?;
+            .build_cartesian_2d((xmin..xmax).log_scale(), (ymin..ymax).log_scale())?;
         chart
             .configure_mesh()
             .x_desc("robots")
@@ -28,24 +51,44 @@ pub fn scaling(path: &Path, title: &str, points: &[(usize, f64)]) -> Result<()> 
             .draw()?;
         chart
             .draw_series(LineSeries::new(
-                [(5.0, 1.0), (xmax, 1.0)],
+                [(xmin, 1.0), (xmax, 1.0)],
                 ShapeStyle::from(&RED).stroke_width(1),
             ))?
             .label("real time")
             .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED));
-        let pts: Vec<(f64, f64)> = points.iter().map(|(n, f)| (*n as f64, *f)).collect();
-        chart
-            .draw_series(LineSeries::new(pts.clone(), BLUE.stroke_width(2)))?
-            .label("coverage mission, one core")
-            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE));
-        chart.draw_series(pts.iter().map(|p| Circle::new(*p, 4, BLUE.filled())))?;
-        chart.draw_series(pts.iter().map(|(x, y)| {
-            Text::new(
-                format!("{y:.1}×"),
-                (*x * 1.1, *y * 1.25),
-                ("sans-serif", 13),
-            )
-        }))?;
+        for (k, c) in curves.iter().enumerate() {
+            let color = CURVE_COLORS[k % CURVE_COLORS.len()];
+            let spread: Vec<(f64, f64, f64, f64)> = c
+                .points
+                .iter()
+                .filter(|(_, v)| !v.is_empty())
+                .map(|(n, v)| {
+                    let mut v = v.clone();
+                    v.sort_by(f64::total_cmp);
+                    let lo = v[0];
+                    let hi = v[v.len() - 1];
+                    (*n as f64, crate::stats::quantile(&v, 0.5), lo, hi)
+                })
+                .collect();
+            let mid: Vec<(f64, f64)> = spread.iter().map(|p| (p.0, p.1)).collect();
+            chart
+                .draw_series(LineSeries::new(mid.clone(), color.stroke_width(2)))?
+                .label(c.label.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], color));
+            chart.draw_series(mid.iter().map(|p| Circle::new(*p, 4, color.filled())))?;
+            chart.draw_series(
+                spread
+                    .iter()
+                    .map(|(x, m, lo, hi)| ErrorBar::new_vertical(*x, *lo, *m, *hi, color, 8)),
+            )?;
+            chart.draw_series(mid.iter().map(|(x, y)| {
+                Text::new(
+                    format!("{y:.1}×"),
+                    (*x * 1.1, *y * (1.25 + 0.35 * k as f64)),
+                    ("sans-serif", 13),
+                )
+            }))?;
+        }
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))

@@ -504,6 +504,40 @@ fn bench_commands_print_json_rows_for_scripts() {
             .is_some_and(|f| f > 0.0)
     );
     assert_eq!(team["rows"][0]["completed"], true);
+    // Sizes × thread counts × repetitions, one row each, and the picture.
+    let dir = std::env::temp_dir().join(format!("bite-bench-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch dir");
+    let svg = dir.join("team.svg");
+    let svg_arg = svg.to_string_lossy().to_string();
+    let team = parse(&[
+        "bench",
+        "team",
+        "--robots",
+        "5,12",
+        "--threads",
+        "1,2",
+        "--repeat",
+        "2",
+        "--json",
+        "--plot",
+        &svg_arg,
+    ]);
+    let rows = team["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 8, "{rows:?}");
+    let key = |r: &serde_json::Value| {
+        (
+            r["threads"].clone(),
+            r["robots"].clone(),
+            r["repeat"].clone(),
+        )
+    };
+    assert_eq!(key(&rows[0]), (1.into(), 5.into(), 0.into()));
+    assert_eq!(key(&rows[7]), (2.into(), 12.into(), 1.into()));
+    // The same run on one thread and on two: the same messages.
+    assert_eq!(rows[0]["messages"], rows[4]["messages"]);
+    let picture = std::fs::read_to_string(&svg).expect("the plot");
+    assert!(picture.contains("one thread") && picture.contains("2 threads"));
+    let _ = std::fs::remove_dir_all(&dir);
     let protocols = parse(&[
         "bench",
         "protocols",

@@ -269,32 +269,44 @@ impl MemberSet {
             _ => self.iter().all(|r| other.contains(r)),
         }
     }
-    /// Members of `self` that are in `within` and not in `known`, in id
-    /// order. Word by word when the sets are bit sets (what a team
-    /// leader's report of who departed is, in a large team): a member
-    /// checks a report of n robots in O(n / 64).
-    pub fn fresh_in(&self, within: &MemberSet, known: Option<&MemberSet>) -> Vec<RobotId> {
+    /// Members of `self` that are in `within` and not in `known`, as a
+    /// set (`None`: there are none). Word by word when the sets are bit
+    /// sets (what a team leader's report of who departed is, in a large
+    /// team): a member checks a report of n robots in O(n / 64), with
+    /// nothing allocated when the report holds nothing new, and adds what
+    /// is new to what it knows as words too ([`MemberSet::union_with`]),
+    /// not robot by robot (a team of n learns n departures each).
+    pub fn fresh_in(&self, within: &MemberSet, known: Option<&MemberSet>) -> Option<MemberSet> {
         let known_bits = match known.map(|k| &k.repr) {
             None => Some(None),
             Some(Repr::Bits(k)) => Some(Some(k.as_slice())),
             Some(_) => None,
         };
         if let (Repr::Bits(a), Repr::Bits(w), Some(k)) = (&self.repr, &within.repr, known_bits) {
-            const WORD: usize = usize::BITS as usize;
-            let mut out = Vec::new();
+            let mut out: Option<FixedBitSet> = None;
             for (i, (x, y)) in a.as_slice().iter().zip(w.as_slice()).enumerate() {
                 let seen = k.and_then(|k| k.get(i)).copied().unwrap_or(0);
-                let mut word = x & y & !seen;
-                while word != 0 {
-                    out.push(RobotId((i * WORD) as u32 + word.trailing_zeros()));
-                    word &= word - 1;
+                let word = x & y & !seen;
+                if word != 0
+                    && let Some(slot) = out
+                        .get_or_insert_with(|| FixedBitSet::with_capacity(self.roster as usize))
+                        .as_mut_slice()
+                        .get_mut(i)
+                {
+                    *slot = word;
                 }
             }
-            return out;
+            return out.map(|bits| MemberSet {
+                roster: self.roster,
+                repr: Repr::Bits(bits),
+            });
         }
-        self.iter()
+        let ids: Vec<u32> = self
+            .iter()
             .filter(|r| within.contains(*r) && !known.is_some_and(|k| k.contains(*r)))
-            .collect()
+            .map(|r| r.0)
+            .collect();
+        (!ids.is_empty()).then(|| MemberSet::from_sorted(self.roster as usize, ids))
     }
     /// Members as a vector.
     pub fn to_vec(&self) -> Vec<RobotId> {
@@ -798,6 +810,31 @@ mod tests {
             for b in &forms {
                 let brute = a.iter().filter(|r| b.contains(*r)).count();
                 assert_eq!(a.count_common(b), brute);
+            }
+        }
+    }
+
+    #[test]
+    fn fresh_members_are_found_in_every_form() {
+        let forms = [
+            set(200, &[1, 5, 64, 150]),
+            set(200, &(0..200).step_by(3).collect::<Vec<_>>()),
+            set(200, &(0..200).step_by(2).collect::<Vec<_>>()),
+            set(200, &(0..30).map(|i| i * 5).collect::<Vec<_>>()),
+            set(200, &(0..200).collect::<Vec<_>>()),
+            set(200, &[]),
+        ];
+        for a in &forms {
+            for w in &forms {
+                for k in forms.iter().map(Some).chain([None]) {
+                    let brute: Vec<RobotId> = a
+                        .iter()
+                        .filter(|r| w.contains(*r) && !k.is_some_and(|k| k.contains(*r)))
+                        .collect();
+                    let got = a.fresh_in(w, k);
+                    assert_eq!(got.is_none(), brute.is_empty());
+                    assert_eq!(got.map(|g| g.to_vec()).unwrap_or_default(), brute);
+                }
             }
         }
     }

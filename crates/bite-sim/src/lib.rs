@@ -30,6 +30,7 @@ pub mod log;
 pub mod net;
 pub mod physics;
 pub mod probe;
+mod queue;
 pub mod runner;
 pub mod stall;
 pub mod summary;

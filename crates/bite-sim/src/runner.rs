@@ -23,8 +23,7 @@ use bite_core::msg::Envelope;
 use bite_core::time::Time;
 use rand::SeedableRng;
 use serde_json::json;
-use std::cmp::{Ordering, Reverse};
-use std::collections::{BTreeMap, BinaryHeap};
+use std::collections::BTreeMap;
 use std::io::Write;
 use std::sync::Arc;
 
@@ -225,29 +224,6 @@ enum What {
     Change(usize),
 }
 
-struct Scheduled {
-    at: Time,
-    seq: u64,
-    what: What,
-}
-
-impl PartialEq for Scheduled {
-    fn eq(&self, o: &Self) -> bool {
-        (self.at, self.seq) == (o.at, o.seq)
-    }
-}
-impl Eq for Scheduled {}
-impl PartialOrd for Scheduled {
-    fn partial_cmp(&self, o: &Self) -> Option<Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Scheduled {
-    fn cmp(&self, o: &Self) -> Ordering {
-        (self.at, self.seq).cmp(&(o.at, o.seq))
-    }
-}
-
 struct Sim<'a, 'w> {
     /// Each robot's mind (the same `Agent` a robot process runs).
     agents: Vec<Agent>,
@@ -256,8 +232,7 @@ struct Sim<'a, 'w> {
     crashed: Vec<bool>,
     timers: Vec<Option<Time>>,
     net: SimNet,
-    queue: BinaryHeap<Reverse<Scheduled>>,
-    seq: u64,
+    queue: crate::queue::EventQueue<What>,
     now: Time,
     agg: Aggregator,
     log: RunLog<'w>,
@@ -303,12 +278,7 @@ struct Sim<'a, 'w> {
 
 impl Sim<'_, '_> {
     fn schedule(&mut self, at: Time, what: What) {
-        self.seq += 1;
-        self.queue.push(Reverse(Scheduled {
-            at,
-            seq: self.seq,
-            what,
-        }));
+        self.queue.push(at, what);
     }
 
     /// Robot `i`'s clock at simulated time `t` (its rate and offset; a
@@ -731,12 +701,12 @@ impl Sim<'_, '_> {
             self.schedule(Time::ZERO + every, What::Inject);
         }
         let mut next_progress = Time::ZERO;
-        while let Some(Reverse(s)) = self.queue.pop() {
-            if s.at > limit {
+        while let Some((at, what)) = self.queue.pop() {
+            if at > limit {
                 return limit;
             }
-            self.now = s.at;
-            match s.what {
+            self.now = at;
+            match what {
                 What::Control => {
                     if let Some(w) = self.physics.as_mut() {
                         // A watcher that asked to see the world more often
@@ -1024,8 +994,7 @@ pub fn run(
         crashed: vec![false; n],
         timers: vec![None; n],
         net: SimNet::new(resolved.network.clone(), derive_seed(seed, "net", 0)),
-        queue: BinaryHeap::new(),
-        seq: 0,
+        queue: Default::default(),
         now: Time::ZERO,
         agg: Aggregator::new(n),
         log,

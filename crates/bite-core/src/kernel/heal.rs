@@ -8,6 +8,7 @@ use super::{Kernel, Phase};
 use crate::event::{EndReason, Event, FrameRef, Via};
 use crate::ids::RobotId;
 use crate::ids::{InstanceKey, Kind};
+use crate::org::MemberSet;
 
 impl Kernel {
     /// Allocation splits: a teammate under the same execution of an
@@ -190,12 +191,12 @@ impl Kernel {
                 continue;
             };
             let known = f.departed.as_ref();
-            let mut who: Vec<RobotId> = match pos.frames.iter().find(|g| g.id == id) {
-                Some(g) => (g.departed.as_ref())
-                    .map(|d| d.fresh_in(&team.members, known))
-                    .unwrap_or_default(),
-                None => Vec::new(),
-            };
+            let mut who: Option<MemberSet> = pos
+                .frames
+                .iter()
+                .find(|g| g.id == id)
+                .and_then(|g| g.departed.as_ref())
+                .and_then(|d| d.fresh_in(&team.members, known));
             let ended = pos.ended.iter().any(|e| e.id == id)
                 || pos.burned.contains(&id)
                 || pos
@@ -203,12 +204,13 @@ impl Kernel {
                     .iter()
                     .any(|g| g.id == id && g.state != FrameState::Running);
             if ended && team.contains(from) && !known.is_some_and(|d| d.contains(from)) {
-                // In id order with the rest, once.
-                if let Err(at) = who.binary_search(&from) {
-                    who.insert(at, from);
-                }
+                who.get_or_insert_with(|| MemberSet::empty(self.org.roster_len()))
+                    .insert(from);
             }
-            who.retain(|r| *r != self.me);
+            let Some(mut who) = who else {
+                continue;
+            };
+            who.remove(self.me);
             if who.is_empty() {
                 continue;
             }

@@ -99,6 +99,8 @@ impl Kernel {
     /// Teammates done with the behavior of termination instance `key`:
     /// leave them out of every instance below that behavior.
     pub(super) fn departures(&mut self, key: InstanceKey, who: &[RobotId]) {
+        let who = MemberSet::from_iter(self.org.roster_len(), who.iter().copied());
+        let who = &who;
         if let Some(i) = self.stack.iter().position(|f| f.term_key() == key) {
             self.depart(i, who);
         } else {
@@ -109,29 +111,27 @@ impl Kernel {
     /// Teammates done with the behavior this robot ended and waits to
     /// terminate: nothing of it runs here any more, but a leader relays
     /// who is done with its heartbeats.
-    pub(super) fn depart_popped(&mut self, key: InstanceKey, who: &[RobotId]) {
+    pub(super) fn depart_popped(&mut self, key: InstanceKey, who: &MemberSet) {
         let n = self.org.roster_len();
         if let Phase::Terminating { frame, .. } | Phase::Selecting { frame, .. } = &mut self.phase
             && frame.term_key() == key
         {
-            let set = frame.departed.get_or_insert_with(|| MemberSet::empty(n));
-            for r in who {
-                set.insert(*r);
-            }
+            frame
+                .departed
+                .get_or_insert_with(|| MemberSet::empty(n))
+                .union_with(who);
         }
     }
 
     /// Teammates done with the behavior of stack frame `i` (they arrived at
     /// its termination, or left it): leave them out of every instance below
     /// it, as if presumed lost.
-    pub(super) fn depart(&mut self, i: usize, who: &[RobotId]) {
+    pub(super) fn depart(&mut self, i: usize, who: &MemberSet) {
         let n = self.org.roster_len();
-        let set = self.stack[i]
+        self.stack[i]
             .departed
-            .get_or_insert_with(|| MemberSet::empty(n));
-        for r in who {
-            set.insert(*r);
-        }
+            .get_or_insert_with(|| MemberSet::empty(n))
+            .union_with(who);
         // The termination instances of the frames down to this one are not
         // below it, nor is a re-allocation at it (teammates idle under it
         // take part); every other running instance is.
@@ -153,7 +153,7 @@ impl Kernel {
             .filter(|(k, inst)| {
                 !above.contains(k)
                     && matches!(inst.state, State::Armed | State::Active)
-                    && who.iter().any(|r| inst.team.contains(*r))
+                    && !who.is_disjoint(&inst.team.members)
                     && self
                         .mission
                         .bound(k.behavior, k.kind)
@@ -161,8 +161,11 @@ impl Kernel {
             })
             .map(|(k, _)| *k)
             .collect();
-        for k in below {
-            self.exclude(k, who);
+        if !below.is_empty() {
+            let who = who.to_vec();
+            for k in below {
+                self.exclude(k, &who);
+            }
         }
         self.refresh_due();
     }

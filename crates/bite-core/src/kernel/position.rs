@@ -95,6 +95,18 @@ pub struct FrameId {
     pub epoch: u32,
 }
 
+/// What a robot knows of a teammate from its heartbeats.
+#[derive(Clone, Debug, Default)]
+pub(super) struct Peer {
+    /// When it was last heard.
+    pub heard: Time,
+    /// When its position last changed (it makes progress); `None`: it was
+    /// heard only after this robot finished.
+    pub moved: Option<Time>,
+    /// The executions it is engaged in (its position's frames).
+    pub frames: Vec<(FrameId, FrameState)>,
+}
+
 /// Where a frame of a position is in its life.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum FrameState {
@@ -343,8 +355,8 @@ impl Kernel {
         // beacon to the whole team from every finished robot would be
         // quadratic).
         if self.stack.is_empty() && matches!(self.phase, Phase::Finished) {
-            for (r, (at, _)) in &self.peers {
-                if self.now - *at <= FRESH {
+            for (r, p) in &self.peers {
+                if self.now - p.heard <= FRESH {
                     to.insert(*r);
                 }
             }
@@ -402,7 +414,9 @@ impl Kernel {
         if matches!(self.phase, Phase::Finished) {
             // Only who still sends heartbeats matters now: they get an
             // answer (see `beacon_audience`).
-            self.peers.insert(from, (self.now, Vec::new()));
+            let p = self.peers.entry(from).or_default();
+            p.heard = self.now;
+            p.frames.clear();
             return;
         }
         self.stats.positions += 1;
@@ -411,17 +425,23 @@ impl Kernel {
         let engaged = || pos.frames.iter().map(|f| (f.id, f.state));
         let now = self.now;
         match self.peers.get_mut(&from) {
-            Some((at, old)) => {
-                *at = now;
-                if !old.iter().copied().eq(engaged()) {
-                    old.clear();
-                    old.extend(engaged());
-                    self.peer_moved.insert(from, now);
+            Some(p) => {
+                p.heard = now;
+                if !p.frames.iter().copied().eq(engaged()) {
+                    p.frames.clear();
+                    p.frames.extend(engaged());
+                    p.moved = Some(now);
                 }
             }
             None => {
-                self.peers.insert(from, (now, engaged().collect()));
-                self.peer_moved.insert(from, now);
+                self.peers.insert(
+                    from,
+                    Peer {
+                        heard: now,
+                        moved: Some(now),
+                        frames: engaged().collect(),
+                    },
+                );
             }
         }
         self.apply_burns(pos);
@@ -555,9 +575,10 @@ impl Kernel {
         };
         let limit = (inst.deadline_len * SLOW_WAITS).max(SLOW_WAIT_MIN);
         let progressing = |r: RobotId| {
-            self.peer_moved
+            self.peers
                 .get(&r)
-                .is_some_and(|t| self.now - *t < limit)
+                .and_then(|p| p.moved)
+                .is_some_and(|t| self.now - t < limit)
         };
         let id = FrameId {
             team: key.team,
@@ -570,8 +591,8 @@ impl Kernel {
         let heard = |r: RobotId| {
             self.peers
                 .get(&r)
-                .filter(|(at, _)| self.now - *at <= FRESH)
-                .map(|(_, frames)| frames)
+                .filter(|p| self.now - p.heard <= FRESH)
+                .map(|p| &p.frames)
         };
         let leader = inst
             .team
