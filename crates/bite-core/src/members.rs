@@ -31,8 +31,11 @@ enum Repr {
     Few { n: u8, ids: [u32; INLINE] },
     /// Sorted members.
     List(Vec<u32>),
-    /// A bit per robot of the roster.
-    Bits(FixedBitSet),
+    /// A bit per robot of the roster, shared between copies until one of
+    /// them changes (a set the size of the roster, per holder, made the
+    /// simulator's memory grow with the square of the team: every member
+    /// of a team of 100,000 held its own copy of who departed).
+    Bits(Arc<FixedBitSet>),
 }
 
 /// Members in increasing id order.
@@ -74,7 +77,7 @@ impl MemberSet {
         s.insert_range(..);
         MemberSet {
             roster: roster_len as u32,
-            repr: Repr::Bits(s),
+            repr: Repr::Bits(Arc::new(s)),
         }
     }
     /// The set of the given robots (ids beyond `roster_len` are ignored).
@@ -109,7 +112,7 @@ impl MemberSet {
             for i in ids {
                 s.insert(i as usize);
             }
-            Repr::Bits(s)
+            Repr::Bits(Arc::new(s))
         } else {
             Repr::List(ids)
         };
@@ -147,7 +150,12 @@ impl MemberSet {
         }
         let roster = self.roster as usize;
         match &mut self.repr {
-            Repr::Bits(b) => return !b.put(r.index()),
+            Repr::Bits(b) => {
+                if b.contains(r.index()) {
+                    return false;
+                }
+                return !Arc::make_mut(b).put(r.index());
+            }
             Repr::Few { n, ids } => {
                 let len = *n as usize;
                 let Err(at) = ids[..len].binary_search(&r.0) else {
@@ -194,8 +202,8 @@ impl MemberSet {
     pub fn remove(&mut self, r: RobotId) {
         match &mut self.repr {
             Repr::Bits(b) => {
-                if r.index() < b.len() {
-                    b.set(r.index(), false);
+                if r.index() < b.len() && b.contains(r.index()) {
+                    Arc::make_mut(b).set(r.index(), false);
                 }
             }
             Repr::Few { n, ids } => {
@@ -283,22 +291,36 @@ impl MemberSet {
             Some(_) => None,
         };
         if let (Repr::Bits(a), Repr::Bits(w), Some(k)) = (&self.repr, &within.repr, known_bits) {
-            let mut out: Option<FixedBitSet> = None;
-            for (i, (x, y)) in a.as_slice().iter().zip(w.as_slice()).enumerate() {
-                let seen = k.and_then(|k| k.get(i)).copied().unwrap_or(0);
-                let word = x & y & !seen;
-                if word != 0
-                    && let Some(slot) = out
-                        .get_or_insert_with(|| FixedBitSet::with_capacity(self.roster as usize))
-                        .as_mut_slice()
-                        .get_mut(i)
-                {
-                    *slot = word;
-                }
+            let fresh = |(i, (x, y)): (usize, (&usize, &usize))| {
+                x & y & !k.and_then(|k| k.get(i)).copied().unwrap_or(0)
+            };
+            let words = || a.as_slice().iter().zip(w.as_slice()).enumerate();
+            // Counted first, so that a few new members make a short list
+            // (a bit set is the whole roster's size).
+            let count: usize = words().map(|p| fresh(p).count_ones() as usize).sum();
+            if count == 0 {
+                return None;
             }
-            return out.map(|bits| MemberSet {
+            if !Self::dense(count, self.roster as usize) {
+                const WORD: usize = usize::BITS as usize;
+                let mut ids = Vec::with_capacity(count);
+                for p in words() {
+                    let i = p.0;
+                    let mut word = fresh(p);
+                    while word != 0 {
+                        ids.push((i * WORD) as u32 + word.trailing_zeros());
+                        word &= word - 1;
+                    }
+                }
+                return Some(MemberSet::from_sorted(self.roster as usize, ids));
+            }
+            let mut bits = FixedBitSet::with_capacity(self.roster as usize);
+            for (slot, word) in bits.as_mut_slice().iter_mut().zip(words().map(fresh)) {
+                *slot = word;
+            }
+            return Some(MemberSet {
                 roster: self.roster,
-                repr: Repr::Bits(bits),
+                repr: Repr::Bits(Arc::new(bits)),
             });
         }
         let ids: Vec<u32> = self
@@ -330,15 +352,32 @@ impl MemberSet {
     }
     /// Add every member of `other`.
     pub fn union_with(&mut self, other: &MemberSet) {
+        // A short list stays a list while the union is sparse (a bit set
+        // is the whole roster's size, per holder).
+        let sparse = !matches!(self.repr, Repr::Bits(_))
+            && matches!(other.repr, Repr::Bits(_))
+            && !Self::dense(self.len() + other.len(), self.roster as usize);
+        if sparse {
+            for r in other.iter() {
+                self.insert(r);
+            }
+            return;
+        }
         match (&mut self.repr, &other.repr) {
-            (Repr::Bits(a), Repr::Bits(b)) => a.union_with(b),
+            (Repr::Bits(a), Repr::Bits(b)) => {
+                // Shared and already holding all of `other`: nothing to
+                // copy.
+                if !b.is_subset(a) {
+                    Arc::make_mut(a).union_with(b);
+                }
+            }
             (_, Repr::Bits(b)) => {
-                let mut bits = b.clone();
+                let mut bits = FixedBitSet::clone(b);
                 bits.grow(self.roster as usize);
                 for r in self.iter() {
                     bits.insert(r.index());
                 }
-                self.repr = Repr::Bits(bits);
+                self.repr = Repr::Bits(Arc::new(bits));
             }
             _ => {
                 for r in other.iter() {
@@ -399,7 +438,7 @@ impl MemberSet {
                 }
                 out.push(MemberSet {
                     roster: self.roster,
-                    repr: Repr::Bits(b),
+                    repr: Repr::Bits(Arc::new(b)),
                 });
             } else if c <= INLINE {
                 let mut ids = [0; INLINE];
@@ -527,7 +566,9 @@ impl Fields {
                 .collect();
             return Ok(MemberSet {
                 roster: roster as u32,
-                repr: Repr::Bits(FixedBitSet::with_capacity_and_blocks(roster, blocks)),
+                repr: Repr::Bits(Arc::new(FixedBitSet::with_capacity_and_blocks(
+                    roster, blocks,
+                ))),
             });
         }
         let mut ids = Vec::with_capacity(n);

@@ -191,12 +191,8 @@ impl Kernel {
                 continue;
             };
             let known = f.departed.as_ref();
-            let mut who: Option<MemberSet> = pos
-                .frames
-                .iter()
-                .find(|g| g.id == id)
-                .and_then(|g| g.departed.as_ref())
-                .and_then(|d| d.fresh_in(&team.members, known));
+            let report = (pos.frames.iter().find(|g| g.id == id)).and_then(|g| g.departed.as_ref());
+            let mut who: Option<MemberSet> = report.and_then(|d| d.fresh_in(&team.members, known));
             let ended = pos.ended.iter().any(|e| e.id == id)
                 || pos.burned.contains(&id)
                 || pos
@@ -213,6 +209,33 @@ impl Kernel {
             who.remove(self.me);
             if who.is_empty() {
                 continue;
+            }
+            // When what this robot will know is exactly the leader's report
+            // (it holds all it knew, and nothing of it is new to the team
+            // or, on the stack, this robot itself), it keeps the report itself: a set
+            // shared by every member, not a copy of the roster's size each
+            // (the same set: `depart` below then adds nothing to it).
+            // A frame this robot ended may list the robot itself: it has
+            // departed from it (nothing below it runs here any more).
+            let share = report
+                .filter(|d| {
+                    (slot.is_none() || !d.contains(self.me))
+                        && who.is_subset(d)
+                        && d.is_subset(&team.members)
+                        && known.is_none_or(|k| k.is_subset(d))
+                })
+                .cloned();
+            if let Some(d) = share {
+                match slot {
+                    Some(i) => self.stack[i].departed = Some(d),
+                    None => {
+                        if let Phase::Terminating { frame, .. } | Phase::Selecting { frame, .. } =
+                            &mut self.phase
+                        {
+                            frame.departed = Some(d);
+                        }
+                    }
+                }
             }
             match slot {
                 Some(i) => self.depart(i, &who),
