@@ -2,21 +2,24 @@
 //! threads, and reading a run's peak memory.
 
 use anyhow::{Context, Result};
+use std::sync::Arc;
 
-/// Run `f` on a rayon pool of `threads` threads (`None`: rayon's global
-/// pool, one thread per core unless `RAYON_NUM_THREADS` says otherwise).
-/// The simulator's parallel parts (sensing, the minds' ticks) run on the
-/// pool they are called from, so this is how a benchmark compares one core
-/// with two in one process. Results are the same for any thread count.
-pub fn on_threads<R: Send>(threads: Option<usize>, f: impl FnOnce() -> R + Send) -> Result<R> {
-    match threads {
-        None => Ok(f()),
-        Some(t) => Ok(rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
-            .build()
-            .with_context(|| format!("starting {t} threads"))?
-            .install(f)),
-    }
+/// A pool of `threads` threads for a run's control tick (`None`: rayon's
+/// global pool, one thread per core unless `RAYON_NUM_THREADS` says
+/// otherwise). The run stays on the caller's thread and hands its parallel
+/// parts (sensing, the minds' ticks) to the pool (`RunOptions::pool`), so a
+/// benchmark compares one core with two in one process. Results are the
+/// same for any thread count.
+pub fn pool(threads: Option<usize>) -> Result<Option<Arc<rayon::ThreadPool>>> {
+    threads
+        .map(|t| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(t)
+                .build()
+                .map(Arc::new)
+                .with_context(|| format!("starting {t} threads"))
+        })
+        .transpose()
 }
 
 /// Forget the process's peak resident memory so far, so that the next
@@ -43,11 +46,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn work_runs_on_the_threads_asked_for() {
-        let n = on_threads(Some(2), rayon::current_num_threads).expect("pool");
-        assert_eq!(n, 2);
-        let n = on_threads(Some(1), rayon::current_num_threads).expect("pool");
-        assert_eq!(n, 1);
+    fn pools_have_the_threads_asked_for() {
+        let p = pool(Some(2)).expect("pool").expect("a pool");
+        assert_eq!(p.current_num_threads(), 2);
+        assert!(pool(None).expect("no pool").is_none());
     }
 
     #[test]

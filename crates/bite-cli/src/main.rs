@@ -788,6 +788,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
                     poses_every: Duration::from_millis(100),
                 },
             ),
+            pool: None,
         },
     )
     .map_err(bad_input)?;
@@ -1192,6 +1193,7 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
     }
     let mut curves = Vec::new();
     for t in &threads {
+        let pool = benchkit::pool(*t)?;
         let threads_used = t.unwrap_or_else(rayon::current_num_threads);
         let mut points = Vec::new();
         for (k, (name, sc, mission)) in loaded.iter().enumerate() {
@@ -1205,22 +1207,19 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
                     .unwrap_or_else(|_| ProgressStyle::default_bar()),
                 );
                 bar.set_prefix(name.clone());
-                let (mission2, bar2, seed) = (mission.clone(), bar.clone(), b.seed);
                 benchkit::reset_peak_memory();
                 let start = std::time::Instant::now();
-                let report = benchkit::on_threads(*t, move || {
-                    let mut on_progress =
-                        |p: Progress| bar2.set_position(p.now.as_secs_f64() as u64);
-                    run(
-                        mission2,
-                        sc,
-                        RunOptions {
-                            seed: Some(seed),
-                            progress: Some(&mut on_progress),
-                            ..RunOptions::default()
-                        },
-                    )
-                })?
+                let mut on_progress = |p: Progress| bar.set_position(p.now.as_secs_f64() as u64);
+                let report = run(
+                    mission.clone(),
+                    sc,
+                    RunOptions {
+                        seed: Some(b.seed),
+                        progress: Some(&mut on_progress),
+                        pool: pool.clone(),
+                        ..RunOptions::default()
+                    },
+                )
                 .map_err(bad_input)?;
                 let wall = start.elapsed().as_secs_f64();
                 let peak = benchkit::peak_memory_kb();
@@ -1315,6 +1314,7 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
         outln!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |");
     }
     for t in &threads {
+        let pool = benchkit::pool(*t)?;
         let mut points = Vec::new();
         for &robots in b.robots {
             let mission = prepare(&g, &sc, Some(robots), &registry()).map_err(bad_input)?;
@@ -1337,26 +1337,23 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
                 );
                 benchkit::reset_peak_memory();
                 let start = std::time::Instant::now();
-                let (mission, sc, bar2) = (mission.clone(), &sc, bar.clone());
-                let (seed, sim_time) = (b.seed, b.sim_time);
-                let report = benchkit::on_threads(*t, move || {
-                    let mut on_progress = |p: Progress| {
-                        bar2.set_position(p.now.as_secs_f64() as u64);
-                        bar2.set_message(format!("{}/{} done", p.finished, p.robots));
-                    };
-                    run(
-                        mission,
-                        sc,
-                        RunOptions {
-                            seed: Some(seed),
-                            time_limit: sim_time,
-                            log: None,
-                            record: false,
-                            progress: Some(&mut on_progress),
-                            ..Default::default()
-                        },
-                    )
-                })?
+                let mut on_progress = |p: Progress| {
+                    bar.set_position(p.now.as_secs_f64() as u64);
+                    bar.set_message(format!("{}/{} done", p.finished, p.robots));
+                };
+                let report = run(
+                    mission.clone(),
+                    &sc,
+                    RunOptions {
+                        seed: Some(b.seed),
+                        time_limit: b.sim_time,
+                        log: None,
+                        record: false,
+                        progress: Some(&mut on_progress),
+                        pool: pool.clone(),
+                        ..Default::default()
+                    },
+                )
                 .map_err(bad_input)?;
                 let wall = start.elapsed().as_secs_f64();
                 let peak = benchkit::peak_memory_kb();

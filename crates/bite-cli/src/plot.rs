@@ -83,7 +83,11 @@ pub fn scaling(path: &Path, title: &str, curves: &[Curve]) -> Result<()> {
             )?;
             chart.draw_series(mid.iter().map(|(x, y)| {
                 Text::new(
-                    format!("{y:.1}×"),
+                    if *y < 1.0 {
+                        format!("{y:.2}×")
+                    } else {
+                        format!("{y:.1}×")
+                    },
                     (*x * 1.1, *y * (1.25 + 0.35 * k as f64)),
                     ("sans-serif", 13),
                 )

@@ -87,6 +87,10 @@ pub struct RunOptions<'a> {
     pub changes: Vec<Change>,
     /// Someone watching the run as it goes (a live view, an MCAP file).
     pub watch: Option<Watch<'a>>,
+    /// The threads a large team's control tick runs on (default: rayon's
+    /// global pool; `bite bench --threads` compares one with two). The run
+    /// itself stays on the caller's thread. Results are the same for any.
+    pub pool: Option<Arc<rayon::ThreadPool>>,
 }
 
 /// A watcher of a run: sees every run-log record when it is made (whether
@@ -248,6 +252,8 @@ struct Sim<'a, 'w> {
     seed: u64,
     /// The physical world (the robots' bodies), if the scenario has one.
     physics: Option<crate::physics::World>,
+    /// The threads of a large team's control tick (see `RunOptions::pool`).
+    pool: Option<Arc<rayon::ThreadPool>>,
     next_poses: Time,
     /// How often, and when next, the watcher sees the poses.
     watch_poses: Option<(Duration, Time)>,
@@ -318,10 +324,19 @@ impl Sim<'_, '_> {
     fn control_tick(&mut self) {
         use rayon::prelude::*;
         let n = self.agents.len();
-        let sensed: Vec<Option<Sensed>> = match self.physics.as_mut() {
-            Some(w) => w.observe_all(&self.crashed),
-            None => Vec::new(),
+        let par = parallel(n);
+        let pool = self.pool.clone();
+        // On the run's own pool when it has one (the decision to go
+        // parallel is taken here, on the run's thread).
+        let on_pool = |f: &mut (dyn FnMut() + Send)| match &pool {
+            Some(p) if par => p.install(f),
+            _ => f(),
         };
+        let mut sensed: Vec<Option<Sensed>> = Vec::new();
+        if let Some(w) = self.physics.as_mut() {
+            let crashed = &self.crashed;
+            on_pool(&mut || sensed = w.observe_all(crashed, par));
+        }
         let clocks: Vec<Time> = (0..n).map(|i| self.clock(i)).collect();
         let (world, crashed) = (self.now, &self.crashed);
         let tick = |(i, a): (usize, &mut Agent)| {
@@ -330,12 +345,15 @@ impl Sim<'_, '_> {
                 a.handle(clocks[i], Input::Tick { world, sensed });
             }
         };
-        if parallel(n) {
-            (self.agents.par_iter_mut().enumerate())
-                .with_min_len(16)
-                .for_each(tick);
+        let agents = &mut self.agents;
+        if par {
+            on_pool(&mut || {
+                (agents.par_iter_mut().enumerate())
+                    .with_min_len(16)
+                    .for_each(tick)
+            });
         } else {
-            self.agents.iter_mut().enumerate().for_each(tick);
+            agents.iter_mut().enumerate().for_each(tick);
         }
         for i in 0..n {
             if !self.crashed[i] {
@@ -1025,6 +1043,7 @@ pub fn run(
         inject: scenario.inject,
         changes: Vec::new(),
         handed: 0,
+        pool: opts.pool.clone(),
     };
     for c in opts.changes {
         let shared = Shared::new(c.mission.clone(), scenario)?;

@@ -337,4 +337,31 @@ fn a_large_team_runs_the_same_on_one_thread_and_on_several() {
         String::from_utf8_lossy(&one.log).lines().count() > 100,
         "the robots did something"
     );
+    // On a pool of its own (`RunOptions::pool`, what `bite bench --threads`
+    // uses), from the caller's thread: the same again.
+    use bite_sim::runner::{RunOptions, prepare, run};
+    let mission = prepare(&g, &sc, None, &bite_protocols::registry()).expect("prepares");
+    let mut log = Vec::new();
+    let two = Arc::new(
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(2)
+            .build()
+            .expect("a thread pool"),
+    );
+    run(
+        mission,
+        &sc,
+        RunOptions {
+            seed: Some(5),
+            log: Some(&mut log),
+            record: true,
+            pool: Some(two),
+            ..RunOptions::default()
+        },
+    )
+    .expect("runs");
+    assert!(
+        log == parallel.log,
+        "the logs differ on a pool of two threads"
+    );
 }

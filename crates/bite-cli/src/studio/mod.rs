@@ -627,6 +627,7 @@ fn run_mission(
                     on_record: &mut on_record,
                     poses_every: Duration::from_millis(40),
                 }),
+                pool: None,
             },
         )
         .map_err(|d| anyhow::anyhow!("{d}"))?;

@@ -824,14 +824,14 @@ impl World {
     /// is large: each robot draws its own noise and the world does not
     /// change while they sense, so the readings are the same for any
     /// number of threads.
-    pub fn observe_all(&mut self, skip: &[bool]) -> Vec<Option<Sensed>> {
+    pub fn observe_all(&mut self, skip: &[bool], parallel: bool) -> Vec<Option<Sensed>> {
         use rayon::prelude::*;
         let mut rngs = std::mem::take(&mut self.rngs);
         let this = &*self;
         let sense = |near: &mut Vec<(Kind, rp::ColliderHandle)>, (i, rng): (usize, &mut Rng)| {
             (!skip.get(i).copied().unwrap_or(false)).then(|| this.sense(i, rng, near))
         };
-        let out: Vec<Option<(Sensed, Vec<usize>)>> = if crate::runner::parallel(rngs.len()) {
+        let out: Vec<Option<(Sensed, Vec<usize>)>> = if parallel {
             (rngs.par_iter_mut().enumerate())
                 .with_min_len(16)
                 .map_init(Vec::new, sense)
