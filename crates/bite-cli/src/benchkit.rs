@@ -2,7 +2,65 @@
 //! threads, and reading a run's peak memory.
 
 use anyhow::{Context, Result};
+use std::path::PathBuf;
 use std::sync::Arc;
+
+/// How a whole-system benchmark repeats its runs and draws them
+/// (`bite bench sim`, `bite bench team`).
+#[derive(clap::Args, Debug)]
+pub struct Scaling {
+    /// Runs of each size and thread count (the same run: their spread is
+    /// the machine's, not the mission's).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeat: u32,
+    /// Thread counts to run each size on (default: rayon's, one per core);
+    /// e.g. `--threads 1,2` to compare one core with two.
+    #[arg(long, num_args = 1.., value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
+    pub threads: Vec<u32>,
+    /// Also draw the real-time factor by team size, one curve per thread
+    /// count through the median run with the run-to-run spread, to this SVG
+    /// file.
+    #[arg(long)]
+    pub plot: Option<PathBuf>,
+}
+
+/// One thread count of a benchmark: how many threads, and the pool of a
+/// run's control tick (`None`: rayon's global pool).
+pub struct Threads {
+    /// Threads the runs use.
+    pub count: usize,
+    /// The pool to hand the runs (`RunOptions::pool`).
+    pub pool: Option<Arc<rayon::ThreadPool>>,
+    /// The curve's label in a figure.
+    pub label: String,
+}
+
+impl Scaling {
+    /// The thread counts asked for, each with its pool.
+    pub fn thread_counts(&self) -> Result<Vec<Threads>> {
+        let asked: Vec<Option<usize>> = if self.threads.is_empty() {
+            vec![None]
+        } else {
+            self.threads.iter().map(|t| Some(*t as usize)).collect()
+        };
+        asked
+            .into_iter()
+            .map(|t| {
+                Ok(Threads {
+                    count: t.unwrap_or_else(rayon::current_num_threads),
+                    pool: pool(t)?,
+                    label: match t {
+                        Some(1) => "one thread".to_string(),
+                        Some(t) => format!("{t} threads"),
+                        None => {
+                            format!("{} threads (rayon's default)", rayon::current_num_threads())
+                        }
+                    },
+                })
+            })
+            .collect()
+    }
+}
 
 /// A pool of `threads` threads for a run's control tick (`None`: rayon's
 /// global pool, one thread per core unless `RAYON_NUM_THREADS` says

@@ -305,18 +305,8 @@ enum BenchCmd {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Runs of each (the same run: their spread is the machine's).
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
-        repeat: u32,
-        /// Thread counts to run each on (default: rayon's, one per core);
-        /// e.g. `--threads 1,2` to compare one core with two.
-        #[arg(long, num_args = 1.., value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
-        threads: Vec<u32>,
-        /// Also draw the scaling curve (real-time factor by team size, one
-        /// curve per thread count, with the run-to-run spread) to this SVG
-        /// file.
-        #[arg(long)]
-        plot: Option<PathBuf>,
+        #[command(flatten)]
+        scaling: benchkit::Scaling,
         /// Print the results as JSON (`{"rows": [...]}`) instead of a table.
         #[arg(long)]
         json: bool,
@@ -406,18 +396,8 @@ enum BenchCmd {
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Runs per team size and thread count (the same run: their
-        /// spread is the machine's, not the mission's).
-        #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
-        repeat: u32,
-        /// Thread counts to run each size on (default: rayon's, one per
-        /// core); e.g. `--threads 1,2` to compare one core with two.
-        #[arg(long, num_args = 1.., value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
-        threads: Vec<u32>,
-        /// Also draw the real-time factor by team size, one curve per
-        /// thread count with the run-to-run spread, to this SVG file.
-        #[arg(long)]
-        plot: Option<PathBuf>,
+        #[command(flatten)]
+        scaling: benchkit::Scaling,
         /// Print the result as JSON (`{"rows": [{"robots": N,
         /// "real_time_factor": F, ...}]}`) instead of text.
         #[arg(long)]
@@ -1139,9 +1119,7 @@ struct SimBench<'a> {
     robots: &'a [usize],
     seconds: f64,
     seed: u64,
-    repeat: u32,
-    threads: &'a [u32],
-    plot: Option<&'a Path>,
+    scaling: &'a benchkit::Scaling,
     json: bool,
 }
 
@@ -1177,11 +1155,6 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
         );
         outln!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |");
     }
-    let threads: Vec<Option<usize>> = if b.threads.is_empty() {
-        vec![None]
-    } else {
-        b.threads.iter().map(|t| Some(*t as usize)).collect()
-    };
     let mut loaded = Vec::new();
     for (name, g, s) in cases {
         let graph = bite_core::graph::load_str(&Arc::from(format!("{name} (built in)")), &g)
@@ -1192,13 +1165,12 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
         loaded.push((name, sc, mission));
     }
     let mut curves = Vec::new();
-    for t in &threads {
-        let pool = benchkit::pool(*t)?;
-        let threads_used = t.unwrap_or_else(rayon::current_num_threads);
+    for t in b.scaling.thread_counts()? {
+        let (pool, threads_used) = (&t.pool, t.count);
         let mut points = Vec::new();
         for (k, (name, sc, mission)) in loaded.iter().enumerate() {
             let mut factors = Vec::new();
-            for rep in 0..b.repeat {
+            for rep in 0..b.scaling.repeat {
                 let bar = ProgressBar::new(sc.time_limit.as_secs().max(1));
                 bar.set_style(
                     ProgressStyle::with_template(
@@ -1253,23 +1225,19 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
             }
         }
         curves.push(plot::Curve {
-            label: match t {
-                Some(1) => "coverage mission, one thread".to_string(),
-                Some(t) => format!("coverage mission, {t} threads"),
-                None => format!("coverage mission, {threads_used} threads (rayon's default)"),
-            },
+            label: format!("coverage mission, {}", t.label),
             points,
         });
     }
     if b.json {
         outln!("{}", serde_json::json!({ "rows": rows }));
     }
-    if let Some(path) = b.plot {
+    if let Some(path) = &b.scaling.plot {
         plot::scaling(
             path,
             &format!(
                 "bite bench sim: coverage mission, {} s simulated, {} run(s) each",
-                b.seconds, b.repeat
+                b.seconds, b.scaling.repeat
             ),
             &curves,
         )?;
@@ -1286,9 +1254,7 @@ struct TeamBench<'a> {
     config: Option<&'a Path>,
     sim_time: Option<Duration>,
     seed: u64,
-    repeat: u32,
-    threads: &'a [u32],
-    plot: Option<&'a Path>,
+    scaling: &'a benchkit::Scaling,
     json: bool,
 }
 
@@ -1300,11 +1266,6 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
         (None, None) => load_scenario(None, None, &g, true)?,
         (Some(p), None) => load_scenario(Some(p), None, &g, true)?,
     };
-    let threads: Vec<Option<usize>> = if b.threads.is_empty() {
-        vec![None]
-    } else {
-        b.threads.iter().map(|t| Some(*t as usize)).collect()
-    };
     let mut rows = Vec::new();
     let mut curves = Vec::new();
     if !b.json {
@@ -1313,8 +1274,8 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
         );
         outln!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |");
     }
-    for t in &threads {
-        let pool = benchkit::pool(*t)?;
+    for t in b.scaling.thread_counts()? {
+        let (pool, threads_used) = (&t.pool, t.count);
         let mut points = Vec::new();
         for &robots in b.robots {
             let mission = prepare(&g, &sc, Some(robots), &registry()).map_err(bad_input)?;
@@ -1324,10 +1285,10 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
                 sc.name,
                 sc.control_hz,
                 b.seed,
-                t.unwrap_or_else(rayon::current_num_threads),
+                threads_used,
             );
             let mut factors = Vec::new();
-            for rep in 0..b.repeat {
+            for rep in 0..b.scaling.repeat {
                 let bar = ProgressBar::new(b.sim_time.unwrap_or(sc.time_limit).as_secs().max(1));
                 bar.set_style(
                     ProgressStyle::with_template(
@@ -1363,7 +1324,6 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
                 let factor = sim / wall.max(1e-9);
                 let ticks = robots as f64 * sim * sc.control_hz / wall.max(1e-9);
                 factors.push(factor);
-                let threads_used = t.unwrap_or_else(rayon::current_num_threads);
                 if !b.json {
                     outln!(
                         "| {robots} | {threads_used} | {sim:.1} s | {wall:.2} s | {factor:.2}× | {ticks:.0} | {} | {} / {} | {} |",
@@ -1385,18 +1345,14 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
             points.push((robots, factors));
         }
         curves.push(plot::Curve {
-            label: match t {
-                Some(1) => "one thread".to_string(),
-                Some(t) => format!("{t} threads"),
-                None => format!("{} threads (rayon's default)", rayon::current_num_threads()),
-            },
+            label: t.label,
             points,
         });
     }
     if b.json {
         outln!("{}", serde_json::json!({ "rows": rows }));
     }
-    if let Some(path) = b.plot {
+    if let Some(path) = &b.scaling.plot {
         let span = b
             .sim_time
             .map_or("until the mission completes".to_string(), |d| {
@@ -1407,7 +1363,7 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
             &format!(
                 "bite bench team: `{}`, {span}, {} run(s) each",
                 g.name(),
-                b.repeat
+                b.scaling.repeat
             ),
             &curves,
         )?;
@@ -1586,9 +1542,7 @@ fn main() -> ExitCode {
                     config,
                     sim_time,
                     seed,
-                    repeat,
-                    threads,
-                    plot,
+                    scaling,
                     json,
                 },
         } => cmd_bench_team(TeamBench {
@@ -1598,9 +1552,7 @@ fn main() -> ExitCode {
             config: config.as_deref(),
             sim_time,
             seed,
-            repeat,
-            threads: &threads,
-            plot: plot.as_deref(),
+            scaling: &scaling,
             json,
         }),
         Cmd::Bench {
@@ -1609,18 +1561,14 @@ fn main() -> ExitCode {
                     robots,
                     seconds,
                     seed,
-                    repeat,
-                    threads,
-                    plot,
+                    scaling,
                     json,
                 },
         } => cmd_bench_sim(SimBench {
             robots: &robots,
             seconds,
             seed,
-            repeat,
-            threads: &threads,
-            plot: plot.as_deref(),
+            scaling: &scaling,
             json,
         }),
         Cmd::Bench {
