@@ -211,10 +211,10 @@ impl Kernel {
                 continue;
             }
             // When what this robot will know is exactly the leader's report
-            // (it holds all it knew, and nothing of it is new to the team
-            // or, on the stack, this robot itself), it keeps the report itself: a set
-            // shared by every member, not a copy of the roster's size each
-            // (the same set: `depart` below then adds nothing to it).
+            // (the report holds all it knew, only members of the team, and,
+            // for a frame on the stack, not this robot), it keeps the report
+            // itself: one set shared by every member instead of a copy of
+            // the roster's size each; `depart` below then adds nothing to it.
             // A frame this robot ended may list the robot itself: it has
             // departed from it (nothing below it runs here any more).
             let share = report
