@@ -222,8 +222,10 @@ pub struct Agent {
     shared: Arc<Shared>,
     kernel: Kernel,
     world: RobotWorld,
-    wm: Option<WorldModel>,
-    pilot: Option<Pilot>,
+    /// Boxed, as is the pilot: a team of 100,000 timed robots has neither,
+    /// and the agents are stored side by side.
+    wm: Option<Box<WorldModel>>,
+    pilot: Option<Box<Pilot>>,
     /// The next of the shared timed facts (injected at the first control
     /// tick at or after their time).
     next_fact: usize,
@@ -236,7 +238,9 @@ pub struct Agent {
     /// dated earlier is taken at this time, and counted).
     last: Time,
     backwards: u64,
-    rng: Rng,
+    /// The pilot's draws (with a pilot only: a ChaCha generator is 300
+    /// bytes, and a timed robot has no use for it).
+    rng: Option<Box<Rng>>,
     out: VecDeque<AgentOutput>,
     /// Where every input and what it produced are written, if recording.
     recorder: Option<crate::record::Recorder>,
@@ -281,11 +285,13 @@ impl Agent {
         let pilot = shared
             .physics
             .as_ref()
-            .map(|(spec, tables)| Pilot::new(spec.clone(), tables.clone()));
+            .map(|(spec, tables)| Box::new(Pilot::new(spec.clone(), tables.clone())));
         let wm = shared
             .wm
             .as_ref()
-            .map(|(len, sharing, private)| WorldModel::new(me, *len, *sharing, private.clone()));
+            .map(|(len, sharing, private)| {
+                Box::new(WorldModel::new(me, *len, *sharing, private.clone()))
+            });
         Agent {
             kernel,
             world: RobotWorld::new(derive_seed(seed, "world", who)),
@@ -297,7 +303,10 @@ impl Agent {
             body_t: Time::ZERO,
             last: Time::ZERO,
             backwards: 0,
-            rng: Rng::seed_from_u64(derive_seed(seed, "pilot", who)),
+            rng: shared
+                .physics
+                .is_some()
+                .then(|| Box::new(Rng::seed_from_u64(derive_seed(seed, "pilot", who)))),
             out: VecDeque::new(),
             recorder: None,
             percepts: Vec::new(),
@@ -353,7 +362,7 @@ impl Agent {
 
     /// The world model, if the team shares beliefs.
     pub fn world_model(&self) -> Option<&WorldModel> {
-        self.wm.as_ref()
+        self.wm.as_deref()
     }
 
     /// Record every input from now on, and what the mind produced for it
@@ -476,7 +485,7 @@ impl Agent {
             }
         }
         self.world.tick(world, &mut percepts);
-        if let (Some(p), Some(s)) = (self.pilot.as_mut(), sensed) {
+        if let (Some(p), Some(s)) = (self.pilot.as_deref_mut(), sensed) {
             self.odometer = s.odometer;
             p.perceive(s, &mut percepts);
         }
@@ -493,7 +502,7 @@ impl Agent {
         }
         self.percepts = percepts;
         self.drain(now);
-        if let Some(p) = self.pilot.as_mut() {
+        if let (Some(p), Some(rng)) = (self.pilot.as_deref_mut(), self.rng.as_deref_mut()) {
             let k = &self.kernel;
             let roles = roles_of(k, self.shared.mission.graph());
             let rank = k
@@ -502,7 +511,6 @@ impl Agent {
                 .map_or((0, 1), |t| (t.members.rank(k.me()) as u32, t.size));
             p.set_lost(k.lost().iter().map(|r| r.0));
             p.set_roles(roles, rank);
-            let rng = &mut self.rng;
             let mut draw = || {
                 use rand::RngExt;
                 rng.random_range(0.0..1.0)
@@ -556,12 +564,12 @@ impl Agent {
             return;
         };
         self.pending.retain(|v, _| *v > version);
-        if let (Some(p), Some((_, tables))) = (self.pilot.as_mut(), shared.physics.as_ref()) {
+        if let (Some(p), Some((_, tables))) = (self.pilot.as_deref_mut(), shared.physics.as_ref()) {
             p.set_tables(tables.clone());
         }
         // The world model (set up by the first version) takes every belief
         // of the new one: the kernel hears its own readings through it.
-        if let Some(wm) = self.wm.as_mut() {
+        if let Some(wm) = self.wm.as_deref_mut() {
             let len = shared.mission.graph().symbols().len();
             wm.grow(len, shared.wm.as_ref().map(|w| w.2.clone()));
         }
@@ -600,7 +608,7 @@ impl Agent {
                     wm.perceive(now, &started, own, told)
                 });
             }
-            if let Some(p) = self.pilot.as_mut() {
+            if let Some(p) = self.pilot.as_deref_mut() {
                 let leaf = leaf.map(|l| l.0);
                 let skill = leaf
                     .and_then(|b| self.shared.motor.get(b.index()).cloned())
@@ -619,7 +627,7 @@ impl Agent {
             &mut Vec<(BeliefId, Value, Source)>,
         ),
     ) {
-        let Some(wm) = self.wm.as_mut() else { return };
+        let Some(wm) = self.wm.as_deref_mut() else { return };
         self.own.clear();
         self.told.clear();
         feed(wm, &mut self.own, &mut self.told);
@@ -630,7 +638,7 @@ impl Agent {
     }
 
     fn share(&mut self, now: Time) {
-        let Some(wm) = self.wm.as_mut() else { return };
+        let Some(wm) = self.wm.as_deref_mut() else { return };
         if wm.due(now) {
             wm.share(now, &self.kernel);
         }

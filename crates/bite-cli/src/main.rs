@@ -1466,6 +1466,12 @@ fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64, json: bool) -> 
     Ok(ExitCode::SUCCESS)
 }
 
+/// mimalloc instead of glibc's allocator: the kernels, the simulator and the
+/// compiler make many small, short-lived allocations; measured in
+/// docs/performance.md, chosen in docs/dependencies.md.
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     // `BITE_PARSE_ONLY=1`: check the command line and stop (exit 0, or 2

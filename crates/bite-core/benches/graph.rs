@@ -10,6 +10,10 @@ use bite_core::graph::load_str;
 use bite_core::graph::spec::GraphSpec;
 use std::sync::Arc;
 
+// The allocator the `bite` binary runs with, so that the figures are its.
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     divan::main();
 }

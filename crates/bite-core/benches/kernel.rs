@@ -21,6 +21,10 @@ use bite_core::value::Value;
 use bite_core::{BehaviorGraph, Config};
 use std::sync::Arc;
 
+// The allocator the `bite` binary runs with, so that the figures are its.
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     divan::main();
 }

@@ -6,6 +6,10 @@
 use bite_protocols::lap::solve;
 use rand::{RngExt, SeedableRng};
 
+// The allocator the `bite` binary runs with, so that the figures are its.
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     divan::main();
 }

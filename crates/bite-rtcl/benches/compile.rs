@@ -13,6 +13,10 @@
 use bite_rtcl::{CompileOptions, Library, compile};
 use std::sync::{Arc, LazyLock};
 
+// The allocator the `bite` binary runs with, so that the figures are its.
+#[global_allocator]
+static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 fn main() {
     divan::main();
 }

@@ -354,8 +354,9 @@ pub struct Kernel {
     stack: Vec<Frame>,
     phase: Phase,
     instances: BTreeMap<InstanceKey, Box<Instance>>,
-    /// Highest epoch known to be over, per (team, behavior, kind).
-    closed: BTreeMap<(TeamId, BehaviorId, Kind), (u32, u32)>,
+    /// Highest epoch known to be over, per (team, behavior, kind) (looked
+    /// up and pruned, never walked in order: a hash map).
+    closed: rustc_hash::FxHashMap<(TeamId, BehaviorId, Kind), (u32, u32)>,
     /// Messages buffered for instances not started yet.
     inbox: Inbox,
     /// Teammates presumed lost (reported by the runtime).
@@ -366,8 +367,10 @@ pub struct Kernel {
     missed: BTreeMap<RobotId, VecDeque<InstanceKey>>,
     /// Teammates presumed lost at some point of the mission.
     ever_lost: MemberSet,
-    /// Outcomes of forgotten instances, to answer late teammates.
-    tombstones: BTreeMap<InstanceKey, Closed>,
+    /// Outcomes of forgotten instances, to answer late teammates (looked up
+    /// by key, forgotten in `tomb_order`: a hash map, a thousand entries
+    /// deep once a mission has run a while).
+    tombstones: rustc_hash::FxHashMap<InstanceKey, Closed>,
     tomb_order: VecDeque<InstanceKey>,
     /// Recently accepted `(sender, seq)` with when: a message is acted upon
     /// at most once, whatever the order it arrives in.
@@ -436,12 +439,12 @@ impl Kernel {
             stack: Vec::new(),
             phase: Phase::NotStarted,
             instances: BTreeMap::new(),
-            closed: BTreeMap::new(),
+            closed: Default::default(),
             inbox: Inbox::default(),
             lost: MemberSet::empty(n),
             missed: BTreeMap::new(),
             ever_lost: MemberSet::empty(n),
-            tombstones: BTreeMap::new(),
+            tombstones: Default::default(),
             tomb_order: VecDeque::new(),
             seen: BTreeMap::new(),
             next_seq: 1,
