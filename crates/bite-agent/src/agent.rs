@@ -286,12 +286,9 @@ impl Agent {
             .physics
             .as_ref()
             .map(|(spec, tables)| Box::new(Pilot::new(spec.clone(), tables.clone())));
-        let wm = shared
-            .wm
-            .as_ref()
-            .map(|(len, sharing, private)| {
-                Box::new(WorldModel::new(me, *len, *sharing, private.clone()))
-            });
+        let wm = shared.wm.as_ref().map(|(len, sharing, private)| {
+            Box::new(WorldModel::new(me, *len, *sharing, private.clone()))
+        });
         Agent {
             kernel,
             world: RobotWorld::new(derive_seed(seed, "world", who)),
@@ -627,7 +624,9 @@ impl Agent {
             &mut Vec<(BeliefId, Value, Source)>,
         ),
     ) {
-        let Some(wm) = self.wm.as_deref_mut() else { return };
+        let Some(wm) = self.wm.as_deref_mut() else {
+            return;
+        };
         self.own.clear();
         self.told.clear();
         feed(wm, &mut self.own, &mut self.told);
@@ -638,7 +637,9 @@ impl Agent {
     }
 
     fn share(&mut self, now: Time) {
-        let Some(wm) = self.wm.as_deref_mut() else { return };
+        let Some(wm) = self.wm.as_deref_mut() else {
+            return;
+        };
         if wm.due(now) {
             wm.share(now, &self.kernel);
         }

@@ -32,7 +32,7 @@ use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
 use crate::ids::{InstanceKey, Kind};
 use crate::interaction::{
     Assignment, ChildSlot, Closed, Cx, CxParts, Effects, Interaction, LocalEnd, Outcome,
-    PointInput, Recipients, Rng,
+    PointInput, Recipients,
 };
 use crate::mission::Mission;
 use crate::msg::{Body, Envelope, encoded_len};
@@ -40,7 +40,6 @@ use crate::org::{MemberSet, Organization, Split};
 use crate::rules;
 use crate::time::Time;
 use crate::value::Value;
-use rand::SeedableRng;
 use serde::Serialize;
 use std::collections::{BTreeMap, VecDeque};
 use std::sync::Arc;
@@ -350,7 +349,7 @@ pub struct Kernel {
     me: RobotId,
     beliefs: BeliefStore,
     org: Organization,
-    rng: Rng,
+    rng: crate::interaction::LazyRng,
     stack: Vec<Frame>,
     phase: Phase,
     instances: BTreeMap<InstanceKey, Box<Instance>>,
@@ -433,7 +432,7 @@ impl Kernel {
         Kernel {
             beliefs: BeliefStore::new(graph.symbols().clone()),
             org: Organization::with_root(root),
-            rng: Rng::seed_from_u64(seed),
+            rng: crate::interaction::LazyRng::new(seed),
             me,
             mission,
             stack: Vec::new(),
