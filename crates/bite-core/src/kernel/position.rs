@@ -308,6 +308,17 @@ impl Kernel {
             state,
             alloc: f.alloc_print(),
             departed: match (&f.departed, leads) {
+                // A frame it ended: its members learn that the leader
+                // departed it from the frame's state anyway; listing it
+                // too lets them keep this report as it is (one set shared
+                // by the team) instead of a roster-sized copy each.
+                (d, true) if state != FrameState::Running => {
+                    let mut d = d
+                        .clone()
+                        .unwrap_or_else(|| MemberSet::empty(self.org.roster_len()));
+                    d.insert(self.me);
+                    Some(d)
+                }
                 (Some(d), true) if !d.is_empty() => Some(d.clone()),
                 _ => None,
             },
