@@ -350,6 +350,15 @@ impl MemberSet {
             _ => self.iter().filter(|r| other.contains(*r)).count(),
         }
     }
+    /// True when both sets hold the same shared bits (not merely equal
+    /// members): what lets a team's members keep one copy of a leader's
+    /// report.
+    pub fn shares_bits(&self, other: &MemberSet) -> bool {
+        match (&self.repr, &other.repr) {
+            (Repr::Bits(a), Repr::Bits(b)) => Arc::ptr_eq(a, b),
+            _ => false,
+        }
+    }
     /// Add every member of `other`.
     pub fn union_with(&mut self, other: &MemberSet) {
         // A short list stays a list while the union is sparse (a bit set
