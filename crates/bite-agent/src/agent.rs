@@ -225,7 +225,7 @@ pub struct Agent {
     /// Boxed, as is the pilot: a team of 100,000 timed robots has neither,
     /// and the agents are stored side by side.
     wm: Option<Box<WorldModel>>,
-    pilot: Option<Box<Pilot>>,
+    pilot: Option<Box<Piloted>>,
     /// The next of the shared timed facts (injected at the first control
     /// tick at or after their time).
     next_fact: usize,
@@ -238,9 +238,6 @@ pub struct Agent {
     /// dated earlier is taken at this time, and counted).
     last: Time,
     backwards: u64,
-    /// The pilot's draws (with a pilot only: a ChaCha generator is 300
-    /// bytes, and a timed robot has no use for it).
-    rng: Option<Box<Rng>>,
     out: VecDeque<AgentOutput>,
     /// Where every input and what it produced are written, if recording.
     recorder: Option<crate::record::Recorder>,
@@ -249,6 +246,13 @@ pub struct Agent {
     told: Vec<(BeliefId, Value, bite_core::belief::Source)>,
     /// New versions of the mission, held by the kernel until a safe point.
     pending: BTreeMap<u32, Arc<Shared>>,
+}
+
+/// A robot's pilot, with the generator of its draws (a ChaCha generator is
+/// 300 bytes; a timed robot has neither).
+struct Piloted {
+    pilot: Pilot,
+    rng: Rng,
 }
 
 impl std::fmt::Debug for Agent {
@@ -282,10 +286,12 @@ impl Agent {
             derive_seed(seed, "kernel", who),
             shared.root.clone(),
         );
-        let pilot = shared
-            .physics
-            .as_ref()
-            .map(|(spec, tables)| Box::new(Pilot::new(spec.clone(), tables.clone())));
+        let pilot = shared.physics.as_ref().map(|(spec, tables)| {
+            Box::new(Piloted {
+                pilot: Pilot::new(spec.clone(), tables.clone()),
+                rng: Rng::seed_from_u64(derive_seed(seed, "pilot", who)),
+            })
+        });
         let wm = shared.wm.as_ref().map(|(len, sharing, private)| {
             Box::new(WorldModel::new(me, *len, *sharing, private.clone()))
         });
@@ -300,10 +306,6 @@ impl Agent {
             body_t: Time::ZERO,
             last: Time::ZERO,
             backwards: 0,
-            rng: shared
-                .physics
-                .is_some()
-                .then(|| Box::new(Rng::seed_from_u64(derive_seed(seed, "pilot", who)))),
             out: VecDeque::new(),
             recorder: None,
             percepts: Vec::new(),
@@ -482,7 +484,7 @@ impl Agent {
             }
         }
         self.world.tick(world, &mut percepts);
-        if let (Some(p), Some(s)) = (self.pilot.as_deref_mut(), sensed) {
+        if let (Some(Piloted { pilot: p, .. }), Some(s)) = (self.pilot.as_deref_mut(), sensed) {
             self.odometer = s.odometer;
             p.perceive(s, &mut percepts);
         }
@@ -499,7 +501,7 @@ impl Agent {
         }
         self.percepts = percepts;
         self.drain(now);
-        if let (Some(p), Some(rng)) = (self.pilot.as_deref_mut(), self.rng.as_deref_mut()) {
+        if let Some(Piloted { pilot: p, rng }) = self.pilot.as_deref_mut() {
             let k = &self.kernel;
             let roles = roles_of(k, self.shared.mission.graph());
             let rank = k
@@ -561,7 +563,9 @@ impl Agent {
             return;
         };
         self.pending.retain(|v, _| *v > version);
-        if let (Some(p), Some((_, tables))) = (self.pilot.as_deref_mut(), shared.physics.as_ref()) {
+        if let (Some(Piloted { pilot: p, .. }), Some((_, tables))) =
+            (self.pilot.as_deref_mut(), shared.physics.as_ref())
+        {
             p.set_tables(tables.clone());
         }
         // The world model (set up by the first version) takes every belief
@@ -605,7 +609,7 @@ impl Agent {
                     wm.perceive(now, &started, own, told)
                 });
             }
-            if let Some(p) = self.pilot.as_deref_mut() {
+            if let Some(Piloted { pilot: p, .. }) = self.pilot.as_deref_mut() {
                 let leaf = leaf.map(|l| l.0);
                 let skill = leaf
                     .and_then(|b| self.shared.motor.get(b.index()).cloned())
