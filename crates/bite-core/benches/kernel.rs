@@ -9,6 +9,8 @@
 //! - `decision_step`: the tick on which a leg ends: pop the stack,
 //!   terminate, choose the next behavior, allocate the roles of the next
 //!   leg and expand down to the new leaf (silent protocols, one robot).
+//! - `heartbeat_at_leader`, `heartbeat_at_member`: a teammate's heartbeat
+//!   that changes nothing (its position is the same as the last one).
 //! - `condition_eval`: one typical termination condition.
 
 use bite_core::graph::load_str;
@@ -192,6 +194,50 @@ fn decision_cycle(b: divan::Bencher) {
         ["formation", "triangle", "walk", "lead"],
         "each cycle ends walking"
     );
+}
+
+/// Robot `me` of the 3-robot team after the same ticks as [`walking`].
+fn walking_robot(me: u32) -> Kernel {
+    let m = formation();
+    let peers = m.graph().symbols().get("peers_located").expect("belief");
+    let mut k = Kernel::new(m, RobotId(me), u64::from(me) + 1);
+    k.tick(Time::ZERO, &[]);
+    k.tick(Time::from_millis(100), &[(peers, Value::Bool(true))]);
+    k.tick(Time::from_millis(200), &[]);
+    while k.poll_output().is_some() {}
+    k
+}
+
+/// A heartbeat that changes nothing: robot `to` hears robot `from`'s
+/// position (the same every time: both keep walking), 250 ms apart (the
+/// heartbeat period). A team leader hears one from every member four
+/// times a second: at 100,000 robots this is most of a run's time.
+fn heartbeat(b: divan::Bencher, to: u32, from: u32) {
+    let mut k = walking_robot(to);
+    let pos = walking_robot(from).position();
+    let mut now = Time::from_millis(200);
+    b.bench_local(|| {
+        now += std::time::Duration::from_millis(250);
+        k.peer(now, RobotId(from), divan::black_box(&pos));
+        divan::black_box(k.poll_output());
+    });
+    assert_eq!(
+        k.stack().len(),
+        4,
+        "still walking: the heartbeats changed nothing"
+    );
+}
+
+/// The leader (robot 0) hears a member's unchanged heartbeat.
+#[divan::bench]
+fn heartbeat_at_leader(b: divan::Bencher) {
+    heartbeat(b, 0, 1);
+}
+
+/// A member hears the leader's unchanged heartbeat.
+#[divan::bench]
+fn heartbeat_at_member(b: divan::Bencher) {
+    heartbeat(b, 1, 0);
 }
 
 /// Conditions of increasing complexity, on beliefs that are all set.
