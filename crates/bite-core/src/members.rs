@@ -273,6 +273,9 @@ impl MemberSet {
     /// True when every member of `self` is in `other`.
     pub fn is_subset(&self, other: &MemberSet) -> bool {
         match (&self.repr, &other.repr) {
+            // One shared set (a leader's report a member kept): no need to
+            // read the roster's words.
+            (Repr::Bits(a), Repr::Bits(b)) if Arc::ptr_eq(a, b) => true,
             (Repr::Bits(a), Repr::Bits(b)) => a.is_subset(b),
             _ => self.iter().all(|r| other.contains(r)),
         }
@@ -285,6 +288,12 @@ impl MemberSet {
     /// is new to what it knows as words too ([`MemberSet::union_with`]),
     /// not robot by robot (a team of n learns n departures each).
     pub fn fresh_in(&self, within: &MemberSet, known: Option<&MemberSet>) -> Option<MemberSet> {
+        // What this robot knows is the report itself (it kept the leader's
+        // report, and the leader's next heartbeat carries the same one):
+        // nothing is new, and the roster's words need not be read.
+        if known.is_some_and(|k| k.shares_bits(self)) {
+            return None;
+        }
         let known_bits = match known.map(|k| &k.repr) {
             None => Some(None),
             Some(Repr::Bits(k)) => Some(Some(k.as_slice())),

@@ -110,23 +110,20 @@ impl Kernel {
     /// Count past them, as past an epoch seen on a clock, so that the team
     /// numbers its next executions alike instead of splitting over ids.
     pub(super) fn count_past(&mut self, pos: &Position) {
-        let mut gone: Vec<FrameId> = self.recent_ended.iter().map(|e| e.id).collect();
-        if let Some((f, _)) = self.popped() {
-            gone.push(f.id());
-        }
-        if gone.is_empty() {
+        let popped = self.popped().map(|(f, _)| f.id());
+        if self.recent_ended.is_empty() && popped.is_none() {
             return;
         }
+        let gone =
+            |id: &FrameId| popped == Some(*id) || self.recent_ended.iter().any(|e| e.id == *id);
         let mut never: Vec<FrameId> = Vec::new();
         for w in pos.frames.windows(2) {
-            if gone.contains(&w[0].id) || never.contains(&w[0].id) {
+            if gone(&w[0].id) || never.contains(&w[0].id) {
                 never.push(w[1].id);
             }
         }
         for e in &pos.ended {
-            if e.parent
-                .is_some_and(|p| gone.contains(&p) || never.contains(&p))
-            {
+            if e.parent.is_some_and(|p| gone(&p) || never.contains(&p)) {
                 never.push(e.id);
             }
         }
@@ -173,12 +170,12 @@ impl Kernel {
     /// Mark `from` (and whom it reports) departed from the frames of this
     /// robot's stack (and the one it ended) that it has ended.
     pub(super) fn learn_departures(&mut self, from: RobotId, pos: &Position) {
+        // The stack's frames, then the one it ended, by index (nothing
+        // collected per heartbeat); their number is taken once.
         let popped = self.popped().map(|(f, _)| f.term_key());
-        let slots = (0..self.stack.len())
-            .map(|i| (Some(i), self.stack[i].term_key()))
-            .chain(popped.map(|k| (None, k)))
-            .collect::<Vec<_>>();
-        for (slot, key) in slots {
+        let depth = self.stack.len();
+        for k in 0..depth + usize::from(popped.is_some()) {
+            let slot = (k < depth).then_some(k);
             let f = match slot {
                 Some(i) => &self.stack[i],
                 None => match self.popped() {
@@ -239,32 +236,52 @@ impl Kernel {
             }
             match slot {
                 Some(i) => self.depart(i, &who),
-                None => self.depart_popped(key, &who),
+                None => {
+                    if let Some(key) = popped {
+                        self.depart_popped(key, &who);
+                    }
+                }
             }
         }
     }
 
-    /// This robot's anchored frames, root first.
-    pub(super) fn anchored(&self) -> Vec<(Slot, FrameId, Anchor)> {
-        let mut out: Vec<(Slot, FrameId, Anchor)> = self
+    /// This robot's anchored frames, root first (read in place: a team
+    /// leader runs this for every heartbeat of every member).
+    pub(super) fn anchored(&self) -> impl Iterator<Item = (Slot, FrameId, Anchor)> + '_ {
+        let on_stack = self
             .stack
             .iter()
             .enumerate()
-            .filter_map(|(i, f)| f.anchor.map(|a| (Slot::Stack(i), f.id(), a)))
-            .collect();
-        if let Some((f, _)) = self.popped()
-            && let Some(a) = f.anchor
-        {
-            out.push((Slot::Popped, f.id(), a));
+            .filter_map(|(i, f)| f.anchor.map(|a| (Slot::Stack(i), f.id(), a)));
+        let popped = self
+            .popped()
+            .and_then(|(f, _)| f.anchor.map(|a| (Slot::Popped, f.id(), a)));
+        on_stack.chain(popped)
+    }
+
+    /// The `k`-th of [`Kernel::anchored`]'s slots (stack frames, then the
+    /// one it ended), if anchored: for loops that change the kernel as
+    /// they go.
+    fn anchored_at(&self, k: usize) -> Option<(Slot, FrameId, Anchor)> {
+        match self.stack.get(k) {
+            Some(f) => f.anchor.map(|a| (Slot::Stack(k), f.id(), a)),
+            None => (k == self.stack.len())
+                .then(|| self.popped())
+                .flatten()
+                .and_then(|(f, _)| f.anchor.map(|a| (Slot::Popped, f.id(), a))),
         }
-        out
     }
 
     /// Compare this robot's frames with a teammate's after the same
     /// predecessor; converge on one execution (at most one change per
     /// heartbeat: what lies below a changed frame is gone).
     pub(super) fn reconcile(&mut self, from: RobotId, pos: &Position) {
-        for (slot, id, prev) in self.anchored() {
+        // By index, nothing collected: until it converges (and returns),
+        // the loop changes neither the stack nor the frame it ended.
+        for k in 0..=self.stack.len() {
+            let Some((slot, id, prev)) = self.anchored_at(k) else {
+                continue;
+            };
             let Some(g) = pos
                 .frames
                 .iter()
