@@ -911,11 +911,11 @@ fn submitted_scenario(a: &SubmitArgs) -> Result<Option<PathBuf>> {
     }
 }
 
-/// A free TCP port on 127.0.0.1 (the OS picks one; it is released at once,
-/// so another process could take it in between: fine for development).
-pub fn free_port() -> Result<u16> {
-    let l = std::net::TcpListener::bind("127.0.0.1:0").context("finding a free port")?;
-    Ok(l.local_addr()?.port())
+/// Free TCP ports on 127.0.0.1 for robots to listen on (see
+/// [`bite_zenoh::net::free_ports`]: below the ports outgoing connections
+/// take, so that a teammate's connection cannot take one first).
+pub fn free_ports(n: usize) -> Result<Vec<u16>> {
+    bite_zenoh::net::free_ports(n).context("finding free ports")
 }
 
 struct Proc {
@@ -1061,9 +1061,7 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         .chunks(a.tuning.per_process.max(1))
         .map(<[String]>::to_vec)
         .collect();
-    let ports: Vec<u16> = (0..=groups.len())
-        .map(|_| free_port())
-        .collect::<Result<_>>()?;
+    let ports = free_ports(groups.len() + 1)?;
     let ep = |i: usize| format!("tcp/127.0.0.1:{}", ports[i]);
     // Logs of an earlier launch in the same directory are not this team's.
     for p in std::iter::once(a.out.join("server.jsonl"))

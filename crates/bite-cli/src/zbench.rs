@@ -133,7 +133,7 @@ fn rounds_in_sim(graph: &str, protocol: &str) -> Result<f64> {
 /// Raw Zenoh round trips (µs) to an echo process, `n` of them after a warm-up.
 #[allow(clippy::disallowed_methods)] // a benchmark measures wall time
 fn ping_pong(exe: &Path, out: &Path, n: usize) -> Result<Vec<f64>> {
-    let port = crate::team::free_port()?;
+    let port = crate::team::free_ports(1)?[0];
     let ep = format!("tcp/127.0.0.1:{port}");
     let team = format!("bench-{}", std::process::id());
     let log = std::fs::File::create(out.join("pong.log"))?;

@@ -40,11 +40,7 @@ fn tmp(name: &str) -> PathBuf {
 }
 
 fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+    bite_zenoh::net::free_ports(1).expect("a free port")[0]
 }
 
 fn read_jsonl(p: &Path) -> Vec<Value> {
@@ -424,7 +420,7 @@ fn team(name: &str, mission: Option<&str>, speed: &str) -> Team {
     let key_file = out.join("team.key");
     std::fs::write(&key_file, key.to_hex()).unwrap();
     let team = format!("{name}-{}", std::process::id());
-    let ports: Vec<u16> = (0..3).map(|_| free_port()).collect();
+    let ports: Vec<u16> = bite_zenoh::net::free_ports(3).expect("free ports");
     let endpoints: Vec<String> = ports.iter().map(|p| format!("tcp/127.0.0.1:{p}")).collect();
     let mut procs = Procs(Vec::new());
     for k in 0..3 {

@@ -130,3 +130,84 @@ impl Clock {
         Duration::from_secs_f64(d.as_secs_f64() / self.speed)
     }
 }
+
+/// The lowest port below the range the OS hands out for outgoing
+/// connections (`/proc/sys/net/ipv4/ip_local_port_range` on Linux;
+/// elsewhere the IANA range, from 49152, or Linux's default, 32768,
+/// whichever is lower).
+fn ephemeral_low() -> u16 {
+    std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
+        .ok()
+        .and_then(|s| s.split_whitespace().next()?.parse().ok())
+        .unwrap_or(32768)
+}
+
+/// Where [`free_ports`] looks first.
+const PORT_BASE: u16 = 10_000;
+
+/// `n` distinct TCP ports free on 127.0.0.1 now, for robots to listen on.
+///
+/// They are taken below the range the OS gives outgoing connections. A port
+/// the OS picked (`127.0.0.1:0`) is in that range: released at once, it
+/// could be taken by a teammate's outgoing connection before the robot
+/// meant to listen on it started (`Address already in use`: the robot was
+/// missing from its team). Below the range, only a process that binds that
+/// very port can take it. Where to start is spread by the process id, so
+/// that launches side by side look in different places, and by the ports
+/// this process asked for before. Where the range
+/// leaves no room below it (it was configured to start low), the OS picks,
+/// as before.
+pub fn free_ports(n: usize) -> std::io::Result<Vec<u16>> {
+    use std::net::TcpListener;
+    let low = ephemeral_low();
+    // Every port is held until all are chosen: no port twice.
+    let mut held: Vec<TcpListener> = Vec::with_capacity(n);
+    if low >= PORT_BASE + 4096 {
+        // Successive calls in one process (tests running side by side)
+        // start further on, past the ports handed out before.
+        static CALLS: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let call = CALLS.fetch_add(n as u32, std::sync::atomic::Ordering::Relaxed);
+        let span = u32::from(low - PORT_BASE);
+        let start = std::process::id().wrapping_mul(7919).wrapping_add(call) % span;
+        for k in 0..span {
+            if held.len() == n {
+                break;
+            }
+            let port = PORT_BASE + ((start + k) % span) as u16;
+            if let Ok(l) = TcpListener::bind(("127.0.0.1", port)) {
+                held.push(l);
+            }
+        }
+    }
+    while held.len() < n {
+        held.push(TcpListener::bind("127.0.0.1:0")?);
+    }
+    held.iter()
+        .map(|l| l.local_addr().map(|a| a.port()))
+        .collect()
+}
+
+#[cfg(test)]
+mod port_tests {
+    use super::*;
+
+    #[test]
+    fn free_ports_are_distinct_bindable_and_below_outgoing_ports() {
+        let ports = free_ports(12).expect("ports");
+        assert_eq!(ports.len(), 12);
+        let mut sorted = ports.clone();
+        sorted.sort_unstable();
+        sorted.dedup();
+        assert_eq!(sorted.len(), 12, "distinct: {ports:?}");
+        let low = ephemeral_low();
+        for p in &ports {
+            if low >= PORT_BASE + 4096 {
+                assert!(
+                    (PORT_BASE..low).contains(p),
+                    "{p} not in {PORT_BASE}..{low}"
+                );
+            }
+            std::net::TcpListener::bind(("127.0.0.1", *p)).expect("still free");
+        }
+    }
+}
