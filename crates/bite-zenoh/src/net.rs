@@ -131,10 +131,10 @@ impl Clock {
     }
 }
 
-/// The lowest port below the range the OS hands out for outgoing
-/// connections (`/proc/sys/net/ipv4/ip_local_port_range` on Linux;
-/// elsewhere the IANA range, from 49152, or Linux's default, 32768,
-/// whichever is lower).
+/// The lowest port of the range the OS hands out for outgoing connections
+/// (`/proc/sys/net/ipv4/ip_local_port_range` on Linux; elsewhere 32768,
+/// Linux's default, which is below the IANA range from 49152 that other
+/// systems use).
 fn ephemeral_low() -> u16 {
     std::fs::read_to_string("/proc/sys/net/ipv4/ip_local_port_range")
         .ok()
@@ -154,9 +154,8 @@ const PORT_BASE: u16 = 10_000;
 /// missing from its team). Below the range, only a process that binds that
 /// very port can take it. Where to start is spread by the process id, so
 /// that launches side by side look in different places, and by the ports
-/// this process asked for before. Where the range
-/// leaves no room below it (it was configured to start low), the OS picks,
-/// as before.
+/// this process asked for before. Where the range leaves no room below it
+/// (it was configured to start low), the OS picks, as before.
 pub fn free_ports(n: usize) -> std::io::Result<Vec<u16>> {
     use std::net::TcpListener;
     let low = ephemeral_low();
