@@ -248,28 +248,19 @@ impl Kernel {
     /// This robot's anchored frames, root first (read in place: a team
     /// leader runs this for every heartbeat of every member).
     pub(super) fn anchored(&self) -> impl Iterator<Item = (Slot, FrameId, Anchor)> + '_ {
-        let on_stack = self
-            .stack
-            .iter()
-            .enumerate()
-            .filter_map(|(i, f)| f.anchor.map(|a| (Slot::Stack(i), f.id(), a)));
-        let popped = self
-            .popped()
-            .and_then(|(f, _)| f.anchor.map(|a| (Slot::Popped, f.id(), a)));
-        on_stack.chain(popped)
+        (0..=self.stack.len()).filter_map(|k| self.anchored_at(k))
     }
 
     /// The `k`-th of [`Kernel::anchored`]'s slots (stack frames, then the
     /// one it ended), if anchored: for loops that change the kernel as
     /// they go.
     fn anchored_at(&self, k: usize) -> Option<(Slot, FrameId, Anchor)> {
-        match self.stack.get(k) {
-            Some(f) => f.anchor.map(|a| (Slot::Stack(k), f.id(), a)),
-            None => (k == self.stack.len())
-                .then(|| self.popped())
-                .flatten()
-                .and_then(|(f, _)| f.anchor.map(|a| (Slot::Popped, f.id(), a))),
-        }
+        let (slot, f) = match self.stack.get(k) {
+            Some(f) => (Slot::Stack(k), f),
+            None if k == self.stack.len() => (Slot::Popped, self.popped()?.0),
+            None => return None,
+        };
+        f.anchor.map(|a| (slot, f.id(), a))
     }
 
     /// Compare this robot's frames with a teammate's after the same
