@@ -1069,7 +1069,7 @@ fn cmd_compile(a: CompileArgs<'_>) -> Result<ExitCode> {
                 .map_or("?".into(), |x| x.protocol.name().to_string())
         })
     } else {
-        compiled.graph.clone()
+        compiled.graph()
     };
     if a.world && !a.dot {
         text.push_str("---\n");

@@ -79,7 +79,7 @@ fn check_10k_lines(b: divan::Bencher) {
 fn load_generated_graph(b: divan::Bencher) {
     let out = compile("bench.rtcl", &MISSION, &LIB, &CompileOptions::default()).expect("compiles");
     let file: Arc<str> = Arc::from("bench.yaml");
-    b.bench(|| bite_core::graph::load_str(&file, divan::black_box(&out.graph)).expect("loads"));
+    b.bench(|| bite_core::graph::load_str(&file, divan::black_box(&out.graph())).expect("loads"));
 }
 
 #[divan::bench(sample_count = 20)]

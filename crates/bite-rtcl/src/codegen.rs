@@ -23,7 +23,7 @@ use bite_core::graph::spec::{
     SkillSpec, TeamSpec,
 };
 use serde_saphyr::{Location, Spanned};
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::{BTreeMap, BTreeSet, HashSet};
 use std::fmt::Write as _;
 
 /// One behavior of the generated graph.
@@ -99,27 +99,23 @@ impl Env for StepEnv<'_> {
 }
 
 /// Generate everything for the checked steps.
+///
+/// Commands are generated side by side (on rayon's pool, from
+/// [`PARALLEL_FROM`] commands), each on its own, then put together in
+/// the mission's order: names are checked for duplicates and the graph's
+/// size bounded in that order, so the graph, the skills and every message
+/// are the same as generating one command after the other, for any number
+/// of threads.
 pub fn generate(
     map: &SourceMap<'_>,
     steps: &[Step],
     lib: &Library,
     opts: &CompileOptions,
 ) -> Result<Compiled, Vec<Diagnostic>> {
-    let mut g = Gen {
-        map,
-        lib,
-        opts,
-        behs: Vec::new(),
-        names: BTreeSet::new(),
-        skills: BTreeMap::new(),
-        beliefs: BTreeMap::new(),
-        targets: BTreeMap::new(),
-        infos: Vec::new(),
-        diags: Vec::new(),
-        warnings: Vec::new(),
-    };
-    g.names.insert("mission".to_string());
-    g.behs.push(Beh {
+    use rayon::prelude::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let g = Gen { map, lib, opts };
+    let mut behs = vec![Beh {
         name: "mission".into(),
         description: Some(format!(
             "the mission: {} command{}, in order",
@@ -128,19 +124,63 @@ pub fn generate(
         )),
         team: true,
         ..Beh::default()
-    });
+    }];
+    // Generated ahead, side by side. Once more behaviors than a graph may
+    // have are made, the rest are skipped (`None`): the mission is too
+    // large, and those the merge below still reaches are made then.
+    let made = AtomicUsize::new(behs.len());
+    let ahead = |s: &Step| -> Option<StepOut> {
+        let def = lib.command(&s.command)?;
+        if made.load(Ordering::Relaxed) > bite_core::graph::MAX_BEHAVIORS {
+            return None;
+        }
+        let out = g.step(s, def);
+        made.fetch_add(out.behs.len(), Ordering::Relaxed);
+        Some(out)
+    };
+    let mut outs: Vec<Option<StepOut>> = if steps.len() >= PARALLEL_FROM {
+        steps.par_iter().map(ahead).collect()
+    } else {
+        steps.iter().map(ahead).collect()
+    };
+    let mut names: HashSet<String> = HashSet::with_capacity(made.into_inner());
+    names.insert("mission".to_string());
+    let mut skills = BTreeMap::new();
+    let mut beliefs = BTreeMap::new();
+    let mut targets = BTreeMap::new();
+    let mut infos = Vec::new();
+    let mut diags = Vec::new();
+    let mut warnings = Vec::new();
     let mut heads = Vec::new();
-    for s in steps {
+    for (s, out) in steps.iter().zip(&mut outs) {
         let Some(def) = lib.command(&s.command) else {
             continue;
         };
-        let head = g.behs.len();
-        match g.step(s, def) {
-            Ok(name) => heads.push((head, name)),
-            Err(d) => g.diags.push(*d),
+        let mut out = out.take().unwrap_or_else(|| g.step(s, def));
+        warnings.append(&mut out.warnings);
+        let head = behs.len();
+        // Its behaviors in order, up to the first name already taken.
+        let mut failed = None;
+        for b in out.behs {
+            if !names.insert(b.name.clone()) {
+                let msg = format!("two behaviors would be called `{}`", b.name);
+                failed = Some(g.lib_error(s, def, def.loc, msg));
+                break;
+            }
+            behs.push(b);
         }
-        if g.behs.len() > bite_core::graph::MAX_BEHAVIORS {
-            g.diags.push(Diagnostic::error(
+        match failed.map_or(out.result, Err) {
+            Ok(name) => {
+                heads.push((head, name));
+                skills.extend(out.skills);
+                beliefs.extend(out.beliefs);
+                targets.extend(out.target);
+                infos.extend(out.info);
+            }
+            Err(d) => diags.push(*d),
+        }
+        if behs.len() > bite_core::graph::MAX_BEHAVIORS {
+            diags.push(Diagnostic::error(
                 map.file(),
                 Loc::UNKNOWN,
                 "too-large",
@@ -152,48 +192,58 @@ pub fn generate(
             break;
         }
     }
-    if !g.diags.is_empty() {
-        return Err(g.diags);
+    if !diags.is_empty() {
+        return Err(diags);
     }
     // The chain: mission → B1 → B2 → ... → Bn.
     if let Some((_, first)) = heads.first() {
-        g.behs[0].children.push(first.clone());
+        behs[0].children.push(first.clone());
     }
     for w in heads.windows(2) {
         let next = w[1].1.clone();
-        g.behs[w[0].0].next.push(next);
+        behs[w[0].0].next.push(next);
     }
-    let graph = g.yaml(steps.len());
-    let file = printable(map.file());
     let generated = GeneratedGraph {
         name: printable(&stem(map.file())),
-        description: format!("compiled from {file}"),
+        file: printable(map.file()),
+        commands: steps.len(),
+        origin: opts.origin,
         robots: opts.robots,
-        behaviors: g.behs,
+        behaviors: behs,
     };
     Ok(Compiled {
-        graph,
         generated,
-        skills: g.skills,
-        beliefs: g.beliefs,
-        targets: g.targets,
-        steps: g.infos,
-        warnings: g.warnings,
+        skills,
+        beliefs,
+        targets,
+        steps: infos,
+        warnings,
     })
 }
 
+/// Missions of this many commands or more are generated on rayon's pool;
+/// shorter ones on the calling thread (the result is the same).
+pub const PARALLEL_FROM: usize = 32;
+
+/// What the commands are generated with.
 struct Gen<'a, 's> {
     map: &'a SourceMap<'s>,
     lib: &'a Library,
     opts: &'a CompileOptions,
+}
+
+/// What one command generated, in the order the sequential generator made
+/// it; names are checked for duplicates when the commands are put together.
+struct StepOut {
+    /// Its behaviors, its own first; up to the failure if it failed.
     behs: Vec<Beh>,
-    names: BTreeSet<String>,
-    skills: BTreeMap<String, Vec<serde_json::Value>>,
-    beliefs: BTreeMap<String, String>,
-    targets: BTreeMap<String, Target>,
-    infos: Vec<StepInfo>,
-    diags: Vec<Diagnostic>,
+    skills: Vec<(String, Vec<serde_json::Value>)>,
+    beliefs: Vec<(String, String)>,
+    target: Option<(String, Target)>,
+    info: Option<StepInfo>,
     warnings: Vec<Diagnostic>,
+    /// Its behavior's name, or why the rest could not be generated.
+    result: Result<String, Box<Diagnostic>>,
 }
 
 impl Gen<'_, '_> {
@@ -220,15 +270,6 @@ impl Gen<'_, '_> {
             format!("see `{}` in {}", def.name, self.lib.file)
         });
         Box::new(d)
-    }
-
-    fn add(&mut self, s: &Step, def: &CommandDef, b: Beh) -> Result<(), Box<Diagnostic>> {
-        if !self.names.insert(b.name.clone()) {
-            let msg = format!("two behaviors would be called `{}`", b.name);
-            return Err(self.lib_error(s, def, def.loc, msg));
-        }
-        self.behs.push(b);
-        Ok(())
     }
 
     fn render(
@@ -266,12 +307,32 @@ impl Gen<'_, '_> {
         Ok(out)
     }
 
-    /// Generate one command; returns the name of its behavior.
-    fn step(&mut self, s: &Step, def: &CommandDef) -> Result<String, Box<Diagnostic>> {
+    /// Generate one command on its own.
+    fn step(&self, s: &Step, def: &CommandDef) -> StepOut {
+        let mut out = StepOut {
+            behs: Vec::new(),
+            skills: Vec::new(),
+            beliefs: Vec::new(),
+            target: None,
+            info: None,
+            warnings: Vec::new(),
+            result: Ok(String::new()),
+        };
+        out.result = self.step_into(s, def, &mut out);
+        out
+    }
+
+    /// Generate one command into `out`; returns the name of its behavior.
+    fn step_into(
+        &self,
+        s: &Step,
+        def: &CommandDef,
+        out: &mut StepOut,
+    ) -> Result<String, Box<Diagnostic>> {
         let step = format!("{}_{}", def.name, s.index);
         let result = s.result.clone().unwrap_or_else(|| step.clone());
         if self.opts.robots < def.min_robots {
-            self.warnings.push(
+            out.warnings.push(
                 self.map
                     .warning(
                         s.span,
@@ -327,7 +388,6 @@ impl Gen<'_, '_> {
         if phases.is_empty() {
             return Err(self.lib_error(s, def, def.loc, "no phase applies (check their `if`)"));
         }
-        let first_beh = self.behs.len();
         let description = Some(format!("line {}: {}", s.line, s.text));
         let single = phases.len() == 1;
         if !single {
@@ -335,18 +395,14 @@ impl Gen<'_, '_> {
                 Some(t) => Some(self.render(s, def, def.loc, t, &mut env)?),
                 None => None,
             };
-            self.add(
-                s,
-                def,
-                Beh {
-                    name: step.clone(),
-                    description: description.clone(),
-                    team: true,
-                    children: vec![format!("{step}_{}", phases[0].name)],
-                    until,
-                    ..Beh::default()
-                },
-            )?;
+            out.behs.push(Beh {
+                name: step.clone(),
+                description: description.clone(),
+                team: true,
+                children: vec![format!("{step}_{}", phases[0].name)],
+                until,
+                ..Beh::default()
+            });
         }
         for (k, ph) in phases.iter().enumerate() {
             let name = if single {
@@ -390,12 +446,12 @@ impl Gen<'_, '_> {
             match &ph.body {
                 Body::Skill(list) => {
                     let schemas = self.schemas(s, def, list, &mut env)?;
-                    self.skills.insert(name.clone(), schemas);
+                    out.skills.push((name.clone(), schemas));
                     beh.skill = Some(name.clone());
-                    self.add(s, def, beh)?;
+                    out.behs.push(beh);
                 }
                 Body::Split(children) => {
-                    let kids = self.children(s, def, &step, children, &mut env)?;
+                    let kids = self.children(s, def, &step, children, &mut env, out)?;
                     if kids.iter().all(|k| k.chained) {
                         return Err(self.lib_error(
                             s,
@@ -410,12 +466,12 @@ impl Gen<'_, '_> {
                         .map(|k| k.name.clone())
                         .collect();
                     let split = beh.children.len() > 1;
-                    self.add(s, def, beh)?;
+                    out.behs.push(beh);
                     for mut kid in kids {
                         if !split {
                             kid.members = None;
                         }
-                        self.add(s, def, kid)?;
+                        out.behs.push(kid);
                     }
                 }
             }
@@ -425,7 +481,7 @@ impl Gen<'_, '_> {
         for b in used {
             if let Some((_, t)) = def.beliefs.iter().find(|(n, _)| n == b) {
                 let cond = self.render(s, def, def.loc, t, &mut env)?;
-                self.beliefs.insert(format!("{step}_{b}"), cond);
+                out.beliefs.push((format!("{step}_{b}"), cond));
             }
         }
         // What the result designates.
@@ -451,32 +507,31 @@ impl Gen<'_, '_> {
                     .collect();
                 v.iter().any(Option::is_some).then(|| [v[0], v[1], v[2]])
             });
-            self.targets.insert(result.clone(), Target { colour, size });
+            out.target = Some((result.clone(), Target { colour, size }));
         }
-        if let Some(b) = self.behs.get_mut(first_beh) {
+        if let Some(b) = out.behs.first_mut() {
             b.first = true;
         }
-        self.infos.push(StepInfo {
+        out.info = Some(StepInfo {
             index: s.index,
             line: s.line,
             command: def.name.clone(),
             behavior: step.clone(),
-            behaviors: self.behs[first_beh..]
-                .iter()
-                .map(|b| b.name.clone())
-                .collect(),
+            behaviors: out.behs.iter().map(|b| b.name.clone()).collect(),
             result: s.result.clone(),
         });
         Ok(step)
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn children(
-        &mut self,
+        &self,
         s: &Step,
         def: &CommandDef,
         step: &str,
         children: &[ChildDef],
         env: &mut StepEnv<'_>,
+        step_out: &mut StepOut,
     ) -> Result<Vec<Beh>, Box<Diagnostic>> {
         let mut out = Vec::new();
         for ch in children {
@@ -526,7 +581,7 @@ impl Gen<'_, '_> {
                     None => None,
                 };
                 let schemas = self.schemas(s, def, &ch.skill, env)?;
-                self.skills.insert(name.clone(), schemas);
+                step_out.skills.push((name.clone(), schemas));
                 let chain_name = |t: &str| match inst {
                     None => format!("{step}_{t}"),
                     Some((i, _)) => format!("{step}_{t}_{}", fmt_num(i)),
@@ -557,7 +612,7 @@ impl Gen<'_, '_> {
                         None => None,
                     };
                     let schemas = self.schemas(s, def, &t.skill, env)?;
-                    self.skills.insert(name.clone(), schemas);
+                    step_out.skills.push((name.clone(), schemas));
                     out.push(Beh {
                         name: name.clone(),
                         description,
@@ -577,34 +632,67 @@ impl Gen<'_, '_> {
         }
         Ok(out)
     }
+}
 
-    fn yaml(&self, commands: usize) -> String {
-        let file = printable(self.map.file());
-        let stem = stem(self.map.file());
-        let mut y = String::with_capacity(self.behs.len() * 160 + 512);
+/// The graph's name: the mission file's stem.
+fn stem(file: &str) -> String {
+    std::path::Path::new(file).file_stem().map_or_else(
+        || "mission".to_string(),
+        |s| s.to_string_lossy().into_owned(),
+    )
+}
+
+/// The generated graph as data: the graph [`Compiled::graph`] writes in
+/// YAML, to hand to the graph loader without writing and parsing text
+/// ([`Compiled::load_graph`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GeneratedGraph {
+    name: String,
+    /// The mission file, printable.
+    file: String,
+    /// Commands compiled.
+    commands: usize,
+    origin: [f64; 2],
+    robots: usize,
+    behaviors: Vec<Beh>,
+}
+
+impl GeneratedGraph {
+    /// Number of behaviors.
+    pub fn len(&self) -> usize {
+        self.behaviors.len()
+    }
+
+    /// True when it has no behavior (never for a compiled mission).
+    pub fn is_empty(&self) -> bool {
+        self.behaviors.is_empty()
+    }
+
+    /// The graph in YAML, the `bite-core` format, with a header comment
+    /// naming the mission file ([`Compiled::graph`]).
+    pub fn yaml(&self) -> String {
+        let file = &self.file;
+        let commands = self.commands;
+        let mut y = String::with_capacity(self.behaviors.len() * 160 + 512);
         let _ = writeln!(
             y,
             "# Generated by bite-rtcl from {file} ({commands} command{}); do not edit:\n\
              # change the mission and compile it again.\n\
              # Mission origin [{}, {}] (the mission's coordinates are relative to it); {} robots.",
             if commands == 1 { "" } else { "s" },
-            fmt_num(self.opts.origin[0]),
-            fmt_num(self.opts.origin[1]),
-            self.opts.robots
+            fmt_num(self.origin[0]),
+            fmt_num(self.origin[1]),
+            self.robots
         );
-        let _ = writeln!(y, "graph: {}", scalar(&printable(&stem)));
-        let _ = writeln!(
-            y,
-            "description: {}",
-            quote(&format!("compiled from {file}"))
-        );
-        let _ = writeln!(y, "team:\n  robots: {}", self.opts.robots);
+        let _ = writeln!(y, "graph: {}", scalar(&self.name));
+        let _ = writeln!(y, "description: {}", quote(&self.description()));
+        let _ = writeln!(y, "team:\n  robots: {}", self.robots);
         y.push_str("start: mission\n");
         y.push_str(
             "defaults:\n  sync: sync.by-rule\n  allocate: alloc.by-id\n  terminate: term.wait-all\n",
         );
         y.push_str("behaviors:\n");
-        for (i, b) in self.behs.iter().enumerate() {
+        for (i, b) in self.behaviors.iter().enumerate() {
             // A blank line before each command's behavior.
             if i > 0 && b.first {
                 y.push('\n');
@@ -637,36 +725,10 @@ impl Gen<'_, '_> {
         }
         y
     }
-}
 
-/// The graph's name: the mission file's stem.
-fn stem(file: &str) -> String {
-    std::path::Path::new(file).file_stem().map_or_else(
-        || "mission".to_string(),
-        |s| s.to_string_lossy().into_owned(),
-    )
-}
-
-/// The generated graph as data: the graph [`Compiled::graph`] writes in
-/// YAML, to hand to the graph loader without writing and parsing text
-/// ([`Compiled::load_graph`]).
-#[derive(Clone, Debug, PartialEq)]
-pub struct GeneratedGraph {
-    name: String,
-    description: String,
-    robots: usize,
-    behaviors: Vec<Beh>,
-}
-
-impl GeneratedGraph {
-    /// Number of behaviors.
-    pub fn len(&self) -> usize {
-        self.behaviors.len()
-    }
-
-    /// True when it has no behavior (never for a compiled mission).
-    pub fn is_empty(&self) -> bool {
-        self.behaviors.is_empty()
+    /// The graph's description.
+    fn description(&self) -> String {
+        format!("compiled from {}", self.file)
     }
 
     /// The graph as the loader's input, as if parsed from
@@ -719,7 +781,7 @@ impl GeneratedGraph {
             .collect();
         GraphSpec {
             graph: Some(self.name.clone()),
-            description: Some(self.description.clone()),
+            description: Some(self.description()),
             team: Some(TeamSpec {
                 robots: Spanned::new(
                     RobotsSpec::Count(self.robots as u64),
@@ -843,11 +905,11 @@ mod tests {
     #[test]
     fn commands_chain_in_order_under_the_mission() {
         let out = build("wait:1\ngoto:1:2\nwait:3\n", 2, [0.0, 0.0]);
-        assert!(lines_of(&out.graph, "mission").contains(&"children: [wait_1]"));
-        assert!(lines_of(&out.graph, "wait_1").contains(&"next: [goto_2]"));
-        assert!(lines_of(&out.graph, "goto_2").contains(&"next: [wait_3]"));
+        assert!(lines_of(&out.graph(), "mission").contains(&"children: [wait_1]"));
+        assert!(lines_of(&out.graph(), "wait_1").contains(&"next: [goto_2]"));
+        assert!(lines_of(&out.graph(), "goto_2").contains(&"next: [wait_3]"));
         assert!(
-            !lines_of(&out.graph, "wait_3")
+            !lines_of(&out.graph(), "wait_3")
                 .iter()
                 .any(|l| l.starts_with("next"))
         );
@@ -875,7 +937,7 @@ mod tests {
     fn repeated_children_one_per_robot() {
         let out = build("scan:0:0:3:3\n", 3, [0.0, 0.0]);
         assert!(
-            lines_of(&out.graph, "scan_1")
+            lines_of(&out.graph(), "scan_1")
                 .contains(&"children: [scan_1_lane_1, scan_1_lane_2, scan_1_lane_3]")
         );
         assert_eq!(
@@ -885,7 +947,7 @@ mod tests {
         // Alone, a robot's single lane is no allocation: no `members`.
         let out = build("scan:0:0:3:3\n", 1, [0.0, 0.0]);
         assert!(
-            !lines_of(&out.graph, "scan_1_lane_1")
+            !lines_of(&out.graph(), "scan_1_lane_1")
                 .iter()
                 .any(|l| l.starts_with("members"))
         );
@@ -894,7 +956,7 @@ mod tests {
     #[test]
     fn guards_pick_the_decomposition() {
         let walk = build("formation:column::4:0\n", 3, [0.0, 0.0]);
-        assert!(lines_of(&walk.graph, "formation_1").contains(&"terminate: term.first-wins"));
+        assert!(lines_of(&walk.graph(), "formation_1").contains(&"terminate: term.first-wins"));
         assert_eq!(
             walk.skills["formation_1_rank_2"][0],
             serde_json::json!({"schema": "follow", "of": "formation_1_rank_1", "distance": 0.6, "layer": 1})
@@ -902,7 +964,7 @@ mod tests {
         assert!(walk.beliefs.contains_key("formation_1_arrived"));
         let form = build("formation:triangle:0.8\n", 3, [0.0, 0.0]);
         assert!(
-            !lines_of(&form.graph, "formation_1")
+            !lines_of(&form.graph(), "formation_1")
                 .iter()
                 .any(|l| l.starts_with("terminate"))
         );

@@ -34,7 +34,7 @@
 //!     &CompileOptions { origin: [6.7, 1.5], ..CompileOptions::default() },
 //! )
 //! .expect("compiles");
-//! assert!(out.graph.contains("move_2_push"));
+//! assert!(out.graph().contains("move_2_push"));
 //! assert_eq!(out.beliefs["move_2_delivered"], "dist(box_pos, [6.2, 2]) < 0.3");
 //! assert_eq!(out.targets["box"].colour.as_deref(), Some("yellow"));
 //! ```
@@ -118,11 +118,9 @@ pub struct StepInfo {
 /// A compiled mission.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Compiled {
-    /// The behavior graph, YAML in the `bite-core` format, with a header
-    /// comment naming the mission file.
-    pub graph: String,
-    /// The same graph as data, to load without parsing [`Compiled::graph`]
-    /// ([`Compiled::load_graph`]).
+    /// The behavior graph as data: loaded without writing and parsing YAML
+    /// ([`Compiled::load_graph`]), written as YAML on demand
+    /// ([`Compiled::graph`]).
     pub generated: codegen::GeneratedGraph,
     /// For every skill the graph uses: its motor schemas, in the scenario
     /// format (`{"schema": "wander", "speed": 0.25, "layer": 1}`).
@@ -140,9 +138,16 @@ pub struct Compiled {
 }
 
 impl Compiled {
+    /// The behavior graph, YAML in the `bite-core` format, with a header
+    /// comment naming the mission file. Written when asked: running a
+    /// mission does not need it ([`Compiled::load_graph`]).
+    pub fn graph(&self) -> String {
+        self.generated.yaml()
+    }
+
     /// The compiled graph, validated as any graph is: the same
     /// [`BehaviorGraph`](bite_core::BehaviorGraph) (and warnings) as
-    /// `bite_core::graph::load_str(file, &self.graph)`, without writing and
+    /// `bite_core::graph::load_str(file, &self.graph())`, without writing and
     /// parsing YAML. `file` names it in messages; its diagnostics have no
     /// line or column (`Loc::UNKNOWN`), the behaviors' names say where.
     pub fn load_graph(

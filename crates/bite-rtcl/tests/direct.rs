@@ -29,7 +29,7 @@ fn without_locations(g: &bite_core::BehaviorGraph) -> String {
 fn same_both_ways(name: &str, src: &str, opts: &CompileOptions) {
     let out = compile(name, src, &Library::builtin(), opts).unwrap_or_else(|e| panic!("{e}"));
     let file: Arc<str> = Arc::from(format!("{name} (compiled)"));
-    let parsed = bite_core::graph::load_str(&file, &out.graph).unwrap_or_else(|e| panic!("{e}"));
+    let parsed = bite_core::graph::load_str(&file, &out.graph()).unwrap_or_else(|e| panic!("{e}"));
     let direct = out.load_graph(&file).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(parsed.to_string(), direct.to_string(), "{name}");
     assert_eq!(parsed.to_dot(), direct.to_dot(), "{name}");
@@ -76,10 +76,9 @@ fn shipped_missions_load_the_same_both_ways() {
     assert!(n >= 3, "found the shipped missions");
 }
 
-#[test]
-fn a_generated_mission_of_every_command_loads_the_same_both_ways() {
-    // Every command of the library, with and without optional parameters,
-    // and odd file names (the graph's name and description come from it).
+/// Every command of the library, with and without optional parameters:
+/// 40 lines (more than `PARALLEL_FROM` commands).
+fn every_command() -> String {
     let mut src = String::new();
     for i in 0..40 {
         let line = match i % 10 {
@@ -97,6 +96,13 @@ fn a_generated_mission_of_every_command_loads_the_same_both_ways() {
         src.push_str(&line);
         src.push('\n');
     }
+    src
+}
+
+#[test]
+fn a_generated_mission_of_every_command_loads_the_same_both_ways() {
+    // Odd file names: the graph's name and description come from it.
+    let src = every_command();
     for (file, robots) in [("m.rtcl", 2), ("a b\t\"c\".rtcl", 4), ("yes", 1)] {
         same_both_ways(
             file,
@@ -106,5 +112,36 @@ fn a_generated_mission_of_every_command_loads_the_same_both_ways() {
                 ..CompileOptions::default()
             },
         );
+    }
+}
+
+/// A long mission's commands are generated side by side; the result is the
+/// same on one thread as on several.
+#[test]
+fn a_long_mission_compiles_the_same_on_one_thread_and_on_several() {
+    let src = every_command();
+    assert!(
+        src.lines().filter(|l| !l.trim().is_empty()).count() >= bite_rtcl::codegen::PARALLEL_FROM
+    );
+    let on = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("pool");
+        pool.install(|| {
+            compile(
+                "m.rtcl",
+                &src,
+                &Library::builtin(),
+                &CompileOptions::default(),
+            )
+            .unwrap_or_else(|e| panic!("{e}"))
+        })
+    };
+    let one = on(1);
+    for threads in [2, 3, 8] {
+        let several = on(threads);
+        assert!(one == several, "{threads} threads");
+        assert_eq!(one.graph(), several.graph());
     }
 }

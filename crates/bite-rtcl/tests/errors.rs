@@ -11,7 +11,7 @@ fn errors(src: &str) -> Vec<Diagnostic> {
         &Library::builtin(),
         &CompileOptions::default(),
     ) {
-        Ok(out) => panic!("expected errors, compiled:\n{}", out.graph),
+        Ok(out) => panic!("expected errors, compiled:\n{}", out.graph()),
         Err(d) => d.0,
     }
 }
@@ -462,4 +462,71 @@ fn bad_options() {
     .expect_err("no robots");
     assert_eq!(e.0[0].code, "bad-options");
     assert!(!e.0[0].loc.is_known());
+}
+
+/// Long missions are generated command by command side by side, then put
+/// together in order: the errors are those of generating one command after
+/// the other, a duplicate name found where it first appears, and nothing
+/// reported past the command that made the graph too large.
+#[test]
+fn errors_of_a_long_mission_are_those_in_order() {
+    let lib = Library::from_str(
+        "lib.yaml",
+        "\
+commands:
+  spread:
+    params:
+      - { name: count, type: number }
+    phases:
+      - name: split
+        children:
+          - name: part
+            repeat: \"{count}\"
+            members: 1
+            until: \"elapsed > 1\"
+            skill:
+              - { schema: stop, layer: 1 }
+  twice:
+    params:
+      - { name: count, type: number }
+    phases:
+      - name: split
+        children:
+          - name: part
+            repeat: \"{count}\"
+            members: 1
+            until: \"elapsed > 1\"
+            skill:
+              - { schema: stop, layer: 1 }
+          - name: part_1
+            members: 1
+            until: \"elapsed > 1\"
+            skill:
+              - { schema: stop, layer: 1 }
+",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    // 1: an error; 2: a duplicate name; 3: fine; then ten commands of
+    // 10,000 behaviors each, past the largest graph at line 13; then more
+    // errors that must not be reported.
+    let mut head = String::from("spread:2.5\ntwice:1\ntwice:0\n");
+    head.push_str(&"spread:10000\n".repeat(12));
+    let tail = "spread:2.5\ntwice:1\n".repeat(bite_rtcl::codegen::PARALLEL_FROM);
+    let opts = CompileOptions::default();
+    let short = compile("m.rtcl", &head, &lib, &opts).expect_err("too large");
+    let long = compile("m.rtcl", &format!("{head}{tail}"), &lib, &opts).expect_err("too large");
+    let codes: Vec<_> = long.0.iter().map(|d| (d.code, d.loc.line)).collect();
+    assert_eq!(
+        codes,
+        [("too-large", 0), ("library", 1), ("library", 2)],
+        "{long}"
+    );
+    assert!(
+        long.0[2]
+            .message
+            .ends_with("two behaviors would be called `twice_2_part_1`"),
+        "{}",
+        long.0[2].message
+    );
+    assert_eq!(short, long);
 }

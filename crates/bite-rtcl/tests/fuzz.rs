@@ -94,13 +94,19 @@ fn outcome(src: &str, opts: &CompileOptions) -> Result<(), TestCaseError> {
             }
         }
         Ok(out) => {
-            let g = bite_core::graph::load_str(&Arc::from("f.yaml"), &out.graph).map_err(|e| {
-                TestCaseError::fail(format!(
-                    "graph does not load:\n{e}\n--- mission:\n{src}\n--- graph:\n{}",
-                    out.graph
-                ))
-            })?;
-            prop_assert!(g.warnings().is_empty(), "{:?}\n{}", g.warnings(), out.graph);
+            let g =
+                bite_core::graph::load_str(&Arc::from("f.yaml"), &out.graph()).map_err(|e| {
+                    TestCaseError::fail(format!(
+                        "graph does not load:\n{e}\n--- mission:\n{src}\n--- graph:\n{}",
+                        out.graph()
+                    ))
+                })?;
+            prop_assert!(
+                g.warnings().is_empty(),
+                "{:?}\n{}",
+                g.warnings(),
+                out.graph()
+            );
             bite_core::Mission::new(g, &REGISTRY)
                 .map_err(|e| TestCaseError::fail(format!("protocols: {e}")))?;
             for w in &out.warnings {

@@ -85,11 +85,11 @@ fn shipped_missions_match_their_golden_graphs() {
         assert!(out.warnings.is_empty(), "{file}: {:?}", out.warnings);
         // The graph loads and validates, with no warning, and every
         // protocol it binds exists.
-        let graph = bite_core::graph::load_str(&Arc::from(format!("{name}.yaml")), &out.graph)
+        let graph = bite_core::graph::load_str(&Arc::from(format!("{name}.yaml")), &out.graph())
             .unwrap_or_else(|e| {
                 panic!(
                     "{file}: the generated graph does not load:\n{e}\n{}",
-                    out.graph
+                    out.graph()
                 )
             });
         assert!(
@@ -102,7 +102,7 @@ fn shipped_missions_match_their_golden_graphs() {
         // Every skill the graph names has schemas; every belief it reads
         // is defined.
         for s in out.steps.iter().flat_map(|s| &s.behaviors) {
-            if out.graph.contains(&format!("    skill: {s}\n")) {
+            if out.graph().contains(&format!("    skill: {s}\n")) {
                 assert!(
                     out.skills.get(s).is_some_and(|v| !v.is_empty()),
                     "{file}: skill {s}"
@@ -112,7 +112,7 @@ fn shipped_missions_match_their_golden_graphs() {
         let golden = root().join("crates/bite-rtcl/tests/golden");
         check_golden(
             &golden.join(format!("{name}.yaml")),
-            &out.graph,
+            &out.graph(),
             &mut failures,
         );
         check_golden(
@@ -141,7 +141,7 @@ fn search_rescue_has_the_shape_of_the_hand_written_box_push() {
         },
     )
     .expect("compiles");
-    let g = bite_core::graph::load_str(&Arc::from("sr.yaml"), &out.graph).expect("loads");
+    let g = bite_core::graph::load_str(&Arc::from("sr.yaml"), &out.graph()).expect("loads");
     let names = |b: &str| -> Vec<String> {
         let beh = g.find(b).unwrap_or_else(|| panic!("no behavior {b}"));
         g.behavior(beh)

@@ -34,7 +34,7 @@ fn search_rescue(sc: &Scenario) -> (BehaviorGraph, Scenario) {
         },
     )
     .unwrap_or_else(|d| panic!("{d}"));
-    let g = graph("search-rescue.rtcl (compiled)", &out.graph);
+    let g = graph("search-rescue.rtcl (compiled)", &out.graph());
     let parts = MissionParts {
         file: Arc::from("search-rescue.rtcl"),
         skills: out.skills.clone(),

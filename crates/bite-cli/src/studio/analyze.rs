@@ -51,7 +51,7 @@ pub fn analyze(
                 Ok(compiled) => {
                     out.extend(compiled.warnings.iter().cloned());
                     let name: Arc<str> = Arc::from(format!("{file} (compiled)"));
-                    bite_core::graph::load_str(&name, &compiled.graph)
+                    bite_core::graph::load_str(&name, &compiled.graph())
                         .map_err(diags)
                         .and_then(|g| {
                             out.extend(g.warnings().iter().cloned());
