@@ -23,8 +23,9 @@ use bite_core::graph::spec::{
     SkillSpec, TeamSpec,
 };
 use serde_saphyr::{Location, Spanned};
-use std::collections::{BTreeMap, BTreeSet, HashSet};
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
+use std::hash::BuildHasher as _;
 
 /// One behavior of the generated graph.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -143,8 +144,13 @@ pub fn generate(
     } else {
         steps.iter().map(ahead).collect()
     };
-    let mut names: HashSet<String> = HashSet::with_capacity(made.into_inner());
-    names.insert("mission".to_string());
+    // Names taken so far, as indices into `behs` (no copy of a name).
+    let made = made.into_inner();
+    behs.reserve(made);
+    let hasher = rustc_hash::FxBuildHasher;
+    let hash = |name: &str| hasher.hash_one(name);
+    let mut names: hashbrown::HashTable<u32> = hashbrown::HashTable::with_capacity(made + 1);
+    names.insert_unique(hash("mission"), 0, |_| hash("mission"));
     let mut skills = BTreeMap::new();
     let mut beliefs = BTreeMap::new();
     let mut targets = BTreeMap::new();
@@ -162,10 +168,17 @@ pub fn generate(
         // Its behaviors in order, up to the first name already taken.
         let mut failed = None;
         for b in out.behs {
-            if !names.insert(b.name.clone()) {
-                let msg = format!("two behaviors would be called `{}`", b.name);
-                failed = Some(g.lib_error(s, def, def.loc, msg));
-                break;
+            let at = behs.len() as u32;
+            let taken = |&i: &u32| behs[i as usize].name == b.name;
+            match names.entry(hash(&b.name), taken, |&i| hash(&behs[i as usize].name)) {
+                hashbrown::hash_table::Entry::Occupied(_) => {
+                    let msg = format!("two behaviors would be called `{}`", b.name);
+                    failed = Some(g.lib_error(s, def, def.loc, msg));
+                    break;
+                }
+                hashbrown::hash_table::Entry::Vacant(v) => {
+                    v.insert(at);
+                }
             }
             behs.push(b);
         }
@@ -747,38 +760,41 @@ impl GeneratedGraph {
             ))
         };
         let names = |v: &[String]| v.iter().map(|n| at(n.clone())).collect::<Vec<_>>();
-        let behaviors = self
-            .behaviors
-            .iter()
-            .map(|b| {
-                let spec = BehaviorSpec {
-                    description: b.description.clone(),
-                    team: b.team,
-                    children: names(&b.children),
-                    next: names(&b.next),
-                    until: b.until.clone().map(at),
-                    skill: b.skill.as_ref().map(|s| {
-                        Spanned::new(
-                            SkillSpec {
-                                name: s.clone(),
-                                params: BTreeMap::new(),
-                            },
-                            Location::UNKNOWN,
-                            Location::UNKNOWN,
-                        )
-                    }),
-                    members: b
-                        .members
-                        .map(|m| Spanned::new(m, Location::UNKNOWN, Location::UNKNOWN)),
-                    terminate: b.terminate.as_deref().and_then(protocol).map(Box::new),
-                    ..BehaviorSpec::default()
-                };
-                (
-                    at(b.name.clone()),
-                    Spanned::new(spec, Location::UNKNOWN, Location::UNKNOWN),
-                )
-            })
-            .collect();
+        // Side by side for long missions (order kept: the result is the same).
+        let spec_of = |b: &Beh| {
+            let spec = BehaviorSpec {
+                description: b.description.clone(),
+                team: b.team,
+                children: names(&b.children),
+                next: names(&b.next),
+                until: b.until.clone().map(at),
+                skill: b.skill.as_ref().map(|s| {
+                    Spanned::new(
+                        SkillSpec {
+                            name: s.clone(),
+                            params: BTreeMap::new(),
+                        },
+                        Location::UNKNOWN,
+                        Location::UNKNOWN,
+                    )
+                }),
+                members: b
+                    .members
+                    .map(|m| Spanned::new(m, Location::UNKNOWN, Location::UNKNOWN)),
+                terminate: b.terminate.as_deref().and_then(protocol).map(Box::new),
+                ..BehaviorSpec::default()
+            };
+            (
+                at(b.name.clone()),
+                Spanned::new(spec, Location::UNKNOWN, Location::UNKNOWN),
+            )
+        };
+        let behaviors = if self.behaviors.len() >= PARALLEL_FROM {
+            use rayon::prelude::*;
+            self.behaviors.par_iter().map(spec_of).collect()
+        } else {
+            self.behaviors.iter().map(spec_of).collect()
+        };
         GraphSpec {
             graph: Some(self.name.clone()),
             description: Some(self.description()),

@@ -465,9 +465,11 @@ pub enum JsonTemplate {
 }
 
 impl JsonTemplate {
-    /// Parse every string of `v` as a template.
+    /// Parse every string of `v` as a template. A part without
+    /// placeholders is kept as its value ([`JsonTemplate::Lit`]), so that
+    /// rendering it is one copy.
     pub fn parse(v: &serde_json::Value) -> Result<JsonTemplate, SyntaxError> {
-        Ok(match v {
+        let t = match v {
             serde_json::Value::String(s) => JsonTemplate::Str(Template::parse(s)?),
             serde_json::Value::Array(a) => JsonTemplate::Arr(
                 a.iter()
@@ -480,7 +482,27 @@ impl JsonTemplate {
                     .collect::<Result<_, _>>()?,
             ),
             other => JsonTemplate::Lit(other.clone()),
-        })
+        };
+        Ok(t.folded())
+    }
+
+    /// Itself, or its value when it reads no variable.
+    fn folded(self) -> JsonTemplate {
+        let lit = |t: &JsonTemplate| matches!(t, JsonTemplate::Lit(_));
+        let constant = match &self {
+            JsonTemplate::Lit(_) => false,
+            JsonTemplate::Str(t) => t.parts.iter().all(|p| matches!(p, Part::Lit(_))),
+            JsonTemplate::Arr(a) => a.iter().all(lit),
+            JsonTemplate::Obj(m) => m.iter().all(|(_, t)| lit(t)),
+        };
+        if !constant {
+            return self;
+        }
+        let mut none = NoVars;
+        match self.render(&mut none) {
+            Ok(v) => JsonTemplate::Lit(v),
+            Err(_) => self,
+        }
     }
 
     /// Every variable read anywhere in it.
@@ -511,13 +533,22 @@ impl JsonTemplate {
                 serde_json::Value::Array(a.iter().map(|t| t.render(env)).collect::<Result<_, _>>()?)
             }
             JsonTemplate::Obj(m) => {
-                let mut o = serde_json::Map::new();
+                let mut o = serde_json::Map::with_capacity(m.len());
                 for (k, t) in m {
                     o.insert(k.clone(), t.render(env)?);
                 }
                 serde_json::Value::Object(o)
             }
         })
+    }
+}
+
+/// No variables: what a template without placeholders is rendered in.
+struct NoVars;
+
+impl Env for NoVars {
+    fn get(&mut self, _: &str) -> Option<Val> {
+        None
     }
 }
 
