@@ -251,7 +251,14 @@ struct Sim<'a, 'w> {
     suspected: std::collections::BTreeSet<(RobotId, RobotId)>,
     seed: u64,
     /// The physical world (the robots' bodies), if the scenario has one.
+    /// `None` in a physical run while it steps ahead ([`Sim::step_ahead`]).
     physics: Option<crate::physics::World>,
+    /// The physical world stepping to the next control tick on another
+    /// thread, while the events until then are handled on this one.
+    stepping: Option<Stepping>,
+    /// When robots crash or come back, in order: the world does not step
+    /// ahead across one (a stopped robot stands still from the tick before).
+    crash_times: Vec<Time>,
     /// The threads of a large team's control tick (see `RunOptions::pool`).
     pool: Option<Arc<rayon::ThreadPool>>,
     next_poses: Time,
@@ -282,9 +289,87 @@ struct Sim<'a, 'w> {
     handed: usize,
 }
 
+/// The physical world away, stepping to the next control tick.
+struct Stepping {
+    /// The world once stepped (or the panic that stopped it).
+    world: std::sync::mpsc::Receiver<std::thread::Result<crate::physics::World>>,
+    /// Who hears whom meanwhile: as the robots stood when it left.
+    radio: crate::physics::Radio,
+    /// The control tick it steps to.
+    until: Time,
+}
+
 impl Sim<'_, '_> {
     fn schedule(&mut self, at: Time, what: What) {
         self.queue.push(at, what);
+    }
+
+    /// Step the physical world to the next control tick, `next`, on
+    /// another thread while the events until then (deliveries, heartbeats,
+    /// timers) are handled on this one. They never touch the world but
+    /// to ask who is in radio range, answered from the robots' positions
+    /// now, which is what the world says until it steps; and the world
+    /// steps on the commands of this tick (only a control tick drives) with
+    /// the robots stopped that are stopped now. So the run is the same as
+    /// stepping at the next tick, which the world does instead when it
+    /// cannot step ahead: a small team (the thread would cost more than
+    /// the steps), one thread, a watcher that sees the world between
+    /// ticks, a crash or a restart before the next tick, or the run's
+    /// time limit before it.
+    fn step_ahead(&mut self, next: Time, limit: Time) {
+        let threads = self
+            .pool
+            .as_ref()
+            .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
+        let crash = self.crash_times.partition_point(|t| *t < self.now);
+        if self.physics.is_none()
+            || self.watch_poses.is_some()
+            || next > limit
+            || threads < 2
+            || !parallel(self.agents.len())
+            || self.crash_times.get(crash).is_some_and(|t| *t <= next)
+        {
+            return;
+        }
+        let Some(mut w) = self.physics.take() else {
+            return;
+        };
+        let radio = w.radio();
+        let stopped = self.crashed.clone();
+        let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        let job = move || {
+            let stepped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
+                w.advance(next, &stopped);
+                w
+            }));
+            // The run waits for it at the next tick (or has panicked).
+            let _ = tx.send(stepped);
+        };
+        match &self.pool {
+            Some(p) => p.spawn(job),
+            None => rayon::spawn(job),
+        }
+        self.stepping = Some(Stepping {
+            world: rx,
+            radio,
+            until: next,
+        });
+    }
+
+    /// The world back from stepping ahead, if it was away; true if it was
+    /// (it has then stepped to the control tick it left for).
+    fn home(&mut self) -> bool {
+        let Some(s) = self.stepping.take() else {
+            return false;
+        };
+        debug_assert_eq!(s.until, self.now, "the world steps to the next tick");
+        match s.world.recv() {
+            Ok(Ok(w)) => self.physics = Some(w),
+            Ok(Err(panic)) => std::panic::resume_unwind(panic),
+            // The job always answers (its panic included).
+            Err(std::sync::mpsc::RecvError) => unreachable!("the world stepping ahead was lost"),
+        }
+        true
     }
 
     /// Robot `i`'s clock at simulated time `t` (its rate and offset; a
@@ -442,6 +527,10 @@ impl Sim<'_, '_> {
                     }
                 }
                 AgentOutput::Drive(cmd) => {
+                    // Only a control tick drives, and the world is home
+                    // then (it steps ahead after the tick).
+                    debug_assert!(self.stepping.is_none());
+                    self.home();
                     if let Some(w) = self.physics.as_mut() {
                         w.actuate(i, cmd);
                     }
@@ -468,9 +557,13 @@ impl Sim<'_, '_> {
     /// Put a message on the simulated network: radio range, loss,
     /// duplication, latency; `what` makes each copy's delivery.
     fn send(&mut self, from: RobotId, to: RobotId, what: impl Fn() -> What) {
-        if let Some(w) = &self.physics
-            && !w.in_radio_range(from.index(), to.index())
-        {
+        let (a, b) = (from.index(), to.index());
+        let heard = match (&self.physics, &self.stepping) {
+            (Some(w), _) => w.in_radio_range(a, b),
+            (None, Some(away)) => away.radio.in_range(a, b),
+            (None, None) => true,
+        };
+        if !heard {
             self.net.out_of_range();
             return;
         }
@@ -726,6 +819,7 @@ impl Sim<'_, '_> {
             self.now = at;
             match what {
                 What::Control => {
+                    let stepped = self.home();
                     if let Some(w) = self.physics.as_mut() {
                         // A watcher that asked to see the world more often
                         // than the control rate sees it between ticks too
@@ -741,7 +835,9 @@ impl Sim<'_, '_> {
                                 *next += *every;
                             }
                         }
-                        w.advance(self.now, &self.crashed);
+                        if !stepped {
+                            w.advance(self.now, &self.crashed);
+                        }
                         w.record();
                     }
                     self.control_tick();
@@ -795,6 +891,7 @@ impl Sim<'_, '_> {
                     }
                     let next = self.now + period;
                     self.schedule(next, What::Control);
+                    self.step_ahead(next, limit);
                 }
                 What::Deliver { to, env } => {
                     if !self.crashed[to.index()] {
@@ -1044,7 +1141,13 @@ pub fn run(
         changes: Vec::new(),
         handed: 0,
         pool: opts.pool.clone(),
+        stepping: None,
+        crash_times: Vec::new(),
     };
+    sim.crash_times = (sim.resolved.crashes.iter())
+        .flat_map(|(_, at, until)| std::iter::once(*at).chain(*until))
+        .collect();
+    sim.crash_times.sort_unstable();
     for c in opts.changes {
         let shared = Shared::new(c.mission.clone(), scenario)?;
         sim.changes.push((c, shared));
@@ -1052,6 +1155,8 @@ pub fn run(
     let limit = Time::ZERO + opts.time_limit.unwrap_or(scenario.time_limit);
     let period = Duration::from_secs_f64(1.0 / scenario.control_hz);
     let end = sim.run(limit, period);
+    // (Never away here: it steps ahead only to a tick the run reaches.)
+    sim.home();
 
     let mut dropped: BTreeMap<DropReason, u64> = BTreeMap::new();
     for a in &sim.agents {

@@ -365,3 +365,63 @@ fn a_large_team_runs_the_same_on_one_thread_and_on_several() {
         "the logs differ on a pool of two threads"
     );
 }
+
+#[test]
+fn a_large_team_steps_its_world_ahead_and_runs_the_same() {
+    // From 64 robots on two threads, the world steps to the next control
+    // tick on a second thread while the messages between ticks are handled
+    // (`Sim::step_ahead`). Radio range is asked meanwhile, robots crash,
+    // one comes back, and the run ends between two ticks: the run must be
+    // byte for byte the one that steps at each tick (one thread).
+    use bite_sim::runner::{RunOptions, prepare, run};
+    let (g, s) = bite_agent::swarm::coverage_mission(80, 8.0);
+    let s = s.replace(
+        "sensors: { pose_noise",
+        "sensors: { radio_range: 4, pose_noise",
+    );
+    assert!(s.contains("radio_range"));
+    let s = format!(
+        "{s}crashes:\n  - {{ robot: r3, at: 1.25s, until: 2.5s }}\n  - {{ robot: r7, at: 3.3s }}\n"
+    );
+    let g = graph("coverage-80", &g);
+    let sc = scenario("coverage-80 scenario", &s);
+    let on = |threads: usize| {
+        let mission = prepare(&g, &sc, None, &bite_protocols::registry()).expect("prepares");
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool");
+        let mut log = Vec::new();
+        let report = run(
+            mission,
+            &sc,
+            RunOptions {
+                seed: Some(9),
+                log: Some(&mut log),
+                time_limit: Some(std::time::Duration::from_millis(5_050)),
+                pool: Some(Arc::new(pool)),
+                ..RunOptions::default()
+            },
+        )
+        .expect("runs");
+        (log, report)
+    };
+    let (one, r1) = on(1);
+    let (two, r2) = on(2);
+    let text = String::from_utf8_lossy(&one);
+    assert!(
+        text.contains("\"crashed\"") && text.contains("\"resumed\""),
+        "robots crashed and came back"
+    );
+    assert!(
+        r1.summary.network.out_of_range > 0,
+        "some messages were out of radio range"
+    );
+    assert!(one == two, "the logs differ");
+    assert_eq!(r1.end, r2.end);
+    let poses = |r: &bite_sim::runner::RunReport| {
+        let w = r.world.as_ref().expect("a physical world");
+        (0..80).map(|i| w.pose(i).pos).collect::<Vec<_>>()
+    };
+    assert_eq!(poses(&r1), poses(&r2), "the world ends in the same state");
+}

@@ -120,6 +120,28 @@ impl std::fmt::Debug for World {
     }
 }
 
+/// Robots' positions at one moment, for radio range ([`World::radio`]).
+#[derive(Clone, Debug)]
+pub struct Radio {
+    range: Option<f64>,
+    at: Vec<DVec2>,
+}
+
+impl Radio {
+    /// Can robot `a` hear robot `b`?
+    pub fn in_range(&self, a: usize, b: usize) -> bool {
+        within(self.range, || (self.at[a], self.at[b]))
+    }
+}
+
+/// Are two robots within radio `range` (no range: always)?
+fn within(range: Option<f64>, at: impl FnOnce() -> (DVec2, DVec2)) -> bool {
+    range.is_none_or(|r| {
+        let (a, b) = at();
+        a.distance(b) <= r
+    })
+}
+
 fn v32(v: DVec2) -> rp::Vector {
     rp::Vector::new(v.x as f32, v.y as f32)
 }
@@ -714,10 +736,23 @@ impl World {
 
     /// Can `a` reach `b` by radio?
     pub fn in_radio_range(&self, a: usize, b: usize) -> bool {
-        self.spec
-            .sensors
-            .radio_range
-            .is_none_or(|r| self.pose(a).pos.distance(self.pose(b).pos) <= r)
+        within(self.spec.sensors.radio_range, || {
+            (self.pose(a).pos, self.pose(b).pos)
+        })
+    }
+
+    /// Who can hear whom as the robots stand now, to ask while the world
+    /// itself is stepping on another thread (the same answers as
+    /// [`World::in_radio_range`] until it moves).
+    pub fn radio(&self) -> Radio {
+        let range = self.spec.sensors.radio_range;
+        Radio {
+            range,
+            at: match range {
+                Some(_) => (0..self.robots.len()).map(|i| self.pose(i).pos).collect(),
+                None => Vec::new(),
+            },
+        }
     }
 
     /// What collider `c` is.
