@@ -536,7 +536,6 @@ impl Gen<'_, '_> {
         Ok(step)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn children(
         &self,
         s: &Step,
