@@ -127,8 +127,9 @@ pub fn generate(
         ..Beh::default()
     }];
     // Generated ahead, side by side. Once more behaviors than a graph may
-    // have are made, the rest are skipped (`None`): the mission is too
-    // large, and those the merge below still reaches are made then.
+    // have are made, the rest are skipped (`None`): the mission fails
+    // (too large, or a duplicate name cut a command short), and those the
+    // merge below still reaches are made then, so the messages are the same.
     let made = AtomicUsize::new(behs.len());
     let ahead = |s: &Step| -> Option<StepOut> {
         let def = lib.command(&s.command)?;

@@ -454,7 +454,8 @@ impl<'a> ExprParser<'a> {
 /// A template over a JSON value (a motor schema): strings are templates.
 #[derive(Clone, Debug, PartialEq)]
 pub enum JsonTemplate {
-    /// A number, bool or null, as is.
+    /// A value as is: a number, bool or null, or a string, list or mapping
+    /// without placeholders (folded when parsed).
     Lit(serde_json::Value),
     /// A string template.
     Str(Template),

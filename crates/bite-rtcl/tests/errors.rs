@@ -506,9 +506,9 @@ commands:
 ",
     )
     .unwrap_or_else(|e| panic!("{e}"));
-    // 1: an error; 2: a duplicate name; 3: fine; then ten commands of
-    // 10,000 behaviors each, past the largest graph at line 13; then more
-    // errors that must not be reported.
+    // 1: an error; 2: a duplicate name; 3: fine; then twelve commands of
+    // 10,000 behaviors each, the tenth (line 13) past the largest graph;
+    // then more errors that must not be reported.
     let mut head = String::from("spread:2.5\ntwice:1\ntwice:0\n");
     head.push_str(&"spread:10000\n".repeat(12));
     let tail = "spread:2.5\ntwice:1\n".repeat(bite_rtcl::codegen::PARALLEL_FROM);

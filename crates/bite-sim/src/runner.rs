@@ -27,11 +27,13 @@ use std::collections::BTreeMap;
 use std::io::Write;
 use std::sync::Arc;
 
-/// From how many robots their control ticks run on several threads (below,
-/// the threads would cost more than they save; the run is the same).
+/// From how many robots their control ticks run on several threads and
+/// their world steps ahead on a second one (below, the threads would cost
+/// more than they save; the run is the same).
 const PARALLEL_FROM: usize = 64;
 
-/// Should a team of `n` tick on several threads? Only from
+/// Should a team of `n` tick on several threads (and its world step ahead,
+/// [`Sim::step_ahead`])? Only from
 /// [`PARALLEL_FROM`] robots, and never from inside a rayon pool's worker
 /// (`bite sweep`, `bite experiment` already run whole runs side by side:
 /// a worker waiting for its robots could steal another run's job and
@@ -87,9 +89,10 @@ pub struct RunOptions<'a> {
     pub changes: Vec<Change>,
     /// Someone watching the run as it goes (a live view, an MCAP file).
     pub watch: Option<Watch<'a>>,
-    /// The threads a large team's control tick runs on (default: rayon's
-    /// global pool; `bite bench --threads` compares one with two). The run
-    /// itself stays on the caller's thread. Results are the same for any.
+    /// The threads a large team's control tick runs on, and its world steps
+    /// ahead on (default: rayon's global pool; `bite bench --threads`
+    /// compares one with two). The run's events stay on the caller's
+    /// thread. Results are the same for any.
     pub pool: Option<Arc<rayon::ThreadPool>>,
 }
 
@@ -313,9 +316,10 @@ impl Sim<'_, '_> {
     /// the robots stopped that are stopped now. So the run is the same as
     /// stepping at the next tick, which the world does instead when it
     /// cannot step ahead: a small team (the thread would cost more than
-    /// the steps), one thread, a watcher that sees the world between
-    /// ticks, a crash or a restart before the next tick, or the run's
-    /// time limit before it.
+    /// the steps), one thread, a run inside a pool's worker (`bite sweep`,
+    /// `bite experiment`: see [`parallel`]), a watcher that will see the
+    /// world before the next tick, a crash or a restart before the next
+    /// tick, or the run's time limit before it.
     fn step_ahead(&mut self, next: Time, limit: Time) {
         let threads = self
             .pool
@@ -323,7 +327,9 @@ impl Sim<'_, '_> {
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
         let crash = self.crash_times.partition_point(|t| *t < self.now);
         if self.physics.is_none()
-            || self.watch_poses.is_some()
+            || self
+                .watch_poses
+                .is_some_and(|(every, at)| !every.is_zero() && at < next)
             || next > limit
             || threads < 2
             || !parallel(self.agents.len())
@@ -362,7 +368,7 @@ impl Sim<'_, '_> {
         let Some(s) = self.stepping.take() else {
             return false;
         };
-        debug_assert_eq!(s.until, self.now, "the world steps to the next tick");
+        assert_eq!(s.until, self.now, "the world stepped to the next tick");
         match s.world.recv() {
             Ok(Ok(w)) => self.physics = Some(w),
             Ok(Err(panic)) => std::panic::resume_unwind(panic),
@@ -528,9 +534,9 @@ impl Sim<'_, '_> {
                 }
                 AgentOutput::Drive(cmd) => {
                     // Only a control tick drives, and the world is home
-                    // then (it steps ahead after the tick).
-                    debug_assert!(self.stepping.is_none());
-                    self.home();
+                    // then (it steps ahead after the tick): driving it
+                    // while away would change the run without a trace.
+                    assert!(self.stepping.is_none(), "a robot drove between ticks");
                     if let Some(w) = self.physics.as_mut() {
                         w.actuate(i, cmd);
                     }

@@ -373,7 +373,7 @@ fn a_large_team_steps_its_world_ahead_and_runs_the_same() {
     // (`Sim::step_ahead`). Radio range is asked meanwhile, robots crash,
     // one comes back, and the run ends between two ticks: the run must be
     // byte for byte the one that steps at each tick (one thread).
-    use bite_sim::runner::{RunOptions, prepare, run};
+    use bite_sim::runner::{RunOptions, Watch, prepare, run};
     let (g, s) = bite_agent::swarm::coverage_mission(80, 8.0);
     let s = s.replace(
         "sensors: { pose_noise",
@@ -385,13 +385,21 @@ fn a_large_team_steps_its_world_ahead_and_runs_the_same() {
     );
     let g = graph("coverage-80", &g);
     let sc = scenario("coverage-80 scenario", &s);
-    let on = |threads: usize| {
+    // Also watched: at the control rate (the world still steps ahead) and
+    // between ticks (it cannot). A watcher sees the poses it asked for.
+    let on = |threads: usize, every_ms: Option<u64>| {
         let mission = prepare(&g, &sc, None, &bite_protocols::registry()).expect("prepares");
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
             .expect("a thread pool");
         let mut log = Vec::new();
+        let mut seen = Vec::new();
+        let mut on_record = |r: &serde_json::Value| {
+            if r["event"] == "poses" {
+                seen.push(r.to_string());
+            }
+        };
         let report = run(
             mission,
             &sc,
@@ -400,14 +408,18 @@ fn a_large_team_steps_its_world_ahead_and_runs_the_same() {
                 log: Some(&mut log),
                 time_limit: Some(std::time::Duration::from_millis(5_050)),
                 pool: Some(Arc::new(pool)),
+                watch: every_ms.map(|ms| Watch {
+                    on_record: &mut on_record,
+                    poses_every: std::time::Duration::from_millis(ms),
+                }),
                 ..RunOptions::default()
             },
         )
         .expect("runs");
-        (log, report)
+        (log, report, seen)
     };
-    let (one, r1) = on(1);
-    let (two, r2) = on(2);
+    let (one, r1, _) = on(1, None);
+    let (two, r2, _) = on(2, None);
     let text = String::from_utf8_lossy(&one);
     assert!(
         text.contains("\"crashed\"") && text.contains("\"resumed\""),
@@ -419,6 +431,19 @@ fn a_large_team_steps_its_world_ahead_and_runs_the_same() {
     );
     assert!(one == two, "the logs differ");
     assert_eq!(r1.end, r2.end);
+    for (every, least) in [(100, 45), (40, 110)] {
+        let (watched, _, seen) = on(2, Some(every));
+        assert!(
+            watched == one,
+            "the logs differ under a watcher every {every} ms"
+        );
+        assert!(seen.len() >= least, "{} poses every {every} ms", seen.len());
+        let (_, _, seen_one) = on(1, Some(every));
+        assert!(
+            seen == seen_one,
+            "the watcher every {every} ms saw other poses"
+        );
+    }
     let poses = |r: &bite_sim::runner::RunReport| {
         let w = r.world.as_ref().expect("a physical world");
         (0..80).map(|i| w.pose(i).pos).collect::<Vec<_>>()
