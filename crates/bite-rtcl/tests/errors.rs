@@ -315,13 +315,8 @@ fn too_large() {
     assert_eq!(e[0].code, "too-large");
 }
 
-/// A library entry that cannot be generated for a use of it is reported at
-/// the command, pointing into the library.
-#[test]
-fn library() {
-    let lib = Library::from_str(
-        "lib.yaml",
-        "\
+/// A library of one command that splits the team into `count` parts.
+const SPREAD: &str = "\
 commands:
   spread:
     params:
@@ -335,9 +330,13 @@ commands:
             until: \"elapsed > 1\"
             skill:
               - { schema: stop, layer: 1 }
-",
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+";
+
+/// A library entry that cannot be generated for a use of it is reported at
+/// the command, pointing into the library.
+#[test]
+fn library() {
+    let lib = Library::from_str("lib.yaml", SPREAD).unwrap_or_else(|e| panic!("{e}"));
     let e = compile("m.rtcl", "spread:2.5\n", &lib, &CompileOptions::default())
         .expect_err("2.5 copies");
     assert_eq!(
@@ -470,23 +469,8 @@ fn bad_options() {
 /// reported past the command that made the graph too large.
 #[test]
 fn errors_of_a_long_mission_are_those_in_order() {
-    let lib = Library::from_str(
-        "lib.yaml",
-        "\
-commands:
-  spread:
-    params:
-      - { name: count, type: number }
-    phases:
-      - name: split
-        children:
-          - name: part
-            repeat: \"{count}\"
-            members: 1
-            until: \"elapsed > 1\"
-            skill:
-              - { schema: stop, layer: 1 }
-  twice:
+    let text = SPREAD.to_owned()
+        + "  twice:
     params:
       - { name: count, type: number }
     phases:
@@ -503,9 +487,8 @@ commands:
             until: \"elapsed > 1\"
             skill:
               - { schema: stop, layer: 1 }
-",
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+";
+    let lib = Library::from_str("lib.yaml", &text).unwrap_or_else(|e| panic!("{e}"));
     // 1: an error; 2: a duplicate name; 3: fine; then twelve commands of
     // 10,000 behaviors each, the tenth (line 13) past the largest graph;
     // then more errors that must not be reported.
