@@ -469,25 +469,16 @@ fn bad_options() {
 /// reported past the command that made the graph too large.
 #[test]
 fn errors_of_a_long_mission_are_those_in_order() {
-    let text = SPREAD.to_owned()
-        + "  twice:
-    params:
-      - { name: count, type: number }
-    phases:
-      - name: split
-        children:
-          - name: part
-            repeat: \"{count}\"
-            members: 1
-            until: \"elapsed > 1\"
-            skill:
-              - { schema: stop, layer: 1 }
-          - name: part_1
+    // `twice`: `spread` with one more child, named as `spread`'s copies
+    // are (`part_1`), so that `twice:1` makes a name twice.
+    let twice = SPREAD.replacen("commands:\n  spread:", "  twice:", 1)
+        + "          - name: part_1
             members: 1
             until: \"elapsed > 1\"
             skill:
               - { schema: stop, layer: 1 }
 ";
+    let text = format!("{SPREAD}{twice}");
     let lib = Library::from_str("lib.yaml", &text).unwrap_or_else(|e| panic!("{e}"));
     // 1: an error; 2: a duplicate name; 3: fine; then twelve commands of
     // 10,000 behaviors each, the tenth (line 13) past the largest graph;
