@@ -6,7 +6,7 @@ use fixedbitset::FixedBitSet;
 use serde::de::{self, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use std::sync::Arc;
-use std::sync::Weak;
+use std::sync::{OnceLock, Weak};
 
 /// Members kept in place, without a heap allocation.
 const INLINE: usize = 4;
@@ -35,7 +35,97 @@ enum Repr {
     /// them changes (a set the size of the roster, per holder, made the
     /// simulator's memory grow with the square of the team: every member
     /// of a team of 100,000 held its own copy of who departed).
-    Bits(Arc<FixedBitSet>),
+    Bits(Arc<Bits>),
+}
+
+/// A bit set shared between copies of a [`MemberSet`], with the last
+/// question asked of it (see [`MemberSet::news`]).
+#[derive(Debug, Default)]
+struct Bits {
+    set: FixedBitSet,
+    news: OnceLock<Memo>,
+    /// [`MemberSet::is_subset`]'s answer for the first superset asked
+    /// about (a bit set, named by address as in [`Memo`]).
+    subset_of: OnceLock<(Weak<Bits>, bool)>,
+    /// Its number of members, once counted.
+    len: OnceLock<usize>,
+}
+
+/// [`MemberSet::news`]'s answer for one pair of other sets, named by
+/// address (the weak pointers keep the addresses from being reused; a set
+/// changed in place while one is held moves to a new address, see
+/// [`Bits::make_mut`]).
+#[derive(Debug)]
+struct Memo {
+    within: Weak<Bits>,
+    known: Option<Weak<Bits>>,
+    news: News,
+}
+
+impl Bits {
+    fn shared(set: FixedBitSet) -> Arc<Bits> {
+        Arc::new(Bits {
+            set,
+            ..Bits::default()
+        })
+    }
+    /// `a ⊆ b`. The answer for the first superset asked about is kept (a
+    /// leader's report, shared by its team's members, each asking whether
+    /// it names only the team's members; what is new in it, shared the
+    /// same way, each asking whether it knew it already).
+    fn subset(a: &Arc<Bits>, b: &Arc<Bits>) -> bool {
+        if Arc::ptr_eq(a, b) {
+            return true;
+        }
+        if let Some((of, yes)) = a.subset_of.get() {
+            if Weak::as_ptr(of) == Arc::as_ptr(b) {
+                return *yes;
+            }
+            return a.set.is_subset(&b.set);
+        }
+        let yes = a.set.is_subset(&b.set);
+        let _ = a.subset_of.set((Arc::downgrade(b), yes));
+        yes
+    }
+    /// The bits to change: copied when shared, moved to a new address when
+    /// a memo names them (so that no memo answers for the changed set),
+    /// and without a memo of their own.
+    fn make_mut(this: &mut Arc<Bits>) -> &mut FixedBitSet {
+        let b = Arc::make_mut(this);
+        b.news = OnceLock::new();
+        b.subset_of = OnceLock::new();
+        b.len = OnceLock::new();
+        &mut b.set
+    }
+}
+
+/// A copy has no memo.
+impl Clone for Bits {
+    fn clone(&self) -> Self {
+        Bits {
+            set: self.set.clone(),
+            ..Bits::default()
+        }
+    }
+}
+
+impl std::ops::Deref for Bits {
+    type Target = FixedBitSet;
+    #[inline]
+    fn deref(&self) -> &FixedBitSet {
+        &self.set
+    }
+}
+
+/// What a teammate's report of who departed tells a robot
+/// ([`MemberSet::news`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct News {
+    /// Members of the report that are in the team and not known yet
+    /// (`None`: there are none).
+    pub fresh: Option<MemberSet>,
+    /// The report holds every robot already known.
+    pub covers: bool,
 }
 
 /// Members in increasing id order.
@@ -77,7 +167,7 @@ impl MemberSet {
         s.insert_range(..);
         MemberSet {
             roster: roster_len as u32,
-            repr: Repr::Bits(Arc::new(s)),
+            repr: Repr::Bits(Bits::shared(s)),
         }
     }
     /// The set of the given robots (ids beyond `roster_len` are ignored).
@@ -112,7 +202,7 @@ impl MemberSet {
             for i in ids {
                 s.insert(i as usize);
             }
-            Repr::Bits(Arc::new(s))
+            Repr::Bits(Bits::shared(s))
         } else {
             Repr::List(ids)
         };
@@ -133,7 +223,7 @@ impl MemberSet {
     /// The set as a bit set (borrowed when it is one).
     fn bits(&self) -> std::borrow::Cow<'_, FixedBitSet> {
         match &self.repr {
-            Repr::Bits(b) => std::borrow::Cow::Borrowed(b),
+            Repr::Bits(b) => std::borrow::Cow::Borrowed(&b.set),
             _ => {
                 let mut b = FixedBitSet::with_capacity(self.roster as usize);
                 for r in self.iter() {
@@ -154,7 +244,7 @@ impl MemberSet {
                 if b.contains(r.index()) {
                     return false;
                 }
-                return !Arc::make_mut(b).put(r.index());
+                return !Bits::make_mut(b).put(r.index());
             }
             Repr::Few { n, ids } => {
                 let len = *n as usize;
@@ -203,7 +293,7 @@ impl MemberSet {
         match &mut self.repr {
             Repr::Bits(b) => {
                 if r.index() < b.len() && b.contains(r.index()) {
-                    Arc::make_mut(b).set(r.index(), false);
+                    Bits::make_mut(b).set(r.index(), false);
                 }
             }
             Repr::Few { n, ids } => {
@@ -232,9 +322,68 @@ impl MemberSet {
     /// Number of members.
     pub fn len(&self) -> usize {
         match &self.repr {
-            Repr::Bits(b) => b.count_ones(..),
+            // Counted once per shared set (every robot of a team of
+            // 100,000 counts the same roster).
+            Repr::Bits(b) => *b.len.get_or_init(|| b.set.count_ones(..)),
             _ => self.list().map_or(0, <[u32]>::len),
         }
+    }
+    /// The `i`-th word of the set's bit set (the members in
+    /// `[w i, w i + w)`, `w` bits to a word).
+    fn word(&self, i: usize) -> usize {
+        const WORD: usize = usize::BITS as usize;
+        match &self.repr {
+            Repr::Bits(b) => b.as_slice().get(i).copied().unwrap_or(0),
+            _ => {
+                let list = self.list().unwrap_or_default();
+                let lo = i * WORD;
+                let from = list.partition_point(|x| (*x as usize) < lo);
+                let mut word = 0;
+                for x in &list[from..] {
+                    let at = *x as usize - lo;
+                    if at >= WORD {
+                        break;
+                    }
+                    word |= 1 << at;
+                }
+                word
+            }
+        }
+    }
+    /// The first member, in id order, that is `keep` or in none of the
+    /// sets `without` yields (called again for every word). Word by word
+    /// when this set is a bit set: a team leader is the first member not
+    /// departed, and in a large team the first tens of thousands may have
+    /// departed.
+    pub fn first_not_in<'a, I>(&self, keep: RobotId, without: impl Fn() -> I) -> Option<RobotId>
+    where
+        I: Iterator<Item = &'a MemberSet>,
+    {
+        const WORD: usize = usize::BITS as usize;
+        let Repr::Bits(b) = &self.repr else {
+            return self
+                .iter()
+                .find(|r| *r == keep || !without().any(|s| s.contains(*r)));
+        };
+        for (i, &word) in b.as_slice().iter().enumerate() {
+            if word == 0 {
+                continue;
+            }
+            let mut m = word;
+            for s in without() {
+                m &= !s.word(i);
+                if m == 0 {
+                    break;
+                }
+            }
+            if keep.index() / WORD == i {
+                m |= word & (1 << (keep.index() % WORD));
+            }
+            if m != 0 {
+                return Some(RobotId((i * WORD) as u32 + m.trailing_zeros()));
+            }
+        }
+        None
     }
     /// True when empty.
     pub fn is_empty(&self) -> bool {
@@ -276,39 +425,89 @@ impl MemberSet {
             // One shared set (a leader's report a member kept): no need to
             // read the roster's words.
             (Repr::Bits(a), Repr::Bits(b)) if Arc::ptr_eq(a, b) => true,
-            (Repr::Bits(a), Repr::Bits(b)) => a.is_subset(b),
+            (Repr::Bits(a), Repr::Bits(b)) => Bits::subset(a, b),
             _ => self.iter().all(|r| other.contains(r)),
         }
     }
-    /// Members of `self` that are in `within` and not in `known`, as a
-    /// set (`None`: there are none). Word by word when the sets are bit
-    /// sets (what a team leader's report of who departed is, in a large
-    /// team): a member checks a report of n robots in O(n / 64), with
-    /// nothing allocated when the report holds nothing new, and adds what
-    /// is new to what it knows as words too ([`MemberSet::union_with`]),
-    /// not robot by robot (a team of n learns n departures each).
-    pub fn fresh_in(&self, within: &MemberSet, known: Option<&MemberSet>) -> Option<MemberSet> {
+    /// What this set, a teammate's report of who departed a behavior,
+    /// tells a robot that knows `known` departed, in a team of `within`:
+    /// who is new, and whether the report holds all the robot knew.
+    ///
+    /// Word by word when the sets are bit sets (a leader's report in a
+    /// large team): O(n / 64), nothing allocated when nothing is new, and
+    /// what is new comes as words too, added to what the robot knows the
+    /// same way ([`MemberSet::union_with`]). A team's members hear the
+    /// same report and mostly know the same (the report before it, kept
+    /// as it is): copies of a set share their bits, and the answer for
+    /// the first pair of sets asked about is kept with the report, so that
+    /// in the simulator a team of n reads a report once, not n times
+    /// (n² / 64 words a heartbeat for the team).
+    pub fn news(&self, within: &MemberSet, known: Option<&MemberSet>) -> News {
         // What this robot knows is the report itself (it kept the leader's
         // report, and the leader's next heartbeat carries the same one):
         // nothing is new, and the roster's words need not be read.
         if known.is_some_and(|k| k.shares_bits(self)) {
-            return None;
+            return News {
+                fresh: None,
+                covers: true,
+            };
         }
+        let (Repr::Bits(me), Repr::Bits(w)) = (&self.repr, &within.repr) else {
+            return self.read_news(within, known);
+        };
+        let k = match known.map(|k| &k.repr) {
+            None => None,
+            Some(Repr::Bits(k)) => Some(k),
+            Some(_) => return self.read_news(within, known),
+        };
+        let asked = |m: &Memo| {
+            Weak::as_ptr(&m.within) == Arc::as_ptr(w)
+                && match (&m.known, k) {
+                    (None, None) => true,
+                    (Some(a), Some(b)) => Weak::as_ptr(a) == Arc::as_ptr(b),
+                    _ => false,
+                }
+        };
+        if let Some(m) = me.news.get() {
+            if asked(m) {
+                return m.news.clone();
+            }
+            return self.read_news(within, known);
+        }
+        let news = self.read_news(within, known);
+        // Another thread may have answered another question first: then
+        // this one is not kept.
+        let _ = me.news.set(Memo {
+            within: Arc::downgrade(w),
+            known: k.map(Arc::downgrade),
+            news: news.clone(),
+        });
+        news
+    }
+    /// [`MemberSet::news`], read from the sets.
+    fn read_news(&self, within: &MemberSet, known: Option<&MemberSet>) -> News {
         let known_bits = match known.map(|k| &k.repr) {
             None => Some(None),
             Some(Repr::Bits(k)) => Some(Some(k.as_slice())),
             Some(_) => None,
         };
         if let (Repr::Bits(a), Repr::Bits(w), Some(k)) = (&self.repr, &within.repr, known_bits) {
-            let fresh = |(i, (x, y)): (usize, (&usize, &usize))| {
-                x & y & !k.and_then(|k| k.get(i)).copied().unwrap_or(0)
-            };
+            let known_at = |i: usize| k.and_then(|k| k.get(i)).copied().unwrap_or(0);
+            let fresh = |(i, (x, y)): (usize, (&usize, &usize))| x & y & !known_at(i);
             let words = || a.as_slice().iter().zip(w.as_slice()).enumerate();
             // Counted first, so that a few new members make a short list
             // (a bit set is the whole roster's size).
             let count: usize = words().map(|p| fresh(p).count_ones() as usize).sum();
+            let covers = k.is_none_or(|k| {
+                let outside =
+                    |(i, kw): (usize, &usize)| kw & !a.as_slice().get(i).copied().unwrap_or(0);
+                k.iter().enumerate().all(|p| outside(p) == 0)
+            });
             if count == 0 {
-                return None;
+                return News {
+                    fresh: None,
+                    covers,
+                };
             }
             if !Self::dense(count, self.roster as usize) {
                 const WORD: usize = usize::BITS as usize;
@@ -321,23 +520,32 @@ impl MemberSet {
                         word &= word - 1;
                     }
                 }
-                return Some(MemberSet::from_sorted(self.roster as usize, ids));
+                return News {
+                    fresh: Some(MemberSet::from_sorted(self.roster as usize, ids)),
+                    covers,
+                };
             }
             let mut bits = FixedBitSet::with_capacity(self.roster as usize);
             for (slot, word) in bits.as_mut_slice().iter_mut().zip(words().map(fresh)) {
                 *slot = word;
             }
-            return Some(MemberSet {
-                roster: self.roster,
-                repr: Repr::Bits(Arc::new(bits)),
-            });
+            return News {
+                fresh: Some(MemberSet {
+                    roster: self.roster,
+                    repr: Repr::Bits(Bits::shared(bits)),
+                }),
+                covers,
+            };
         }
         let ids: Vec<u32> = self
             .iter()
             .filter(|r| within.contains(*r) && !known.is_some_and(|k| k.contains(*r)))
             .map(|r| r.0)
             .collect();
-        (!ids.is_empty()).then(|| MemberSet::from_sorted(self.roster as usize, ids))
+        News {
+            fresh: (!ids.is_empty()).then(|| MemberSet::from_sorted(self.roster as usize, ids)),
+            covers: known.is_none_or(|k| k.is_subset(self)),
+        }
     }
     /// Members as a vector.
     pub fn to_vec(&self) -> Vec<RobotId> {
@@ -385,8 +593,8 @@ impl MemberSet {
             (Repr::Bits(a), Repr::Bits(b)) => {
                 // Shared and already holding all of `other`: nothing to
                 // copy.
-                if !b.is_subset(a) {
-                    Arc::make_mut(a).union_with(b);
+                if !Bits::subset(b, a) {
+                    Bits::make_mut(a).union_with(b);
                 }
             }
             (_, Repr::Bits(b)) => {
@@ -395,7 +603,7 @@ impl MemberSet {
                 for r in self.iter() {
                     bits.insert(r.index());
                 }
-                self.repr = Repr::Bits(Arc::new(bits));
+                self.repr = Repr::Bits(Bits::shared(bits));
             }
             _ => {
                 for r in other.iter() {
@@ -456,7 +664,7 @@ impl MemberSet {
                 }
                 out.push(MemberSet {
                     roster: self.roster,
-                    repr: Repr::Bits(Arc::new(b)),
+                    repr: Repr::Bits(Bits::shared(b)),
                 });
             } else if c <= INLINE {
                 let mut ids = [0; INLINE];
@@ -488,7 +696,7 @@ impl PartialEq for MemberSet {
                 a == b && x[..*a as usize] == y[..*b as usize]
             }
             (_, _, Some(a), Some(b)) => a == b,
-            (Repr::Bits(a), Repr::Bits(b), _, _) => a == b,
+            (Repr::Bits(a), Repr::Bits(b), _, _) => a.set == b.set,
             _ => self.len() == other.len() && self.iter().eq(other.iter()),
         }
     }
@@ -584,7 +792,7 @@ impl Fields {
                 .collect();
             return Ok(MemberSet {
                 roster: roster as u32,
-                repr: Repr::Bits(Arc::new(FixedBitSet::with_capacity_and_blocks(
+                repr: Repr::Bits(Bits::shared(FixedBitSet::with_capacity_and_blocks(
                     roster, blocks,
                 ))),
             });
@@ -873,8 +1081,27 @@ mod tests {
         }
     }
 
+    /// Brute-force [`MemberSet::news`].
+    fn brute_news(a: &MemberSet, w: &MemberSet, k: Option<&MemberSet>) -> (Vec<RobotId>, bool) {
+        let fresh = a
+            .iter()
+            .filter(|r| w.contains(*r) && !k.is_some_and(|k| k.contains(*r)))
+            .collect();
+        let covers = k.is_none_or(|k| k.iter().all(|r| a.contains(r)));
+        (fresh, covers)
+    }
+
+    fn news_of(a: &MemberSet, w: &MemberSet, k: Option<&MemberSet>) -> (Vec<RobotId>, bool) {
+        let n = a.news(w, k);
+        assert!(
+            n.fresh.as_ref().is_none_or(|f| !f.is_empty()),
+            "no empty news"
+        );
+        (n.fresh.map(|f| f.to_vec()).unwrap_or_default(), n.covers)
+    }
+
     #[test]
-    fn fresh_members_are_found_in_every_form() {
+    fn news_is_read_right_in_every_form_and_asked_twice() {
         let forms = [
             set(200, &[1, 5, 64, 150]),
             set(200, &(0..200).step_by(3).collect::<Vec<_>>()),
@@ -886,13 +1113,99 @@ mod tests {
         for a in &forms {
             for w in &forms {
                 for k in forms.iter().map(Some).chain([None]) {
-                    let brute: Vec<RobotId> = a
-                        .iter()
-                        .filter(|r| w.contains(*r) && !k.is_some_and(|k| k.contains(*r)))
-                        .collect();
-                    let got = a.fresh_in(w, k);
-                    assert_eq!(got.is_none(), brute.is_empty());
-                    assert_eq!(got.map(|g| g.to_vec()).unwrap_or_default(), brute);
+                    let brute = brute_news(a, w, k);
+                    // The first answer may be kept with `a`: every other
+                    // pair asked after it must still be read.
+                    assert_eq!(news_of(a, w, k), brute);
+                    assert_eq!(news_of(a, w, k), brute, "asked again");
+                    assert_eq!(news_of(&a.clone(), w, k), brute, "a copy");
+                }
+            }
+        }
+    }
+
+    /// The answer kept with a report never outlives a change of the
+    /// report, the team or what the robot knew, whoever holds them.
+    #[test]
+    fn news_kept_with_a_report_follows_every_change() {
+        let n = 1000;
+        let team = set(n, &(0..600).collect::<Vec<_>>());
+        let mut report = set(n, &(0..300).collect::<Vec<_>>());
+        let mut known = set(n, &(0..200).collect::<Vec<_>>());
+        assert_eq!(
+            news_of(&report, &team, Some(&known)),
+            brute_news(&report, &team, Some(&known))
+        );
+        // What the robot knew changes in place (it holds the only copy).
+        known.insert(RobotId(250));
+        assert_eq!(
+            news_of(&report, &team, Some(&known)),
+            brute_news(&report, &team, Some(&known))
+        );
+        known.remove(RobotId(0));
+        assert_eq!(
+            news_of(&report, &team, Some(&known)),
+            brute_news(&report, &team, Some(&known))
+        );
+        // The report changes in place.
+        report.insert(RobotId(400));
+        assert_eq!(
+            news_of(&report, &team, Some(&known)),
+            brute_news(&report, &team, Some(&known))
+        );
+        // The team changes in place.
+        let mut team2 = team.clone();
+        assert_eq!(
+            news_of(&report, &team2, Some(&known)),
+            brute_news(&report, &team2, Some(&known))
+        );
+        team2.remove(RobotId(299));
+        assert_eq!(
+            news_of(&report, &team2, Some(&known)),
+            brute_news(&report, &team2, Some(&known))
+        );
+        // A robot that kept the report itself learns nothing from it.
+        let kept = report.clone();
+        assert_eq!(news_of(&report, &team, Some(&kept)), (vec![], true));
+        // Inclusion, kept the same way.
+        assert!(!report.is_subset(&team2));
+        let mut small = report.clone();
+        small.remove(RobotId(400));
+        assert!(small.is_subset(&team));
+        assert!(small.is_subset(&team), "asked again");
+        small.insert(RobotId(700));
+        assert!(!small.is_subset(&team), "changed since");
+        let mut big = team.clone();
+        assert!(small.clone().is_subset(&big) == small.iter().all(|r| big.contains(r)));
+        big.insert(RobotId(700));
+        assert!(small.is_subset(&big), "the superset changed since");
+        // Counts follow changes too.
+        let before = report.len();
+        report.insert(RobotId(999));
+        assert_eq!(report.len(), before + 1);
+    }
+
+    #[test]
+    fn the_first_member_not_departed_is_found_in_every_form() {
+        let forms = [
+            set(300, &[1, 5, 64, 150]),
+            set(300, &(0..300).step_by(3).collect::<Vec<_>>()),
+            set(300, &(0..130).collect::<Vec<_>>()),
+            set(300, &(64..300).collect::<Vec<_>>()),
+            set(300, &(0..300).collect::<Vec<_>>()),
+            set(300, &[]),
+        ];
+        for team in &forms {
+            for x in &forms {
+                for y in &forms {
+                    for keep in [0, 5, 63, 64, 129, 299] {
+                        let keep = RobotId(keep);
+                        let brute = team
+                            .iter()
+                            .find(|r| *r == keep || !(x.contains(*r) || y.contains(*r)));
+                        let got = team.first_not_in(keep, || [x, y].into_iter());
+                        assert_eq!(got, brute, "{team:?} {x:?} {y:?} {keep:?}");
+                    }
                 }
             }
         }

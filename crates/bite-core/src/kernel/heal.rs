@@ -189,16 +189,22 @@ impl Kernel {
             };
             let known = f.departed.as_ref();
             let report = (pos.frames.iter().find(|g| g.id == id)).and_then(|g| g.departed.as_ref());
-            let mut who: Option<MemberSet> = report.and_then(|d| d.fresh_in(&team.members, known));
+            let news = report.map(|d| d.news(&team.members, known));
+            let covers = news.as_ref().is_none_or(|n| n.covers);
+            let mut who: Option<MemberSet> = news.and_then(|n| n.fresh);
             let ended = pos.ended.iter().any(|e| e.id == id)
                 || pos.burned.contains(&id)
                 || pos
                     .frames
                     .iter()
                     .any(|g| g.id == id && g.state != FrameState::Running);
+            // What is new from the report is in the report; the sender
+            // may not be.
+            let mut adds_sender = false;
             if ended && team.contains(from) && !known.is_some_and(|d| d.contains(from)) {
                 who.get_or_insert_with(|| MemberSet::empty(self.org.roster_len()))
                     .insert(from);
+                adds_sender = true;
             }
             let Some(mut who) = who else {
                 continue;
@@ -217,9 +223,9 @@ impl Kernel {
             let share = report
                 .filter(|d| {
                     (slot.is_none() || !d.contains(self.me))
-                        && who.is_subset(d)
+                        && (!adds_sender || d.contains(from))
+                        && covers
                         && d.is_subset(&team.members)
-                        && known.is_none_or(|k| k.is_subset(d))
                 })
                 .cloned();
             if let Some(d) = share {

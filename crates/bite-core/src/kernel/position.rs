@@ -385,12 +385,8 @@ impl Kernel {
     pub(super) fn heal_leader(&self, t: TeamId, depth: usize) -> Option<RobotId> {
         let team = self.org.team(t)?;
         let above = &self.stack[..depth.min(self.stack.len())];
-        team.members.iter().find(|r| {
-            *r == self.me
-                || (!self.lost.contains(*r)
-                    && !above
-                        .iter()
-                        .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(*r))))
+        team.members.first_not_in(self.me, || {
+            std::iter::once(&self.lost).chain(above.iter().filter_map(|f| f.departed.as_ref()))
         })
     }
 
