@@ -101,7 +101,38 @@ impl<T> EventQueue<T> {
     }
 
     /// The next event and its time.
+    #[cfg(test)]
     pub fn pop(&mut self) -> Option<(Time, T)> {
+        self.pop_keyed().map(|(at, _, item)| (at, item))
+    }
+
+    /// The next event, its time and its place among the events scheduled
+    /// at that time (the order of scheduling).
+    pub fn pop_keyed(&mut self) -> Option<(Time, u64, T)> {
+        let from_heap = self.next_from_heap()?;
+        let k = if from_heap {
+            self.current.pop()?.0
+        } else {
+            self.sorted.pop_front()?
+        };
+        self.len -= 1;
+        Some((k.at, k.seq, k.item))
+    }
+
+    /// The time and place of the next event, and the event, without
+    /// taking it.
+    pub fn peek(&mut self) -> Option<(Time, u64, &T)> {
+        let k = if self.next_from_heap()? {
+            &self.current.peek()?.0
+        } else {
+            self.sorted.front()?
+        };
+        Some((k.at, k.seq, &k.item))
+    }
+
+    /// Whether the next event is on the heap (`false`: at the front of the
+    /// sorted bucket); `None` when nothing is scheduled.
+    fn next_from_heap(&mut self) -> Option<bool> {
         if self.sorted.is_empty() && self.current.is_empty() {
             let (b, mut list) = self.later.pop_first()?;
             self.cur = b;
@@ -114,18 +145,11 @@ impl<T> EventQueue<T> {
             let old = std::mem::replace(&mut self.sorted, VecDeque::from(list));
             self.spare.push(Vec::from(old));
         }
-        let from_heap = match (self.sorted.front(), self.current.peek()) {
+        Some(match (self.sorted.front(), self.current.peek()) {
             (Some(a), Some(Reverse(b))) => b < a,
             (None, _) => true,
             (Some(_), None) => false,
-        };
-        let k = if from_heap {
-            self.current.pop()?.0
-        } else {
-            self.sorted.pop_front()?
-        };
-        self.len -= 1;
-        Some((k.at, k.item))
+        })
     }
 
     /// How many events are scheduled.
@@ -160,6 +184,8 @@ mod tests {
                 q.push(Time(at), i);
                 reference.push(Reverse((at, seq, i)));
                 for _ in 0..*pops {
+                    let head = reference.peek().map(|Reverse((at, _, i))| (Time(*at), *i));
+                    prop_assert_eq!(q.peek().map(|(at, _, i)| (at, *i)), head);
                     let want = reference.pop().map(|Reverse((at, _, i))| (Time(at), i));
                     let got = q.pop();
                     prop_assert_eq!(got, want);

@@ -17,9 +17,10 @@ use bite_core::event::{DropReason, Event};
 use bite_core::graph::BehaviorGraph;
 use bite_core::ids::{BehaviorId, RobotId};
 use bite_core::interaction::{Recipients, Registry};
-use bite_core::kernel::{Frame, Stats};
+use bite_core::kernel::{Frame, Position, Stats};
 use bite_core::mission::Mission;
 use bite_core::msg::Envelope;
+use bite_core::org::MemberSet;
 use bite_core::time::Time;
 use rand::SeedableRng;
 use serde_json::json;
@@ -290,6 +291,8 @@ struct Sim<'a, 'w> {
     changes: Vec<(Change, Arc<Shared>)>,
     /// How many of them have been handed out.
     handed: usize,
+    /// What a robot's mind asked, being carried out (kept to reuse).
+    outs: Vec<AgentOutput>,
 }
 
 /// The physical world away, stepping to the next control tick.
@@ -381,22 +384,13 @@ impl Sim<'_, '_> {
     /// Robot `i`'s clock at simulated time `t` (its rate and offset; a
     /// robot's mind sees only its own clock).
     fn local(&self, i: usize, t: Time) -> Time {
-        let (rate, off) = self.resolved.clocks.get(i).copied().unwrap_or((1.0, 0.0));
-        if rate == 1.0 && off == 0.0 {
-            return t;
-        }
-        Time::from_secs_f64(t.as_secs_f64() * rate + off)
+        local_clock(&self.resolved.clocks, i, t)
     }
 
     /// The simulated time at which robot `i`'s clock reads `t` (rounded up,
     /// so that a timer set for `t` finds the clock at or past it).
     fn global(&self, i: usize, t: Time) -> Time {
-        let (rate, off) = self.resolved.clocks.get(i).copied().unwrap_or((1.0, 0.0));
-        if rate == 1.0 && off == 0.0 {
-            return t;
-        }
-        let g = (t.as_secs_f64() - off) / rate;
-        Time((g * 1e6).ceil().max(0.0) as u64 + 1)
+        global_clock(&self.resolved.clocks, i, t)
     }
 
     /// Robot `i`'s clock now.
@@ -453,6 +447,202 @@ impl Sim<'_, '_> {
         }
     }
 
+    /// A robot's event, handled here and now: a message, a heartbeat
+    /// heard or sent, a timer.
+    fn agent_event(&mut self, what: What) {
+        match what {
+            What::Deliver { to, env } => {
+                if !self.crashed[to.index()] {
+                    self.input(to, Input::Message(&env));
+                }
+            }
+            What::Inform { from, to, msg } => {
+                if !self.crashed[to.index()] {
+                    self.input(to, Input::Inform { from, msg: &msg });
+                }
+            }
+            What::Timer(r) => {
+                let i = r.index();
+                let now = self.clock(i);
+                if !self.crashed[i] && self.agents[i].poll_timeout().is_some_and(|t| t <= now) {
+                    self.timers[i] = None;
+                    self.input(r, Input::Timer);
+                }
+            }
+            What::Beacon(r) => {
+                let beacon = (!self.crashed[r.index()])
+                    .then(|| beacon_of(&self.agents[r.index()]))
+                    .flatten();
+                self.send_beacon(r, beacon);
+            }
+            What::Peer { to, from, pos } => {
+                if !self.crashed[to.index()] {
+                    self.input(to, Input::Peer { from, pos: &pos });
+                }
+            }
+            _ => unreachable!("not a robot's event"),
+        }
+    }
+
+    /// Send robot `r`'s heartbeat (its audience and position, if it has
+    /// one) and schedule the next.
+    fn send_beacon(&mut self, r: RobotId, beacon: Option<(MemberSet, Arc<Position>)>) {
+        if let Some((audience, pos)) = beacon {
+            if self.inject.is_some() {
+                if self.captured_pos.len() >= 16 {
+                    self.captured_pos.pop_front();
+                }
+                self.captured_pos.push_back(pos.clone());
+            }
+            let bytes = pos.encoded_len() as u64;
+            for to in audience.iter() {
+                self.beacons.0 += 1;
+                self.beacons.1 += bytes;
+                let pos = pos.clone();
+                self.send(r, to, move || What::Peer {
+                    to,
+                    from: r,
+                    pos: pos.clone(),
+                });
+            }
+        }
+        let next = self.now + self.beacon_period;
+        self.schedule(next, What::Beacon(r));
+    }
+
+    /// How far ahead robots' events may be handled side by side (see
+    /// [`Sim::batch`]): nothing one robot does reaches another sooner than
+    /// the network's least delay, and its next heartbeat is a period
+    /// away. `None`: one event at a time (one thread, a physical world,
+    /// which steps ahead on the second core instead, a small team, or a
+    /// network without delay).
+    fn batching(&self) -> Option<Duration> {
+        let threads = (self.pool.as_ref())
+            .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
+        let window = self.net.model().latency.min(self.beacon_period);
+        (self.physics.is_none()
+            && self.stepping.is_none()
+            && threads > 1
+            && parallel(self.agents.len())
+            && !window.is_zero())
+        .then_some(window)
+    }
+
+    /// Robots' events from `at` on, handled side by side: the events at the
+    /// head of the queue until one that is not a robot's, or one `window`
+    /// after the first (each robot's own events in order, on one thread).
+    /// Nothing a robot does reaches another robot within the window, so
+    /// the robots' minds end where they would one event at a time. What
+    /// each mind asked is then carried out one event after the other in
+    /// the queue's order (messages drawn from the network's generator,
+    /// events logged and checked, timers scheduled), with the events that
+    /// fall due in between (a robot's own timer) handled in their place.
+    /// A robot whose timer could fall due before its next event in the
+    /// window has its remaining events handled in that second pass, one at
+    /// a time. So the run is the same, byte for byte, as one event at a
+    /// time, whatever the number of threads.
+    fn batch(&mut self, at: Time, seq: u64, what: What, window: Duration, limit: Time) {
+        let end = at + window;
+        let mut batch = vec![(at, seq, what)];
+        while let Some((t, _, w)) = self.queue.peek() {
+            let ours = matches!(
+                w,
+                What::Deliver { .. }
+                    | What::Inform { .. }
+                    | What::Timer(_)
+                    | What::Beacon(_)
+                    | What::Peer { .. }
+            );
+            if !ours || t >= end || t > limit {
+                break;
+            }
+            batch.extend(self.queue.pop_keyed());
+        }
+        let done = self.handle_batch(&batch);
+        for ((at, seq, what), done) in batch.into_iter().zip(done) {
+            // What fell due since the last event and before this one (a
+            // robot's timer: anything else is at least a window away).
+            while let Some((t, s, w)) = self.queue.peek()
+                && (t, s) < (at, seq)
+            {
+                debug_assert!(
+                    matches!(w, What::Timer(_)),
+                    "only timers fall due in a window"
+                );
+                let Some((t, _, w)) = self.queue.pop_keyed() else {
+                    break;
+                };
+                self.now = t;
+                self.agent_event(w);
+            }
+            self.now = at;
+            let r = robot_of(&what);
+            match done {
+                Done::Later => self.agent_event(what),
+                Done::Nothing => {}
+                Done::Beacon(b) => self.send_beacon(r, b),
+                Done::Handled(mut outs, timeout) => {
+                    if matches!(what, What::Timer(_)) {
+                        self.timers[r.index()] = None;
+                    }
+                    self.carry_out(r, &mut outs, timeout);
+                }
+            }
+        }
+    }
+
+    /// The minds' part of a batch of robots' events ([`Sim::batch`]),
+    /// side by side by robot, each robot's events in order.
+    fn handle_batch(&mut self, batch: &[(Time, u64, What)]) -> Vec<Done> {
+        use rayon::prelude::*;
+        // (robot, place in the batch): by robot, each robot's in order.
+        let mut order: Vec<(u32, u32)> = (batch.iter().enumerate())
+            .map(|(j, (_, _, what))| (robot_of(what).0, j as u32))
+            .collect();
+        order.sort_unstable();
+        let groups: Vec<&[(u32, u32)]> = order.chunk_by(|a, b| a.0 == b.0).collect();
+        let robots: Vec<usize> = groups.iter().map(|g| g[0].0 as usize).collect();
+        let mut tasks: Vec<(&mut Agent, &[(u32, u32)])> = pick_mut(&mut self.agents, &robots)
+            .into_iter()
+            .zip(groups)
+            .collect();
+        let (clocks, crashed) = (&self.resolved.clocks, &self.crashed);
+        let work = |(a, mine): &mut (&mut Agent, &[(u32, u32)])| -> Vec<(u32, Done)> {
+            let mut out = Vec::with_capacity(mine.len());
+            for (k, &(_, j)) in mine.iter().enumerate() {
+                let (at, _, what) = &batch[j as usize];
+                let i = robot_of(what).index();
+                out.push((
+                    j,
+                    handle_one(a, local_clock(clocks, i, *at), crashed[i], what),
+                ));
+                // Its timer may fall due before its next event here: that
+                // one and the rest are handled in order later.
+                if let Some(&(_, next)) = mine.get(k + 1) {
+                    let due = a
+                        .poll_timeout()
+                        .map(|t| global_clock(clocks, i, t).max(*at));
+                    if due.is_some_and(|t| t < batch[next as usize].0) {
+                        break;
+                    }
+                }
+            }
+            out
+        };
+        let mut side_by_side = || tasks.par_iter_mut().with_min_len(32).map(work).collect();
+        let results: Vec<Vec<(u32, Done)>> = match &self.pool {
+            Some(pool) => pool.install(side_by_side),
+            None => side_by_side(),
+        };
+        let mut done: Vec<Done> = std::iter::repeat_with(|| Done::Later)
+            .take(batch.len())
+            .collect();
+        for (j, d) in results.into_iter().flatten() {
+            done[j as usize] = d;
+        }
+        done
+    }
+
     /// Hand robot `r` one input at its own clock, then carry out what
     /// its mind asks.
     fn input(&mut self, r: RobotId, input: Input<'_>) {
@@ -466,7 +656,18 @@ impl Sim<'_, '_> {
     /// commands to its body; and keep its timer scheduled.
     fn drain(&mut self, r: RobotId) {
         let i = r.index();
-        while let Some(o) = self.agents[i].poll() {
+        let mut outs = std::mem::take(&mut self.outs);
+        outs.extend(std::iter::from_fn(|| self.agents[i].poll()));
+        let timeout = self.agents[i].poll_timeout();
+        self.carry_out(r, &mut outs, timeout);
+        self.outs = outs;
+    }
+
+    /// Carry out what robot `r`'s mind asked (`outs`, emptied), and keep
+    /// its timer scheduled for `timeout` (its clock), as [`Sim::drain`].
+    fn carry_out(&mut self, r: RobotId, outs: &mut Vec<AgentOutput>, timeout: Option<Time>) {
+        let i = r.index();
+        for o in outs.drain(..) {
             match o {
                 AgentOutput::Send {
                     to,
@@ -543,7 +744,7 @@ impl Sim<'_, '_> {
                 }
             }
         }
-        if let Some(t) = self.agents[i].poll_timeout() {
+        if let Some(t) = timeout {
             let t = self.global(i, t);
             if self.timers[i].is_none_or(|s| t < s || s < self.now) {
                 self.timers[i] = Some(t);
@@ -818,7 +1019,7 @@ impl Sim<'_, '_> {
             self.schedule(Time::ZERO + every, What::Inject);
         }
         let mut next_progress = Time::ZERO;
-        while let Some((at, what)) = self.queue.pop() {
+        while let Some((at, seq, what)) = self.queue.pop_keyed() {
             if at > limit {
                 return limit;
             }
@@ -899,24 +1100,14 @@ impl Sim<'_, '_> {
                     self.schedule(next, What::Control);
                     self.step_ahead(next, limit);
                 }
-                What::Deliver { to, env } => {
-                    if !self.crashed[to.index()] {
-                        self.input(to, Input::Message(&env));
-                    }
-                }
-                What::Inform { from, to, msg } => {
-                    if !self.crashed[to.index()] {
-                        self.input(to, Input::Inform { from, msg: &msg });
-                    }
-                }
-                What::Timer(r) => {
-                    let i = r.index();
-                    let now = self.clock(i);
-                    if !self.crashed[i] && self.agents[i].poll_timeout().is_some_and(|t| t <= now) {
-                        self.timers[i] = None;
-                        self.input(r, Input::Timer);
-                    }
-                }
+                What::Deliver { .. }
+                | What::Inform { .. }
+                | What::Timer(_)
+                | What::Beacon(_)
+                | What::Peer { .. } => match self.batching() {
+                    Some(window) => self.batch(at, seq, what, window, limit),
+                    None => self.agent_event(what),
+                },
                 What::Lost { observer, subject } => {
                     let o = observer.index();
                     if !self.crashed[o]
@@ -933,39 +1124,6 @@ impl Sim<'_, '_> {
                         && self.suspected.remove(&(observer, subject))
                     {
                         self.input(observer, Input::Back(subject));
-                    }
-                }
-                What::Beacon(r) => {
-                    if !self.crashed[r.index()] {
-                        let k = self.agents[r.index()].kernel();
-                        let audience = k.beacon_audience();
-                        if !audience.is_empty() {
-                            let pos = Arc::new(k.position());
-                            if self.inject.is_some() {
-                                if self.captured_pos.len() >= 16 {
-                                    self.captured_pos.pop_front();
-                                }
-                                self.captured_pos.push_back(pos.clone());
-                            }
-                            let bytes = pos.encoded_len() as u64;
-                            for to in audience.iter() {
-                                self.beacons.0 += 1;
-                                self.beacons.1 += bytes;
-                                let pos = pos.clone();
-                                self.send(r, to, move || What::Peer {
-                                    to,
-                                    from: r,
-                                    pos: pos.clone(),
-                                });
-                            }
-                        }
-                    }
-                    let next = self.now + self.beacon_period;
-                    self.schedule(next, What::Beacon(r));
-                }
-                What::Peer { to, from, pos } => {
-                    if !self.crashed[to.index()] {
-                        self.input(to, Input::Peer { from, pos: &pos });
                     }
                 }
                 What::Inject => {
@@ -1053,6 +1211,98 @@ impl Sim<'_, '_> {
         }
         self.now
     }
+}
+
+/// Robot `i`'s clock at simulated time `t` (its rate and offset; a robot's
+/// mind sees only its own clock).
+fn local_clock(clocks: &[(f64, f64)], i: usize, t: Time) -> Time {
+    let (rate, off) = clocks.get(i).copied().unwrap_or((1.0, 0.0));
+    if rate == 1.0 && off == 0.0 {
+        return t;
+    }
+    Time::from_secs_f64(t.as_secs_f64() * rate + off)
+}
+
+/// The simulated time at which robot `i`'s clock reads `t` (rounded up, so
+/// that a timer set for `t` finds the clock at or past it).
+fn global_clock(clocks: &[(f64, f64)], i: usize, t: Time) -> Time {
+    let (rate, off) = clocks.get(i).copied().unwrap_or((1.0, 0.0));
+    if rate == 1.0 && off == 0.0 {
+        return t;
+    }
+    let g = (t.as_secs_f64() - off) / rate;
+    Time((g * 1e6).ceil().max(0.0) as u64 + 1)
+}
+
+/// A robot's heartbeat: to whom, and its position (`None`: nobody to tell).
+fn beacon_of(a: &Agent) -> Option<(MemberSet, Arc<Position>)> {
+    let k = a.kernel();
+    let audience = k.beacon_audience();
+    (!audience.is_empty()).then(|| (audience, Arc::new(k.position())))
+}
+
+/// The robot whose event it is.
+fn robot_of(what: &What) -> RobotId {
+    match what {
+        What::Deliver { to, .. } | What::Inform { to, .. } | What::Peer { to, .. } => *to,
+        What::Timer(r) | What::Beacon(r) => *r,
+        _ => unreachable!("not a robot's event"),
+    }
+}
+
+/// A mind's part of one event of a batch ([`Sim::batch`]).
+enum Done {
+    /// Handled: what the mind asked, and its timeout after.
+    Handled(Vec<AgentOutput>, Option<Time>),
+    /// Nothing to do (a stopped robot, a timer not due).
+    Nothing,
+    /// A heartbeat to send.
+    Beacon(Option<(MemberSet, Arc<Position>)>),
+    /// To handle in order, after the others.
+    Later,
+}
+
+/// Robot `a`'s part of one event, at its clock `clock` (as
+/// [`Sim::agent_event`] does it).
+fn handle_one(a: &mut Agent, clock: Time, crashed: bool, what: &What) -> Done {
+    if crashed {
+        return match what {
+            What::Beacon(_) => Done::Beacon(None),
+            _ => Done::Nothing,
+        };
+    }
+    match what {
+        What::Deliver { env, .. } => a.handle(clock, Input::Message(env)),
+        What::Inform { from, msg, .. } => a.handle(clock, Input::Inform { from: *from, msg }),
+        What::Peer { from, pos, .. } => a.handle(clock, Input::Peer { from: *from, pos }),
+        What::Timer(_) => {
+            if a.poll_timeout().is_none_or(|t| t > clock) {
+                return Done::Nothing;
+            }
+            a.handle(clock, Input::Timer);
+        }
+        What::Beacon(_) => return Done::Beacon(beacon_of(a)),
+        _ => unreachable!("not a robot's event"),
+    }
+    let outs = std::iter::from_fn(|| a.poll()).collect();
+    Done::Handled(outs, a.poll_timeout())
+}
+
+/// The elements at `sorted` (increasing, without repeats), each borrowed
+/// mutably on its own.
+fn pick_mut<'a, T>(mut rest: &'a mut [T], sorted: &[usize]) -> Vec<&'a mut T> {
+    let mut out = Vec::with_capacity(sorted.len());
+    let mut base = 0;
+    for &i in sorted {
+        let tail = std::mem::take(&mut rest).split_at_mut(i - base).1;
+        let Some((x, tail)) = tail.split_first_mut() else {
+            break;
+        };
+        out.push(x);
+        rest = tail;
+        base = i + 1;
+    }
+    out
 }
 
 /// Run a mission: in the timed-skill world, or in the physical world when
@@ -1146,6 +1396,7 @@ pub fn run(
         inject: scenario.inject,
         changes: Vec::new(),
         handed: 0,
+        outs: Vec::new(),
         pool: opts.pool.clone(),
         stepping: None,
         crash_times: Vec::new(),

@@ -639,3 +639,82 @@ fn one_allocation_point_with_many_children_stays_linear() {
         s.heartbeats.messages
     );
 }
+
+#[test]
+fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
+    // From 64 robots on two threads, a timed world's events of the robots
+    // (messages, heartbeats, timers) are handled side by side for a window
+    // shorter than the network's least delay (`Sim::batch`), then carried
+    // out in order. With loss, duplicates, skewed clocks, crashes, a
+    // restart, forged messages and protocol deadlines, the run must be
+    // byte for byte the one that handles one event at a time (one thread).
+    use bite_sim::runner::{RunOptions, prepare, run};
+    let g = graph("formation.yaml", FORMATION);
+    let text = format!(
+        "{FORMATION_SC}\nclocks:\n  r5: {{ rate: 1.02, offset: 30ms }}\n  r70: {{ rate: 0.97 }}\n\
+         inject: {{ every: 150ms }}\n\
+         crashes:\n  - {{ robot: r3, at: 2s, until: 4s, restart: true }}\n  - {{ robot: r0, at: 6s }}\n  - {{ robot: r40, at: 3s, until: 5s }}\n"
+    );
+    let mut sc = scenario("large.yaml", &text);
+    sc.network.loss = 0.05;
+    sc.network.duplicate = 0.05;
+    // A slow network makes the window long: robots' own timers fall due
+    // inside it, between their events, and are handled in their place.
+    let mut slow = sc.clone();
+    slow.network.latency = std::time::Duration::from_millis(150);
+    slow.network.jitter = std::time::Duration::from_millis(40);
+    // Protocols that retry every few milliseconds, on the slow network:
+    // timers fall due between a robot's events of a window.
+    let eager = Config::load_str(
+        &Arc::from("eager.yaml"),
+        "defaults:\n  sync: { retry: 7ms }\n  terminate: { retry: 7ms }\n  allocate: { retry: 7ms }\n",
+    )
+    .unwrap_or_else(|d| panic!("{d}"));
+    let eager = g.with_config(&eager).unwrap_or_else(|d| panic!("{d}"));
+    let on = |g: &bite_core::BehaviorGraph, sc: &Scenario, threads: usize, seed: u64| {
+        let mission = prepare(g, sc, Some(120), &bite_protocols::registry()).expect("prepares");
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool");
+        let mut log = Vec::new();
+        let report = run(
+            mission,
+            sc,
+            RunOptions {
+                seed: Some(seed),
+                log: Some(&mut log),
+                time_limit: Some(std::time::Duration::from_secs(15)),
+                pool: Some(Arc::new(pool)),
+                ..RunOptions::default()
+            },
+        )
+        .expect("runs");
+        (log, report)
+    };
+    for (g, sc, seed) in [
+        (&g, &sc, 1),
+        (&g, &sc, 2),
+        (&g, &slow, 3),
+        (&eager, &slow, 4),
+    ] {
+        let (one, r1) = on(g, sc, 1, seed);
+        let (two, r2) = on(g, sc, 2, seed);
+        let s = &r1.summary;
+        assert!(
+            s.network.lost > 0 && s.network.duplicated > 0,
+            "seed {seed}: {s}"
+        );
+        let text = String::from_utf8_lossy(&one);
+        assert!(
+            text.contains("\"crashed\"") && text.contains("\"resumed\""),
+            "seed {seed}: robots crashed and came back"
+        );
+        assert!(one == two, "seed {seed}: the logs differ on two threads");
+        assert_eq!(r1.end, r2.end);
+        assert_eq!(
+            serde_json::to_string(&r1.summary).expect("json"),
+            serde_json::to_string(&r2.summary).expect("json")
+        );
+    }
+}
