@@ -769,6 +769,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
                 },
             ),
             pool: None,
+            batch_from: None,
         },
     )
     .map_err(bad_input)?;

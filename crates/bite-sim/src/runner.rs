@@ -95,7 +95,17 @@ pub struct RunOptions<'a> {
     /// compares one with two). The run's events stay on the caller's
     /// thread. Results are the same for any.
     pub pool: Option<Arc<rayon::ThreadPool>>,
+    /// The team size from which, in a timed world on two threads or more,
+    /// robots' events are handled side by side (`Sim::batch`; default
+    /// [`BATCH_FROM`]). Results are the same either way.
+    pub batch_from: Option<usize>,
 }
+
+/// The team size from which robots' events are handled side by side by
+/// default: below it, handing them to the pool costs more than it saves
+/// (measured on 2 cores: 3,000 robots 10 % slower, 6,000 20 % faster;
+/// docs/performance.md).
+pub const BATCH_FROM: usize = 5_000;
 
 /// A watcher of a run: sees every run-log record when it is made (whether
 /// or not a log is written), and in a physical world a `poses` record every
@@ -265,6 +275,8 @@ struct Sim<'a, 'w> {
     crash_times: Vec<Time>,
     /// The threads of a large team's control tick (see `RunOptions::pool`).
     pool: Option<Arc<rayon::ThreadPool>>,
+    /// See `RunOptions::batch_from`.
+    batch_from: usize,
     next_poses: Time,
     /// How often, and when next, the watcher sees the poses.
     watch_poses: Option<(Duration, Time)>,
@@ -514,8 +526,8 @@ impl Sim<'_, '_> {
     /// [`Sim::batch`]): nothing one robot does reaches another sooner than
     /// the network's least delay, and its next heartbeat is a period
     /// away. `None`: one event at a time (one thread, a physical world,
-    /// which steps ahead on the second core instead, a small team, or a
-    /// network without delay).
+    /// which steps ahead on the second core instead, a team smaller than
+    /// `batch_from`, or a network without delay).
     fn batching(&self) -> Option<Duration> {
         let threads = (self.pool.as_ref())
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
@@ -523,6 +535,7 @@ impl Sim<'_, '_> {
         (self.physics.is_none()
             && self.stepping.is_none()
             && threads > 1
+            && self.agents.len() >= self.batch_from
             && parallel(self.agents.len())
             && !window.is_zero())
         .then_some(window)
@@ -629,8 +642,12 @@ impl Sim<'_, '_> {
             }
             out
         };
+        // A few robots are handled here (handing work to the pool and
+        // waiting for it costs more).
+        let few = tasks.len() < 2 * 32;
         let mut side_by_side = || tasks.par_iter_mut().with_min_len(32).map(work).collect();
         let results: Vec<Vec<(u32, Done)>> = match &self.pool {
+            _ if few => tasks.iter_mut().map(work).collect(),
             Some(pool) => pool.install(side_by_side),
             None => side_by_side(),
         };
@@ -1398,6 +1415,7 @@ pub fn run(
         handed: 0,
         outs: Vec::new(),
         pool: opts.pool.clone(),
+        batch_from: opts.batch_from.unwrap_or(BATCH_FROM),
         stepping: None,
         crash_times: Vec::new(),
     };

@@ -642,8 +642,9 @@ fn one_allocation_point_with_many_children_stays_linear() {
 
 #[test]
 fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
-    // From 64 robots on two threads, a timed world's events of the robots
-    // (messages, heartbeats, timers) are handled side by side for a window
+    // A large team on two threads (here from 64 robots) handles a timed
+    // world's events of the robots (messages, heartbeats, timers) side by
+    // side for a window
     // shorter than the network's least delay (`Sim::batch`), then carried
     // out in order. With loss, duplicates, skewed clocks, crashes, a
     // restart, forged messages and protocol deadlines, the run must be
@@ -686,6 +687,8 @@ fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
                 log: Some(&mut log),
                 time_limit: Some(std::time::Duration::from_secs(15)),
                 pool: Some(Arc::new(pool)),
+                // Side by side from 64 robots (5,000 by default).
+                batch_from: Some(64),
                 ..RunOptions::default()
             },
         )

@@ -628,6 +628,7 @@ fn run_mission(
                     poses_every: Duration::from_millis(40),
                 }),
                 pool: None,
+                batch_from: None,
             },
         )
         .map_err(|d| anyhow::anyhow!("{d}"))?;
