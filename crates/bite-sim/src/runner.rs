@@ -201,6 +201,25 @@ pub struct RunReport {
     pub world: Option<crate::physics::World>,
     /// Invariants the run broke (checked on every run).
     pub violations: Vec<crate::check::Violation>,
+    /// How many robots' events were handled side by side (`Sim::batch`).
+    pub batched: Batched,
+}
+
+/// Robots' events handled side by side in a run (`Sim::batch`): what a
+/// test of that path checks it took.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Batched {
+    /// Windows of robots' events (`Sim::batch`).
+    pub windows: u64,
+    /// Of which were handed to the pool (the others had few robots).
+    pub pooled: u64,
+    /// Events in them.
+    pub events: u64,
+    /// Events of a robot whose timer could fall due first, handled in order
+    /// afterwards.
+    pub later: u64,
+    /// Timers that fell due inside a window, handled in their place.
+    pub between: u64,
 }
 
 enum What {
@@ -277,6 +296,8 @@ struct Sim<'a, 'w> {
     pool: Option<Arc<rayon::ThreadPool>>,
     /// See `RunOptions::batch_from`.
     batch_from: usize,
+    /// See `RunReport::batched`.
+    batched: Batched,
     next_poses: Time,
     /// How often, and when next, the watcher sees the poses.
     watch_poses: Option<(Duration, Time)>,
@@ -572,6 +593,9 @@ impl Sim<'_, '_> {
             batch.extend(self.queue.pop_keyed());
         }
         let done = self.handle_batch(&batch);
+        self.batched.windows += 1;
+        self.batched.events += batch.len() as u64;
+        self.batched.later += done.iter().filter(|d| matches!(d, Done::Later)).count() as u64;
         for ((at, seq, what), done) in batch.into_iter().zip(done) {
             // What fell due since the last event and before this one (a
             // robot's timer: anything else is at least a window away).
@@ -586,6 +610,7 @@ impl Sim<'_, '_> {
                     break;
                 };
                 self.now = t;
+                self.batched.between += 1;
                 self.agent_event(w);
             }
             self.now = at;
@@ -622,6 +647,8 @@ impl Sim<'_, '_> {
         let (clocks, crashed) = (&self.resolved.clocks, &self.crashed);
         let work = |(a, mine): &mut (&mut Agent, &[(u32, u32)])| -> Vec<(u32, Done)> {
             let mut out = Vec::with_capacity(mine.len());
+            // The earliest timer its events so far may have scheduled.
+            let mut due: Option<Time> = None;
             for (k, &(_, j)) in mine.iter().enumerate() {
                 let (at, _, what) = &batch[j as usize];
                 let i = robot_of(what).index();
@@ -629,12 +656,15 @@ impl Sim<'_, '_> {
                     j,
                     handle_one(a, local_clock(clocks, i, *at), crashed[i], what),
                 ));
-                // Its timer may fall due before its next event here: that
-                // one and the rest are handled in order later.
+                // A timer may fall due before its next event here (this
+                // event's, or an earlier one's that is still scheduled and
+                // would find the robot as it was then): that event and the
+                // rest are handled in order later.
                 if let Some(&(_, next)) = mine.get(k + 1) {
-                    let due = a
+                    let now_due = a
                         .poll_timeout()
                         .map(|t| global_clock(clocks, i, t).max(*at));
+                    due = due.into_iter().chain(now_due).min();
                     if due.is_some_and(|t| t < batch[next as usize].0) {
                         break;
                     }
@@ -645,6 +675,7 @@ impl Sim<'_, '_> {
         // A few robots are handled here (handing work to the pool and
         // waiting for it costs more).
         let few = tasks.len() < 2 * 32;
+        self.batched.pooled += u64::from(!few);
         let mut side_by_side = || tasks.par_iter_mut().with_min_len(32).map(work).collect();
         let results: Vec<Vec<(u32, Done)>> = match &self.pool {
             _ if few => tasks.iter_mut().map(work).collect(),
@@ -1416,6 +1447,7 @@ pub fn run(
         outs: Vec::new(),
         pool: opts.pool.clone(),
         batch_from: opts.batch_from.unwrap_or(BATCH_FROM),
+        batched: Batched::default(),
         stepping: None,
         crash_times: Vec::new(),
     };
@@ -1532,5 +1564,6 @@ pub fn run(
         end,
         world: sim.physics.take(),
         violations,
+        batched: sim.batched,
     })
 }

@@ -713,6 +713,22 @@ fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
             text.contains("\"crashed\"") && text.contains("\"resumed\""),
             "seed {seed}: robots crashed and came back"
         );
+        // The second run took the path under test: windows side by side,
+        // and (on the slow network with eager retries) robots whose timer
+        // could fall due first, and timers handled in between.
+        let b = r2.batched;
+        assert_eq!(
+            r1.batched,
+            Default::default(),
+            "one thread: one event at a time"
+        );
+        assert!(b.windows > 0 && b.events > b.windows, "seed {seed}: {b:?}");
+        if seed >= 3 {
+            assert!(b.pooled > 0, "seed {seed}: {b:?}");
+        }
+        if seed == 4 {
+            assert!(b.later > 0 && b.between > 0, "seed {seed}: {b:?}");
+        }
         assert!(one == two, "seed {seed}: the logs differ on two threads");
         assert_eq!(r1.end, r2.end);
         assert_eq!(

@@ -199,7 +199,8 @@ impl Kernel {
                     .iter()
                     .any(|g| g.id == id && g.state != FrameState::Running);
             // What is new from the report is in the report; the sender
-            // may not be.
+            // (never this robot: see `peer`) may not be.
+            debug_assert_ne!(from, self.me);
             let mut adds_sender = false;
             if ended && team.contains(from) && !known.is_some_and(|d| d.contains(from)) {
                 who.get_or_insert_with(|| MemberSet::empty(self.org.roster_len()))
