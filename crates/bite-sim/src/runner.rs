@@ -519,15 +519,19 @@ impl Sim<'_, '_> {
 
     /// Send robot `r`'s heartbeat (its audience and position, if it has
     /// one) and schedule the next.
-    fn send_beacon(&mut self, r: RobotId, beacon: Option<(MemberSet, Arc<Position>)>) {
-        if let Some((audience, pos)) = beacon {
+    fn send_beacon(&mut self, r: RobotId, beacon: Option<Beacon>) {
+        if let Some(Beacon {
+            audience,
+            pos,
+            bytes,
+        }) = beacon
+        {
             if self.inject.is_some() {
                 if self.captured_pos.len() >= 16 {
                     self.captured_pos.pop_front();
                 }
                 self.captured_pos.push_back(pos.clone());
             }
-            let bytes = pos.encoded_len() as u64;
             for to in audience.iter() {
                 self.beacons.0 += 1;
                 self.beacons.1 += bytes;
@@ -1282,11 +1286,28 @@ fn global_clock(clocks: &[(f64, f64)], i: usize, t: Time) -> Time {
     Time((g * 1e6).ceil().max(0.0) as u64 + 1)
 }
 
-/// A robot's heartbeat: to whom, and its position (`None`: nobody to tell).
-fn beacon_of(a: &Agent) -> Option<(MemberSet, Arc<Position>)> {
+/// A robot's heartbeat.
+struct Beacon {
+    /// To whom.
+    audience: MemberSet,
+    /// Its position.
+    pos: Arc<Position>,
+    /// Its size encoded.
+    bytes: u64,
+}
+
+/// Robot `a`'s heartbeat (`None`: nobody to tell).
+fn beacon_of(a: &Agent) -> Option<Beacon> {
     let k = a.kernel();
     let audience = k.beacon_audience();
-    (!audience.is_empty()).then(|| (audience, Arc::new(k.position())))
+    (!audience.is_empty()).then(|| {
+        let pos = k.position();
+        Beacon {
+            audience,
+            bytes: pos.encoded_len() as u64,
+            pos: Arc::new(pos),
+        }
+    })
 }
 
 /// The robot whose event it is.
@@ -1305,7 +1326,7 @@ enum Done {
     /// Nothing to do (a stopped robot, a timer not due).
     Nothing,
     /// A heartbeat to send.
-    Beacon(Option<(MemberSet, Arc<Position>)>),
+    Beacon(Option<Beacon>),
     /// To handle in order, after the others.
     Later,
 }
