@@ -38,8 +38,8 @@ enum Repr {
     Bits(Arc<Bits>),
 }
 
-/// A bit set shared between copies of a [`MemberSet`], with the last
-/// question asked of it (see [`MemberSet::news`]).
+/// A bit set shared between copies of a [`MemberSet`], with the answers to
+/// the first questions asked of it (see [`MemberSet::news`]).
 #[derive(Debug, Default)]
 struct Bits {
     set: FixedBitSet,
