@@ -1128,42 +1128,28 @@ mod tests {
     /// report, the team or what the robot knew, whoever holds them.
     #[test]
     fn news_kept_with_a_report_follows_every_change() {
+        let agrees = |report: &MemberSet, team: &MemberSet, known: &MemberSet| {
+            let brute = brute_news(report, team, Some(known));
+            assert_eq!(news_of(report, team, Some(known)), brute);
+        };
         let n = 1000;
         let team = set(n, &(0..600).collect::<Vec<_>>());
         let mut report = set(n, &(0..300).collect::<Vec<_>>());
         let mut known = set(n, &(0..200).collect::<Vec<_>>());
-        assert_eq!(
-            news_of(&report, &team, Some(&known)),
-            brute_news(&report, &team, Some(&known))
-        );
+        agrees(&report, &team, &known);
         // What the robot knew changes in place (it holds the only copy).
         known.insert(RobotId(250));
-        assert_eq!(
-            news_of(&report, &team, Some(&known)),
-            brute_news(&report, &team, Some(&known))
-        );
+        agrees(&report, &team, &known);
         known.remove(RobotId(0));
-        assert_eq!(
-            news_of(&report, &team, Some(&known)),
-            brute_news(&report, &team, Some(&known))
-        );
+        agrees(&report, &team, &known);
         // The report changes in place.
         report.insert(RobotId(400));
-        assert_eq!(
-            news_of(&report, &team, Some(&known)),
-            brute_news(&report, &team, Some(&known))
-        );
+        agrees(&report, &team, &known);
         // The team changes in place.
         let mut team2 = team.clone();
-        assert_eq!(
-            news_of(&report, &team2, Some(&known)),
-            brute_news(&report, &team2, Some(&known))
-        );
+        agrees(&report, &team2, &known);
         team2.remove(RobotId(299));
-        assert_eq!(
-            news_of(&report, &team2, Some(&known)),
-            brute_news(&report, &team2, Some(&known))
-        );
+        agrees(&report, &team2, &known);
         // A robot that kept the report itself learns nothing from it.
         let kept = report.clone();
         assert_eq!(news_of(&report, &team, Some(&kept)), (vec![], true));

@@ -553,17 +553,16 @@ impl Sim<'_, '_> {
     /// away. `None`: one event at a time (one thread, a physical world,
     /// which steps ahead on the second core instead, a team smaller than
     /// `batch_from`, or a network without delay).
+    /// Decided once, when the run starts (nothing it depends on changes).
     fn batching(&self) -> Option<Duration> {
+        let n = self.agents.len();
+        if self.physics.is_some() || n < self.batch_from || !parallel(n) {
+            return None;
+        }
         let threads = (self.pool.as_ref())
             .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
         let window = self.net.model().latency.min(self.beacon_period);
-        (self.physics.is_none()
-            && self.stepping.is_none()
-            && threads > 1
-            && self.agents.len() >= self.batch_from
-            && parallel(self.agents.len())
-            && !window.is_zero())
-        .then_some(window)
+        (threads > 1 && !window.is_zero()).then_some(window)
     }
 
     /// Robots' events from `at` on, handled side by side: the events at the
@@ -1071,6 +1070,7 @@ impl Sim<'_, '_> {
             self.schedule(Time::ZERO + every, What::Inject);
         }
         let mut next_progress = Time::ZERO;
+        let batching = self.batching();
         while let Some((at, seq, what)) = self.queue.pop_keyed() {
             if at > limit {
                 return limit;
@@ -1156,7 +1156,7 @@ impl Sim<'_, '_> {
                 | What::Inform { .. }
                 | What::Timer(_)
                 | What::Beacon(_)
-                | What::Peer { .. } => match self.batching() {
+                | What::Peer { .. } => match batching {
                     Some(window) => self.batch(at, seq, what, window, limit),
                     None => self.agent_event(what),
                 },
