@@ -483,37 +483,26 @@ impl Sim<'_, '_> {
     /// A robot's event, handled here and now: a message, a heartbeat
     /// heard or sent, a timer.
     fn agent_event(&mut self, what: What) {
-        match what {
-            What::Deliver { to, env } => {
-                if !self.crashed[to.index()] {
-                    self.input(to, Input::Message(&env));
+        let r = robot_of(&what);
+        let i = r.index();
+        let clock = self.clock(i);
+        let done = handle_one(&mut self.agents[i], clock, self.crashed[i], &what);
+        self.finish(r, &what, done);
+    }
+
+    /// Carry out robot `r`'s part of an event its mind has handled
+    /// (`handle_one`), here and now.
+    fn finish(&mut self, r: RobotId, what: &What, done: Done) {
+        match done {
+            Done::Later => unreachable!("an event handled later is handled by `agent_event`"),
+            Done::Nothing => {}
+            Done::Beacon(b) => self.send_beacon(r, b),
+            Done::Handled(mut outs, timeout) => {
+                if matches!(what, What::Timer(_)) {
+                    self.timers[r.index()] = None;
                 }
+                self.carry_out(r, &mut outs, timeout);
             }
-            What::Inform { from, to, msg } => {
-                if !self.crashed[to.index()] {
-                    self.input(to, Input::Inform { from, msg: &msg });
-                }
-            }
-            What::Timer(r) => {
-                let i = r.index();
-                let now = self.clock(i);
-                if !self.crashed[i] && self.agents[i].poll_timeout().is_some_and(|t| t <= now) {
-                    self.timers[i] = None;
-                    self.input(r, Input::Timer);
-                }
-            }
-            What::Beacon(r) => {
-                let beacon = (!self.crashed[r.index()])
-                    .then(|| beacon_of(&self.agents[r.index()]))
-                    .flatten();
-                self.send_beacon(r, beacon);
-            }
-            What::Peer { to, from, pos } => {
-                if !self.crashed[to.index()] {
-                    self.input(to, Input::Peer { from, pos: &pos });
-                }
-            }
-            _ => unreachable!("not a robot's event"),
         }
     }
 
@@ -582,15 +571,7 @@ impl Sim<'_, '_> {
         let end = at + window;
         let mut batch = vec![(at, seq, what)];
         while let Some((t, _, w)) = self.queue.peek() {
-            let ours = matches!(
-                w,
-                What::Deliver { .. }
-                    | What::Inform { .. }
-                    | What::Timer(_)
-                    | What::Beacon(_)
-                    | What::Peer { .. }
-            );
-            if !ours || t >= end || t > limit {
+            if robot_event(w).is_none() || t >= end || t > limit {
                 break;
             }
             batch.extend(self.queue.pop_keyed());
@@ -617,17 +598,9 @@ impl Sim<'_, '_> {
                 self.agent_event(w);
             }
             self.now = at;
-            let r = robot_of(&what);
             match done {
                 Done::Later => self.agent_event(what),
-                Done::Nothing => {}
-                Done::Beacon(b) => self.send_beacon(r, b),
-                Done::Handled(mut outs, timeout) => {
-                    if matches!(what, What::Timer(_)) {
-                        self.timers[r.index()] = None;
-                    }
-                    self.carry_out(r, &mut outs, timeout);
-                }
+                done => self.finish(robot_of(&what), &what, done),
             }
         }
     }
@@ -1310,13 +1283,19 @@ fn beacon_of(a: &Agent) -> Option<Beacon> {
     })
 }
 
+/// The robot whose event it is, if it is one robot's (a message, a
+/// heartbeat heard or sent, a timer).
+fn robot_event(what: &What) -> Option<RobotId> {
+    match what {
+        What::Deliver { to, .. } | What::Inform { to, .. } | What::Peer { to, .. } => Some(*to),
+        What::Timer(r) | What::Beacon(r) => Some(*r),
+        _ => None,
+    }
+}
+
 /// The robot whose event it is.
 fn robot_of(what: &What) -> RobotId {
-    match what {
-        What::Deliver { to, .. } | What::Inform { to, .. } | What::Peer { to, .. } => *to,
-        What::Timer(r) | What::Beacon(r) => *r,
-        _ => unreachable!("not a robot's event"),
-    }
+    robot_event(what).expect("a robot's event")
 }
 
 /// A mind's part of one event of a batch ([`Sim::batch`]).
@@ -1331,8 +1310,8 @@ enum Done {
     Later,
 }
 
-/// Robot `a`'s part of one event, at its clock `clock` (as
-/// [`Sim::agent_event`] does it).
+/// Robot `a`'s mind's part of one of its events, at its clock `clock`
+/// (what it asked is carried out by [`Sim::finish`]).
 fn handle_one(a: &mut Agent, clock: Time, crashed: bool, what: &What) -> Done {
     if crashed {
         return match what {
