@@ -82,9 +82,15 @@ type Execution = (TeamId, BehaviorId, (u32, u32));
 #[derive(Debug, Default)]
 struct SplitTable {
     by_execution: BTreeMap<Execution, Vec<Weak<Split>>>,
-    /// Insertions since dead entries were last swept.
-    inserted: usize,
+    /// Entries (weak pointers) in `by_execution`.
+    entries: usize,
+    /// Entries left by the last sweep of dead ones.
+    kept: usize,
 }
+
+/// The table is swept of dead splits once it holds twice what the last
+/// sweep left, and not below this many entries.
+const SPLIT_SWEEP_FROM: usize = 1024;
 
 impl Splits {
     fn lock(&self) -> std::sync::MutexGuard<'_, SplitTable> {
@@ -115,14 +121,18 @@ impl SplitTable {
             .entry((split.parent(), split.point(), split.stamp()))
             .or_default()
             .push(Arc::downgrade(split));
-        self.inserted += 1;
-        if self.inserted >= 1024.max(self.by_execution.len()) {
-            // Forget the splits every robot has dissolved.
-            self.inserted = 0;
+        self.entries += 1;
+        // Forget the splits every robot has dissolved, once there are as
+        // many new entries as the last sweep kept (amortized: a sweep costs
+        // what was inserted since the last). A dead entry's weak pointer
+        // also holds its split's memory.
+        if self.entries >= SPLIT_SWEEP_FROM.max(2 * self.kept) {
             self.by_execution.retain(|_, v| {
                 v.retain(|w| w.strong_count() > 0);
                 !v.is_empty()
             });
+            self.entries = self.by_execution.values().map(Vec::len).sum();
+            self.kept = self.entries;
         }
     }
 }
@@ -429,4 +439,57 @@ fn resolve(
         retry,
         params,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ids::RobotId;
+    use crate::members::{Assignment, MemberSet};
+
+    fn mission() -> Mission {
+        let g = crate::graph::load_str(
+            &Arc::from("g.yaml"),
+            "start: top\ndefaults: { terminate: term.local }\nbehaviors:\n  top: { team: true, children: [x, y] }\n  x: {}\n  y: {}\n",
+        )
+        .unwrap_or_else(|d| panic!("{d}"))
+        .with_team_size(2);
+        Mission::new(g, &Registry::core()).unwrap_or_else(|d| panic!("{d}"))
+    }
+
+    /// Splits dissolved by every robot are forgotten: the table of a
+    /// process that runs an allocation point over and over stays bounded
+    /// (it grew by an entry and a split's memory per execution).
+    #[test]
+    fn dissolved_splits_are_forgotten_and_live_ones_kept() {
+        let m = mission();
+        let g = m.graph();
+        let top = g.find("top").expect("top");
+        let (x, y) = (g.find("x").expect("x"), g.find("y").expect("y"));
+        let one = |i: u32| MemberSet::from_iter(2, [RobotId(i)]);
+        let assignment = || Arc::new(Assignment(vec![(x, one(0)), (y, one(1))]));
+        // Kept alive throughout, as a robot still in its subteam would.
+        let held: Vec<Arc<Split>> = (0..3)
+            .map(|e| m.split(TeamId::ROOT, top, (e, 0), assignment()))
+            .collect();
+        let mut peak = 0;
+        for epoch in 3..20_000 {
+            let s = m.split(TeamId::ROOT, top, (epoch, 0), assignment());
+            // Equal allocations of one execution share their split.
+            let again = m.split(TeamId::ROOT, top, (epoch, 0), assignment());
+            assert!(Arc::ptr_eq(&s, &again));
+            peak = peak.max(m.splits.lock().entries);
+        }
+        assert!(
+            peak <= 2 * SPLIT_SWEEP_FROM,
+            "the table grew to {peak} entries"
+        );
+        for (e, s) in held.iter().enumerate() {
+            let found = m.find_split(TeamId::ROOT, top, (e as u32, 0), &assignment());
+            assert!(
+                found.is_some_and(|f| Arc::ptr_eq(&f, s)),
+                "live split {e} forgotten"
+            );
+        }
+    }
 }
