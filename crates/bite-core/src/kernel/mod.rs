@@ -52,6 +52,7 @@ mod inbox;
 mod instances;
 mod membership;
 mod position;
+mod slots;
 pub use change::{FENCE_WAIT, Fence};
 use inbox::Inbox;
 pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position};
@@ -352,7 +353,7 @@ pub struct Kernel {
     rng: crate::interaction::LazyRng,
     stack: Vec<Frame>,
     phase: Phase,
-    instances: BTreeMap<InstanceKey, Box<Instance>>,
+    instances: slots::Instances,
     /// Highest epoch known to be over, per (team, behavior, kind) (looked
     /// up and pruned, never walked in order: a hash map).
     closed: rustc_hash::FxHashMap<(TeamId, BehaviorId, Kind), (u32, u32)>,
@@ -437,7 +438,7 @@ impl Kernel {
             mission,
             stack: Vec::new(),
             phase: Phase::NotStarted,
-            instances: BTreeMap::new(),
+            instances: slots::Instances::default(),
             closed: Default::default(),
             inbox: Inbox::default(),
             lost: MemberSet::empty(n),
