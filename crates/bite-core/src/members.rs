@@ -49,7 +49,13 @@ struct Bits {
     subset_of: OnceLock<(Weak<Bits>, bool)>,
     /// Its number of members, once counted.
     len: OnceLock<usize>,
+    /// Members before each word, once a rank was asked of a large set.
+    ranks: OnceLock<Box<[u32]>>,
 }
+
+/// Sets of more words than this keep a table of ranks (see
+/// [`Bits::rank`]); smaller ones are counted.
+const RANK_TABLE_FROM: usize = 8;
 
 /// [`MemberSet::news`]'s answer for one pair of other sets, named by
 /// address (the weak pointers keep the addresses from being reused; a set
@@ -95,7 +101,42 @@ impl Bits {
         b.news = OnceLock::new();
         b.subset_of = OnceLock::new();
         b.len = OnceLock::new();
+        b.ranks = OnceLock::new();
         &mut b.set
+    }
+    /// How many members are below `i`. Every robot of a team asks its rank
+    /// in the team's (shared) set at every control tick: a large set keeps
+    /// the members before each of its words, so that each robot reads two
+    /// words rather than the roster's.
+    fn rank(&self, i: usize) -> usize {
+        const WORD: usize = usize::BITS as usize;
+        let words = self.set.as_slice();
+        let i = i.min(self.set.len());
+        if words.len() <= RANK_TABLE_FROM {
+            return self.set.count_ones(..i);
+        }
+        let table = self.ranks.get_or_init(|| {
+            let mut before = 0u32;
+            words
+                .iter()
+                .map(|w| {
+                    let at = before;
+                    before += w.count_ones();
+                    at
+                })
+                .collect()
+        });
+        let (w, bit) = (i / WORD, i % WORD);
+        match (table.get(w), words.get(w)) {
+            (Some(before), Some(word)) => {
+                *before as usize + (word & ((1usize << bit) - 1)).count_ones() as usize
+            }
+            // `i` is the set's length, a whole number of words.
+            _ => table
+                .last()
+                .zip(words.last())
+                .map_or(0, |(b, w)| *b as usize + w.count_ones() as usize),
+        }
     }
 }
 
@@ -396,7 +437,7 @@ impl MemberSet {
     /// it is a member).
     pub fn rank(&self, r: RobotId) -> usize {
         match (&self.repr, self.list()) {
-            (Repr::Bits(b), _) => b.count_ones(..r.index().min(b.len())),
+            (Repr::Bits(b), _) => b.rank(r.index()),
             (_, Some(l)) => l.partition_point(|x| *x < r.0),
             _ => 0,
         }
@@ -1193,6 +1234,47 @@ mod tests {
                         assert_eq!(got, brute, "{team:?} {x:?} {y:?} {keep:?}");
                     }
                 }
+            }
+        }
+    }
+
+    /// Ranks against a count, in every form and size (a large set answers
+    /// from its table of ranks), and after a shared set is changed in one
+    /// copy (the table follows the change; the other copy keeps its own).
+    #[test]
+    fn ranks_are_counted_right_in_every_form_and_after_a_change() {
+        let brute = |s: &MemberSet, r: u32| s.iter().filter(|m| m.0 < r).count();
+        let check = |s: &MemberSet| {
+            for r in (0..=s.roster_len() as u32 + 1)
+                .step_by(7)
+                .chain([63, 64, 65, 511, 512])
+            {
+                assert_eq!(s.rank(RobotId(r)), brute(s, r), "rank {r} in {s:?}");
+            }
+        };
+        for roster in [3, 300, 1024, 2000] {
+            let forms = [
+                set(roster, &[]),
+                set(roster, &[1, 2]),
+                set(roster, &(0..roster as u32).step_by(3).collect::<Vec<_>>()),
+                set(roster, &(0..roster as u32).collect::<Vec<_>>()),
+                set(
+                    roster,
+                    &(roster as u32 / 2..roster as u32).collect::<Vec<_>>(),
+                ),
+            ];
+            for s in &forms {
+                check(s);
+                check(s); // asked again: from the table, if it has one
+                let mut changed = s.clone();
+                changed.insert(RobotId(0));
+                changed.remove(RobotId(roster as u32 - 1));
+                check(&changed);
+                check(s);
+                // Changed in place, not shared, after its ranks were read.
+                changed.insert(RobotId(roster as u32 / 2 + 1));
+                changed.remove(RobotId(1));
+                check(&changed);
             }
         }
     }
