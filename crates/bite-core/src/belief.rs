@@ -45,6 +45,13 @@ impl Symbols {
     pub fn name(&self, id: BeliefId) -> &str {
         self.names.get(id.index()).map_or("?", |n| n)
     }
+    /// The name of `id`, shared (copying it copies a pointer).
+    pub fn name_shared(&self, id: BeliefId) -> Arc<str> {
+        self.names
+            .get(id.index())
+            .cloned()
+            .unwrap_or_else(|| Arc::from("?"))
+    }
     /// Number of interned names.
     pub fn len(&self) -> usize {
         self.names.len()

@@ -392,8 +392,9 @@ pub enum Event {
         behavior: BehaviorId,
         /// `until` or `pre`.
         field: &'static str,
-        /// The beliefs the condition reads, with their values.
-        beliefs: Vec<(String, Option<Value>)>,
+        /// The beliefs the condition reads, with their values (names shared
+        /// with the symbol table).
+        beliefs: Vec<(std::sync::Arc<str>, Option<Value>)>,
     },
     /// A protocol instance started (the robot reached the point).
     InteractionStarted {

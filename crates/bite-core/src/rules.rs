@@ -37,12 +37,12 @@ pub fn fallback(cx: &Cx<'_>) -> Outcome {
     }
 }
 
-/// A silent instance: decides the fallback outcome as soon as it can.
-struct Silent {
-    name: &'static str,
-}
+/// A silent instance of protocol `P`: decides the fallback outcome as soon
+/// as it can. Zero-sized, so that starting one allocates nothing (a robot
+/// starts several at every decision).
+struct Silent<P>(std::marker::PhantomData<P>);
 
-impl Interaction for Silent {
+impl<P: Protocol + Default + Send + 'static> Interaction for Silent<P> {
     fn start(&mut self, cx: &mut Cx<'_>) {
         if !matches!(cx.input(), PointInput::Terminate) {
             let o = fallback(cx);
@@ -55,7 +55,7 @@ impl Interaction for Silent {
     fn on_message(&mut self, cx: &mut Cx<'_>, from: crate::ids::RobotId, body: &Body) {
         cx.violation(format!(
             "{} sends no messages, but {from} sent `{}`",
-            self.name,
+            P::default().name(),
             body.name()
         ));
     }
@@ -93,7 +93,7 @@ macro_rules! silent_protocol {
             ) -> Result<Factory, ConfigError> {
                 no_params($name, params)?;
                 Ok(Arc::new(|| {
-                    Box::new(Silent { name: $name }) as Box<dyn Interaction>
+                    Box::new(Silent::<$ty>(std::marker::PhantomData)) as Box<dyn Interaction>
                 }))
             }
         }

@@ -149,7 +149,7 @@ impl Kernel {
             beliefs: e
                 .beliefs()
                 .iter()
-                .map(|id| (sym.name(*id).to_string(), self.beliefs.value(*id).cloned()))
+                .map(|id| (sym.name_shared(*id), self.beliefs.value(*id).cloned()))
                 .collect(),
         }
     }

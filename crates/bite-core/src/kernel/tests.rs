@@ -294,7 +294,7 @@ behaviors:
     // The condition that fired is reported with the beliefs it read.
     assert!(h.events_of(0).iter().any(|e| matches!(e,
         Event::ConditionHeld { field: "until", beliefs, .. }
-            if beliefs == &vec![("alarm".to_string(), Some(T))])));
+            if beliefs == &vec![(Arc::from("alarm"), Some(T))])));
 }
 
 #[test]
@@ -989,5 +989,41 @@ behaviors:
     assert!(
         first.shares_bits(&second),
         "members hold the leader's report, not copies"
+    );
+}
+
+#[test]
+fn a_silent_protocol_names_itself_when_sent_a_message() {
+    let mut h = Harness::new(COURSE, 2);
+    h.tick(0, &[]);
+    assert_eq!(h.stack(1), ["root", "a"]);
+    let a = h.kernels[1].mission().graph().find("a").expect("a");
+    h.kernels[1].message(
+        Time::from_millis(50),
+        Envelope {
+            instance: InstanceKey {
+                team: TeamId::ROOT,
+                behavior: a,
+                kind: Kind::Terminate,
+                epoch: 1,
+                round: 0,
+            },
+            sender: RobotId(0),
+            seq: 1,
+            body: Body::Release { next: None },
+        },
+    );
+    h.drain(1);
+    let what: Vec<&str> = h
+        .events_of(1)
+        .into_iter()
+        .filter_map(|e| match e {
+            Event::ProtocolViolation { what, .. } => Some(what.as_str()),
+            _ => None,
+        })
+        .collect();
+    assert!(
+        what.len() == 1 && what[0].starts_with("term.local sends no messages"),
+        "{what:?}"
     );
 }
