@@ -251,3 +251,40 @@ fn a_lost_teammate_at_any_moment_is_decided_without() {
         }
     }
 }
+
+/// A member that missed the leader's allocation (every resend lost) while
+/// its teammates went on, finished the mission and left: it used to count
+/// them out as departed, take the lead and decide the allocation anew,
+/// apart from what every teammate had applied, with no timeout reported
+/// (6 % of allocation runs at 29 % loss). It now keeps asking its leader,
+/// whose finished mind still answers, and at worst reaches its deadline
+/// (reported). Seeds and sizes that split before the fix, every
+/// allocation protocol that split there.
+#[test]
+fn a_member_that_missed_the_allocation_never_decides_it_anew() {
+    let registry = bite_protocols::registry();
+    let cases: &[(&str, usize, u64, u64)] = &[
+        ("alloc.by-value", 10, 10927986696858245221, 0),
+        ("alloc.by-value", 4, 126717, 16),
+        ("alloc.by-value", 7, 13, 0),
+        ("alloc.by-value", 13, 23770, 3),
+        ("alloc.by-attribute", 4, 229664, 29),
+        ("alloc.by-attribute", 10, 39608, 5),
+        ("alloc.optimal", 10, 23770, 3),
+        ("alloc.auction", 10, 134636, 17),
+    ];
+    for &(protocol, n, seed, jitter_ms) in cases {
+        let (kind, _, params) = all()
+            .into_iter()
+            .find(|(_, p, _)| *p == protocol)
+            .expect("a library protocol");
+        let mut s = spec(kind, protocol, params, n);
+        s.loss = 0.29;
+        s.jitter = Duration::from_millis(jitter_ms);
+        s.seed = seed;
+        let r = probe(&s, &registry).unwrap_or_else(|d| panic!("{d}"));
+        let what = format!("{protocol} n={n} seed={seed} jitter={jitter_ms}ms");
+        assert!(r.completed, "{what}: incomplete");
+        assert!(r.violations.is_empty(), "{what}: {:?}", r.violations);
+    }
+}

@@ -133,17 +133,22 @@ impl Kernel {
             .get_or_insert_with(|| MemberSet::empty(n))
             .union_with(who);
         // The termination instances of the frames down to this one are not
-        // below it, nor is a re-allocation at it (teammates idle under it
-        // take part); every other running instance is.
-        let here = &self.stack[i];
-        let (team, behavior, epoch) = (here.team, here.behavior, here.epoch);
+        // below it, nor is an allocation at it or at a frame below it
+        // (teammates idle under it take part; and a teammate done with an
+        // ancestor went through the allocations under it: the one that
+        // led one decided it, and a member still waiting for that decision
+        // must hear it rather than take the lead and decide anew); every
+        // other running instance is.
         let mut above: Vec<InstanceKey> = self.stack[..=i].iter().map(Frame::term_key).collect();
+        let at_or_below = &self.stack[i..];
         above.extend(
             self.instances
                 .keys()
                 .filter(|k| {
                     k.kind == Kind::Allocate
-                        && (k.team, k.behavior, k.epoch) == (team, behavior, epoch)
+                        && at_or_below
+                            .iter()
+                            .any(|f| (k.team, k.behavior, k.epoch) == (f.team, f.behavior, f.epoch))
                 })
                 .copied(),
         );
