@@ -242,7 +242,7 @@ impl Kernel {
                 }
             }
             match slot {
-                Some(i) => self.depart(i, &who),
+                Some(i) => self.depart(i, &who, who.contains(from).then_some((from, pos))),
                 None => {
                     if let Some(key) = popped {
                         self.depart_popped(key, &who);

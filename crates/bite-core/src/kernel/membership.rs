@@ -102,7 +102,7 @@ impl Kernel {
         let who = MemberSet::from_iter(self.org.roster_len(), who.iter().copied());
         let who = &who;
         if let Some(i) = self.stack.iter().position(|f| f.term_key() == key) {
-            self.depart(i, who);
+            self.depart(i, who, None);
         } else {
             self.depart_popped(key, who);
         }
@@ -125,30 +125,35 @@ impl Kernel {
 
     /// Teammates done with the behavior of stack frame `i` (they arrived at
     /// its termination, or left it): leave them out of every instance below
-    /// it, as if presumed lost.
-    pub(super) fn depart(&mut self, i: usize, who: &MemberSet) {
+    /// it, as if presumed lost. `told` is the teammate whose heartbeat
+    /// said so, with what it said: it stays in an allocation below that it
+    /// went through (it ran a child of that execution, or applied an
+    /// allocation there): if it led the allocation it decided it, and a
+    /// member that missed the decision must hear it from it rather than
+    /// take the lead and allocate anew, apart from what the team applied.
+    pub(super) fn depart(
+        &mut self,
+        i: usize,
+        who: &MemberSet,
+        told: Option<(RobotId, &position::Position)>,
+    ) {
         let n = self.org.roster_len();
         self.stack[i]
             .departed
             .get_or_insert_with(|| MemberSet::empty(n))
             .union_with(who);
         // The termination instances of the frames down to this one are not
-        // below it, nor is an allocation at it or at a frame below it
-        // (teammates idle under it take part; and a teammate done with an
-        // ancestor went through the allocations under it: the one that
-        // led one decided it, and a member still waiting for that decision
-        // must hear it rather than take the lead and decide anew); every
-        // other running instance is.
+        // below it, nor is a re-allocation at it (teammates idle under it
+        // take part); every other running instance is.
+        let here = &self.stack[i];
+        let (team, behavior, epoch) = (here.team, here.behavior, here.epoch);
         let mut above: Vec<InstanceKey> = self.stack[..=i].iter().map(Frame::term_key).collect();
-        let at_or_below = &self.stack[i..];
         above.extend(
             self.instances
                 .keys()
                 .filter(|k| {
                     k.kind == Kind::Allocate
-                        && at_or_below
-                            .iter()
-                            .any(|f| (k.team, k.behavior, k.epoch) == (f.team, f.behavior, f.epoch))
+                        && (k.team, k.behavior, k.epoch) == (team, behavior, epoch)
                 })
                 .copied(),
         );
@@ -168,8 +173,15 @@ impl Kernel {
             .collect();
         if !below.is_empty() {
             let who = who.to_vec();
+            let kept: Vec<RobotId> = who
+                .iter()
+                .copied()
+                .filter(|r| Some(*r) != told.map(|t| t.0))
+                .collect();
             for k in below {
-                self.exclude(k, &who);
+                let through =
+                    k.kind == Kind::Allocate && told.is_some_and(|(_, pos)| pos.went_through(k));
+                self.exclude(k, if through { &kept } else { &who });
             }
         }
         self.refresh_due();

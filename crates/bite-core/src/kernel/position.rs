@@ -181,6 +181,22 @@ pub struct Position {
 }
 
 impl Position {
+    /// True when the sender went through the allocation `key`'s execution:
+    /// it ran a child of it (an execution it ended recently ran under that
+    /// execution) or runs it with an allocation applied.
+    pub fn went_through(&self, key: InstanceKey) -> bool {
+        let point = FrameId {
+            team: key.team,
+            behavior: key.behavior,
+            epoch: key.epoch,
+        };
+        self.ended.iter().any(|e| e.parent == Some(point))
+            || self
+                .frames
+                .iter()
+                .any(|f| f.id == point && f.alloc.is_some())
+    }
+
     /// Its size on the wire, bytes.
     pub fn encoded_len(&self) -> usize {
         postcard::experimental::serialized_size(self).unwrap_or(0)
@@ -656,5 +672,77 @@ impl Kernel {
     /// Record an execution this robot ended (for its heartbeats).
     pub(super) fn note_ended(&mut self, id: FrameId, parent: Option<FrameId>) {
         push_recent(&mut self.recent_ended, Ended { id, parent });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A teammate went through an allocation's execution when it ended a
+    /// child of it or runs it with an allocation applied; not when it only
+    /// ran the execution, another epoch of it, or something else.
+    #[test]
+    fn a_position_tells_whether_its_sender_went_through_an_allocation() {
+        let point = FrameId {
+            team: TeamId::ROOT,
+            behavior: BehaviorId(2),
+            epoch: 1,
+        };
+        let key = InstanceKey {
+            team: point.team,
+            behavior: point.behavior,
+            kind: Kind::Allocate,
+            epoch: 1,
+            round: 0,
+        };
+        let child = FrameId {
+            team: TeamId(77),
+            behavior: BehaviorId(3),
+            epoch: 1,
+        };
+        let frame = |id: FrameId, alloc: Option<(u32, u64)>| PosFrame {
+            id,
+            anchor: None,
+            state: FrameState::Running,
+            alloc,
+            departed: None,
+        };
+        let ended = |id: FrameId, parent: Option<FrameId>| Ended { id, parent };
+        let later = FrameId { epoch: 2, ..point };
+        let cases = [
+            (Position::default(), false),
+            (
+                Position {
+                    ended: vec![ended(child, Some(point))],
+                    ..Position::default()
+                },
+                true,
+            ),
+            (
+                Position {
+                    ended: vec![ended(point, None), ended(child, Some(later))],
+                    ..Position::default()
+                },
+                false,
+            ),
+            (
+                Position {
+                    frames: vec![frame(point, Some((0, 9)))],
+                    ..Position::default()
+                },
+                true,
+            ),
+            (
+                Position {
+                    frames: vec![frame(point, None), frame(later, Some((0, 9)))],
+                    ..Position::default()
+                },
+                false,
+            ),
+        ];
+        for (pos, through) in cases {
+            assert_eq!(pos.went_through(key), through, "{pos:?}");
+        }
     }
 }
