@@ -173,15 +173,17 @@ impl Kernel {
             .collect();
         if !below.is_empty() {
             let who = who.to_vec();
-            let kept: Vec<RobotId> = who
-                .iter()
-                .copied()
-                .filter(|r| Some(*r) != told.map(|t| t.0))
-                .collect();
             for k in below {
-                let through =
-                    k.kind == Kind::Allocate && told.is_some_and(|(_, pos)| pos.went_through(k));
-                self.exclude(k, if through { &kept } else { &who });
+                match told {
+                    Some((r, pos)) if k.kind == Kind::Allocate && pos.went_through(k) => {
+                        let others: Vec<RobotId> =
+                            who.iter().copied().filter(|x| *x != r).collect();
+                        if !others.is_empty() {
+                            self.exclude(k, &others);
+                        }
+                    }
+                    _ => self.exclude(k, &who),
+                }
             }
         }
         self.refresh_due();
