@@ -131,11 +131,8 @@ impl Bits {
             (Some(before), Some(word)) => {
                 *before as usize + (word & ((1usize << bit) - 1)).count_ones() as usize
             }
-            // `i` is the set's length, a whole number of words.
-            _ => table
-                .last()
-                .zip(words.last())
-                .map_or(0, |(b, w)| *b as usize + w.count_ones() as usize),
+            // `i` is the set's length, a whole number of words: every member.
+            _ => *self.len.get_or_init(|| self.set.count_ones(..)),
         }
     }
 }
