@@ -1,12 +1,15 @@
 //! One robot's runtime (`bite robot`): its [`Agent`] (kernel, world model,
 //! skills, pilot) driven by the team clock and by what arrives over Zenoh.
 //!
-//! Everything Zenoh delivers (frames from teammates, sensor readings,
-//! mission submissions, membership queries) goes through one bounded
-//! queue to one thread, which owns the agent: the agent stays a plain
-//! state machine, as in the simulator. The thread sleeps until the next
-//! of: a message, the next control tick, the kernel's timer, the next
-//! heartbeat, the next status report.
+//! The agent stays a plain state machine, as in the simulator, driven by
+//! one holder at a time of the robot's lock. What Zenoh delivers (frames
+//! from teammates, sensor readings, membership queries) is handled at once
+//! in Zenoh's callback when the robot is free and nothing is queued before
+//! it; otherwise it goes through one bounded queue to the robot's thread,
+//! which handles the queue in order. Mission submissions (which compile)
+//! always go to the thread. The thread sleeps until the next of: a queued
+//! input, the next control tick, the kernel's timer, the next heartbeat,
+//! the next status report (a callback that brings a timer nearer wakes it).
 //!
 //! Failure detection: every robot sends a signed heartbeat every
 //! `failure_detector.heartbeat` (team time); a teammate silent for
@@ -32,8 +35,9 @@ use std::collections::{BTreeMap, BTreeSet};
 use std::io::Write;
 use std::path::PathBuf;
 use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::mpsc::{Receiver, RecvTimeoutError, TrySendError};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, SyncSender};
 use std::time::Duration;
 use zenoh::Wait;
 
@@ -201,6 +205,8 @@ enum Input {
     },
     Mission(Vec<u8>),
     Query(zenoh::query::Query),
+    /// Nothing: the robot's thread is to look at its timers again.
+    Wake,
 }
 
 /// Queue size between Zenoh's callbacks and the robot's thread.
@@ -280,82 +286,15 @@ pub fn run_on(
     stop: Arc<AtomicBool>,
 ) -> Result<Outcome, RobotError> {
     crate::check_team(&opts.team, &[&opts.name], opts.speed).map_err(RobotError::Options)?;
+    let opts = Arc::new(opts);
     let keys = Keys::new(&opts.team);
     let (tx, rx) = std::sync::mpsc::sync_channel::<Input>(QUEUE);
-    let overflow = Arc::new(AtomicU64::new(0));
     let z = |e: zenoh::Error| RobotError::Zenoh(e.to_string());
-    let push = {
-        let tx = tx.clone();
-        let overflow = overflow.clone();
-        move |i: Input| {
-            if let Err(TrySendError::Full(_)) = tx.try_send(i) {
-                overflow.fetch_add(1, Ordering::Relaxed);
-            }
-        }
-    };
-    let push = Arc::new(push);
-    let _frames = {
-        let push = push.clone();
-        let me = opts.name.clone();
-        session
-            .declare_subscriber(keys.all("net"))
-            .callback(move |s| {
-                // Oversized frames are dropped before they are copied; the
-                // robot's own (Zenoh hands a session its own publications)
-                // before they wake its thread.
-                let from = Keys::robot_of(s.key_expr().as_str());
-                if s.payload().len()
-                    > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC
-                    || from == me
-                {
-                    return;
-                }
-                push(Input::Frame {
-                    from: from.to_string(),
-                    bytes: s.payload().to_bytes().into_owned(),
-                    at_us: unix_micros(),
-                })
-            })
-            .wait()
-            .map_err(z)?
-    };
-    let _sensors = {
-        let push = push.clone();
-        session
-            .declare_subscriber(keys.sensors(&opts.name))
-            .callback(move |s| {
-                if s.payload().len() <= MAX_JSON {
-                    push(Input::Sensors(s.payload().to_bytes().into_owned()))
-                }
-            })
-            .wait()
-            .map_err(z)?
-    };
-    let _missions = {
-        let push = push.clone();
-        session
-            .declare_subscriber(keys.mission())
-            .callback(move |s| {
-                if s.payload().len() <= MAX_JSON {
-                    push(Input::Mission(s.payload().to_bytes().into_owned()))
-                }
-            })
-            .wait()
-            .map_err(z)?
-    };
-    let _members = {
-        let push = push.clone();
-        session
-            .declare_queryable(keys.members(&opts.name))
-            .callback(move |q| push(Input::Query(q)))
-            .wait()
-            .map_err(z)?
-    };
-    // The body in ROS 2 terms: subscribe to its odometry and scans,
-    // announce the command and status publishers.
+    // The body in ROS 2 terms: its odometry and scans are subscribed to
+    // below; the command and status publishers are announced here.
     let mut ros = None;
-    let mut _ros_subs = Vec::new();
-    if let Some(r) = opts.ros2 {
+    let mut ros_keys = Vec::new();
+    if let Some(r) = &opts.ros2 {
         use crate::ros2;
         let ns = format!("/{}", opts.name);
         let mut node =
@@ -368,25 +307,7 @@ pub fn run_on(
             let key = node
                 .subscription(session, &ros2::topic(&ns, name), ty)
                 .map_err(z)?;
-            let push = push.clone();
-            _ros_subs.push(
-                session
-                    .declare_subscriber(key)
-                    .callback(move |s| {
-                        if s.payload().len() <= MAX_JSON {
-                            let ok = s
-                                .attachment()
-                                .is_some_and(|a| ros2::parse_attachment(&a.to_bytes()).is_ok());
-                            push(Input::Ros2 {
-                                odom,
-                                bytes: s.payload().to_bytes().into_owned(),
-                                ok,
-                            })
-                        }
-                    })
-                    .wait()
-                    .map_err(z)?,
-            );
+            ros_keys.push((odom, key));
         }
         let cmd = node
             .publisher(session, &ros2::topic(&ns, "cmd_vel"), &ros2::TWIST)
@@ -404,7 +325,6 @@ pub fn run_on(
             odometer: 0.0,
         });
     }
-    drop(tx);
     let net_key = keys.net(&opts.name);
     let publisher = match opts.publish {
         Publish::Put => None,
@@ -429,30 +349,136 @@ pub fn run_on(
         status: declare(keys.status(&opts.name))?,
         cmd: declare(keys.cmd(&opts.name))?,
     };
-    let mut log = (opts.log.as_deref().map(crate::create_log))
+    let log = (opts.log.as_deref().map(crate::create_log))
         .transpose()
-        .map_err(|e| RobotError::Log(opts.log.clone().unwrap_or_default(), e))?;
-    let mut node = Node {
-        keys,
-        frames,
-        outlets,
-        session,
-        opts: &opts,
-        run: None,
-        seen_missions: BTreeSet::new(),
-        missions_rejected: 0,
-        last_rejection: None,
-        log: log.as_mut().map(|w| w as &mut dyn Write),
-        log_error: None,
-        next_status: 0,
-        last_auth: AuthStats::default(),
-        ros,
-    };
-    if let Some(p) = first {
-        node.start(p, None, opts.start_at_us)?;
+        .map_err(|e| RobotError::Log(opts.log.clone().unwrap_or_default(), e))?
+        .map(|w| Box::new(w) as Box<dyn Write + Send>);
+    let shared = Arc::new(Shared {
+        node: Mutex::new(Node {
+            keys: keys.clone(),
+            frames,
+            outlets,
+            session: session.clone(),
+            opts: opts.clone(),
+            run: None,
+            seen_missions: BTreeSet::new(),
+            missions_rejected: 0,
+            last_rejection: None,
+            log,
+            log_error: None,
+            next_status: 0,
+            last_auth: AuthStats::default(),
+            ros,
+            handled: Handled::default(),
+        }),
+        pending: AtomicUsize::new(0),
+        sleeps_until: AtomicU64::new(0),
+        closed: AtomicBool::new(false),
+        overflow: AtomicU64::new(0),
+    });
+    let mut subscribers = Vec::new();
+    {
+        let (shared, tx) = (shared.clone(), tx.clone());
+        let me = opts.name.clone();
+        let frames = session
+            .declare_subscriber(keys.all("net"))
+            .callback(move |s| {
+                // Oversized frames are dropped before they are copied; the
+                // robot's own (Zenoh hands a session its own publications)
+                // before anything else is done.
+                let from = Keys::robot_of(s.key_expr().as_str());
+                if s.payload().len()
+                    > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC
+                    || from == me
+                {
+                    return;
+                }
+                shared.deliver(
+                    &tx,
+                    Input::Frame {
+                        from: from.to_string(),
+                        bytes: s.payload().to_bytes().into_owned(),
+                        at_us: unix_micros(),
+                    },
+                )
+            })
+            .wait()
+            .map_err(z)?;
+        subscribers.push(frames);
     }
-    let completed = node.main_loop(&rx, &loader, &stop);
-    node.finish(overflow.load(Ordering::Relaxed));
+    {
+        let (shared, tx) = (shared.clone(), tx.clone());
+        let sensors = session
+            .declare_subscriber(keys.sensors(&opts.name))
+            .callback(move |s| {
+                if s.payload().len() <= MAX_JSON {
+                    shared.deliver(&tx, Input::Sensors(s.payload().to_bytes().into_owned()))
+                }
+            })
+            .wait()
+            .map_err(z)?;
+        subscribers.push(sensors);
+    }
+    {
+        // A submission may take a while to compile: always the robot's
+        // thread's work, never a Zenoh callback's.
+        let (shared, tx) = (shared.clone(), tx.clone());
+        let missions = session
+            .declare_subscriber(keys.mission())
+            .callback(move |s| {
+                if s.payload().len() <= MAX_JSON {
+                    shared.enqueue(&tx, Input::Mission(s.payload().to_bytes().into_owned()))
+                }
+            })
+            .wait()
+            .map_err(z)?;
+        subscribers.push(missions);
+    }
+    for (odom, key) in ros_keys {
+        let (shared, tx) = (shared.clone(), tx.clone());
+        let sub = session
+            .declare_subscriber(key)
+            .callback(move |s| {
+                if s.payload().len() <= MAX_JSON {
+                    let ok = s
+                        .attachment()
+                        .is_some_and(|a| crate::ros2::parse_attachment(&a.to_bytes()).is_ok());
+                    shared.deliver(
+                        &tx,
+                        Input::Ros2 {
+                            odom,
+                            bytes: s.payload().to_bytes().into_owned(),
+                            ok,
+                        },
+                    )
+                }
+            })
+            .wait()
+            .map_err(z)?;
+        subscribers.push(sub);
+    }
+    let _members = {
+        let (shared, tx) = (shared.clone(), tx.clone());
+        session
+            .declare_queryable(keys.members(&opts.name))
+            .callback(move |q| shared.deliver(&tx, Input::Query(q)))
+            .wait()
+            .map_err(z)?
+    };
+    drop(tx);
+    if let Some(p) = first {
+        shared.lock().start(p, None, opts.start_at_us)?;
+    }
+    let completed = shared.main_loop(&rx, &loader, &stop);
+    // No callback touches the robot from here on.
+    shared.closed.store(true, Ordering::Release);
+    for s in subscribers {
+        let _ = s.undeclare().wait();
+    }
+    let _ = _members.undeclare().wait();
+    let overflow = shared.overflow.load(Ordering::Relaxed);
+    let mut node = shared.lock();
+    node.finish(overflow);
     let auth = node
         .run
         .as_ref()
@@ -460,8 +486,10 @@ pub fn run_on(
     if let Some(e) = node.log_error.take() {
         return Err(RobotError::Log(opts.log.clone().unwrap_or_default(), e));
     }
-    drop(node);
-    if let Some(mut w) = log
+    // The agent (and its recorder) ends here, as before, and the log is
+    // flushed whatever a late callback still holds.
+    node.run = None;
+    if let Some(w) = node.log.as_mut()
         && let Err(e) = w.flush()
     {
         return Err(RobotError::Log(opts.log.clone().unwrap_or_default(), e));
@@ -469,26 +497,147 @@ pub fn run_on(
     Ok(Outcome {
         completed,
         auth,
-        overflow: overflow.load(Ordering::Relaxed),
+        overflow,
     })
 }
 
-struct Node<'a> {
+/// What Zenoh's callbacks and the robot's thread share: the robot, behind a
+/// lock, and the count of inputs queued for the thread.
+///
+/// An input is handled at once in the callback that brought it when the
+/// robot is free and nothing is queued before it (no wake-up of the
+/// robot's thread, which was most of a hop's time with ten processes on
+/// two cores: docs/performance.md); otherwise it is queued, and the
+/// thread handles the queue in order. So inputs are handled one at a
+/// time, in the order they arrived, and the agent stays a plain state
+/// machine driven by whoever holds the lock.
+struct Shared {
+    node: Mutex<Node>,
+    /// Inputs queued and not yet handled.
+    pending: AtomicUsize,
+    /// The wall time (µs) the robot's thread sleeps until.
+    sleeps_until: AtomicU64,
+    /// The robot stopped: inputs are dropped.
+    closed: AtomicBool,
+    /// Inputs dropped because the queue was full.
+    overflow: AtomicU64,
+}
+
+impl Shared {
+    fn lock(&self) -> std::sync::MutexGuard<'_, Node> {
+        // A panic while handling an input (a bug) ends the robot, as it
+        // did when one thread owned it.
+        self.node
+            .lock()
+            .unwrap_or_else(|_| panic!("the robot panicked while handling an input"))
+    }
+
+    /// An input from a callback: handled now if the robot is free and
+    /// nothing waits before it, else queued. A robot whose handling
+    /// publishes a frame that a housemate's callback answers at once finds
+    /// itself busy there (the same thread holds its lock), and queues.
+    fn deliver(&self, tx: &SyncSender<Input>, i: Input) {
+        if self.closed.load(Ordering::Acquire) {
+            return;
+        }
+        let guard = match self.pending.load(Ordering::Acquire) {
+            0 => self.node.try_lock().ok(),
+            _ => None,
+        };
+        let Some(mut node) = guard.filter(|_| self.pending.load(Ordering::Acquire) == 0) else {
+            return self.enqueue(tx, i);
+        };
+        node.handled.inline += 1;
+        node.handle(i);
+        let wake = node.periodic();
+        // The thread sleeps on: wake it if a timer now comes sooner, or
+        // if the robot has completed and may leave.
+        let leaving = node.opts.exit_when_done && node.finished();
+        drop(node);
+        if wake < self.sleeps_until.load(Ordering::Acquire) || leaving {
+            self.enqueue(tx, Input::Wake);
+        }
+    }
+
+    /// Queue an input for the robot's thread (dropped and counted if the
+    /// queue is full).
+    fn enqueue(&self, tx: &SyncSender<Input>, i: Input) {
+        if self.closed.load(Ordering::Acquire) {
+            return;
+        }
+        self.pending.fetch_add(1, Ordering::AcqRel);
+        if tx.try_send(i).is_err() {
+            self.pending.fetch_sub(1, Ordering::AcqRel);
+            self.overflow.fetch_add(1, Ordering::Relaxed);
+        }
+    }
+
+    /// The robot's thread: timers, and the inputs that were queued.
+    fn main_loop(&self, rx: &Receiver<Input>, loader: &Loader, stop: &AtomicBool) -> bool {
+        loop {
+            let mut node = self.lock();
+            if stop.load(Ordering::Relaxed) {
+                node.log_record(json!({"event": "stopped", "reason": "signal"}));
+                return node.completed();
+            }
+            let wake = node.periodic();
+            if let Some(done) = node.should_end() {
+                return done;
+            }
+            let wait = Duration::from_micros(wake.saturating_sub(unix_micros()))
+                .min(Duration::from_millis(100));
+            self.sleeps_until
+                .store(unix_micros() + wait.as_micros() as u64, Ordering::Release);
+            drop(node);
+            match rx.recv_timeout(wait) {
+                Ok(i) => {
+                    let mut node = self.lock();
+                    node.input(i, loader);
+                    self.pending.fetch_sub(1, Ordering::AcqRel);
+                    // Take what else is queued (bounded) before the timers.
+                    for _ in 0..BATCH {
+                        match rx.try_recv() {
+                            Ok(i) => {
+                                node.input(i, loader);
+                                self.pending.fetch_sub(1, Ordering::AcqRel);
+                            }
+                            Err(_) => break,
+                        }
+                    }
+                }
+                Err(RecvTimeoutError::Timeout) => {}
+                Err(RecvTimeoutError::Disconnected) => return self.lock().completed(),
+            }
+        }
+    }
+}
+
+/// Inputs handled in Zenoh's callbacks and by the robot's thread (in the
+/// run log's `run_finished`).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+struct Handled {
+    inline: u64,
+    queued: u64,
+}
+
+/// The robot: its running mission and everything it publishes.
+struct Node {
     keys: Keys,
     frames: Frames,
     outlets: Outlets,
-    session: &'a zenoh::Session,
-    opts: &'a RobotOptions,
+    session: zenoh::Session,
+    opts: Arc<RobotOptions>,
     run: Option<Running>,
     seen_missions: BTreeSet<String>,
     missions_rejected: u64,
     last_rejection: Option<wire::Rejection>,
-    log: Option<&'a mut dyn Write>,
+    log: Option<Box<dyn Write + Send>>,
     log_error: Option<std::io::Error>,
     next_status: u64,
     last_auth: AuthStats,
     /// The body over ROS 2, if it speaks it.
     ros: Option<RosBody>,
+    handled: Handled,
 }
 
 /// A body that speaks ROS 2: the latest scan and camera sightings, the
@@ -503,57 +652,40 @@ struct RosBody {
     odometer: f64,
 }
 
-impl Node<'_> {
-    fn main_loop(&mut self, rx: &Receiver<Input>, loader: &Loader, stop: &AtomicBool) -> bool {
-        loop {
-            if stop.load(Ordering::Relaxed) {
-                self.log_record(json!({"event": "stopped", "reason": "signal"}));
-                return self.completed();
-            }
-            let wake = self.periodic();
-            if let Some(r) = &self.run {
-                let now = r.clock.now();
-                if let Some(limit) = self.opts.time_limit
-                    && r.gather_until.is_none()
-                    && now >= Time::ZERO + limit
-                    && r.finished_at.is_none()
-                {
-                    self.log_record(json!({"event": "stopped", "reason": "time limit"}));
-                    return false;
-                }
-                // A robot that completed stays while a teammate may still
-                // need its answers (until every teammate completed or is
-                // presumed lost, at most twice `lost_after`).
-                if self.opts.exit_when_done
-                    && let Some(at) = r.finished_at
-                {
-                    let others_done = (0..r.names.len() as u32)
-                        .all(|i| i == r.me.0 || r.alive.is_finished(i) || r.alive.is_suspected(i));
-                    let now_us = unix_micros();
-                    if (others_done && now_us >= at.saturating_add(grace_us(r)))
-                        || now_us >= at.saturating_add(linger_us(r))
-                    {
-                        return true;
-                    }
-                }
-            }
-            let wait = Duration::from_micros(wake.saturating_sub(unix_micros()))
-                .min(Duration::from_millis(100));
-            match rx.recv_timeout(wait) {
-                Ok(i) => {
-                    self.input(i, loader);
-                    // Take what else is queued (bounded) before the timers.
-                    for _ in 0..BATCH {
-                        match rx.try_recv() {
-                            Ok(i) => self.input(i, loader),
-                            Err(_) => break,
-                        }
-                    }
-                }
-                Err(RecvTimeoutError::Timeout) => {}
-                Err(RecvTimeoutError::Disconnected) => return self.completed(),
+impl Node {
+    /// Whether the robot's run is over (`Some(completed)`): its time limit
+    /// passed, or it completed and no teammate may still need its answers
+    /// (every teammate completed or is presumed lost, after a grace
+    /// period; at most twice `lost_after`).
+    fn should_end(&mut self) -> Option<bool> {
+        let r = self.run.as_ref()?;
+        let now = r.clock.now();
+        if let Some(limit) = self.opts.time_limit
+            && r.gather_until.is_none()
+            && now >= Time::ZERO + limit
+            && r.finished_at.is_none()
+        {
+            self.log_record(json!({"event": "stopped", "reason": "time limit"}));
+            return Some(false);
+        }
+        if self.opts.exit_when_done
+            && let Some(at) = r.finished_at
+        {
+            let others_done = (0..r.names.len() as u32)
+                .all(|i| i == r.me.0 || r.alive.is_finished(i) || r.alive.is_suspected(i));
+            let now_us = unix_micros();
+            if (others_done && now_us >= at.saturating_add(grace_us(r)))
+                || now_us >= at.saturating_add(linger_us(r))
+            {
+                return Some(true);
             }
         }
+        None
+    }
+
+    /// It completed its mission (and waits to leave).
+    fn finished(&self) -> bool {
+        self.run.as_ref().is_some_and(|r| r.finished_at.is_some())
     }
 
     fn completed(&self) -> bool {
@@ -701,7 +833,7 @@ impl Node<'_> {
             let frame = r
                 .sealer
                 .seal(FrameKind::Heartbeat, &wire::encode_heartbeat(&hb), now_us);
-            self.frames.send(self.session, frame);
+            self.frames.send(&self.session, frame);
             self.frames.bursts += 1;
         }
         wake = wake.min(r.next_heartbeat);
@@ -796,14 +928,34 @@ impl Node<'_> {
                 "payload_rejects": r.payload_rejects,
                 "messages": r.agent.kernel().stats().sent,
                 "frames": {"sent": self.frames.sent, "bursts": self.frames.bursts},
+                "inputs": self.handled,
             });
             self.log_record(rec);
             self.publish_status();
         }
     }
 
+    /// A queued input (the robot's thread).
     fn input(&mut self, i: Input, loader: &Loader) {
         match i {
+            Input::Wake => {}
+            Input::Mission(bytes) => {
+                self.handled.queued += 1;
+                self.submission(&bytes, loader)
+            }
+            i => {
+                self.handled.queued += 1;
+                self.handle(i)
+            }
+        }
+    }
+
+    /// Any input but a submission (which needs the loader: the robot's
+    /// thread only).
+    fn handle(&mut self, i: Input) {
+        match i {
+            Input::Wake => {}
+            Input::Mission(_) => debug_assert!(false, "submissions are the robot's thread's"),
             Input::Frame { from, bytes, at_us } => self.frame(&from, &bytes, at_us),
             Input::Sensors(bytes) => {
                 let Some(r) = self.run.as_mut() else { return };
@@ -831,7 +983,6 @@ impl Node<'_> {
                 self.control_tick();
             }
             Input::Ros2 { odom, bytes, ok } => self.ros2_sample(odom, &bytes, ok),
-            Input::Mission(bytes) => self.submission(&bytes, loader),
             Input::Query(q) => {
                 let m = self.membership();
                 let body = serde_json::to_vec(&m).unwrap_or_default();
@@ -1114,7 +1265,7 @@ impl Node<'_> {
                         &wire::encode_kernel(&to, &envelope),
                         unix_micros(),
                     );
-                    self.frames.send(self.session, frame);
+                    self.frames.send(&self.session, frame);
                 }
                 AgentOutput::Inform(o) => {
                     records.push(json!({
@@ -1131,7 +1282,7 @@ impl Node<'_> {
                         &wire::encode_inform(&o.to, &o.msg),
                         unix_micros(),
                     );
-                    self.frames.send(self.session, frame);
+                    self.frames.send(&self.session, frame);
                 }
                 AgentOutput::Event(e) => {
                     records.push(Namer::new(&r.graph).record(now, r.me, &e));
@@ -1175,7 +1326,7 @@ impl Node<'_> {
                                 z: twist.2,
                             },
                         };
-                        ros.cmd.put(self.session, &t);
+                        ros.cmd.put(&self.session, &t);
                     }
                     // BITE's own command too: a simulated body colours its
                     // trail with the label (a ROS body ignores it).
@@ -1275,7 +1426,7 @@ impl Node<'_> {
         if let Some(ros) = self.ros.as_mut() {
             let data = String::from_utf8_lossy(&body).into_owned();
             ros.status
-                .put(self.session, &crate::ros2::RosString { data });
+                .put(&self.session, &crate::ros2::RosString { data });
         }
         let _ = self.outlets.status.put(body).wait();
     }
@@ -1314,6 +1465,7 @@ impl Node<'_> {
                 "auth": r.opener.stats(),
                 "payload_rejects": r.payload_rejects,
                 "overflow": overflow,
+                "inputs": self.handled,
             });
             self.log_record(rec);
         }
