@@ -125,6 +125,36 @@ fn histories_that_diverged_in_a_partition_number_alike_after_it() {
     assert_eq!(v["timeouts"], 0, "{v:#}");
 }
 
+/// Found by the sweep: r1, cut off alone, chose `search` after `walk`;
+/// r0 and r2 were voting (`sync.ranked-vote`, r0 calling). When the
+/// partition healed, r2 reached the point with r0's call and r1's notice
+/// of its decision (`Missed`) both waiting: it answered the call with its
+/// ballot, then applied r1's choice, and r0 decided `walk` from that
+/// ballot. A robot's waiting messages now give a teammate's notice first,
+/// and a robot that has decided sends no contribution.
+#[test]
+fn a_notice_from_across_a_healed_partition_does_not_part_a_voting_side() {
+    let o = bite()
+        .args([
+            "run",
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/configs/5.yaml"),
+            "--timed",
+            "--fault",
+            "partition=r1|r0,r2@4.587s+14.297s",
+            "--seed",
+            "54",
+            "--json",
+            "--log",
+        ])
+        .arg(scratch("notice").join("run.jsonl"))
+        .output()
+        .expect("bite runs");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("--json prints JSON");
+    assert_eq!(v["invariants"]["violations"], 0, "{v:#}");
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
 /// One thread or two: the same runs, the same results, line for line.
 #[test]
 fn results_do_not_depend_on_the_number_of_threads() {

@@ -361,6 +361,12 @@ impl<R: Rule> Gather<R> {
     }
 
     fn contribute(&mut self, cx: &mut Cx<'_>) {
+        if cx.is_decided() {
+            // Decided already (a teammate told it how the team decided
+            // without it): a contribution now could only part it from the
+            // coordinator's decision.
+            return;
+        }
         let body = match &self.sent {
             Some(b) => b.clone(),
             None => self.rule.contribution(cx),

@@ -167,7 +167,14 @@ impl Kernel {
         }
         self.call(key, |imp, cx| imp.start(cx));
         self.refresh_due();
-        for m in self.inbox.take(key) {
+        // A teammate's word on how the instance was decided without this
+        // robot (`Missed`) comes before the protocol's messages that
+        // waited with it: answering the coordinator's call first would
+        // hand it a contribution (a vote, a bid) from a robot that then
+        // applies the other decision, and the two would part.
+        let mut waiting = self.inbox.take(key);
+        waiting.sort_by_key(|m| !matches!(m.body, Body::Missed { .. }));
+        for m in waiting {
             self.deliver(key, m.from, m.body);
         }
     }
