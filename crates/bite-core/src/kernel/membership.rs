@@ -131,6 +131,15 @@ impl Kernel {
     /// allocation there): if it led the allocation it decided it, and a
     /// member that missed the decision must hear it from it rather than
     /// take the lead and allocate anew, apart from what the team applied.
+    /// The coordinator of running instance `key` as its protocol sees it:
+    /// the first member this robot does not leave out.
+    fn coordinator_of(&self, key: InstanceKey) -> Option<RobotId> {
+        let inst = self.instances.get(&key)?;
+        let team = self.org.team(key.team).unwrap_or(&inst.team);
+        let live = |r: RobotId| inst.excluded.as_ref().is_none_or(|x| !x.contains(r));
+        team.members.iter().find(|r| live(*r))
+    }
+
     pub(super) fn depart(
         &mut self,
         i: usize,
@@ -180,6 +189,14 @@ impl Kernel {
                             who.iter().copied().filter(|x| *x != r).collect();
                         if !others.is_empty() {
                             self.exclude(k, &others);
+                        }
+                        // If it coordinates the allocation here, it decided
+                        // it: ask it now rather than at the next resend
+                        // (spaced further apart after every loss), so that
+                        // a member that missed the decision does not wait
+                        // for its deadline.
+                        if self.coordinator_of(k) == Some(r) {
+                            self.reply(k, r, Body::Query);
                         }
                     }
                     _ => self.exclude(k, &who),
