@@ -155,6 +155,36 @@ fn a_notice_from_across_a_healed_partition_does_not_part_a_voting_side() {
     assert_eq!(v["outcome"], "completed", "{v:#}");
 }
 
+/// Found by the sweep at 30 % loss: r0, coordinating `linewalk`'s
+/// allocation, reached the behavior's end at once, decided from what it
+/// had and announced it as it left; the announcement to r1 was lost. The
+/// kernel then recorded the instance as left, not decided, so r0 answered
+/// none of r1's resends, and r1 waited under `linewalk` while r0 and r2
+/// waited for it to end it: no decision for 120 s (stalled). A decision
+/// made as a robot leaves now stands and answers late teammates.
+#[test]
+fn a_decision_made_while_leaving_answers_a_member_that_missed_it() {
+    let o = bite()
+        .args([
+            "run",
+            "--config",
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/configs/6.yaml"),
+            "--timed",
+            "--fault",
+            "loss=0.3",
+            "--seed",
+            "13",
+            "--json",
+            "--log",
+        ])
+        .arg(scratch("leaving").join("run.jsonl"))
+        .output()
+        .expect("bite runs");
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("--json prints JSON");
+    assert_eq!(v["invariants"]["violations"], 0, "{v:#}");
+    assert_eq!(v["completed"], true, "{v:#}");
+}
+
 /// One thread or two: the same runs, the same results, line for line.
 #[test]
 fn results_do_not_depend_on_the_number_of_threads() {

@@ -58,10 +58,19 @@ impl Kernel {
             self.call(key, |imp, cx| imp.on_abort(cx));
         }
         if let Some(inst) = self.instances.get_mut(&key) {
-            inst.state = State::Aborted;
-            inst.wake = None;
-            inst.outcome = None;
-            inst.closed = Some(Closed::Left);
+            if inst.state == State::Decided {
+                // The protocol decided as this robot left (a coordinator
+                // that leaves decides from what it has and announces it):
+                // the decision stands for the team, and teammates that
+                // missed the announcement are answered with it. This robot
+                // does not apply it.
+                inst.outcome = None;
+            } else {
+                inst.state = State::Aborted;
+                inst.wake = None;
+                inst.outcome = None;
+                inst.closed = Some(Closed::Left);
+            }
         }
         self.close(key);
         if announced {
