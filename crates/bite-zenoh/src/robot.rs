@@ -457,7 +457,7 @@ pub fn run_on(
             .map_err(z)?;
         subscribers.push(sub);
     }
-    let _members = {
+    let members = {
         let (shared, tx) = (shared.clone(), tx.clone());
         session
             .declare_queryable(keys.members(&opts.name))
@@ -475,7 +475,7 @@ pub fn run_on(
     for s in subscribers {
         let _ = s.undeclare().wait();
     }
-    let _ = _members.undeclare().wait();
+    let _ = members.undeclare().wait();
     let overflow = shared.overflow.load(Ordering::Relaxed);
     let mut node = shared.lock();
     node.finish(overflow);
