@@ -34,6 +34,28 @@ fn sweep(args: &[&str], out: &std::path::Path) -> serde_json::Value {
     serde_json::from_slice(&o.stdout).expect("--json prints JSON")
 }
 
+/// Table II's configuration `n` (`examples/configs/<n>.yaml`).
+fn config(n: u32) -> String {
+    format!(
+        "{}/../../examples/configs/{n}.yaml",
+        env!("CARGO_MANIFEST_DIR")
+    )
+}
+
+/// `bite run ARGS --json` with its run log in a scratch directory: the
+/// summary.
+fn run_one(name: &str, args: &[&str]) -> serde_json::Value {
+    let o = bite()
+        .arg("run")
+        .args(args)
+        .arg("--json")
+        .arg("--log")
+        .arg(scratch(name).join("run.jsonl"))
+        .output()
+        .expect("bite runs");
+    serde_json::from_slice(&o.stdout).expect("--json prints JSON")
+}
+
 const OUTCOMES: [&str; 4] = [
     "completed",
     "completed-with-timeouts",
@@ -104,22 +126,17 @@ fn physical_runs_under_crashes_and_partitions_break_no_invariant() {
 /// now count past the executions they will never join.
 #[test]
 fn histories_that_diverged_in_a_partition_number_alike_after_it() {
-    let o = bite()
-        .args([
-            "run",
+    let v = run_one(
+        "diverged",
+        &[
             "--config",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/configs/6.yaml"),
+            &config(6),
             "--fault",
             "partition=r0|r1,r2@31.612s+9.691s",
             "--seed",
             "21",
-            "--json",
-            "--log",
-        ])
-        .arg(scratch("diverged").join("run.jsonl"))
-        .output()
-        .expect("bite runs");
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("--json prints JSON");
+        ],
+    );
     assert_eq!(v["invariants"]["violations"], 0, "{v:#}");
     assert_eq!(v["outcome"], "completed", "{v:#}");
     assert_eq!(v["timeouts"], 0, "{v:#}");
@@ -134,23 +151,18 @@ fn histories_that_diverged_in_a_partition_number_alike_after_it() {
 /// and a robot that has decided sends no contribution.
 #[test]
 fn a_notice_from_across_a_healed_partition_does_not_part_a_voting_side() {
-    let o = bite()
-        .args([
-            "run",
+    let v = run_one(
+        "notice",
+        &[
             "--config",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/configs/5.yaml"),
+            &config(5),
             "--timed",
             "--fault",
             "partition=r1|r0,r2@4.587s+14.297s",
             "--seed",
             "54",
-            "--json",
-            "--log",
-        ])
-        .arg(scratch("notice").join("run.jsonl"))
-        .output()
-        .expect("bite runs");
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("--json prints JSON");
+        ],
+    );
     assert_eq!(v["invariants"]["violations"], 0, "{v:#}");
     assert_eq!(v["outcome"], "completed", "{v:#}");
 }
@@ -164,23 +176,18 @@ fn a_notice_from_across_a_healed_partition_does_not_part_a_voting_side() {
 /// made as a robot leaves now stands and answers late teammates.
 #[test]
 fn a_decision_made_while_leaving_answers_a_member_that_missed_it() {
-    let o = bite()
-        .args([
-            "run",
+    let v = run_one(
+        "leaving",
+        &[
             "--config",
-            concat!(env!("CARGO_MANIFEST_DIR"), "/../../examples/configs/6.yaml"),
+            &config(6),
             "--timed",
             "--fault",
             "loss=0.3",
             "--seed",
             "13",
-            "--json",
-            "--log",
-        ])
-        .arg(scratch("leaving").join("run.jsonl"))
-        .output()
-        .expect("bite runs");
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("--json prints JSON");
+        ],
+    );
     assert_eq!(v["invariants"]["violations"], 0, "{v:#}");
     assert_eq!(v["completed"], true, "{v:#}");
 }

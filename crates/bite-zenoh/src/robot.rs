@@ -406,34 +406,21 @@ pub fn run_on(
             .map_err(z)?;
         subscribers.push(frames);
     }
-    {
+    // Sensor readings and mission submissions: JSON, bounded.
+    let json_input = |key: String, input: fn(Vec<u8>) -> Input| {
         let (shared, tx) = (shared.clone(), tx.clone());
-        let sensors = session
-            .declare_subscriber(keys.sensors(&opts.name))
+        session
+            .declare_subscriber(key)
             .callback(move |s| {
                 if s.payload().len() <= MAX_JSON {
-                    shared.deliver(&tx, Input::Sensors(s.payload().to_bytes().into_owned()))
+                    shared.deliver(&tx, input(s.payload().to_bytes().into_owned()))
                 }
             })
             .wait()
-            .map_err(z)?;
-        subscribers.push(sensors);
-    }
-    {
-        // A submission may take a while to compile: always the robot's
-        // thread's work, never a Zenoh callback's.
-        let (shared, tx) = (shared.clone(), tx.clone());
-        let missions = session
-            .declare_subscriber(keys.mission())
-            .callback(move |s| {
-                if s.payload().len() <= MAX_JSON {
-                    shared.enqueue(&tx, Input::Mission(s.payload().to_bytes().into_owned()))
-                }
-            })
-            .wait()
-            .map_err(z)?;
-        subscribers.push(missions);
-    }
+            .map_err(z)
+    };
+    subscribers.push(json_input(keys.sensors(&opts.name), Input::Sensors)?);
+    subscribers.push(json_input(keys.mission(), Input::Mission)?);
     for (odom, key) in ros_keys {
         let (shared, tx) = (shared.clone(), tx.clone());
         let sub = session
@@ -539,6 +526,11 @@ impl Shared {
     fn deliver(&self, tx: &SyncSender<Input>, i: Input) {
         if self.closed.load(Ordering::Acquire) {
             return;
+        }
+        if matches!(i, Input::Mission(_)) {
+            // A submission may take a while to compile: always the robot's
+            // thread's work, never a Zenoh callback's.
+            return self.enqueue(tx, i);
         }
         let guard = match self.pending.load(Ordering::Acquire) {
             0 => self.node.try_lock().ok(),

@@ -123,14 +123,6 @@ impl Kernel {
         }
     }
 
-    /// Teammates done with the behavior of stack frame `i` (they arrived at
-    /// its termination, or left it): leave them out of every instance below
-    /// it, as if presumed lost. `told` is the teammate whose heartbeat
-    /// said so, with what it said: it stays in an allocation below that it
-    /// went through (it ran a child of that execution, or applied an
-    /// allocation there): if it led the allocation it decided it, and a
-    /// member that missed the decision must hear it from it rather than
-    /// take the lead and allocate anew, apart from what the team applied.
     /// The coordinator of running instance `key` as its protocol sees it:
     /// the first member this robot does not leave out.
     fn coordinator_of(&self, key: InstanceKey) -> Option<RobotId> {
@@ -140,6 +132,14 @@ impl Kernel {
         team.members.iter().find(|r| live(*r))
     }
 
+    /// Teammates done with the behavior of stack frame `i` (they arrived at
+    /// its termination, or left it): leave them out of every instance below
+    /// it, as if presumed lost. `told` is the teammate whose heartbeat
+    /// said so, with what it said: it stays in an allocation below that it
+    /// went through (it ran a child of that execution, or applied an
+    /// allocation there): if it led the allocation it decided it, and a
+    /// member that missed the decision must hear it from it rather than
+    /// take the lead and allocate anew, apart from what the team applied.
     pub(super) fn depart(
         &mut self,
         i: usize,
