@@ -192,6 +192,30 @@ fn a_decision_made_while_leaving_answers_a_member_that_missed_it() {
     assert_eq!(v["completed"], true, "{v:#}");
 }
 
+/// Found by the sweep at 30 % loss: a member waited at a sync point while
+/// its coordinator, whose decision was lost, already ran the successor; the
+/// member resent, further apart after each loss, and reached its deadline
+/// (three in this run). It now asks the coordinator as soon as a heartbeat
+/// shows it past the point (after one retry's wait).
+#[test]
+fn a_member_asks_a_coordinator_past_the_sync_point_at_once() {
+    let v = run_one(
+        "past",
+        &[
+            "--config",
+            &config(4),
+            "--timed",
+            "--fault",
+            "loss=0.3",
+            "--seed",
+            "25",
+        ],
+    );
+    assert_eq!(v["invariants"]["violations"], 0, "{v:#}");
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+    assert_eq!(v["timeouts"], 0, "{v:#}");
+}
+
 /// One thread or two: the same runs, the same results, line for line.
 #[test]
 fn results_do_not_depend_on_the_number_of_threads() {

@@ -125,7 +125,7 @@ impl Kernel {
 
     /// The coordinator of running instance `key` as its protocol sees it:
     /// the first member this robot does not leave out.
-    fn coordinator_of(&self, key: InstanceKey) -> Option<RobotId> {
+    pub(super) fn coordinator_of(&self, key: InstanceKey) -> Option<RobotId> {
         let inst = self.instances.get(&key)?;
         let team = self.org.team(key.team).unwrap_or(&inst.team);
         let live = |r: RobotId| inst.excluded.as_ref().is_none_or(|x| !x.contains(r));

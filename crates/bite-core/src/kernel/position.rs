@@ -197,6 +197,17 @@ impl Position {
                 .any(|f| f.id == point && f.alloc.is_some())
     }
 
+    /// True when the sender runs a successor of the sync point `key`: a
+    /// behavior of `key`'s team that follows `key`'s execution. It decided
+    /// that point.
+    pub fn went_past(&self, key: InstanceKey) -> bool {
+        self.frames.iter().any(|f| {
+            f.id.team == key.team
+                && f.anchor
+                    .is_some_and(|a| !a.first && a.behavior == key.behavior && a.epoch == key.epoch)
+        })
+    }
+
     /// Its size on the wire, bytes.
     pub fn encoded_len(&self) -> usize {
         postcard::experimental::serialized_size(self).unwrap_or(0)
@@ -473,7 +484,30 @@ impl Kernel {
         self.learn_departures(from, pos);
         self.reconcile(from, pos);
         self.reconcile_allocation(from, pos);
+        self.ask_past_point(from, pos);
         self.step();
+    }
+
+    /// A coordinator whose heartbeat shows it past a sync point where this
+    /// robot has waited longer than a retry decided it, and its decision
+    /// did not arrive: ask it now rather than at the next resend (spaced
+    /// further apart after every loss).
+    fn ask_past_point(&mut self, from: RobotId, pos: &Position) {
+        let now = self.now;
+        let waiting = self.instances.iter().filter(|(k, inst)| {
+            k.kind == Kind::Sync
+                && inst.state == super::State::Active
+                && inst.waiting_since.is_some_and(|t| now - t >= inst.retry)
+        });
+        let ask: Vec<InstanceKey> = waiting
+            .map(|(k, _)| *k)
+            .filter(|k| pos.went_past(*k))
+            .collect();
+        for k in ask {
+            if self.coordinator_of(k) == Some(from) {
+                self.reply(k, from, crate::msg::Body::Query);
+            }
+        }
     }
 
     /// This robot's process restarted with nothing kept (its previous
