@@ -18,7 +18,9 @@ use std::sync::Arc;
 #[derive(Clone, Debug, Default)]
 pub struct Symbols {
     names: Vec<Arc<str>>,
-    index: BTreeMap<Arc<str>, BeliefId>,
+    /// Hashed: a graph's conditions look up every name they read when it
+    /// is loaded (a B-tree's string comparisons were most of that).
+    index: rustc_hash::FxHashMap<Arc<str>, BeliefId>,
 }
 
 impl Symbols {

@@ -18,6 +18,7 @@ use crate::source::{SourceMap, printable};
 use crate::template::{Env, EvalError, Template, Val, fmt_num};
 use crate::{CompileOptions, Compiled, StepInfo, Target};
 use bite_core::diag::{Diagnostic, Loc};
+use bite_core::graph::BehaviorEntry;
 use bite_core::graph::spec::{
     BehaviorSpec, BindingSpec, DefaultsSpec, GraphSpec, MembersSpec, Ordered, RobotsSpec,
     SkillSpec, TeamSpec,
@@ -39,8 +40,6 @@ struct Beh {
     skill: Option<String>,
     members: Option<MembersSpec>,
     terminate: Option<String>,
-    /// The first behavior of a command (a blank line before it).
-    first: bool,
     /// A later step of a child's chain (not a child itself).
     chained: bool,
 }
@@ -116,7 +115,7 @@ pub fn generate(
     use rayon::prelude::*;
     use std::sync::atomic::{AtomicUsize, Ordering};
     let g = Gen { map, lib, opts };
-    let mut behs = vec![Beh {
+    let mut behs = vec![entry(Beh {
         name: "mission".into(),
         description: Some(format!(
             "the mission: {} command{}, in order",
@@ -125,7 +124,8 @@ pub fn generate(
         )),
         team: true,
         ..Beh::default()
-    }];
+    })];
+    let mut first = vec![false];
     // Generated ahead, side by side. Once more behaviors than a graph may
     // have are made, the rest are skipped (`None`): the mission fails
     // (too large, or a duplicate name cut a command short), and those the
@@ -137,7 +137,7 @@ pub fn generate(
             return None;
         }
         let out = g.step(s, def);
-        made.fetch_add(out.behs.len(), Ordering::Relaxed);
+        made.fetch_add(out.entries.len(), Ordering::Relaxed);
         Some(out)
     };
     let mut outs: Vec<Option<StepOut>> = if steps.len() >= PARALLEL_FROM {
@@ -148,13 +148,16 @@ pub fn generate(
     // Names taken so far, as indices into `behs` (no copy of a name).
     let made = made.into_inner();
     behs.reserve(made);
-    let hasher = rustc_hash::FxBuildHasher;
-    let hash = |name: &str| hasher.hash_one(name);
+    first.reserve(made);
+    let hash = name_hash;
     let mut names: hashbrown::HashTable<u32> = hashbrown::HashTable::with_capacity(made + 1);
     names.insert_unique(hash("mission"), 0, |_| hash("mission"));
-    let mut skills = BTreeMap::new();
-    let mut beliefs = BTreeMap::new();
-    let mut targets = BTreeMap::new();
+    // Skills, beliefs and targets in the mission's order, put in their maps
+    // at the end: sorted once (a later one with the same name replaces an
+    // earlier, as inserting one after the other would).
+    let mut skills = Vec::new();
+    let mut beliefs = Vec::new();
+    let mut targets = Vec::new();
     let mut infos = Vec::new();
     let mut diags = Vec::new();
     let mut warnings = Vec::new();
@@ -168,12 +171,12 @@ pub fn generate(
         let head = behs.len();
         // Its behaviors in order, up to the first name already taken.
         let mut failed = None;
-        for b in out.behs {
+        for (j, (b, h)) in out.entries.into_iter().zip(out.hashes).enumerate() {
             let at = behs.len() as u32;
-            let taken = |&i: &u32| behs[i as usize].name == b.name;
-            match names.entry(hash(&b.name), taken, |&i| hash(&behs[i as usize].name)) {
+            let taken = |&i: &u32| behs[i as usize].0.value == b.0.value;
+            match names.entry(h, taken, |&i| hash(&behs[i as usize].0.value)) {
                 hashbrown::hash_table::Entry::Occupied(_) => {
-                    let msg = format!("two behaviors would be called `{}`", b.name);
+                    let msg = format!("two behaviors would be called `{}`", b.0.value);
                     failed = Some(g.lib_error(s, def, def.loc, msg));
                     break;
                 }
@@ -182,6 +185,7 @@ pub fn generate(
                 }
             }
             behs.push(b);
+            first.push(j == 0);
         }
         match failed.map_or(out.result, Err) {
             Ok(name) => {
@@ -209,13 +213,17 @@ pub fn generate(
     if !diags.is_empty() {
         return Err(diags);
     }
+    let parallel = steps.len() >= PARALLEL_FROM;
+    let skills = bite_core::sorted_map(skills, parallel);
+    let beliefs = bite_core::sorted_map(beliefs, parallel);
+    let targets = bite_core::sorted_map(targets, parallel);
     // The chain: mission → B1 → B2 → ... → Bn.
-    if let Some((_, first)) = heads.first() {
-        behs[0].children.push(first.clone());
+    if let Some((_, head)) = heads.first() {
+        behs[0].1.value.children.push(at(head.clone()));
     }
     for w in heads.windows(2) {
         let next = w[1].1.clone();
-        behs[w[0].0].next.push(next);
+        behs[w[0].0].1.value.next.push(at(next));
     }
     let generated = GeneratedGraph {
         name: printable(&stem(map.file())),
@@ -224,6 +232,7 @@ pub fn generate(
         origin: opts.origin,
         robots: opts.robots,
         behaviors: behs,
+        first,
     };
     Ok(Compiled {
         generated,
@@ -233,6 +242,12 @@ pub fn generate(
         steps: infos,
         warnings,
     })
+}
+
+/// The hash behavior names are told apart by when commands are put
+/// together.
+fn name_hash(name: &str) -> u64 {
+    rustc_hash::FxBuildHasher.hash_one(name)
 }
 
 /// Missions of this many commands or more are generated on rayon's pool;
@@ -251,6 +266,11 @@ struct Gen<'a, 's> {
 struct StepOut {
     /// Its behaviors, its own first; up to the failure if it failed.
     behs: Vec<Beh>,
+    /// The same as the graph loader reads them (made from `behs` at the end).
+    entries: Vec<BehaviorEntry>,
+    /// Their names' hashes ([`name_hash`]), made beside them: the merge
+    /// then reads no name unless two hashes are equal.
+    hashes: Vec<u64>,
     skills: Vec<(String, Vec<serde_json::Value>)>,
     beliefs: Vec<(String, String)>,
     target: Option<(String, Target)>,
@@ -325,6 +345,8 @@ impl Gen<'_, '_> {
     fn step(&self, s: &Step, def: &CommandDef) -> StepOut {
         let mut out = StepOut {
             behs: Vec::new(),
+            entries: Vec::new(),
+            hashes: Vec::new(),
             skills: Vec::new(),
             beliefs: Vec::new(),
             target: None,
@@ -333,6 +355,11 @@ impl Gen<'_, '_> {
             result: Ok(String::new()),
         };
         out.result = self.step_into(s, def, &mut out);
+        out.hashes = out.behs.iter().map(|b| name_hash(&b.name)).collect();
+        out.entries = std::mem::take(&mut out.behs)
+            .into_iter()
+            .map(entry)
+            .collect();
         out
     }
 
@@ -523,9 +550,6 @@ impl Gen<'_, '_> {
             });
             out.target = Some((result.clone(), Target { colour, size }));
         }
-        if let Some(b) = out.behs.first_mut() {
-            b.first = true;
-        }
         out.info = Some(StepInfo {
             index: s.index,
             line: s.line,
@@ -655,6 +679,37 @@ fn stem(file: &str) -> String {
     )
 }
 
+/// A value without a place in a file (the generated graph has none).
+fn at<T>(value: T) -> Spanned<T> {
+    Spanned::new(value, Location::UNKNOWN, Location::UNKNOWN)
+}
+
+/// A generated behavior as the graph loader reads it.
+fn entry(b: Beh) -> BehaviorEntry {
+    let spec = BehaviorSpec {
+        description: b.description,
+        team: b.team,
+        children: b.children.into_iter().map(at).collect(),
+        next: b.next.into_iter().map(at).collect(),
+        until: b.until.map(|u| Box::new(at(u))),
+        skill: b.skill.map(|name| {
+            Box::new(at(SkillSpec {
+                name,
+                params: BTreeMap::new(),
+            }))
+        }),
+        members: b.members.map(at),
+        terminate: b.terminate.map(|p| {
+            Box::new(at(BindingSpec {
+                protocol: Some(p),
+                ..BindingSpec::default()
+            }))
+        }),
+        ..BehaviorSpec::default()
+    };
+    (at(b.name), at(spec))
+}
+
 /// The generated graph as data: the graph [`Compiled::graph`] writes in
 /// YAML, to hand to the graph loader without writing and parsing text
 /// ([`Compiled::load_graph`]).
@@ -667,7 +722,10 @@ pub struct GeneratedGraph {
     commands: usize,
     origin: [f64; 2],
     robots: usize,
-    behaviors: Vec<Beh>,
+    /// The behaviors as the loader reads them (it reads them in place).
+    behaviors: Vec<BehaviorEntry>,
+    /// Per behavior: the first of its command (a blank line before it).
+    first: Vec<bool>,
 }
 
 impl GeneratedGraph {
@@ -679,6 +737,11 @@ impl GeneratedGraph {
     /// True when it has no behavior (never for a compiled mission).
     pub fn is_empty(&self) -> bool {
         self.behaviors.is_empty()
+    }
+
+    /// The behaviors, as [`bite_core::graph::load_parts`] reads them.
+    pub fn behaviors(&self) -> &[BehaviorEntry] {
+        &self.behaviors
     }
 
     /// The graph in YAML, the `bite-core` format, with a header comment
@@ -705,12 +768,20 @@ impl GeneratedGraph {
             "defaults:\n  sync: sync.by-rule\n  allocate: alloc.by-id\n  terminate: term.wait-all\n",
         );
         y.push_str("behaviors:\n");
-        for (i, b) in self.behaviors.iter().enumerate() {
+        let list = |names: &[Spanned<String>]| {
+            names
+                .iter()
+                .map(|n| n.value.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        for (i, ((name, b), first)) in self.behaviors.iter().zip(&self.first).enumerate() {
+            let b = &b.value;
             // A blank line before each command's behavior.
-            if i > 0 && b.first {
+            if i > 0 && *first {
                 y.push('\n');
             }
-            let _ = writeln!(y, "  {}:", b.name);
+            let _ = writeln!(y, "  {}:", name.value);
             if let Some(d) = &b.description {
                 let _ = writeln!(y, "    description: {}", quote(d));
             }
@@ -718,22 +789,26 @@ impl GeneratedGraph {
                 y.push_str("    team: true\n");
             }
             if !b.children.is_empty() {
-                let _ = writeln!(y, "    children: [{}]", b.children.join(", "));
+                let _ = writeln!(y, "    children: [{}]", list(&b.children));
             }
             if let Some(s) = &b.skill {
-                let _ = writeln!(y, "    skill: {s}");
+                let _ = writeln!(y, "    skill: {}", s.value.name);
             }
-            if let Some(m) = b.members {
-                let _ = writeln!(y, "    members: {}", members_text(m));
+            if let Some(m) = &b.members {
+                let _ = writeln!(y, "    members: {}", members_text(m.value));
             }
             if let Some(u) = &b.until {
-                let _ = writeln!(y, "    until: {}", scalar(u));
+                let _ = writeln!(y, "    until: {}", scalar(&u.value));
             }
-            if let Some(t) = &b.terminate {
-                let _ = writeln!(y, "    terminate: {}", scalar(t));
+            if let Some(p) = b
+                .terminate
+                .as_ref()
+                .and_then(|t| t.value.protocol.as_deref())
+            {
+                let _ = writeln!(y, "    terminate: {}", scalar(p));
             }
             if !b.next.is_empty() {
-                let _ = writeln!(y, "    next: [{}]", b.next.join(", "));
+                let _ = writeln!(y, "    next: [{}]", list(&b.next));
             }
         }
         y
@@ -744,66 +819,20 @@ impl GeneratedGraph {
         format!("compiled from {}", self.file)
     }
 
-    /// The graph as the loader's input, as if parsed from
-    /// [`Compiled::graph`]; its values carry no file location
-    /// (`Location::UNKNOWN`).
-    pub fn spec(&self) -> GraphSpec {
-        let at = |value: String| Spanned::new(value, Location::UNKNOWN, Location::UNKNOWN);
+    /// The graph's spec but its behaviors (read in place:
+    /// [`GeneratedGraph::behaviors`]).
+    pub fn header(&self) -> GraphSpec {
         let protocol = |p: &str| {
-            Some(Spanned::new(
-                BindingSpec {
-                    protocol: Some(p.to_string()),
-                    ..BindingSpec::default()
-                },
-                Location::UNKNOWN,
-                Location::UNKNOWN,
-            ))
-        };
-        let names = |v: &[String]| v.iter().map(|n| at(n.clone())).collect::<Vec<_>>();
-        // Side by side for long missions (order kept: the result is the same).
-        let spec_of = |b: &Beh| {
-            let spec = BehaviorSpec {
-                description: b.description.clone(),
-                team: b.team,
-                children: names(&b.children),
-                next: names(&b.next),
-                until: b.until.clone().map(at),
-                skill: b.skill.as_ref().map(|s| {
-                    Spanned::new(
-                        SkillSpec {
-                            name: s.clone(),
-                            params: BTreeMap::new(),
-                        },
-                        Location::UNKNOWN,
-                        Location::UNKNOWN,
-                    )
-                }),
-                members: b
-                    .members
-                    .map(|m| Spanned::new(m, Location::UNKNOWN, Location::UNKNOWN)),
-                terminate: b.terminate.as_deref().and_then(protocol).map(Box::new),
-                ..BehaviorSpec::default()
-            };
-            (
-                at(b.name.clone()),
-                Spanned::new(spec, Location::UNKNOWN, Location::UNKNOWN),
-            )
-        };
-        let behaviors = if self.behaviors.len() >= PARALLEL_FROM {
-            use rayon::prelude::*;
-            self.behaviors.par_iter().map(spec_of).collect()
-        } else {
-            self.behaviors.iter().map(spec_of).collect()
+            Some(at(BindingSpec {
+                protocol: Some(p.to_string()),
+                ..BindingSpec::default()
+            }))
         };
         GraphSpec {
             graph: Some(self.name.clone()),
             description: Some(self.description()),
             team: Some(TeamSpec {
-                robots: Spanned::new(
-                    RobotsSpec::Count(self.robots as u64),
-                    Location::UNKNOWN,
-                    Location::UNKNOWN,
-                ),
+                robots: at(RobotsSpec::Count(self.robots as u64)),
             }),
             start: Some(at("mission".to_string())),
             defaults: DefaultsSpec {
@@ -813,11 +842,7 @@ impl GeneratedGraph {
             },
             beliefs: Ordered::default(),
             world_model: None,
-            behaviors: Some(Spanned::new(
-                Ordered(behaviors),
-                Location::UNKNOWN,
-                Location::UNKNOWN,
-            )),
+            behaviors: None,
         }
     }
 }

@@ -154,7 +154,7 @@ impl Compiled {
         &self,
         file: &std::sync::Arc<str>,
     ) -> Result<bite_core::BehaviorGraph, Diagnostics> {
-        bite_core::graph::load_spec(file, self.generated.spec())
+        bite_core::graph::load_parts(file, &self.generated.header(), self.generated.behaviors())
     }
 
     /// The skills, beliefs and targets as a YAML fragment in the scenario

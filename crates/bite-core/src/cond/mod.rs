@@ -162,6 +162,29 @@ impl Expr {
         &self.beliefs
     }
 
+    /// Give every belief `id` it reads the id `map[id]`: an expression parsed
+    /// against one table of names, moved to another that holds the same
+    /// names under other ids (the graph loader parses behaviors side by
+    /// side, each run of them with its own table, then merges the tables in
+    /// order). `map` must be one-to-one and cover every id read.
+    pub fn remap_beliefs(&mut self, map: &[BeliefId]) {
+        let to = |id: &mut BeliefId| {
+            if let Some(m) = map.get(id.index()) {
+                *id = *m;
+            }
+        };
+        for node in self.nodes.iter_mut() {
+            match node {
+                Node::Belief(id) | Node::Known(id) | Node::Age(id) | Node::CmpBelief(_, id, _) => {
+                    to(id)
+                }
+                _ => {}
+            }
+        }
+        self.beliefs.iter_mut().for_each(to);
+        self.beliefs.sort_unstable();
+    }
+
     /// True if the result can change with time alone (uses `elapsed` or
     /// `age(..)`), so the kernel must re-evaluate it every tick even when no
     /// belief changed.

@@ -143,8 +143,8 @@ impl BehaviorGraph {
         debug_assert_eq!(behaviors.len(), next as usize);
         retired.sort();
         Ok(BehaviorGraph {
+            names: super::NameIndex::new(behaviors.len(), |i| &behaviors[i].name),
             behaviors,
-            by_name,
             start,
             symbols: Arc::new(symbols),
             retired,

@@ -144,7 +144,7 @@ impl BehaviorGraph {
                     );
                 }
                 Some((b, kind)) => {
-                    g.behaviors[b.index()].bindings[kind.index()] = Some(binding.clone());
+                    g.behaviors[b.index()].bindings[kind.index()] = Some(Box::new(binding.clone()));
                 }
             }
         }

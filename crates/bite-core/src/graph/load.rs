@@ -5,7 +5,9 @@
 //! expected, and a hint where one helps.
 
 use super::spec::{BehaviorSpec, BindingSpec, GraphSpec, Ordered, RobotsSpec};
-use super::{Behavior, BehaviorGraph, Binding, MAX_BEHAVIORS, MAX_DEPTH, MAX_ROBOTS, Skill};
+use super::{
+    Behavior, BehaviorGraph, Binding, MAX_BEHAVIORS, MAX_DEPTH, MAX_ROBOTS, NameIndex, Skill,
+};
 use crate::belief::Symbols;
 use crate::cond::{CondError, Expr, Resolver};
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
@@ -37,7 +39,7 @@ pub fn load_str(file: &Arc<str>, text: &str) -> Result<BehaviorGraph, Diagnostic
         Some(spec) => spec,
         None => crate::yaml::parse(file, text)?,
     };
-    build(file, text, spec)
+    build(file, text, &spec)
 }
 
 /// Validate a behavior graph built in code rather than read from YAML
@@ -46,20 +48,39 @@ pub fn load_str(file: &Arc<str>, text: &str) -> Result<BehaviorGraph, Diagnostic
 /// text. Diagnostics carry the locations the spec's `Spanned` values hold
 /// (`Location::UNKNOWN` in a spec built in code: no line or column).
 pub fn load_spec(file: &Arc<str>, spec: GraphSpec) -> Result<BehaviorGraph, Diagnostics> {
-    build(file, "", spec)
+    build(file, "", &spec)
 }
 
-fn build(file: &Arc<str>, text: &str, spec: GraphSpec) -> Result<BehaviorGraph, Diagnostics> {
+/// One behavior as written: its name and its spec.
+pub type BehaviorEntry = (Spanned<String>, Spanned<BehaviorSpec>);
+
+/// [`load_spec`] on a graph whose behaviors are kept apart, read in place
+/// (`spec.behaviors` is not read): a compiled mission keeps its behaviors
+/// and hands them over without a copy.
+pub fn load_parts(
+    file: &Arc<str>,
+    spec: &GraphSpec,
+    behaviors: &[BehaviorEntry],
+) -> Result<BehaviorGraph, Diagnostics> {
+    builder(file, "").build(spec, Some((behaviors, Loc::UNKNOWN)))
+}
+
+fn builder<'a>(file: &Arc<str>, text: &'a str) -> Builder<'a> {
     Builder {
         file: file.clone(),
         text,
         diags: Vec::new(),
         labels: BTreeMap::new(),
         runs_refs: Vec::new(),
-        listed: Vec::new(),
-        stamp: 0,
     }
-    .build(spec)
+}
+
+fn build(file: &Arc<str>, text: &str, spec: &GraphSpec) -> Result<BehaviorGraph, Diagnostics> {
+    let behaviors = spec
+        .behaviors
+        .as_ref()
+        .map(|b| (&b.value.0[..], Loc::from(b.referenced)));
+    builder(file, text).build(spec, behaviors)
 }
 
 struct Builder<'a> {
@@ -70,55 +91,313 @@ struct Builder<'a> {
     labels: BTreeMap<String, String>,
     /// `runs(x)` in a condition of a behavior: (owner, x, field, where).
     runs_refs: Vec<(BehaviorId, BehaviorId, &'static str, Loc)>,
-    /// Per behavior, the last edge list (`stamp`) that named it: finds an
-    /// edge listed twice in constant time, whatever the list's length.
-    listed: Vec<u32>,
-    stamp: u32,
 }
 
-/// The behaviors' names: in order (for messages that list them), and
-/// hashed (every edge and every `runs(...)` looks one up: string
-/// comparisons down a B-tree were a tenth of loading a large graph).
+/// The behaviors' names while a graph is built: hashed (every edge and
+/// every `runs(...)` looks one up), and in order for the messages that
+/// list them (sorted the first time one is written).
 struct Names<'a> {
-    sorted: &'a BTreeMap<String, BehaviorId>,
-    index: rustc_hash::FxHashMap<&'a str, BehaviorId>,
+    index: &'a NameIndex,
+    entries: &'a [BehaviorEntry],
+    sorted: std::sync::OnceLock<Vec<&'a str>>,
 }
 
 impl<'a> Names<'a> {
-    fn new(sorted: &'a BTreeMap<String, BehaviorId>) -> Self {
-        Names {
-            sorted,
-            index: sorted.iter().map(|(k, v)| (k.as_str(), *v)).collect(),
-        }
-    }
     fn get(&self, name: &str) -> Option<BehaviorId> {
-        self.index.get(name).copied()
+        self.index.get(name, |i| &self.entries[i].0.value)
     }
-    fn all(&self) -> impl Iterator<Item = &'a str> + use<'a> {
-        self.sorted.keys().map(String::as_str)
+    fn all(&self) -> impl Iterator<Item = &'a str> + '_ {
+        self.sorted
+            .get_or_init(|| {
+                let mut v: Vec<&str> = self.entries.iter().map(|(n, _)| n.value.as_str()).collect();
+                v.sort_unstable();
+                v.dedup();
+                v
+            })
+            .iter()
+            .copied()
     }
 }
 
-struct NameResolver<'a> {
-    symbols: &'a mut Symbols,
-    by_name: &'a Names<'a>,
+/// Graphs of this many behaviors or more are built side by side on rayon's
+/// pool; the graph and the messages are those of a build one behavior after
+/// the other, whatever the number of threads.
+const PARALLEL_FROM: usize = 4096;
+
+/// Edge lists up to this long are checked for duplicates by a scan, longer
+/// ones through a set.
+const SHORT_LIST: usize = 8;
+
+/// What building one behavior reads: the same for every behavior.
+struct Cx<'a> {
+    file: &'a Arc<str>,
+    text: &'a str,
+    names: &'a Names<'a>,
+}
+
+/// What a behavior's entry gives besides the behavior itself, put in order
+/// with the other behaviors' afterwards.
+#[derive(Default)]
+struct Made {
+    crefs: Vec<(BehaviorId, Loc)>,
+    nrefs: Vec<(BehaviorId, Loc)>,
+    member_loc: Option<Loc>,
+    /// Its messages, in the order they were found.
+    diags: Vec<Diagnostic>,
+    /// The belief names its conditions read, in order of first appearance:
+    /// its conditions' belief ids index this until the graph's table of
+    /// names is filled, in the behaviors' order.
+    beliefs: Vec<Box<str>>,
+    /// `runs(x)` in its conditions: (x, field, where).
+    runs_refs: Vec<(BehaviorId, &'static str, Loc)>,
+    /// Its bindings give point labels: labels are unique graph-wide, so
+    /// these are made in order afterwards.
+    labelled: bool,
+}
+
+/// A behavior's bindings: sync, allocate, terminate.
+fn binding_specs(spec: &BehaviorSpec) -> [Option<&Spanned<BindingSpec>>; 3] {
+    [
+        spec.sync.as_deref(),
+        spec.allocate.as_deref(),
+        spec.terminate.as_deref(),
+    ]
+}
+
+/// Belief names of one behavior's conditions, numbered from 0.
+struct LocalNames<'a, 'n> {
+    beliefs: &'a mut Vec<Box<str>>,
+    /// `beliefs` hashed, once there are many.
+    index: rustc_hash::FxHashMap<Box<str>, u32>,
+    names: &'a Names<'n>,
     /// Behaviors named in `runs(...)` by the condition being parsed.
     looked_up: std::cell::RefCell<Vec<BehaviorId>>,
 }
 
-impl Resolver for NameResolver<'_> {
+impl Resolver for LocalNames<'_, '_> {
     fn belief(&mut self, name: &str) -> BeliefId {
-        self.symbols.intern(name)
+        // A behavior's conditions read a handful of names: a scan finds
+        // them. Past `SHORT_LIST`, a table (a condition may read hundreds).
+        if self.beliefs.len() > SHORT_LIST && self.index.is_empty() {
+            self.index = (self.beliefs.iter().enumerate())
+                .map(|(i, b)| (b.clone(), i as u32))
+                .collect();
+        }
+        let found = if self.index.is_empty() {
+            self.beliefs.iter().position(|b| **b == *name)
+        } else {
+            self.index.get(name).map(|&i| i as usize)
+        };
+        let at = found.unwrap_or_else(|| {
+            self.beliefs.push(name.into());
+            if !self.index.is_empty() {
+                self.index
+                    .insert(name.into(), (self.beliefs.len() - 1) as u32);
+            }
+            self.beliefs.len() - 1
+        });
+        BeliefId(at as u32)
     }
     fn behavior(&self, name: &str) -> Option<BehaviorId> {
-        let id = self.by_name.get(name);
+        let id = self.names.get(name);
         if let Some(id) = id {
             self.looked_up.borrow_mut().push(id);
         }
         id
     }
     fn behavior_names(&self) -> Vec<&str> {
-        self.by_name.all().collect()
+        self.names.all().collect()
+    }
+}
+
+impl Made {
+    fn err(
+        &mut self,
+        cx: &Cx<'_>,
+        loc: Loc,
+        code: &'static str,
+        msg: impl Into<String>,
+    ) -> &mut Diagnostic {
+        self.diags.push(Diagnostic::error(cx.file, loc, code, msg));
+        let n = self.diags.len() - 1;
+        &mut self.diags[n]
+    }
+
+    /// Behavior `id` from its entry.
+    fn behavior(
+        cx: &Cx<'_>,
+        id: BehaviorId,
+        name: &Spanned<String>,
+        spec: &BehaviorSpec,
+    ) -> (Behavior, Made) {
+        let mut made = Made::default();
+        let loc = Loc::from(name.referenced);
+        let children = made.edges(cx, &spec.children, &name.value, "child", true);
+        let next = made.edges(cx, &spec.next, &name.value, "successor", false);
+        for c in &spec.children {
+            if spec.next.iter().any(|n| n.value == c.value) {
+                made.err(
+                    cx,
+                    Loc::from(c.referenced),
+                    "sequential-and-decomposition",
+                    format!(
+                        "`{}` is both a child and a sequential successor of `{}` (S ∩ V must be empty)",
+                        c.value, name.value
+                    ),
+                )
+                .hint = Some("an edge is either `children` (decomposition) or `next` (sequence), not both".into());
+            }
+        }
+        let pre = made.condition(cx, &spec.pre, "pre", Some("bool"));
+        let until = made.condition(cx, &spec.until, "until", Some("bool"));
+        let urgent = made.condition(cx, &spec.urgent, "urgent", Some("bool"));
+        let utility = made.condition(cx, &spec.utility, "utility", Some("number"));
+        let mut bindings: [Option<Box<Binding>>; 3] = [None, None, None];
+        let specs = binding_specs(spec);
+        if specs.iter().flatten().any(|b| b.value.point.is_some()) {
+            made.labelled = true;
+        } else {
+            for (slot, b) in bindings.iter_mut().zip(specs) {
+                *slot = b.map(|b| Box::new(make_binding(cx.file, b, &mut made.diags)));
+            }
+        }
+        let members = spec
+            .members
+            .as_ref()
+            .map_or((1, u32::MAX), |m| (m.value.min, m.value.max));
+        made.member_loc = spec.members.as_ref().map(|m| Loc::from(m.referenced));
+        let skill = spec.skill.as_ref().map(|s| Skill {
+            name: s.value.name.clone(),
+            params: s.value.params.clone(),
+        });
+        let behavior = Behavior {
+            id,
+            name: name.value.clone(),
+            description: spec.description.clone(),
+            team: spec.team,
+            children,
+            next,
+            pre,
+            until,
+            urgent,
+            utility,
+            skill,
+            members,
+            bindings,
+            labels: [None, None, None],
+            loc,
+        };
+        (behavior, made)
+    }
+
+    /// The ids of an edge list; where each edge is written goes to `crefs`
+    /// (children) or `nrefs`.
+    fn edges(
+        &mut self,
+        cx: &Cx<'_>,
+        refs: &[Spanned<String>],
+        owner: &str,
+        what: &str,
+        children: bool,
+    ) -> Vec<BehaviorId> {
+        let mut ids: Vec<BehaviorId> = Vec::with_capacity(refs.len());
+        let mut locs = Vec::with_capacity(refs.len());
+        let mut seen: rustc_hash::FxHashSet<BehaviorId> = rustc_hash::FxHashSet::default();
+        let long = refs.len() > SHORT_LIST;
+        for r in refs {
+            let loc = Loc::from(r.referenced);
+            match cx.names.get(&r.value) {
+                Some(id)
+                    if if long {
+                        !seen.insert(id)
+                    } else {
+                        ids.contains(&id)
+                    } =>
+                {
+                    self.err(
+                        cx,
+                        loc,
+                        "duplicate-edge",
+                        format!("`{}` is listed twice as a {what} of `{owner}`", r.value),
+                    );
+                }
+                Some(id) => {
+                    ids.push(id);
+                    locs.push((id, loc));
+                }
+                None => {
+                    let hint = did_you_mean(&r.value, cx.names.all());
+                    let d = self.err(
+                        cx,
+                        loc,
+                        "unknown-reference",
+                        format!(
+                            "`{owner}` names `{}` as a {what}, but no behavior is called `{}`",
+                            r.value, r.value
+                        ),
+                    );
+                    d.hint = hint;
+                }
+            }
+        }
+        if children {
+            self.crefs = locs;
+        } else {
+            self.nrefs = locs;
+        }
+        ids
+    }
+
+    fn condition(
+        &mut self,
+        cx: &Cx<'_>,
+        src: &Option<Box<Spanned<String>>>,
+        field: &'static str,
+        want: Option<&'static str>,
+    ) -> Option<Expr> {
+        let s = src.as_ref()?;
+        let mut resolver = LocalNames {
+            beliefs: &mut self.beliefs,
+            index: rustc_hash::FxHashMap::default(),
+            names: cx.names,
+            looked_up: std::cell::RefCell::new(Vec::new()),
+        };
+        let parsed = Expr::parse(&s.value, &mut resolver);
+        let looked_up = resolver.looked_up.into_inner();
+        match parsed {
+            Ok(e) => {
+                for x in looked_up {
+                    self.runs_refs.push((x, field, Loc::from(s.referenced)));
+                }
+                if let (Some(want), Some(got)) = (want, e.static_type())
+                    && want != got
+                {
+                    self.err(
+                        cx,
+                        Loc::from(s.referenced),
+                        "condition-type",
+                        format!(
+                            "`{field}` must be a {want} expression, but `{}` is a {got}",
+                            s.value
+                        ),
+                    );
+                    return None;
+                }
+                Some(e)
+            }
+            Err(ce) => {
+                let loc = expr_loc(cx.text, Loc::from(s.referenced), &s.value, &ce);
+                let d = self.err(
+                    cx,
+                    loc,
+                    "bad-condition",
+                    format!("in `{field}`: {}", ce.message),
+                );
+                d.detail = Some(ce.render(&s.value));
+                d.hint = ce.hint.clone();
+                None
+            }
+        }
     }
 }
 
@@ -140,9 +419,13 @@ impl Builder<'_> {
             .push(Diagnostic::warning(&self.file, loc, code, msg));
     }
 
-    fn build(mut self, spec: GraphSpec) -> Result<BehaviorGraph, Diagnostics> {
+    fn build(
+        mut self,
+        spec: &GraphSpec,
+        behaviors: Option<(&[BehaviorEntry], Loc)>,
+    ) -> Result<BehaviorGraph, Diagnostics> {
         let roster = self.roster(spec.team.as_ref());
-        let Some(behaviors) = spec.behaviors else {
+        let Some((entries, section_loc)) = behaviors else {
             self.err(
                 Loc::new(1, 1),
                 "no-behaviors",
@@ -150,8 +433,6 @@ impl Builder<'_> {
             );
             return Err(Diagnostics(self.diags));
         };
-        let section_loc = Loc::from(behaviors.referenced);
-        let entries = behaviors.value.0;
         if entries.is_empty() {
             self.err(section_loc, "no-behaviors", "`behaviors:` is empty");
             return Err(Diagnostics(self.diags));
@@ -170,13 +451,8 @@ impl Builder<'_> {
 
         // Names and ids (built in bulk: sorted once, not inserted one by
         // one; a name given twice keeps its last id, as inserting would).
-        let by_name: BTreeMap<String, BehaviorId> = entries
-            .iter()
-            .enumerate()
-            .map(|(i, (name, _))| (name.value.clone(), BehaviorId(i as u32)))
-            .collect();
-        self.listed = vec![0; entries.len()];
-        for (name, _) in &entries {
+        let index = NameIndex::new(entries.len(), |i| &entries[i].0.value);
+        for (name, _) in entries {
             if !valid_name(&name.value) {
                 self.err(
                     Loc::from(name.referenced),
@@ -189,70 +465,60 @@ impl Builder<'_> {
             }
         }
 
-        let names = Names::new(&by_name);
+        let names = Names {
+            index: &index,
+            entries,
+            sorted: std::sync::OnceLock::new(),
+        };
+        let n = entries.len();
+        // Each behavior on its own, side by side for large graphs; then, in
+        // order, the belief names numbered by first appearance, the
+        // messages put in order and the point labels (graph-wide) checked.
+        let file = self.file.clone();
+        let cx = Cx {
+            file: &file,
+            text: self.text,
+            names: &names,
+        };
+        let one = |(i, (name, body)): (usize, &BehaviorEntry)| {
+            Made::behavior(&cx, BehaviorId(i as u32), name, &body.value)
+        };
+        let (mut out, made): (Vec<Behavior>, Vec<Made>) = if n >= PARALLEL_FROM {
+            use rayon::prelude::*;
+            entries.par_iter().enumerate().map(one).unzip()
+        } else {
+            entries.iter().enumerate().map(one).unzip()
+        };
         let mut symbols = Symbols::new();
-        let mut out: Vec<Behavior> = Vec::with_capacity(entries.len());
-        let mut child_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(entries.len());
-        let mut next_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(entries.len());
-        let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(entries.len());
-        for (i, (name, body)) in entries.into_iter().enumerate() {
-            let id = BehaviorId(i as u32);
-            let loc = Loc::from(name.referenced);
-            let spec = body.value;
-            let (children, crefs) = self.edges(&spec.children, &names, &name.value, "child");
-            let (next, nrefs) = self.edges(&spec.next, &names, &name.value, "successor");
-            for c in &spec.children {
-                if spec.next.iter().any(|n| n.value == c.value) {
-                    self.err(
-                        Loc::from(c.referenced),
-                        "sequential-and-decomposition",
-                        format!(
-                            "`{}` is both a child and a sequential successor of `{}` (S ∩ V must be empty)",
-                            c.value, name.value
-                        ),
-                    )
-                    .hint = Some("an edge is either `children` (decomposition) or `next` (sequence), not both".into());
+        let mut child_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(n);
+        let mut next_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(n);
+        let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(n);
+        let mut map: Vec<BeliefId> = Vec::new();
+        for ((b, m), (_, body)) in out.iter_mut().zip(made).zip(entries) {
+            map.clear();
+            map.extend(m.beliefs.iter().map(|name| symbols.intern(name)));
+            if map.iter().enumerate().any(|(i, id)| id.index() != i) {
+                for e in [&mut b.pre, &mut b.until, &mut b.urgent, &mut b.utility]
+                    .into_iter()
+                    .flatten()
+                {
+                    e.remap_beliefs(&map);
                 }
             }
-            let mut resolver = NameResolver {
-                symbols: &mut symbols,
-                by_name: &names,
-                looked_up: std::cell::RefCell::new(Vec::new()),
-            };
-            let pre = self.condition(id, &spec.pre, &mut resolver, "pre", Some("bool"));
-            let until = self.condition(id, &spec.until, &mut resolver, "until", Some("bool"));
-            let urgent = self.condition(id, &spec.urgent, &mut resolver, "urgent", Some("bool"));
-            let utility =
-                self.condition(id, &spec.utility, &mut resolver, "utility", Some("number"));
-            let (bindings, labels) = self.bindings(&name.value, &spec);
-            let members = spec
-                .members
-                .as_ref()
-                .map_or((1, u32::MAX), |m| (m.value.min, m.value.max));
-            member_locs.push(spec.members.as_ref().map(|m| Loc::from(m.referenced)));
-            let skill = spec.skill.map(|s| Skill {
-                name: s.value.name,
-                params: s.value.params,
-            });
-            child_refs.push(crefs);
-            next_refs.push(nrefs);
-            out.push(Behavior {
-                id,
-                name: name.value,
-                description: spec.description,
-                team: spec.team,
-                children,
-                next,
-                pre,
-                until,
-                urgent,
-                utility,
-                skill,
-                members,
-                bindings,
-                labels,
-                loc,
-            });
+            self.diags.extend(m.diags);
+            if m.labelled {
+                let (bindings, labels) = self.bindings(&b.name, binding_specs(&body.value));
+                b.bindings = bindings;
+                b.labels = labels;
+            }
+            self.runs_refs.extend(
+                m.runs_refs
+                    .into_iter()
+                    .map(|(x, field, loc)| (b.id, x, field, loc)),
+            );
+            child_refs.push(m.crefs);
+            next_refs.push(m.nrefs);
+            member_locs.push(m.member_loc);
         }
 
         let start = match &spec.start {
@@ -275,10 +541,10 @@ impl Builder<'_> {
                 }
                 None
             }
-            Some(s) => match by_name.get(&s.value) {
-                Some(id) => Some(*id),
+            Some(s) => match names.get(&s.value) {
+                Some(id) => Some(id),
                 None => {
-                    let hint = did_you_mean(&s.value, by_name.keys().map(String::as_str));
+                    let hint = did_you_mean(&s.value, names.all());
                     let d = self.err(
                         Loc::from(s.referenced),
                         "unknown-reference",
@@ -313,11 +579,11 @@ impl Builder<'_> {
             return Err(Diagnostics(self.diags));
         };
         Ok(BehaviorGraph {
-            name: spec.graph.unwrap_or_else(|| stem(&self.file)),
-            description: spec.description,
+            name: spec.graph.clone().unwrap_or_else(|| stem(&self.file)),
+            description: spec.description.clone(),
             file: self.file.clone(),
             behaviors: out,
-            by_name,
+            names: index,
             start,
             symbols: Arc::new(symbols),
             roster: Arc::new(roster),
@@ -393,113 +659,24 @@ impl Builder<'_> {
         }
     }
 
-    fn edges(
-        &mut self,
-        refs: &[Spanned<String>],
-        names: &Names<'_>,
-        owner: &str,
-        what: &str,
-    ) -> (Vec<BehaviorId>, Vec<(BehaviorId, Loc)>) {
-        let mut ids = Vec::with_capacity(refs.len());
-        let mut locs = Vec::with_capacity(refs.len());
-        self.stamp = self.stamp.wrapping_add(1);
-        if self.stamp == 0 {
-            self.listed.fill(0);
-            self.stamp = 1;
-        }
-        let stamp = self.stamp;
-        for r in refs {
-            let loc = Loc::from(r.referenced);
-            match names.get(&r.value) {
-                Some(id) if std::mem::replace(&mut self.listed[id.index()], stamp) == stamp => {
-                    self.err(
-                        loc,
-                        "duplicate-edge",
-                        format!("`{}` is listed twice as a {what} of `{owner}`", r.value),
-                    );
-                }
-                Some(id) => {
-                    ids.push(id);
-                    locs.push((id, loc));
-                }
-                None => {
-                    let hint = did_you_mean(&r.value, names.all());
-                    let d = self.err(
-                        loc,
-                        "unknown-reference",
-                        format!(
-                            "`{owner}` names `{}` as a {what}, but no behavior is called `{}`",
-                            r.value, r.value
-                        ),
-                    );
-                    d.hint = hint;
-                }
-            }
-        }
-        (ids, locs)
-    }
-
-    fn condition(
-        &mut self,
-        owner: BehaviorId,
-        src: &Option<Spanned<String>>,
-        resolver: &mut NameResolver<'_>,
-        field: &'static str,
-        want: Option<&'static str>,
-    ) -> Option<Expr> {
-        let s = src.as_ref()?;
-        resolver.looked_up.borrow_mut().clear();
-        match Expr::parse(&s.value, resolver) {
-            Ok(e) => {
-                for x in resolver.looked_up.borrow().iter() {
-                    self.runs_refs
-                        .push((owner, *x, field, Loc::from(s.referenced)));
-                }
-                if let (Some(want), Some(got)) = (want, e.static_type())
-                    && want != got
-                {
-                    self.err(
-                        Loc::from(s.referenced),
-                        "condition-type",
-                        format!(
-                            "`{field}` must be a {want} expression, but `{}` is a {got}",
-                            s.value
-                        ),
-                    );
-                    return None;
-                }
-                Some(e)
-            }
-            Err(ce) => {
-                let loc = expr_loc(self.text, Loc::from(s.referenced), &s.value, &ce);
-                let d = self.err(
-                    loc,
-                    "bad-condition",
-                    format!("in `{field}`: {}", ce.message),
-                );
-                d.detail = Some(ce.render(&s.value));
-                d.hint = ce.hint.clone();
-                None
-            }
-        }
-    }
-
     fn binding(&mut self, spec: &Spanned<BindingSpec>) -> Binding {
         make_binding(&self.file, spec, &mut self.diags)
     }
 
+    /// A behavior's bindings (sync, allocate, terminate) and the point
+    /// labels they give, checked against the labels of the behaviors
+    /// before it.
     fn bindings(
         &mut self,
         behavior: &str,
-        spec: &BehaviorSpec,
-    ) -> ([Option<Binding>; 3], [Option<String>; 3]) {
-        let mut bindings: [Option<Binding>; 3] = [None, None, None];
+        specs: [Option<&Spanned<BindingSpec>>; 3],
+    ) -> ([Option<Box<Binding>>; 3], [Option<String>; 3]) {
+        let mut bindings: [Option<Box<Binding>>; 3] = [None, None, None];
         let mut labels: [Option<String>; 3] = [None, None, None];
-        for (kind, b) in [
-            (Kind::Sync, spec.sync.as_deref()),
-            (Kind::Allocate, spec.allocate.as_deref()),
-            (Kind::Terminate, spec.terminate.as_deref()),
-        ] {
+        for (kind, b) in [Kind::Sync, Kind::Allocate, Kind::Terminate]
+            .into_iter()
+            .zip(specs)
+        {
             let Some(b) = b else { continue };
             if let Some(label) = &b.value.point {
                 let at = Loc::from(label.referenced);
@@ -538,7 +715,7 @@ impl Builder<'_> {
                 }
                 labels[kind.index()] = Some(label.value.clone());
             }
-            bindings[kind.index()] = Some(self.binding(b));
+            bindings[kind.index()] = Some(Box::new(self.binding(b)));
         }
         (bindings, labels)
     }
@@ -1175,7 +1352,7 @@ mod fast_tests {
         let slow = slow.unwrap_or_else(|e| {
             panic!("{file}: the fast reader took what the library refuses: {e}")
         });
-        let (a, b) = (build(file, text, fast), build(file, text, slow));
+        let (a, b) = (build(file, text, &fast), build(file, text, &slow));
         assert_eq!(format!("{a:?}"), format!("{b:?}"), "{file}");
         true
     }
@@ -1248,5 +1425,192 @@ mod fast_tests {
         }
         eprintln!("the fast reader took {taken} of {all} files");
         assert!(taken >= 10, "the fast reader took {taken} of {all} files");
+    }
+}
+
+#[cfg(test)]
+mod side_by_side_tests {
+    use super::*;
+
+    /// A graph large enough to be built side by side: a chain of `n`
+    /// behaviors whose conditions read beliefs in an order that repeats
+    /// only from afar, some with bindings, some giving point labels.
+    /// `broken`: every 97th behavior also has mistakes of every kind the
+    /// builder finds one behavior at a time.
+    fn large(n: usize, broken: bool) -> String {
+        let mut y = String::from("start: b0\nbehaviors:\n");
+        for i in 0..n {
+            let mut fields = vec![format!(
+                "until: \"x{} > 1 && y{} || x{}\"",
+                (i * 7) % 61,
+                (i * 13) % 37,
+                (i * 3) % 61
+            )];
+            if i + 1 < n {
+                fields.push(format!("next: [b{}]", i + 1));
+            }
+            if i % 5 == 0 {
+                fields.push(format!("pre: \"known(z{})\"", i % 11));
+            }
+            if i % 250 == 0 {
+                fields.push(format!("sync: {{ protocol: sync.vote, point: P{i} }}"));
+            } else if i % 3 == 0 {
+                fields.push("terminate: { protocol: term.local, deadline: 2s }".into());
+            }
+            if broken && i % 97 == 0 {
+                fields.push(format!("children: [nowhere{i}, b{}, b{}]", i + 1, i + 1));
+                fields.push("utility: \"x1 >\"".into());
+                fields.push(format!(
+                    "allocate: {{ protocol: alloc.by-id, point: P{}, retry: soon }}",
+                    (i / 250) * 250
+                ));
+            }
+            y.push_str(&format!("  b{i}: {{ {} }}\n", fields.join(", ")));
+        }
+        y
+    }
+
+    fn on_threads(threads: usize, text: &str) -> Result<BehaviorGraph, Diagnostics> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a pool");
+        let file: Arc<str> = Arc::from("large.yaml");
+        pool.install(|| load_str(&file, text))
+    }
+
+    #[test]
+    fn a_large_graph_is_the_graph_of_one_behavior_after_the_other() {
+        let n = PARALLEL_FROM + 1500;
+        let text = large(n, false);
+        let g = on_threads(3, &text).expect("loads");
+        // Belief names numbered in order of first appearance, behavior
+        // after behavior (pre before until), as one after the other does.
+        let mut expected: Vec<String> = Vec::new();
+        let mut see = |name: String| {
+            if !expected.contains(&name) {
+                expected.push(name);
+            }
+        };
+        for i in 0..n {
+            if i % 5 == 0 {
+                see(format!("z{}", i % 11));
+            }
+            see(format!("x{}", (i * 7) % 61));
+            see(format!("y{}", (i * 13) % 37));
+            see(format!("x{}", (i * 3) % 61));
+        }
+        let names: Vec<&str> = g.symbols().iter().map(|(_, n)| n).collect();
+        assert_eq!(names, expected);
+        // Each condition reads its own names under the graph's ids.
+        for b in g.behaviors() {
+            let i = b.id.index();
+            let until = b.until.as_ref().expect("an until");
+            let mut read: Vec<&str> = until
+                .beliefs()
+                .iter()
+                .map(|&id| g.symbols().name(id))
+                .collect();
+            read.sort_unstable();
+            let mut want = vec![
+                format!("x{}", (i * 7) % 61),
+                format!("y{}", (i * 13) % 37),
+                format!("x{}", (i * 3) % 61),
+            ];
+            want.sort_unstable();
+            want.dedup();
+            assert_eq!(read, want, "b{i}");
+            assert!(until.beliefs().is_sorted(), "b{i}");
+        }
+        // Labels and bindings where they were written.
+        let p = g.find("b500").expect("b500");
+        assert_eq!(g.behavior(p).labels[0].as_deref(), Some("P500"));
+        let t = g.find("b3").expect("b3");
+        assert!(g.behavior(t).bindings[2].is_some());
+        // The same graph for any number of threads.
+        for threads in [1, 2, 8] {
+            let other = on_threads(threads, &text).expect("loads");
+            assert_eq!(format!("{other:?}"), format!("{g:?}"), "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn a_large_graph_s_mistakes_are_told_in_the_order_of_its_behaviors() {
+        let n = PARALLEL_FROM + 1500;
+        let text = large(n, true);
+        let Err(d) = on_threads(3, &text) else {
+            panic!("a broken graph loads");
+        };
+        // Per broken behavior, in order: the unknown child, the child
+        // listed twice, a child that is also its successor, the utility
+        // that does not parse, the retry that is no duration and the label
+        // another behavior gives (or one used twice in itself).
+        let mut i = 0;
+        let mut codes = Vec::new();
+        for x in
+            d.0.iter()
+                .filter(|x| x.code != "too-deep" && x.code != "unreachable")
+        {
+            codes.push((x.code, x.message.clone()));
+        }
+        for b in (0..n).step_by(97) {
+            let owner = format!("`b{b}`");
+            let mine: Vec<&str> = codes[i..]
+                .iter()
+                .take_while(|(_, m)| m.contains(&owner) || !m.contains("`b"))
+                .map(|(c, _)| *c)
+                .collect();
+            assert!(
+                mine.starts_with(&[
+                    "unknown-reference",
+                    "duplicate-edge",
+                    "sequential-and-decomposition"
+                ]),
+                "b{b}: {mine:?}"
+            );
+            assert!(mine.contains(&"bad-condition"), "b{b}: {mine:?}");
+            assert!(mine.contains(&"bad-duration"), "b{b}: {mine:?}");
+            i += mine.len();
+        }
+        for threads in [1, 2, 8] {
+            let Err(other) = on_threads(threads, &text) else {
+                panic!("a broken graph loads");
+            };
+            assert_eq!(format!("{other:?}"), format!("{d:?}"), "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn conditions_reading_many_beliefs_number_them_in_order_of_appearance() {
+        // `pre` reads v0..v39, `until` v20..v59 and w: past a handful, the
+        // names of one behavior are found through a table.
+        let pre: Vec<String> = (0..40).map(|i| format!("v{i}")).collect();
+        let until: Vec<String> = (20..60).rev().map(|i| format!("v{i}")).collect();
+        let text = format!(
+            "start: a\nbehaviors:\n  a: {{ next: [b], pre: \"{}\", until: \"{} && w\" }}\n  b: {{ until: \"w && v3\" }}\n",
+            pre.join(" && "),
+            until.join(" && ")
+        );
+        let g = load_str(&Arc::from("t.yaml"), &text).expect("loads");
+        let mut expected = pre.clone();
+        expected.extend(until.iter().filter(|n| !pre.contains(n)).cloned());
+        expected.push("w".into());
+        let names: Vec<&str> = g.symbols().iter().map(|(_, n)| n).collect();
+        assert_eq!(names, expected);
+        let b = g.behavior(g.find("b").expect("b"));
+        let read: Vec<&str> = (b.until.as_ref().expect("until").beliefs().iter())
+            .map(|&id| g.symbols().name(id))
+            .collect();
+        assert_eq!(read, ["v3", "w"]);
+    }
+
+    #[test]
+    fn names_are_found_and_a_name_given_twice_keeps_its_last_id() {
+        let names = ["a", "b", "a", "c"];
+        let index = NameIndex::new(names.len(), |i| names[i]);
+        assert_eq!(index.get("a", |i| names[i]), Some(BehaviorId(2)));
+        assert_eq!(index.get("b", |i| names[i]), Some(BehaviorId(1)));
+        assert_eq!(index.get("c", |i| names[i]), Some(BehaviorId(3)));
+        assert_eq!(index.get("d", |i| names[i]), None);
     }
 }

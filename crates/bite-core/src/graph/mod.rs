@@ -27,7 +27,7 @@ pub mod svg;
 
 pub use align::Refused;
 pub use config::Config;
-pub use load::{load, load_spec, load_str};
+pub use load::{BehaviorEntry, load, load_parts, load_spec, load_str};
 
 use crate::belief::Symbols;
 use crate::cond::Expr;
@@ -108,7 +108,7 @@ pub struct Behavior {
     /// Members it takes when allocated: at least `members.0`, at most `members.1`.
     pub members: (u32, u32),
     /// Bindings of its points, indexed by [`Kind::index`].
-    pub bindings: [Option<Binding>; 3],
+    pub bindings: [Option<Box<Binding>>; 3],
     /// Labels of its points (`A`), indexed by [`Kind::index`].
     pub labels: [Option<String>; 3],
     /// Where it is defined.
@@ -133,6 +133,49 @@ pub struct Point {
     pub name: String,
 }
 
+/// Behaviors' names, hashed: a name's id without a copy of the name (the
+/// table holds ids, and a lookup compares with the name the id has).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct NameIndex {
+    table: hashbrown::HashTable<u32>,
+}
+
+impl NameIndex {
+    fn hash(name: &str) -> u64 {
+        use std::hash::BuildHasher as _;
+        rustc_hash::FxBuildHasher.hash_one(name)
+    }
+
+    /// The ids `0..n` by their names (`name(i)`); a name given twice keeps
+    /// its last id.
+    pub(crate) fn new<'a>(n: usize, name: impl Fn(usize) -> &'a str) -> NameIndex {
+        let mut table = hashbrown::HashTable::with_capacity(n);
+        for i in 0..n {
+            let key = name(i);
+            let h = Self::hash(key);
+            match table.entry(
+                h,
+                |&j: &u32| name(j as usize) == key,
+                |&j| Self::hash(name(j as usize)),
+            ) {
+                hashbrown::hash_table::Entry::Occupied(mut o) => *o.get_mut() = i as u32,
+                hashbrown::hash_table::Entry::Vacant(v) => {
+                    v.insert(i as u32);
+                }
+            }
+        }
+        NameIndex { table }
+    }
+
+    /// The id of `key`, where `name(i)` is the name of id `i` (the names
+    /// the index was made with).
+    pub(crate) fn get<'a>(&self, key: &str, name: impl Fn(usize) -> &'a str) -> Option<BehaviorId> {
+        self.table
+            .find(Self::hash(key), |&j| name(j as usize) == key)
+            .map(|&j| BehaviorId(j))
+    }
+}
+
 /// A validated behavior graph.
 #[derive(Clone, Debug)]
 pub struct BehaviorGraph {
@@ -140,7 +183,8 @@ pub struct BehaviorGraph {
     description: Option<String>,
     file: Arc<str>,
     behaviors: Vec<Behavior>,
-    by_name: BTreeMap<String, BehaviorId>,
+    /// Each behavior's id by its name.
+    names: NameIndex,
     start: BehaviorId,
     symbols: Arc<Symbols>,
     roster: Arc<Roster>,
@@ -204,7 +248,7 @@ impl BehaviorGraph {
     }
     /// Look a behavior up by name.
     pub fn find(&self, name: &str) -> Option<BehaviorId> {
-        self.by_name.get(name).copied()
+        self.names.get(name, |i| &self.behaviors[i].name)
     }
     /// The start behavior b0.
     pub fn start(&self) -> BehaviorId {
@@ -324,7 +368,7 @@ impl BehaviorGraph {
     /// The binding written on the behavior itself, if any (label-only
     /// bindings included). See `Mission` for how it merges with defaults.
     pub fn own_binding(&self, b: BehaviorId, kind: Kind) -> Option<&Binding> {
-        self.behavior(b).bindings[kind.index()].as_ref()
+        self.behavior(b).bindings[kind.index()].as_deref()
     }
     /// Graph-wide default binding of a kind.
     pub fn default_binding(&self, kind: Kind) -> Option<&Binding> {

@@ -114,7 +114,7 @@ pub struct DefaultsSpec {
 }
 
 /// One behavior.
-#[derive(Debug, Default, Deserialize)]
+#[derive(Clone, Debug, Default, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BehaviorSpec {
     /// Free text.
@@ -128,17 +128,20 @@ pub struct BehaviorSpec {
     /// Sequential edges.
     #[serde(default)]
     pub next: Vec<Spanned<String>>,
-    /// Precondition.
-    pub pre: Option<Spanned<String>>,
+    /// Precondition. (The conditions and the skill are boxed as the
+    /// bindings are: a text with its locations is 80 bytes, most behaviors
+    /// have one condition or none, and a large graph's specs are all made
+    /// before it is built.)
+    pub pre: Option<Box<Spanned<String>>>,
     /// Termination condition.
-    pub until: Option<Spanned<String>>,
+    pub until: Option<Box<Spanned<String>>>,
     /// Emergency termination condition: ends the behavior on this robot at
     /// once, without waiting for its termination protocol.
-    pub urgent: Option<Spanned<String>>,
+    pub urgent: Option<Box<Spanned<String>>>,
     /// Preference used by deciding protocols (a number; higher is better).
-    pub utility: Option<Spanned<String>>,
+    pub utility: Option<Box<Spanned<String>>>,
     /// Skill of an atomic behavior.
-    pub skill: Option<Spanned<SkillSpec>>,
+    pub skill: Option<Box<Spanned<SkillSpec>>>,
     /// How many members it takes when allocated (`1`, `2..4`, `2..`).
     pub members: Option<Spanned<MembersSpec>>,
     /// Binding of its synchronization point (boxed, as the other two: a
@@ -152,7 +155,7 @@ pub struct BehaviorSpec {
 }
 
 /// `skill: name` or `skill: {name, params}`.
-#[derive(Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct SkillSpec {
     /// Skill name.
     pub name: String,
@@ -261,7 +264,7 @@ impl<'de> Deserialize<'de> for MembersSpec {
 }
 
 /// `sync.vote` or `{protocol, point, deadline, retry, params}`.
-#[derive(Debug, Default)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct BindingSpec {
     /// Protocol name (or alias); `None` keeps the default.
     pub protocol: Option<String>,
@@ -439,14 +442,14 @@ pub(crate) mod fast {
                 }
                 "children" => b.children = names(v)?,
                 "next" => b.next = names(v)?,
-                "pre" => b.pre = Some(spanned_text(v)?),
-                "until" => b.until = Some(spanned_text(v)?),
-                "urgent" => b.urgent = Some(spanned_text(v)?),
-                "utility" => b.utility = Some(spanned_text(v)?),
+                "pre" => b.pre = Some(Box::new(spanned_text(v)?)),
+                "until" => b.until = Some(Box::new(spanned_text(v)?)),
+                "urgent" => b.urgent = Some(Box::new(spanned_text(v)?)),
+                "utility" => b.utility = Some(Box::new(spanned_text(v)?)),
                 "skill" => {
                     let name = text(v)?;
                     let params = BTreeMap::new();
-                    b.skill = Some(at(SkillSpec { name, params }, v.loc()));
+                    b.skill = Some(Box::new(at(SkillSpec { name, params }, v.loc())));
                 }
                 "members" => {
                     let s = scalar(v)?;
