@@ -149,9 +149,8 @@ pub fn generate(
     let made = made.into_inner();
     behs.reserve(made);
     first.reserve(made);
-    let hash = name_hash;
     let mut names: hashbrown::HashTable<u32> = hashbrown::HashTable::with_capacity(made + 1);
-    names.insert_unique(hash("mission"), 0, |_| hash("mission"));
+    names.insert_unique(name_hash("mission"), 0, |_| name_hash("mission"));
     // Skills, beliefs and targets in the mission's order, put in their maps
     // at the end: sorted once (a later one with the same name replaces an
     // earlier, as inserting one after the other would).
@@ -174,7 +173,7 @@ pub fn generate(
         for (j, (b, h)) in out.entries.into_iter().zip(out.hashes).enumerate() {
             let at = behs.len() as u32;
             let taken = |&i: &u32| behs[i as usize].0.value == b.0.value;
-            match names.entry(h, taken, |&i| hash(&behs[i as usize].0.value)) {
+            match names.entry(h, taken, |&i| name_hash(&behs[i as usize].0.value)) {
                 hashbrown::hash_table::Entry::Occupied(_) => {
                     let msg = format!("two behaviors would be called `{}`", b.0.value);
                     failed = Some(g.lib_error(s, def, def.loc, msg));

@@ -124,8 +124,8 @@ impl<'a> Names<'a> {
 /// the other, whatever the number of threads.
 const PARALLEL_FROM: usize = 4096;
 
-/// Edge lists up to this long are checked for duplicates by a scan, longer
-/// ones through a set.
+/// Lists up to this long (a behavior's edges, the belief names its
+/// conditions read) are searched by a scan, longer ones through a hash set.
 const SHORT_LIST: usize = 8;
 
 /// What building one behavior reads: the same for every behavior.
@@ -232,8 +232,10 @@ impl Made {
     ) -> (Behavior, Made) {
         let mut made = Made::default();
         let loc = Loc::from(name.referenced);
-        let children = made.edges(cx, &spec.children, &name.value, "child", true);
-        let next = made.edges(cx, &spec.next, &name.value, "successor", false);
+        let (children, crefs) = made.edges(cx, &spec.children, &name.value, "child");
+        let (next, nrefs) = made.edges(cx, &spec.next, &name.value, "successor");
+        made.crefs = crefs;
+        made.nrefs = nrefs;
         for c in &spec.children {
             if spec.next.iter().any(|n| n.value == c.value) {
                 made.err(
@@ -290,16 +292,14 @@ impl Made {
         (behavior, made)
     }
 
-    /// The ids of an edge list; where each edge is written goes to `crefs`
-    /// (children) or `nrefs`.
+    /// The ids of an edge list, and where each edge is written.
     fn edges(
         &mut self,
         cx: &Cx<'_>,
         refs: &[Spanned<String>],
         owner: &str,
         what: &str,
-        children: bool,
-    ) -> Vec<BehaviorId> {
+    ) -> (Vec<BehaviorId>, Vec<(BehaviorId, Loc)>) {
         let mut ids: Vec<BehaviorId> = Vec::with_capacity(refs.len());
         let mut locs = Vec::with_capacity(refs.len());
         let mut seen: rustc_hash::FxHashSet<BehaviorId> = rustc_hash::FxHashSet::default();
@@ -340,12 +340,7 @@ impl Made {
                 }
             }
         }
-        if children {
-            self.crefs = locs;
-        } else {
-            self.nrefs = locs;
-        }
-        ids
+        (ids, locs)
     }
 
     fn condition(
@@ -449,8 +444,7 @@ impl Builder<'_> {
             return Err(Diagnostics(self.diags));
         }
 
-        // Names and ids (built in bulk: sorted once, not inserted one by
-        // one; a name given twice keeps its last id, as inserting would).
+        // Each name's id (a name given twice keeps its last id).
         let index = NameIndex::new(entries.len(), |i| &entries[i].0.value);
         for (name, _) in entries {
             if !valid_name(&name.value) {
