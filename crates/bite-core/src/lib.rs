@@ -41,21 +41,6 @@ pub mod value;
 pub mod wm;
 pub mod yaml;
 
-/// A map of `pairs`, the last of equal keys kept (as inserting them in
-/// order would); sorted on rayon's pool when `parallel` (the graph loader
-/// and the mission compiler fill their large maps this way).
-pub fn sorted_map<K: Ord + Send, V: Send>(
-    mut pairs: Vec<(K, V)>,
-    parallel: bool,
-) -> std::collections::BTreeMap<K, V> {
-    if parallel {
-        use rayon::prelude::*;
-        // Stable: equal keys stay in order, and the map keeps the last.
-        pairs.par_sort_by(|a, b| a.0.cmp(&b.0));
-    }
-    pairs.into_iter().collect()
-}
-
 pub use graph::{BehaviorGraph, Config};
 pub use ids::{BehaviorId, BeliefId, RobotId, TeamId};
 pub use kernel::{Input, Kernel, Output};

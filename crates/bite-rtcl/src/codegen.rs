@@ -213,9 +213,9 @@ pub fn generate(
         return Err(diags);
     }
     let parallel = steps.len() >= PARALLEL_FROM;
-    let skills = bite_core::sorted_map(skills, parallel);
-    let beliefs = bite_core::sorted_map(beliefs, parallel);
-    let targets = bite_core::sorted_map(targets, parallel);
+    let skills = sorted_map(skills, parallel);
+    let beliefs = sorted_map(beliefs, parallel);
+    let targets = sorted_map(targets, parallel);
     // The chain: mission → B1 → B2 → ... → Bn.
     if let Some((_, head)) = heads.first() {
         behs[0].1.value.children.push(at(head.clone()));
@@ -247,6 +247,17 @@ pub fn generate(
 /// together.
 fn name_hash(name: &str) -> u64 {
     rustc_hash::FxBuildHasher.hash_one(name)
+}
+
+/// A map of `pairs`, the last of equal keys kept (as inserting them in
+/// order would); sorted on rayon's pool when `parallel`.
+fn sorted_map<K: Ord + Send, V: Send>(mut pairs: Vec<(K, V)>, parallel: bool) -> BTreeMap<K, V> {
+    if parallel {
+        use rayon::prelude::*;
+        // Stable: equal keys stay in order, and the map keeps the last.
+        pairs.par_sort_by(|a, b| a.0.cmp(&b.0));
+    }
+    pairs.into_iter().collect()
 }
 
 /// Missions of this many commands or more are generated on rayon's pool;

@@ -165,8 +165,9 @@ impl Expr {
     /// Give every belief `id` it reads the id `map[id]`: an expression parsed
     /// against one table of names, moved to another that holds the same
     /// names under other ids (the graph loader parses behaviors side by
-    /// side, each run of them with its own table, then merges the tables in
-    /// order). `map` must be one-to-one and cover every id read.
+    /// side, each with its own table of names, then numbers the names in
+    /// the behaviors' order). `map` must be one-to-one and cover every id
+    /// read.
     pub fn remap_beliefs(&mut self, map: &[BeliefId]) {
         let to = |id: &mut BeliefId| {
             if let Some(m) = map.get(id.index()) {

@@ -135,7 +135,7 @@ pub struct Point {
 
 /// Behaviors' names, hashed: a name's id without a copy of the name (the
 /// table holds ids, and a lookup compares with the name the id has).
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub(crate) struct NameIndex {
     table: hashbrown::HashTable<u32>,
 }
