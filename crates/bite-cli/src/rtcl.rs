@@ -75,7 +75,7 @@ pub fn bind_parts(
 ) -> Result<Scenario, bite_core::diag::Diagnostics> {
     let parts = MissionParts {
         file: Arc::from(label),
-        skills: compiled.skills.clone(),
+        skills: compiled.skills_json(),
         beliefs: compiled.beliefs.clone(),
         targets: (compiled.targets.iter())
             .map(|(k, t)| {

@@ -155,16 +155,17 @@ impl Checker<'_, '_> {
             return None;
         };
         let before = self.diags.len();
-        let usage = format!("usage: `{}`", def.usage());
+        // Made only for a message (most commands have none).
+        let usage = || format!("usage: `{}`", def.usage());
         // Arity.
         if cmd.params.len() > def.params.len() {
             let extra = &cmd.params[def.params.len()..];
             let span = extra[0].span.to(extra[extra.len() - 1].span);
             let all_empty = extra.iter().all(|p| p.kind == ParamKind::Empty);
             let hint = if all_empty {
-                format!("remove the trailing `:`; {usage}")
+                format!("remove the trailing `:`; {}", usage())
             } else {
-                usage.clone()
+                usage()
             };
             self.error(
                 span,
@@ -203,7 +204,7 @@ impl Checker<'_, '_> {
                         } else {
                             format!("`{}` needs `{}`{what}", def.name, p.name)
                         };
-                        self.error(span, "missing-param", msg, Some(usage.clone()));
+                        self.error(span, "missing-param", msg, Some(usage()));
                     }
                     None
                 }
@@ -235,7 +236,7 @@ impl Checker<'_, '_> {
                             "`{}` needs `{}` too: `{x}` and `{y}` make the point `{point}`, and `{other}` is given",
                             def.name, def.params[i].name
                         ),
-                        Some(usage.clone()),
+                        Some(usage()),
                     );
                 }
             }
@@ -291,7 +292,7 @@ impl Checker<'_, '_> {
                                 def.name
                             ),
                         )
-                        .with_hint(format!("describe it: {usage}")),
+                        .with_hint(format!("describe it: {}", usage())),
                 );
             }
         }

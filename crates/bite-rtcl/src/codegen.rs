@@ -15,7 +15,7 @@
 use crate::check::Step;
 use crate::library::{Body, ChildDef, CommandDef, Library, PhaseDef, SchemaDef};
 use crate::source::{SourceMap, printable};
-use crate::template::{Env, EvalError, Template, Val, fmt_num};
+use crate::template::{Env, EvalError, Json, Template, Val, fmt_num};
 use crate::{CompileOptions, Compiled, StepInfo, Target};
 use bite_core::diag::{Diagnostic, Loc};
 use bite_core::graph::BehaviorEntry;
@@ -92,7 +92,7 @@ impl Env for StepEnv<'_> {
         }
         if let Some((b, _)) = def.beliefs.iter().find(|(b, _)| b == name) {
             self.used.insert(b.as_str());
-            return Some(Val::Text(format!("{}_{b}", self.step)));
+            return Some(Val::Text([self.step, "_", b].concat()));
         }
         None
     }
@@ -115,7 +115,9 @@ pub fn generate(
     use rayon::prelude::*;
     use std::sync::atomic::{AtomicUsize, Ordering};
     let g = Gen { map, lib, opts };
-    let mut behs = vec![entry(Beh {
+    // The behaviors, one list per command (the mission's own first), kept
+    // where each command's thread made them.
+    let mut parts = vec![vec![entry(Beh {
         name: "mission".into(),
         description: Some(format!(
             "the mission: {} command{}, in order",
@@ -124,13 +126,12 @@ pub fn generate(
         )),
         team: true,
         ..Beh::default()
-    })];
-    let mut first = vec![false];
+    })]];
     // Generated ahead, side by side. Once more behaviors than a graph may
     // have are made, the rest are skipped (`None`): the mission fails
     // (too large, or a duplicate name cut a command short), and those the
     // merge below still reaches are made then, so the messages are the same.
-    let made = AtomicUsize::new(behs.len());
+    let made = AtomicUsize::new(1);
     let ahead = |s: &Step| -> Option<StepOut> {
         let def = lib.command(&s.command)?;
         if made.load(Ordering::Relaxed) > bite_core::graph::MAX_BEHAVIORS {
@@ -145,12 +146,12 @@ pub fn generate(
     } else {
         steps.iter().map(ahead).collect()
     };
-    // Names taken so far, as indices into `behs` (no copy of a name).
+    // Names taken so far, as places in `parts` (no copy of a name).
     let made = made.into_inner();
-    behs.reserve(made);
-    first.reserve(made);
-    let mut names: hashbrown::HashTable<u32> = hashbrown::HashTable::with_capacity(made + 1);
-    names.insert_unique(name_hash("mission"), 0, |_| name_hash("mission"));
+    parts.reserve(steps.len());
+    let mut names: hashbrown::HashTable<(u32, u32)> = hashbrown::HashTable::with_capacity(made + 1);
+    names.insert_unique(name_hash("mission"), (0, 0), |_| name_hash("mission"));
+    let mut count = 1;
     // Skills, beliefs and targets in the mission's order, put in their maps
     // at the end: sorted once (a later one with the same name replaces an
     // earlier, as inserting one after the other would).
@@ -167,26 +168,30 @@ pub fn generate(
         };
         let mut out = out.take().unwrap_or_else(|| g.step(s, def));
         warnings.append(&mut out.warnings);
-        let head = behs.len();
+        let head = parts.len();
+        parts.push(out.entries);
         // Its behaviors in order, up to the first name already taken.
         let mut failed = None;
-        for (j, (b, h)) in out.entries.into_iter().zip(out.hashes).enumerate() {
-            let at = behs.len() as u32;
-            let taken = |&i: &u32| behs[i as usize].0.value == b.0.value;
-            match names.entry(h, taken, |&i| name_hash(&behs[i as usize].0.value)) {
+        let name = |&(c, i): &(u32, u32)| &parts[c as usize][i as usize].0.value;
+        for (j, &h) in out.hashes.iter().enumerate() {
+            let at = (head as u32, j as u32);
+            let taken = |p: &(u32, u32)| name(p) == name(&at);
+            match names.entry(h, taken, |p| name_hash(name(p))) {
                 hashbrown::hash_table::Entry::Occupied(_) => {
-                    let msg = format!("two behaviors would be called `{}`", b.0.value);
-                    failed = Some(g.lib_error(s, def, def.loc, msg));
+                    let msg = format!("two behaviors would be called `{}`", name(&at));
+                    failed = Some((j, g.lib_error(s, def, def.loc, msg)));
                     break;
                 }
                 hashbrown::hash_table::Entry::Vacant(v) => {
                     v.insert(at);
                 }
             }
-            behs.push(b);
-            first.push(j == 0);
         }
-        match failed.map_or(out.result, Err) {
+        if let Some((j, _)) = failed {
+            parts[head].truncate(j);
+        }
+        count += parts[head].len();
+        match failed.map_or(out.result, |(_, d)| Err(d)) {
             Ok(name) => {
                 heads.push((head, name));
                 skills.extend(out.skills);
@@ -196,7 +201,7 @@ pub fn generate(
             }
             Err(d) => diags.push(*d),
         }
-        if behs.len() > bite_core::graph::MAX_BEHAVIORS {
+        if count > bite_core::graph::MAX_BEHAVIORS {
             diags.push(Diagnostic::error(
                 map.file(),
                 Loc::UNKNOWN,
@@ -218,11 +223,11 @@ pub fn generate(
     let targets = sorted_map(targets, parallel);
     // The chain: mission → B1 → B2 → ... → Bn.
     if let Some((_, head)) = heads.first() {
-        behs[0].1.value.children.push(at(head.clone()));
+        parts[0][0].1.value.children.push(at(head.clone()));
     }
     for w in heads.windows(2) {
         let next = w[1].1.clone();
-        behs[w[0].0].1.value.next.push(at(next));
+        parts[w[0].0][0].1.value.next.push(at(next));
     }
     let generated = GeneratedGraph {
         name: printable(&stem(map.file())),
@@ -230,8 +235,8 @@ pub fn generate(
         commands: steps.len(),
         origin: opts.origin,
         robots: opts.robots,
-        behaviors: behs,
-        first,
+        parts,
+        len: count,
     };
     Ok(Compiled {
         generated,
@@ -281,7 +286,7 @@ struct StepOut {
     /// Their names' hashes ([`name_hash`]), made beside them: the merge
     /// then reads no name unless two hashes are equal.
     hashes: Vec<u64>,
-    skills: Vec<(String, Vec<serde_json::Value>)>,
+    skills: Vec<(String, Vec<Json>)>,
     beliefs: Vec<(String, String)>,
     target: Option<(String, Target)>,
     info: Option<StepInfo>,
@@ -337,7 +342,7 @@ impl Gen<'_, '_> {
         def: &CommandDef,
         list: &[SchemaDef],
         env: &mut StepEnv<'_>,
-    ) -> Result<Vec<serde_json::Value>, Box<Diagnostic>> {
+    ) -> Result<Vec<Json>, Box<Diagnostic>> {
         let mut out = Vec::new();
         for sc in list {
             if sc.guard.as_ref().is_none_or(|g| g.holds(env)) {
@@ -450,7 +455,7 @@ impl Gen<'_, '_> {
                 name: step.clone(),
                 description: description.clone(),
                 team: true,
-                children: vec![format!("{step}_{}", phases[0].name)],
+                children: vec![[&step, "_", &phases[0].name].concat()],
                 until,
                 ..Beh::default()
             });
@@ -459,7 +464,7 @@ impl Gen<'_, '_> {
             let name = if single {
                 step.clone()
             } else {
-                format!("{step}_{}", ph.name)
+                [&step, "_", &ph.name].concat()
             };
             let until_t = ph
                 .until
@@ -483,7 +488,7 @@ impl Gen<'_, '_> {
             };
             let next = phases
                 .get(k + 1)
-                .map(|p| vec![format!("{step}_{}", p.name)])
+                .map(|p| vec![[&step, "_", &p.name].concat()])
                 .unwrap_or_default();
             let mut beh = Beh {
                 name: name.clone(),
@@ -532,7 +537,7 @@ impl Gen<'_, '_> {
         for b in used {
             if let Some((_, t)) = def.beliefs.iter().find(|(n, _)| n == b) {
                 let cond = self.render(s, def, def.loc, t, &mut env)?;
-                out.beliefs.push((format!("{step}_{b}"), cond));
+                out.beliefs.push(([&step, "_", b].concat(), cond));
             }
         }
         // What the result designates.
@@ -616,8 +621,8 @@ impl Gen<'_, '_> {
             for inst in instances {
                 env.repeat = inst;
                 let name = match inst {
-                    None => format!("{step}_{}", ch.name),
-                    Some((i, _)) => format!("{step}_{}_{}", ch.name, fmt_num(i)),
+                    None => [step, "_", &ch.name].concat(),
+                    Some((i, _)) => [step, "_", &ch.name, "_", &fmt_num(i)].concat(),
                 };
                 let until = match &ch.until {
                     Some(t) => Some(self.render(s, def, ch.loc, t, env)?),
@@ -630,8 +635,8 @@ impl Gen<'_, '_> {
                 let schemas = self.schemas(s, def, &ch.skill, env)?;
                 step_out.skills.push((name.clone(), schemas));
                 let chain_name = |t: &str| match inst {
-                    None => format!("{step}_{t}"),
-                    Some((i, _)) => format!("{step}_{t}_{}", fmt_num(i)),
+                    None => [step, "_", t].concat(),
+                    Some((i, _)) => [step, "_", t, "_", &fmt_num(i)].concat(),
                 };
                 out.push(Beh {
                     name: name.clone(),
@@ -732,26 +737,29 @@ pub struct GeneratedGraph {
     commands: usize,
     origin: [f64; 2],
     robots: usize,
-    /// The behaviors as the loader reads them (it reads them in place).
-    behaviors: Vec<BehaviorEntry>,
-    /// Per behavior: the first of its command (a blank line before it).
-    first: Vec<bool>,
+    /// The behaviors as the loader reads them (it reads them in place),
+    /// one list per command, where its thread made them; the mission's own
+    /// first.
+    parts: Vec<Vec<BehaviorEntry>>,
+    /// Number of behaviors.
+    len: usize,
 }
 
 impl GeneratedGraph {
     /// Number of behaviors.
     pub fn len(&self) -> usize {
-        self.behaviors.len()
+        self.len
     }
 
     /// True when it has no behavior (never for a compiled mission).
     pub fn is_empty(&self) -> bool {
-        self.behaviors.is_empty()
+        self.len == 0
     }
 
-    /// The behaviors, as [`bite_core::graph::load_parts`] reads them.
-    pub fn behaviors(&self) -> &[BehaviorEntry] {
-        &self.behaviors
+    /// The behaviors in order, as [`bite_core::graph::load_parts`] reads
+    /// them.
+    pub fn behaviors(&self) -> Vec<&BehaviorEntry> {
+        self.parts.iter().flatten().collect()
     }
 
     /// The graph in YAML, the `bite-core` format, with a header comment
@@ -759,7 +767,7 @@ impl GeneratedGraph {
     pub fn yaml(&self) -> String {
         let file = &self.file;
         let commands = self.commands;
-        let mut y = String::with_capacity(self.behaviors.len() * 160 + 512);
+        let mut y = String::with_capacity(self.len * 160 + 512);
         let _ = writeln!(
             y,
             "# Generated by bite-rtcl from {file} ({commands} command{}); do not edit:\n\
@@ -785,10 +793,13 @@ impl GeneratedGraph {
                 .collect::<Vec<_>>()
                 .join(", ")
         };
-        for (i, ((name, b), first)) in self.behaviors.iter().zip(&self.first).enumerate() {
+        // A blank line before each command's behaviors.
+        let parts = self.parts.iter().enumerate();
+        let lists =
+            parts.flat_map(|(c, p)| p.iter().enumerate().map(move |(j, b)| (c > 0 && j == 0, b)));
+        for (first, (name, b)) in lists {
             let b = &b.value;
-            // A blank line before each command's behavior.
-            if i > 0 && *first {
+            if first {
                 y.push('\n');
             }
             let _ = writeln!(y, "  {}:", name.value);
@@ -977,9 +988,12 @@ mod tests {
     fn the_origin_moves_every_point() {
         let out = build("goto:1:2\nscan:0:0:2:1\n", 2, [10.0, -1.0]);
         assert_eq!(out.beliefs["goto_1_arrived"], "dist(pos, [11, 1]) < 0.6");
-        assert_eq!(out.skills["goto_1"][0]["goal"], serde_json::json!([11, 1]));
         assert_eq!(
-            out.skills["scan_2_lane_2"][0]["region"],
+            out.skills["goto_1"][0].to_json()["goal"],
+            serde_json::json!([11, 1])
+        );
+        assert_eq!(
+            out.skills["scan_2_lane_2"][0].to_json()["region"],
             serde_json::json!([10, -0.5, 12, 0])
         );
     }
@@ -992,7 +1006,7 @@ mod tests {
                 .contains(&"children: [scan_1_lane_1, scan_1_lane_2, scan_1_lane_3]")
         );
         assert_eq!(
-            out.skills["scan_1_lane_3"][0]["region"],
+            out.skills["scan_1_lane_3"][0].to_json()["region"],
             serde_json::json!([0, 2, 3, 3])
         );
         // Alone, a robot's single lane is no allocation: no `members`.
@@ -1019,9 +1033,12 @@ mod tests {
                 .iter()
                 .any(|l| l.starts_with("terminate"))
         );
-        assert_eq!(form.skills["formation_1_lead"][0]["schema"], "stop");
         assert_eq!(
-            form.skills["formation_1_left"][0]["distance"],
+            form.skills["formation_1_lead"][0].to_json()["schema"],
+            "stop"
+        );
+        assert_eq!(
+            form.skills["formation_1_left"][0].to_json()["distance"],
             serde_json::json!(0.8)
         );
         // Only the beliefs the conditions read are generated.

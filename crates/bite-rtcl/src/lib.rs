@@ -55,6 +55,7 @@ pub use check::Step;
 pub use lexer::{Token, TokenKind, lex};
 pub use library::Library;
 pub use source::{SourceMap, Span};
+pub use template::Json;
 
 use bite_core::diag::{Diagnostic, Diagnostics, Loc};
 use serde::Serialize;
@@ -123,8 +124,10 @@ pub struct Compiled {
     /// ([`Compiled::graph`]).
     pub generated: codegen::GeneratedGraph,
     /// For every skill the graph uses: its motor schemas, in the scenario
-    /// format (`{"schema": "wander", "speed": 0.25, "layer": 1}`).
-    pub skills: BTreeMap<String, Vec<serde_json::Value>>,
+    /// format (`{"schema": "wander", "speed": 0.25, "layer": 1}`), as the
+    /// library's templates rendered them (their constant parts shared;
+    /// [`Compiled::skills_json`] gives them as `serde_json` values).
+    pub skills: BTreeMap<String, Vec<Json>>,
     /// Beliefs the graph's conditions read, as condition-language
     /// expressions over the physical world's percepts (to merge into the
     /// scenario's `physics.beliefs`).
@@ -154,7 +157,15 @@ impl Compiled {
         &self,
         file: &std::sync::Arc<str>,
     ) -> Result<bite_core::BehaviorGraph, Diagnostics> {
-        bite_core::graph::load_parts(file, &self.generated.header(), self.generated.behaviors())
+        bite_core::graph::load_parts(file, &self.generated.header(), &self.generated.behaviors())
+    }
+
+    /// [`Compiled::skills`] as `serde_json` values (what a scenario's
+    /// mission parts take).
+    pub fn skills_json(&self) -> BTreeMap<String, Vec<serde_json::Value>> {
+        (self.skills.iter())
+            .map(|(name, schemas)| (name.clone(), schemas.iter().map(Json::to_json).collect()))
+            .collect()
     }
 
     /// The skills, beliefs and targets as a YAML fragment in the scenario
@@ -198,7 +209,7 @@ impl Compiled {
         for (name, schemas) in &self.skills {
             let _ = writeln!(y, "  {name}:\n    schemas:");
             for s in schemas {
-                let _ = writeln!(y, "      - {}", flow(s));
+                let _ = writeln!(y, "      - {}", flow(&s.to_json()));
             }
         }
         y

@@ -33,15 +33,6 @@ impl Val {
             Val::Point([x, y]) => format!("[{}, {}]", fmt_num(*x), fmt_num(*y)),
         }
     }
-
-    /// The value as JSON (integral numbers as integers).
-    pub fn to_json(&self) -> serde_json::Value {
-        match self {
-            Val::Num(x) => num_json(*x),
-            Val::Text(t) => serde_json::Value::String(t.clone()),
-            Val::Point([x, y]) => serde_json::Value::Array(vec![num_json(*x), num_json(*y)]),
-        }
-    }
 }
 
 /// Round away float noise (`0.1 + 0.2`), and `-0` to `0`.
@@ -451,24 +442,106 @@ impl<'a> ExprParser<'a> {
     }
 }
 
+/// A JSON value as a template renders it (a motor schema and its
+/// parameters): what a `serde_json::Value` holds, with the template's
+/// constant parts shared rather than copied. A mapping's keys are the
+/// template's own, and a part that reads no variable is the template's
+/// value itself, so rendering a schema allocates for what the command
+/// changes only (its values, a point), not for every key and name of it.
+///
+/// Two values are equal when they hold the same JSON, however it is
+/// shared. [`Json::to_json`] gives it as a `serde_json::Value`.
+#[derive(Clone, Debug)]
+pub enum Json {
+    /// A part of the template that reads no variable.
+    Constant(std::sync::Arc<serde_json::Value>),
+    /// `null`: a number that has no finite value as JSON.
+    Null,
+    /// A number.
+    Number(serde_json::Number),
+    /// A string.
+    String(String),
+    /// A list.
+    Array(Box<[Json]>),
+    /// A mapping: the template's keys, in order, and their values.
+    Object(std::sync::Arc<[String]>, Box<[Json]>),
+}
+
+impl Json {
+    /// The value as a `serde_json::Value` (a copy).
+    pub fn to_json(&self) -> serde_json::Value {
+        match self {
+            Json::Constant(v) => (**v).clone(),
+            Json::Null => serde_json::Value::Null,
+            Json::Number(n) => serde_json::Value::Number(n.clone()),
+            Json::String(s) => serde_json::Value::String(s.clone()),
+            Json::Array(a) => serde_json::Value::Array(a.iter().map(Json::to_json).collect()),
+            Json::Object(keys, values) => serde_json::Value::Object(
+                keys.iter()
+                    .zip(values.iter())
+                    .map(|(k, v)| (k.clone(), v.to_json()))
+                    .collect(),
+            ),
+        }
+    }
+
+    /// A number as JSON: an integer when it is one (see [`num_json`]).
+    fn number(x: f64) -> Json {
+        match num_json(x) {
+            serde_json::Value::Number(n) => Json::Number(n),
+            _ => Json::Null,
+        }
+    }
+
+    /// A template value as JSON (integral numbers as integers).
+    fn of(v: Val) -> Json {
+        match v {
+            Val::Num(x) => Json::number(x),
+            Val::Text(t) => Json::String(t),
+            Val::Point([x, y]) => Json::Array(Box::new([Json::number(x), Json::number(y)])),
+        }
+    }
+}
+
+impl PartialEq for Json {
+    fn eq(&self, other: &Json) -> bool {
+        match (self, other) {
+            (Json::Constant(a), Json::Constant(b)) => a == b,
+            (Json::Null, Json::Null) => true,
+            (Json::Number(a), Json::Number(b)) => a == b,
+            (Json::String(a), Json::String(b)) => a == b,
+            (Json::Array(a), Json::Array(b)) => a == b,
+            (Json::Object(ka, va), Json::Object(kb, vb)) => ka == kb && va == vb,
+            // The same value, one of them shared with its template.
+            (a, b) => a.to_json() == b.to_json(),
+        }
+    }
+}
+
+impl PartialEq<serde_json::Value> for Json {
+    fn eq(&self, other: &serde_json::Value) -> bool {
+        self.to_json() == *other
+    }
+}
+
 /// A template over a JSON value (a motor schema): strings are templates.
 #[derive(Clone, Debug, PartialEq)]
 pub enum JsonTemplate {
     /// A value as is: a number, bool or null, or a string, list or mapping
-    /// without placeholders (folded when parsed).
-    Lit(serde_json::Value),
+    /// without placeholders (folded when parsed), shared by every rendering.
+    Lit(std::sync::Arc<serde_json::Value>),
     /// A string template.
     Str(Template),
     /// A list.
     Arr(Vec<JsonTemplate>),
-    /// A mapping, in order.
-    Obj(Vec<(String, JsonTemplate)>),
+    /// A mapping, in order: its keys and their templates.
+    Obj(std::sync::Arc<[String]>, Vec<JsonTemplate>),
 }
 
 impl JsonTemplate {
     /// Parse every string of `v` as a template. A part without
     /// placeholders is kept as its value ([`JsonTemplate::Lit`]), so that
-    /// rendering it is one copy.
+    /// rendering it shares it.
     pub fn parse(v: &serde_json::Value) -> Result<JsonTemplate, SyntaxError> {
         let t = match v {
             serde_json::Value::String(s) => JsonTemplate::Str(Template::parse(s)?),
@@ -478,11 +551,12 @@ impl JsonTemplate {
                     .collect::<Result<_, _>>()?,
             ),
             serde_json::Value::Object(m) => JsonTemplate::Obj(
-                m.iter()
-                    .map(|(k, v)| Ok((k.clone(), JsonTemplate::parse(v)?)))
+                m.keys().cloned().collect(),
+                m.values()
+                    .map(JsonTemplate::parse)
                     .collect::<Result<_, _>>()?,
             ),
-            other => JsonTemplate::Lit(other.clone()),
+            other => JsonTemplate::Lit(std::sync::Arc::new(other.clone())),
         };
         Ok(t.folded())
     }
@@ -494,14 +568,14 @@ impl JsonTemplate {
             JsonTemplate::Lit(_) => false,
             JsonTemplate::Str(t) => t.parts.iter().all(|p| matches!(p, Part::Lit(_))),
             JsonTemplate::Arr(a) => a.iter().all(lit),
-            JsonTemplate::Obj(m) => m.iter().all(|(_, t)| lit(t)),
+            JsonTemplate::Obj(_, values) => values.iter().all(lit),
         };
         if !constant {
             return self;
         }
         let mut none = NoVars;
         match self.render(&mut none) {
-            Ok(v) => JsonTemplate::Lit(v),
+            Ok(v) => JsonTemplate::Lit(std::sync::Arc::new(v.to_json())),
             Err(_) => self,
         }
     }
@@ -518,28 +592,28 @@ impl JsonTemplate {
             JsonTemplate::Lit(_) => {}
             JsonTemplate::Str(t) => out.extend(t.vars().into_iter().map(|(v, _)| v)),
             JsonTemplate::Arr(a) => a.iter().for_each(|t| t.collect(out)),
-            JsonTemplate::Obj(m) => m.iter().for_each(|(_, t)| t.collect(out)),
+            JsonTemplate::Obj(_, values) => values.iter().for_each(|t| t.collect(out)),
         }
     }
 
     /// Fill in: a string that is one placeholder becomes its value.
-    pub fn render(&self, env: &mut dyn Env) -> Result<serde_json::Value, EvalError> {
+    pub fn render(&self, env: &mut dyn Env) -> Result<Json, EvalError> {
         Ok(match self {
-            JsonTemplate::Lit(v) => v.clone(),
+            JsonTemplate::Lit(v) => Json::Constant(std::sync::Arc::clone(v)),
             JsonTemplate::Str(t) => match t.whole() {
-                Some(e) => e.eval(env)?.to_json(),
-                None => serde_json::Value::String(t.render(env)?),
+                Some(e) => Json::of(e.eval(env)?),
+                None => Json::String(t.render(env)?),
             },
             JsonTemplate::Arr(a) => {
-                serde_json::Value::Array(a.iter().map(|t| t.render(env)).collect::<Result<_, _>>()?)
+                Json::Array(a.iter().map(|t| t.render(env)).collect::<Result<_, _>>()?)
             }
-            JsonTemplate::Obj(m) => {
-                let mut o = serde_json::Map::with_capacity(m.len());
-                for (k, t) in m {
-                    o.insert(k.clone(), t.render(env)?);
-                }
-                serde_json::Value::Object(o)
-            }
+            JsonTemplate::Obj(keys, values) => Json::Object(
+                std::sync::Arc::clone(keys),
+                values
+                    .iter()
+                    .map(|t| t.render(env))
+                    .collect::<Result<_, _>>()?,
+            ),
         })
     }
 }
@@ -677,7 +751,7 @@ mod tests {
             "region": ["{y0}", "{y1 / 2}"], "label": "to {object}", "layer": 2});
         let t = JsonTemplate::parse(&v).expect("parses");
         assert_eq!(
-            t.render(&mut env()),
+            t.render(&mut env()).map(|v| v.to_json()),
             Ok(
                 serde_json::json!({"schema": "push", "object": "box", "goal": [6.2, 2],
                 "region": [1, 2], "label": "to box", "layer": 2})

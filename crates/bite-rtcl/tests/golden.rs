@@ -172,6 +172,7 @@ fn search_rescue_has_the_shape_of_the_hand_written_box_push() {
     let layer = |skill: &str, schema: &str| {
         out.skills[skill]
             .iter()
+            .map(bite_rtcl::Json::to_json)
             .find(|s| s["schema"] == schema)
             .and_then(|s| s["layer"].as_u64())
     };

@@ -37,7 +37,7 @@ fn search_rescue(sc: &Scenario) -> (BehaviorGraph, Scenario) {
     let g = graph("search-rescue.rtcl (compiled)", &out.graph());
     let parts = MissionParts {
         file: Arc::from("search-rescue.rtcl"),
-        skills: out.skills.clone(),
+        skills: out.skills_json(),
         beliefs: out.beliefs.clone(),
         targets: (out.targets.iter())
             .map(|(k, t)| {

@@ -56,11 +56,11 @@ pub type BehaviorEntry = (Spanned<String>, Spanned<BehaviorSpec>);
 
 /// [`load_spec`] on a graph whose behaviors are kept apart, read in place
 /// (`spec.behaviors` is not read): a compiled mission keeps its behaviors
-/// and hands them over without a copy.
+/// (one list per command) and hands them over without a copy.
 pub fn load_parts(
     file: &Arc<str>,
     spec: &GraphSpec,
-    behaviors: &[BehaviorEntry],
+    behaviors: &[&BehaviorEntry],
 ) -> Result<BehaviorGraph, Diagnostics> {
     builder(file, "").build(spec, Some((behaviors, Loc::UNKNOWN)))
 }
@@ -76,10 +76,8 @@ fn builder<'a>(file: &Arc<str>, text: &'a str) -> Builder<'a> {
 }
 
 fn build(file: &Arc<str>, text: &str, spec: &GraphSpec) -> Result<BehaviorGraph, Diagnostics> {
-    let behaviors = spec
-        .behaviors
-        .as_ref()
-        .map(|b| (&b.value.0[..], Loc::from(b.referenced)));
+    let entries: Vec<&BehaviorEntry> = spec.behaviors.iter().flat_map(|b| &b.value.0).collect();
+    let behaviors = (spec.behaviors.as_ref()).map(|b| (&entries[..], Loc::from(b.referenced)));
     builder(file, text).build(spec, behaviors)
 }
 
@@ -98,7 +96,7 @@ struct Builder<'a> {
 /// list them (sorted the first time one is written).
 struct Names<'a> {
     index: &'a NameIndex,
-    entries: &'a [BehaviorEntry],
+    entries: &'a [&'a BehaviorEntry],
     sorted: std::sync::OnceLock<Vec<&'a str>>,
 }
 
@@ -417,7 +415,7 @@ impl Builder<'_> {
     fn build(
         mut self,
         spec: &GraphSpec,
-        behaviors: Option<(&[BehaviorEntry], Loc)>,
+        behaviors: Option<(&[&BehaviorEntry], Loc)>,
     ) -> Result<BehaviorGraph, Diagnostics> {
         let roster = self.roster(spec.team.as_ref());
         let Some((entries, section_loc)) = behaviors else {
@@ -446,7 +444,7 @@ impl Builder<'_> {
 
         // Each name's id (a name given twice keeps its last id).
         let index = NameIndex::new(entries.len(), |i| &entries[i].0.value);
-        for (name, _) in entries {
+        for &(name, _) in entries {
             if !valid_name(&name.value) {
                 self.err(
                     Loc::from(name.referenced),
@@ -474,7 +472,7 @@ impl Builder<'_> {
             text: self.text,
             names: &names,
         };
-        let one = |(i, (name, body)): (usize, &BehaviorEntry)| {
+        let one = |(i, &(name, body)): (usize, &&BehaviorEntry)| {
             Made::behavior(&cx, BehaviorId(i as u32), name, &body.value)
         };
         let (mut out, made): (Vec<Behavior>, Vec<Made>) = if n >= PARALLEL_FROM {
@@ -488,7 +486,7 @@ impl Builder<'_> {
         let mut next_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(n);
         let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(n);
         let mut map: Vec<BeliefId> = Vec::new();
-        for ((b, m), (_, body)) in out.iter_mut().zip(made).zip(entries) {
+        for ((b, m), &(_, body)) in out.iter_mut().zip(made).zip(entries) {
             map.clear();
             map.extend(m.beliefs.iter().map(|name| symbols.intern(name)));
             if map.iter().enumerate().any(|(i, id)| id.index() != i) {
