@@ -34,8 +34,9 @@ struct Beh {
     name: String,
     description: Option<String>,
     team: bool,
-    children: Vec<String>,
-    next: Vec<String>,
+    /// Edges, as the loader reads them (made so once).
+    children: Vec<Spanned<String>>,
+    next: Vec<Spanned<String>>,
     until: Option<String>,
     skill: Option<String>,
     members: Option<MembersSpec>,
@@ -155,13 +156,15 @@ pub fn generate(
     // Skills, beliefs and targets in the mission's order, put in their maps
     // at the end: sorted once (a later one with the same name replaces an
     // earlier, as inserting one after the other would).
-    let mut skills = Vec::new();
-    let mut beliefs = Vec::new();
-    let mut targets = Vec::new();
-    let mut infos = Vec::new();
+    // Their sizes are known: no list grows by copies onto fresh pages.
+    let total = |f: fn(&StepOut) -> usize| outs.iter().flatten().map(f).sum::<usize>();
+    let mut skills = Vec::with_capacity(total(|o| o.skills.len()));
+    let mut beliefs = Vec::with_capacity(total(|o| o.beliefs.len()));
+    let mut targets = Vec::with_capacity(total(|o| usize::from(o.target.is_some())));
+    let mut infos = Vec::with_capacity(steps.len());
     let mut diags = Vec::new();
     let mut warnings = Vec::new();
-    let mut heads = Vec::new();
+    let mut heads = Vec::with_capacity(steps.len());
     for (s, out) in steps.iter().zip(&mut outs) {
         let Some(def) = lib.command(&s.command) else {
             continue;
@@ -455,7 +458,7 @@ impl Gen<'_, '_> {
                 name: step.clone(),
                 description: description.clone(),
                 team: true,
-                children: vec![[&step, "_", &phases[0].name].concat()],
+                children: vec![at([&step, "_", &phases[0].name].concat())],
                 until,
                 ..Beh::default()
             });
@@ -488,7 +491,7 @@ impl Gen<'_, '_> {
             };
             let next = phases
                 .get(k + 1)
-                .map(|p| vec![[&step, "_", &p.name].concat()])
+                .map(|p| vec![at([&step, "_", &p.name].concat())])
                 .unwrap_or_default();
             let mut beh = Beh {
                 name: name.clone(),
@@ -519,7 +522,7 @@ impl Gen<'_, '_> {
                     beh.children = kids
                         .iter()
                         .filter(|k| !k.chained)
-                        .map(|k| k.name.clone())
+                        .map(|k| at(k.name.clone()))
                         .collect();
                     let split = beh.children.len() > 1;
                     out.behs.push(beh);
@@ -648,7 +651,7 @@ impl Gen<'_, '_> {
                     next: ch
                         .then
                         .first()
-                        .map(|t| vec![chain_name(&t.name)])
+                        .map(|t| vec![at(chain_name(&t.name))])
                         .unwrap_or_default(),
                     ..Beh::default()
                 });
@@ -673,7 +676,7 @@ impl Gen<'_, '_> {
                         next: ch
                             .then
                             .get(k + 1)
-                            .map(|n| vec![chain_name(&n.name)])
+                            .map(|n| vec![at(chain_name(&n.name))])
                             .unwrap_or_default(),
                         chained: true,
                         ..Beh::default()
@@ -704,8 +707,8 @@ fn entry(b: Beh) -> BehaviorEntry {
     let spec = BehaviorSpec {
         description: b.description,
         team: b.team,
-        children: b.children.into_iter().map(at).collect(),
-        next: b.next.into_iter().map(at).collect(),
+        children: b.children,
+        next: b.next,
         until: b.until.map(|u| Box::new(at(u))),
         skill: b.skill.map(|name| {
             Box::new(at(SkillSpec {

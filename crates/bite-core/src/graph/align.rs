@@ -113,10 +113,10 @@ impl BehaviorGraph {
                 symbols: &mut symbols,
                 by_name: &by_name,
             };
-            let mut reparse = |e: &Option<Expr>| -> Result<Option<Expr>, Refused> {
+            let mut reparse = |e: &Option<Box<Expr>>| -> Result<Option<Box<Expr>>, Refused> {
                 e.as_ref()
                     .map(|e| {
-                        Expr::parse(e.source(), &mut resolver).map_err(|err| {
+                        Expr::parse(e.source(), &mut resolver).map(Box::new).map_err(|err| {
                             Refused(format!(
                                 "a condition of `{}` does not read alike in the running version: {err:?}",
                                 b.name
@@ -162,7 +162,7 @@ impl BehaviorGraph {
     /// aligned version of it (added, removed or edited), by name.
     pub fn changed_since(&self, base: &BehaviorGraph) -> Vec<String> {
         let differs = |a: &Behavior, b: &Behavior| {
-            let src = |e: &Option<Expr>| e.as_ref().map(|e| e.source().to_string());
+            let src = |e: &Option<Box<Expr>>| e.as_ref().map(|e| e.source().to_string());
             a.children != b.children
                 || a.next != b.next
                 || a.team != b.team

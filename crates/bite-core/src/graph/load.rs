@@ -277,14 +277,14 @@ impl Made {
             team: spec.team,
             children,
             next,
-            pre,
-            until,
-            urgent,
-            utility,
+            pre: pre.map(Box::new),
+            until: until.map(Box::new),
+            urgent: urgent.map(Box::new),
+            utility: utility.map(Box::new),
             skill,
             members,
             bindings,
-            labels: [None, None, None],
+            labels: None,
             loc,
         };
         (behavior, made)
@@ -442,19 +442,27 @@ impl Builder<'_> {
             return Err(Diagnostics(self.diags));
         }
 
-        // Each name's id (a name given twice keeps its last id).
-        let index = NameIndex::new(entries.len(), |i| &entries[i].0.value);
-        for &(name, _) in entries {
-            if !valid_name(&name.value) {
-                self.err(
-                    Loc::from(name.referenced),
-                    "bad-name",
-                    format!(
-                        "`{}` is not a valid behavior name: use letters, digits, `_` and `-`, starting with a letter",
-                        name.value
-                    ),
-                );
-            }
+        // Each name's id (a name given twice keeps its last id). The names
+        // are hashed and checked side by side for large graphs (each read
+        // once, by one thread), then put in the table in order.
+        let hashed =
+            |&(name, _): &&BehaviorEntry| (NameIndex::hash(&name.value), valid_name(&name.value));
+        let hashes: Vec<(u64, bool)> = if entries.len() >= PARALLEL_FROM {
+            use rayon::prelude::*;
+            entries.par_iter().map(hashed).collect()
+        } else {
+            entries.iter().map(hashed).collect()
+        };
+        let index = NameIndex::hashed(hashes.len(), |i| hashes[i].0, |i| &entries[i].0.value);
+        for (&(name, _), _) in entries.iter().zip(&hashes).filter(|(_, (_, ok))| !ok) {
+            self.err(
+                Loc::from(name.referenced),
+                "bad-name",
+                format!(
+                    "`{}` is not a valid behavior name: use letters, digits, `_` and `-`, starting with a letter",
+                    name.value
+                ),
+            );
         }
 
         let names = Names {
@@ -501,7 +509,7 @@ impl Builder<'_> {
             if m.labelled {
                 let (bindings, labels) = self.bindings(&b.name, binding_specs(&body.value));
                 b.bindings = bindings;
-                b.labels = labels;
+                b.labels = labels.iter().any(Option::is_some).then(|| Box::new(labels));
             }
             self.runs_refs.extend(
                 m.runs_refs
@@ -1516,7 +1524,7 @@ mod side_by_side_tests {
         }
         // Labels and bindings where they were written.
         let p = g.find("b500").expect("b500");
-        assert_eq!(g.behavior(p).labels[0].as_deref(), Some("P500"));
+        assert_eq!(g.behavior(p).label(Kind::Sync), Some("P500"));
         let t = g.find("b3").expect("b3");
         assert!(g.behavior(t).bindings[2].is_some());
         // The same graph for any number of threads.

@@ -94,23 +94,28 @@ pub struct Behavior {
     /// Sequential edges (file order).
     pub next: Vec<BehaviorId>,
     /// Precondition: the behavior can be selected only when it holds.
-    pub pre: Option<Expr>,
+    /// (The four conditions are boxed: most behaviors have one or none,
+    /// and a condition is 72 bytes; a `Behavior` is 232 bytes, where it
+    /// was 552, and a graph of 100,000 behaviors writes them all at once.)
+    pub pre: Option<Box<Expr>>,
     /// Termination condition: the behavior ends when it holds.
-    pub until: Option<Expr>,
+    pub until: Option<Box<Expr>>,
     /// Emergency termination: when it holds the behavior ends on this robot
     /// at once (its termination protocol is told, not awaited) and the
     /// robot picks the successor alone.
-    pub urgent: Option<Expr>,
+    pub urgent: Option<Box<Expr>>,
     /// Preference among alternatives for deciding protocols (higher wins).
-    pub utility: Option<Expr>,
+    pub utility: Option<Box<Expr>>,
     /// Skill (atomic behaviors).
     pub skill: Option<Skill>,
     /// Members it takes when allocated: at least `members.0`, at most `members.1`.
     pub members: (u32, u32),
     /// Bindings of its points, indexed by [`Kind::index`].
     pub bindings: [Option<Box<Binding>>; 3],
-    /// Labels of its points (`A`), indexed by [`Kind::index`].
-    pub labels: [Option<String>; 3],
+    /// Labels of its points (`A`), indexed by [`Kind::index`]; `None` when
+    /// it has none (most behaviors: boxed, as the bindings are, to keep a
+    /// large graph's behaviors small). [`Behavior::label`] reads one.
+    pub labels: Option<Box<[Option<String>; 3]>>,
     /// Where it is defined.
     pub loc: Loc,
 }
@@ -119,6 +124,11 @@ impl Behavior {
     /// True when it has no children (it runs a skill).
     pub fn is_atomic(&self) -> bool {
         self.children.is_empty()
+    }
+
+    /// The label of its point of this kind, if it has one.
+    pub fn label(&self, kind: Kind) -> Option<&str> {
+        self.labels.as_ref()?[kind.index()].as_deref()
     }
 }
 
@@ -141,7 +151,7 @@ pub(crate) struct NameIndex {
 }
 
 impl NameIndex {
-    fn hash(name: &str) -> u64 {
+    pub(crate) fn hash(name: &str) -> u64 {
         use std::hash::BuildHasher as _;
         rustc_hash::FxBuildHasher.hash_one(name)
     }
@@ -149,14 +159,24 @@ impl NameIndex {
     /// The ids `0..n` by their names (`name(i)`); a name given twice keeps
     /// its last id.
     pub(crate) fn new<'a>(n: usize, name: impl Fn(usize) -> &'a str) -> NameIndex {
+        Self::hashed(n, |i| Self::hash(name(i)), &name)
+    }
+
+    /// [`NameIndex::new`] with each name's hash given (`hash(i)`, made
+    /// by [`NameIndex::hash`]): a name is read only to tell it from
+    /// another of the same hash.
+    pub(crate) fn hashed<'a>(
+        n: usize,
+        hash: impl Fn(usize) -> u64,
+        name: impl Fn(usize) -> &'a str,
+    ) -> NameIndex {
         let mut table = hashbrown::HashTable::with_capacity(n);
         for i in 0..n {
-            let key = name(i);
-            let h = Self::hash(key);
+            let h = hash(i);
             match table.entry(
                 h,
-                |&j: &u32| name(j as usize) == key,
-                |&j| Self::hash(name(j as usize)),
+                |&j: &u32| name(j as usize) == name(i),
+                |&j| hash(j as usize),
             ) {
                 hashbrown::hash_table::Entry::Occupied(mut o) => *o.get_mut() = i as u32,
                 hashbrown::hash_table::Entry::Vacant(v) => {
@@ -330,8 +350,8 @@ impl BehaviorGraph {
     /// The name of a point: its label, or `behavior.kind`.
     pub fn point_name(&self, b: BehaviorId, kind: Kind) -> String {
         let beh = self.behavior(b);
-        match &beh.labels[kind.index()] {
-            Some(l) => l.clone(),
+        match beh.label(kind) {
+            Some(l) => l.to_string(),
             None => format!("{}.{}", beh.name, kind),
         }
     }
@@ -357,7 +377,7 @@ impl BehaviorGraph {
     pub fn find_point(&self, name: &str) -> Option<(BehaviorId, Kind)> {
         for b in &self.behaviors {
             for kind in Kind::ALL {
-                if b.labels[kind.index()].as_deref() == Some(name) {
+                if b.label(kind) == Some(name) {
                     return Some((b.id, kind));
                 }
             }

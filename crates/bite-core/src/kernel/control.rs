@@ -385,7 +385,7 @@ impl Kernel {
                 .behavior(*c)
                 .pre
                 .as_ref()
-                .is_some_and(Expr::depends_on_time)
+                .is_some_and(|p| p.depends_on_time())
         })
     }
 
