@@ -132,7 +132,7 @@ pub fn generate(
     // have are made, the rest are skipped (`None`): the mission fails
     // (too large, or a duplicate name cut a command short), and those the
     // merge below still reaches are made then, so the messages are the same.
-    let made = AtomicUsize::new(1);
+    let made = AtomicUsize::new(parts[0].len());
     let ahead = |s: &Step| -> Option<StepOut> {
         let def = lib.command(&s.command)?;
         if made.load(Ordering::Relaxed) > bite_core::graph::MAX_BEHAVIORS {
@@ -152,7 +152,7 @@ pub fn generate(
     parts.reserve(steps.len());
     let mut names: hashbrown::HashTable<(u32, u32)> = hashbrown::HashTable::with_capacity(made + 1);
     names.insert_unique(name_hash("mission"), (0, 0), |_| name_hash("mission"));
-    let mut count = 1;
+    let mut count = parts[0].len();
     // Skills, beliefs and targets in the mission's order, put in their maps
     // at the end: sorted once (a later one with the same name replaces an
     // earlier, as inserting one after the other would).

@@ -277,10 +277,10 @@ impl Made {
             team: spec.team,
             children,
             next,
-            pre: pre.map(Box::new),
-            until: until.map(Box::new),
-            urgent: urgent.map(Box::new),
-            utility: utility.map(Box::new),
+            pre,
+            until,
+            urgent,
+            utility,
             skill,
             members,
             bindings,
@@ -347,7 +347,7 @@ impl Made {
         src: &Option<Box<Spanned<String>>>,
         field: &'static str,
         want: Option<&'static str>,
-    ) -> Option<Expr> {
+    ) -> Option<Box<Expr>> {
         let s = src.as_ref()?;
         let mut resolver = LocalNames {
             beliefs: &mut self.beliefs,
@@ -376,7 +376,7 @@ impl Made {
                     );
                     return None;
                 }
-                Some(e)
+                Some(Box::new(e))
             }
             Err(ce) => {
                 let loc = expr_loc(cx.text, Loc::from(s.referenced), &s.value, &ce);
