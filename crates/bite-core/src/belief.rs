@@ -18,9 +18,11 @@ use std::sync::Arc;
 #[derive(Clone, Debug, Default)]
 pub struct Symbols {
     names: Vec<Arc<str>>,
-    /// Hashed: a graph's conditions look up every name they read when it
-    /// is loaded (a B-tree's string comparisons were most of that).
-    index: rustc_hash::FxHashMap<Arc<str>, BeliefId>,
+    /// Hashed ([`Symbols::hash`]): a graph's conditions look up every name
+    /// they read when it is loaded (a B-tree's string comparisons were most
+    /// of that). A table of ids, so that the loader can intern names its
+    /// workers hashed ([`Symbols::intern_hashed`]).
+    index: hashbrown::HashTable<BeliefId>,
 }
 
 impl Symbols {
@@ -28,20 +30,38 @@ impl Symbols {
     pub fn new() -> Self {
         Self::default()
     }
+    /// The hash a name is found by ([`Symbols::intern_hashed`]).
+    pub fn hash(name: &str) -> u64 {
+        use std::hash::BuildHasher as _;
+        rustc_hash::FxBuildHasher.hash_one(name)
+    }
     /// The id of `name`, adding it if it is new.
     pub fn intern(&mut self, name: &str) -> BeliefId {
-        if let Some(id) = self.index.get(name) {
-            return *id;
+        self.intern_hashed(Self::hash(name), name)
+    }
+    /// The id of `name`, whose [`Symbols::hash`] is `hash`, adding it if it
+    /// is new.
+    pub fn intern_hashed(&mut self, hash: u64, name: &str) -> BeliefId {
+        let names = &self.names;
+        match self.index.entry(
+            hash,
+            |id| *names[id.index()] == *name,
+            |id| Self::hash(&names[id.index()]),
+        ) {
+            hashbrown::hash_table::Entry::Occupied(e) => *e.get(),
+            hashbrown::hash_table::Entry::Vacant(v) => {
+                let id = BeliefId(self.names.len() as u32);
+                v.insert(id);
+                self.names.push(Arc::from(name));
+                id
+            }
         }
-        let id = BeliefId(self.names.len() as u32);
-        let name: Arc<str> = Arc::from(name);
-        self.names.push(name.clone());
-        self.index.insert(name, id);
-        id
     }
     /// The id of `name`, if it is known.
     pub fn get(&self, name: &str) -> Option<BeliefId> {
-        self.index.get(name).copied()
+        (self.index)
+            .find(Self::hash(name), |id| *self.names[id.index()] == *name)
+            .copied()
     }
     /// The name of `id`.
     pub fn name(&self, id: BeliefId) -> &str {

@@ -61,20 +61,30 @@ struct StepEnv<'a> {
     used: BTreeSet<&'a str>,
 }
 
-impl Env for StepEnv<'_> {
-    fn get(&mut self, name: &str) -> Option<Val> {
+/// What a variable of a command is.
+enum Found<'a> {
+    /// A value (borrowed where the command holds it).
+    Val(std::borrow::Cow<'a, Val>),
+    /// Text made of the step's name and this (`find_1` and `found`).
+    Named(&'a str, &'a str),
+}
+
+impl StepEnv<'_> {
+    fn find(&mut self, name: &str) -> Option<Found<'_>> {
+        use std::borrow::Cow::{Borrowed, Owned};
+        let own = |v| Some(Found::Val(Owned(v)));
         match name {
-            "step" => return Some(Val::Text(self.step.to_string())),
-            "index" => return Some(Val::Num(self.index as f64)),
-            "result" => return Some(Val::Text(self.result.to_string())),
-            "robots" => return Some(Val::Num(self.robots)),
-            "i" => return self.repeat.map(|(i, _)| Val::Num(i)),
-            "n" => return self.repeat.map(|(_, n)| Val::Num(n)),
+            "step" => return own(Val::Text(self.step.to_string())),
+            "index" => return own(Val::Num(self.index as f64)),
+            "result" => return own(Val::Text(self.result.to_string())),
+            "robots" => return own(Val::Num(self.robots)),
+            "i" => return self.repeat.and_then(|(i, _)| own(Val::Num(i))),
+            "n" => return self.repeat.and_then(|(_, n)| own(Val::Num(n))),
             _ => {}
         }
         let def = self.def;
         if let Some(i) = def.params.iter().position(|p| p.name == name) {
-            return self.params[i].clone();
+            return self.params[i].as_ref().map(|v| Found::Val(Borrowed(v)));
         }
         if let Some((_, [x, y])) = def.points.iter().find(|(p, _)| p == name) {
             let get = |n: &str| {
@@ -86,16 +96,42 @@ impl Env for StepEnv<'_> {
                         _ => None,
                     })
             };
-            return Some(Val::Point([get(x)?, get(y)?]));
+            return own(Val::Point([get(x)?, get(y)?]));
         }
         if let Some(v) = self.lets.get(name) {
-            return Some(v.clone());
+            return Some(Found::Val(Borrowed(v)));
         }
         if let Some((b, _)) = def.beliefs.iter().find(|(b, _)| b == name) {
             self.used.insert(b.as_str());
-            return Some(Val::Text([self.step, "_", b].concat()));
+            return Some(Found::Named(self.step, b));
         }
         None
+    }
+}
+
+impl Env for StepEnv<'_> {
+    fn get(&mut self, name: &str) -> Option<Val> {
+        self.get_cow(name).map(std::borrow::Cow::into_owned)
+    }
+
+    fn get_cow(&mut self, name: &str) -> Option<std::borrow::Cow<'_, Val>> {
+        Some(match self.find(name)? {
+            Found::Val(v) => v,
+            Found::Named(a, b) => std::borrow::Cow::Owned(Val::Text([a, "_", b].concat())),
+        })
+    }
+
+    fn write(&mut self, name: &str, out: &mut String) -> Option<()> {
+        // Names are written in place, not made and copied.
+        match name {
+            "step" => out.push_str(self.step),
+            "result" => out.push_str(self.result),
+            _ => match self.find(name)? {
+                Found::Val(v) => v.write_text(out),
+                Found::Named(a, b) => out.extend([a, "_", b]),
+            },
+        }
+        Some(())
     }
 }
 
@@ -224,13 +260,15 @@ pub fn generate(
     let skills = sorted_map(skills, parallel);
     let beliefs = sorted_map(beliefs, parallel);
     let targets = sorted_map(targets, parallel);
-    // The chain: mission → B1 → B2 → ... → Bn.
-    if let Some((_, head)) = heads.first() {
-        parts[0][0].1.value.children.push(at(head.clone()));
-    }
-    for w in heads.windows(2) {
-        let next = w[1].1.clone();
-        parts[w[0].0][0].1.value.next.push(at(next));
+    // The chain: mission → B1 → B2 → ... → Bn (each name is one edge's:
+    // moved there).
+    let mut before: Option<usize> = None;
+    for (head, name) in heads {
+        match before {
+            None => parts[0][0].1.value.children.push(at(name)),
+            Some(b) => parts[b][0].1.value.next.push(at(name)),
+        }
+        before = Some(head);
     }
     let generated = GeneratedGraph {
         name: printable(&stem(map.file())),
@@ -259,13 +297,39 @@ fn name_hash(name: &str) -> u64 {
 
 /// A map of `pairs`, the last of equal keys kept (as inserting them in
 /// order would); sorted on rayon's pool when `parallel`.
-fn sorted_map<K: Ord + Send, V: Send>(mut pairs: Vec<(K, V)>, parallel: bool) -> BTreeMap<K, V> {
+///
+/// What is sorted is each name's first 16 bytes as a number, with its
+/// place: most comparisons are of two numbers, not of two names somewhere
+/// in memory, and no pair is moved until its place is known.
+fn sorted_map<V: Send + Sync>(pairs: Vec<(String, V)>, parallel: bool) -> BTreeMap<String, V> {
+    let mut keys: Vec<(u128, u32)> = (pairs.iter().enumerate())
+        .map(|(i, (k, _))| (name_prefix(k), i as u32))
+        .collect();
+    // Equal names stay in order (by place), and the map keeps the last.
+    let order = |a: &(u128, u32), b: &(u128, u32)| {
+        (a.0.cmp(&b.0))
+            .then_with(|| pairs[a.1 as usize].0.cmp(&pairs[b.1 as usize].0))
+            .then(a.1.cmp(&b.1))
+    };
     if parallel {
         use rayon::prelude::*;
-        // Stable: equal keys stay in order, and the map keeps the last.
-        pairs.par_sort_by(|a, b| a.0.cmp(&b.0));
+        keys.par_sort_unstable_by(order);
+    } else {
+        keys.sort_unstable_by(order);
     }
-    pairs.into_iter().collect()
+    let mut slots: Vec<Option<(String, V)>> = pairs.into_iter().map(Some).collect();
+    keys.iter()
+        .filter_map(|&(_, i)| slots[i as usize].take())
+        .collect()
+}
+
+/// A name's first 16 bytes as a big-endian number (zeros after a shorter
+/// name): two names compare as their prefixes do, unless those are equal.
+fn name_prefix(name: &str) -> u128 {
+    let mut b = [0u8; 16];
+    let n = name.len().min(16);
+    b[..n].copy_from_slice(&name.as_bytes()[..n]);
+    u128::from_be_bytes(b)
 }
 
 /// Missions of this many commands or more are generated on rayon's pool;
@@ -388,8 +452,14 @@ impl Gen<'_, '_> {
         def: &CommandDef,
         out: &mut StepOut,
     ) -> Result<String, Box<Diagnostic>> {
-        let step = format!("{}_{}", def.name, s.index);
-        let result = s.result.clone().unwrap_or_else(|| step.clone());
+        // Texts made at their size (`format!` grows them from nothing).
+        let sized = |n: usize, args: std::fmt::Arguments<'_>| {
+            let mut t = String::with_capacity(n);
+            let _ = t.write_fmt(args);
+            t
+        };
+        let step = sized(def.name.len() + 8, format_args!("{}_{}", def.name, s.index));
+        let result: &str = s.result.as_deref().unwrap_or(&step);
         if self.opts.robots < def.min_robots {
             out.warnings.push(
                 self.map
@@ -425,7 +495,7 @@ impl Gen<'_, '_> {
             def,
             step: &step,
             index: s.index,
-            result: &result,
+            result,
             robots: self.opts.robots as f64,
             params,
             lets: BTreeMap::new(),
@@ -447,7 +517,10 @@ impl Gen<'_, '_> {
         if phases.is_empty() {
             return Err(self.lib_error(s, def, def.loc, "no phase applies (check their `if`)"));
         }
-        let description = Some(format!("line {}: {}", s.line, s.text));
+        let description = Some(sized(
+            s.text.len() + 16,
+            format_args!("line {}: {}", s.line, s.text),
+        ));
         let single = phases.len() == 1;
         if !single {
             let until = match &def.until {
@@ -483,7 +556,10 @@ impl Gen<'_, '_> {
             };
             let description = if single {
                 match pdesc {
-                    Some(p) => Some(format!("line {}: {} - {p}", s.line, s.text)),
+                    Some(p) => Some(sized(
+                        s.text.len() + p.len() + 20,
+                        format_args!("line {}: {} - {p}", s.line, s.text),
+                    )),
                     None => description.clone(),
                 }
             } else {
@@ -566,7 +642,7 @@ impl Gen<'_, '_> {
                     .collect();
                 v.iter().any(Option::is_some).then(|| [v[0], v[1], v[2]])
             });
-            out.target = Some((result.clone(), Target { colour, size }));
+            out.target = Some((result.to_string(), Target { colour, size }));
         }
         out.info = Some(StepInfo {
             index: s.index,
@@ -946,6 +1022,25 @@ pub fn flow(v: &serde_json::Value) -> String {
 mod tests {
     use super::*;
     use crate::{CompileOptions, Library, compile};
+
+    proptest::proptest! {
+        /// The sorted map is the map made by inserting the pairs in order
+        /// (a later equal name replaces an earlier one), on one thread or
+        /// on the pool: names that share long prefixes, are prefixes of
+        /// each other, hold zero bytes or are not ASCII.
+        #[test]
+        fn sorted_map_is_inserting_in_order(
+            names in proptest::collection::vec("(formation_1|a|\\x00|é){0,6}[a-c]{0,2}", 0..200),
+            parallel: bool,
+        ) {
+            let pairs: Vec<(String, usize)> = names.into_iter().enumerate().map(|(i, n)| (n, i)).collect();
+            let mut want = BTreeMap::new();
+            for (k, v) in pairs.clone() {
+                want.insert(k, v);
+            }
+            proptest::prop_assert_eq!(sorted_map(pairs, parallel), want);
+        }
+    }
 
     fn build(src: &str, robots: usize, origin: [f64; 2]) -> Compiled {
         compile(

@@ -721,7 +721,13 @@ impl Library {
 
     /// The command called `name` (case-insensitive).
     pub fn command(&self, name: &str) -> Option<&CommandDef> {
-        self.commands.get(&name.to_ascii_lowercase())
+        // Names are lower case; a command written in capitals is looked
+        // up again.
+        (self.commands.get(name)).or_else(|| {
+            (name.bytes().any(|b| b.is_ascii_uppercase()))
+                .then(|| self.commands.get(&name.to_ascii_lowercase()))
+                .flatten()
+        })
     }
 
     /// The command names, sorted.

@@ -28,9 +28,25 @@ impl Val {
     /// `.0`, points as `[x, y]`).
     pub fn to_text(&self) -> String {
         match self {
-            Val::Num(x) => fmt_num(*x),
             Val::Text(t) => t.clone(),
-            Val::Point([x, y]) => format!("[{}, {}]", fmt_num(*x), fmt_num(*y)),
+            _ => {
+                let mut s = String::new();
+                self.write_text(&mut s);
+                s
+            }
+        }
+    }
+
+    /// [`Val::to_text`] written at the end of `out`.
+    pub fn write_text(&self, out: &mut String) {
+        match self {
+            Val::Num(x) => {
+                let _ = write!(out, "{}", round(*x));
+            }
+            Val::Text(t) => out.push_str(t),
+            Val::Point([x, y]) => {
+                let _ = write!(out, "[{}, {}]", round(*x), round(*y));
+            }
         }
     }
 }
@@ -62,6 +78,19 @@ pub trait Env {
     /// The value of `name`; `None` when it is unknown (an optional
     /// parameter left empty).
     fn get(&mut self, name: &str) -> Option<Val>;
+
+    /// The same, borrowed where the environment holds it: guards and text
+    /// read values without copying them.
+    fn get_cow(&mut self, name: &str) -> Option<std::borrow::Cow<'_, Val>> {
+        self.get(name).map(std::borrow::Cow::Owned)
+    }
+
+    /// `name`'s value as text ([`Val::to_text`]) written at the end of
+    /// `out`; `None` (and nothing written) when it is unknown.
+    fn write(&mut self, name: &str, out: &mut String) -> Option<()> {
+        self.get_cow(name)?.write_text(out);
+        Some(())
+    }
 }
 
 /// Why a template could not be filled in.
@@ -273,13 +302,23 @@ impl Template {
 
     /// Fill in the placeholders, as text.
     pub fn render(&self, env: &mut dyn Env) -> Result<String, EvalError> {
-        let mut s = String::new();
+        // Sized once for the usual case (a name or a number per
+        // placeholder).
+        let size = (self.parts.iter())
+            .map(|p| match p {
+                Part::Lit(l) => l.len(),
+                Part::Expr(_) => 16,
+            })
+            .sum();
+        let mut s = String::with_capacity(size);
         for p in &self.parts {
             match p {
                 Part::Lit(l) => s.push_str(l),
-                Part::Expr(e) => {
-                    let _ = write!(s, "{}", e.eval(env)?.to_text());
+                Part::Expr(Expr::Var(v, _)) => {
+                    env.write(v, &mut s)
+                        .ok_or_else(|| EvalError::Unknown(v.clone()))?;
                 }
+                Part::Expr(e) => e.eval(env)?.write_text(&mut s),
             }
         }
         Ok(s)
@@ -690,16 +729,17 @@ impl Guard {
     /// Does it hold?
     pub fn holds(&self, env: &mut dyn Env) -> bool {
         match self {
-            Guard::Known(v) => env.get(v).is_some(),
-            Guard::Unknown(v) => env.get(v).is_none(),
+            Guard::Known(v) => env.get_cow(v).is_some(),
+            Guard::Unknown(v) => env.get_cow(v).is_none(),
             Guard::Eq {
                 var,
                 value,
                 negated,
             } => {
-                let eq = env
-                    .get(var)
-                    .is_some_and(|v| v.to_text().eq_ignore_ascii_case(value));
+                let eq = env.get_cow(var).is_some_and(|v| match &*v {
+                    Val::Text(t) => t.eq_ignore_ascii_case(value),
+                    v => v.to_text().eq_ignore_ascii_case(value),
+                });
                 eq != *negated
             }
         }

@@ -146,6 +146,9 @@ struct Made {
     /// its conditions' belief ids index this until the graph's table of
     /// names is filled, in the behaviors' order.
     beliefs: Vec<Box<str>>,
+    /// Their hashes ([`Symbols::hash`]), made by the thread that made the
+    /// behavior: the table of names is filled from them.
+    belief_hashes: Vec<u64>,
     /// `runs(x)` in its conditions: (x, field, where).
     runs_refs: Vec<(BehaviorId, &'static str, Loc)>,
     /// Its bindings give point labels: labels are unique graph-wide, so
@@ -270,6 +273,7 @@ impl Made {
             name: s.value.name.clone(),
             params: s.value.params.clone(),
         });
+        made.belief_hashes = made.beliefs.iter().map(|b| Symbols::hash(b)).collect();
         let behavior = Behavior {
             id,
             name: name.value.clone(),
@@ -493,37 +497,66 @@ impl Builder<'_> {
         let mut child_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(n);
         let mut next_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(n);
         let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(n);
-        let mut map: Vec<BeliefId> = Vec::new();
-        for ((b, m), &(_, body)) in out.iter_mut().zip(made).zip(entries) {
-            map.clear();
-            map.extend(m.beliefs.iter().map(|name| symbols.intern(name)));
-            if map.iter().enumerate().any(|(i, id)| id.index() != i) {
-                for e in [&mut b.pre, &mut b.until, &mut b.urgent, &mut b.utility]
-                    .into_iter()
-                    .flatten()
-                {
-                    e.remap_beliefs(&map);
-                }
+        // Behavior i's belief ids in the graph's table, `ids[remap[i]..
+        // remap[i + 1]]`, left empty where they are its own numbering.
+        let mut ids: Vec<BeliefId> = Vec::new();
+        let mut remap: Vec<u32> = Vec::with_capacity(n + 1);
+        remap.push(0);
+        let mut edges = Edges::with_capacity(n);
+        for (i, (m, &(_, body))) in made.into_iter().zip(entries).enumerate() {
+            let from = ids.len();
+            ids.extend(
+                (m.beliefs.iter().zip(&m.belief_hashes))
+                    .map(|(name, &h)| symbols.intern_hashed(h, name)),
+            );
+            if ids[from..]
+                .iter()
+                .enumerate()
+                .all(|(k, id)| id.index() == k)
+            {
+                ids.truncate(from);
             }
+            remap.push(ids.len() as u32);
             self.diags.extend(m.diags);
             if m.labelled {
+                let b = &mut out[i];
                 let (bindings, labels) = self.bindings(&b.name, binding_specs(&body.value));
                 b.bindings = bindings;
                 b.labels = labels.iter().any(Option::is_some).then(|| Box::new(labels));
             }
+            let id = BehaviorId(i as u32);
             self.runs_refs.extend(
                 m.runs_refs
                     .into_iter()
-                    .map(|(x, field, loc)| (b.id, x, field, loc)),
+                    .map(|(x, field, loc)| (id, x, field, loc)),
             );
+            edges.push(&m.crefs, &m.nrefs);
             child_refs.push(m.crefs);
             next_refs.push(m.nrefs);
             member_locs.push(m.member_loc);
         }
+        // The conditions' belief ids renumbered, side by side.
+        let renumber = |(i, b): (usize, &mut Behavior)| {
+            let map = &ids[remap[i] as usize..remap[i + 1] as usize];
+            if !map.is_empty() {
+                for e in [&mut b.pre, &mut b.until, &mut b.urgent, &mut b.utility]
+                    .into_iter()
+                    .flatten()
+                {
+                    e.remap_beliefs(map);
+                }
+            }
+        };
+        if n >= PARALLEL_FROM {
+            use rayon::prelude::*;
+            out.par_iter_mut().enumerate().for_each(renumber);
+        } else {
+            out.iter_mut().enumerate().for_each(renumber);
+        }
 
         let start = match &spec.start {
             None => {
-                let roots: Vec<&str> = roots(&out)
+                let roots: Vec<&str> = roots(&edges)
                     .iter()
                     .map(|b| out[b.index()].name.as_str())
                     .collect();
@@ -556,14 +589,14 @@ impl Builder<'_> {
             },
         };
 
-        self.check_decomposition(&out, &child_refs);
-        self.check_loops_and_depth(&out, &next_refs);
-        self.check_chain_heads(&out, &child_refs);
+        self.check_decomposition(&out, &edges, &child_refs);
+        self.check_loops_and_depth(&out, &edges, &next_refs);
+        self.check_chain_heads(&out, &edges, &child_refs);
         self.check_bindings_fit(&out);
-        self.check_members(&out, &member_locs);
+        self.check_members(&out, &edges, &member_locs);
         if let Some(start) = start {
-            self.check_reachable(&out, start);
-            self.check_runs_scope(&out, start);
+            self.check_reachable(&out, &edges, start);
+            self.check_runs_scope(&out, &edges, start);
         }
         let defaults = self.defaults(&spec.defaults);
         let sharing = match &spec.world_model {
@@ -762,19 +795,25 @@ impl Builder<'_> {
     }
 
     /// V must be acyclic (a behavior cannot be its own ancestor).
-    fn check_decomposition(&mut self, bs: &[Behavior], child_refs: &[Vec<(BehaviorId, Loc)>]) {
+    fn check_decomposition(
+        &mut self,
+        bs: &[Behavior],
+        g: &Edges,
+        child_refs: &[Vec<(BehaviorId, Loc)>],
+    ) {
         // Iterative DFS with colours: 0 new, 1 on the path, 2 done.
         let n = bs.len();
         let mut colour = vec![0u8; n];
         let mut reported = BTreeSet::new();
+        let mut stack: Vec<(usize, usize)> = Vec::new();
         for root in 0..n {
             if colour[root] != 0 {
                 continue;
             }
-            let mut stack: Vec<(usize, usize)> = vec![(root, 0)];
+            stack.push((root, 0));
             colour[root] = 1;
             while let Some(&mut (v, ref mut next)) = stack.last_mut() {
-                if let Some(&c) = bs[v].children.get(*next) {
+                if let Some(&c) = g.children(v).get(*next) {
                     *next += 1;
                     let c = c.index();
                     match colour[c] {
@@ -835,9 +874,14 @@ impl Builder<'_> {
     /// Linear in the size of the graph: strongly connected components of
     /// the `children` + `next` edges, one search per component that holds
     /// both kinds of edge, and levels over the components' DAG.
-    fn check_loops_and_depth(&mut self, bs: &[Behavior], next_refs: &[Vec<(BehaviorId, Loc)>]) {
+    fn check_loops_and_depth(
+        &mut self,
+        bs: &[Behavior],
+        g: &Edges,
+        next_refs: &[Vec<(BehaviorId, Loc)>],
+    ) {
         let n = bs.len();
-        let (comp, ncomp) = components(bs);
+        let (comp, ncomp) = components(g);
         // Nodes of each component, in graph order (a counting sort).
         let mut start = vec![0usize; ncomp + 1];
         for &c in &comp {
@@ -864,14 +908,14 @@ impl Builder<'_> {
             let mut deepest = 0usize;
             for &v in members {
                 let v = v as usize;
-                for ch in &bs[v].children {
+                for ch in g.children(v) {
                     if inside(ch.index()) {
                         descends = true;
                     } else {
                         deepest = deepest.max(1 + level[comp[ch.index()] as usize]);
                     }
                 }
-                for nx in &bs[v].next {
+                for nx in g.next(v) {
                     if inside(nx.index()) {
                         closing = closing.or(Some((v, nx.index())));
                     } else {
@@ -895,8 +939,8 @@ impl Builder<'_> {
                     found = true;
                     break;
                 }
-                let edges = (bs[v].children.iter().map(|x| (x.index(), true)))
-                    .chain(bs[v].next.iter().map(|x| (x.index(), false)));
+                let edges = (g.children(v).iter().map(|x| (x.index(), true)))
+                    .chain(g.next(v).iter().map(|x| (x.index(), false)));
                 for (w, down) in edges {
                     let dw = d || down;
                     if inside(w) && prev[slot(w, dw)].is_none() {
@@ -977,22 +1021,22 @@ impl Builder<'_> {
 
     /// A child must head an execution chain: nothing may enter it by a
     /// sequential edge except from its own chain (a cycle back to the head).
-    fn check_chain_heads(&mut self, bs: &[Behavior], child_refs: &[Vec<(BehaviorId, Loc)>]) {
-        let mut incoming: Vec<Vec<BehaviorId>> = vec![Vec::new(); bs.len()];
-        for b in bs {
-            for n in &b.next {
-                incoming[n.index()].push(b.id);
-            }
-        }
+    fn check_chain_heads(
+        &mut self,
+        bs: &[Behavior],
+        g: &Edges,
+        child_refs: &[Vec<(BehaviorId, Loc)>],
+    ) {
+        let incoming = g.incoming_next();
         let mut checked = BTreeSet::new();
         for (p, refs) in child_refs.iter().enumerate() {
             for (c, loc) in refs {
-                if incoming[c.index()].is_empty() || !checked.insert((p, c.index())) {
+                if incoming.children(c.index()).is_empty() || !checked.insert((p, c.index())) {
                     continue;
                 }
-                let chain = seq_reach(bs, *c);
+                let chain = seq_reach(g, *c);
                 // An edge from the parent itself is the S ∩ V error, reported once.
-                for x in incoming[c.index()].iter().filter(|x| x.index() != p) {
+                for x in (incoming.children(c.index()).iter()).filter(|x| x.index() != p) {
                     if !chain.contains(x) {
                         let (child, parent, from) =
                             (&bs[c.index()].name, &bs[p].name, &bs[x.index()].name);
@@ -1050,11 +1094,14 @@ impl Builder<'_> {
         }
     }
 
-    fn check_members(&mut self, bs: &[Behavior], locs: &[Option<Loc>]) {
+    fn check_members(&mut self, bs: &[Behavior], g: &Edges, locs: &[Option<Loc>]) {
         let mut allocated = vec![false; bs.len()];
-        for p in bs.iter().filter(|p| p.children.len() >= 2) {
-            for c in &p.children {
-                allocated[c.index()] = true;
+        for p in 0..bs.len() {
+            let children = g.children(p);
+            if children.len() >= 2 {
+                for c in children {
+                    allocated[c.index()] = true;
+                }
             }
         }
         for (i, loc) in locs.iter().enumerate() {
@@ -1072,49 +1119,48 @@ impl Builder<'_> {
         }
     }
 
-    fn check_reachable(&mut self, bs: &[Behavior], start: BehaviorId) {
+    fn check_reachable(&mut self, bs: &[Behavior], g: &Edges, start: BehaviorId) {
         let mut seen = vec![false; bs.len()];
         let mut q = VecDeque::from([start]);
         seen[start.index()] = true;
         while let Some(b) = q.pop_front() {
-            for n in bs[b.index()].children.iter().chain(&bs[b.index()].next) {
+            for n in g.children(b.index()).iter().chain(g.next(b.index())) {
                 if !seen[n.index()] {
                     seen[n.index()] = true;
                     q.push_back(*n);
                 }
             }
         }
-        for b in bs {
-            if !seen[b.id.index()] {
-                self.warn(
-                    b.loc,
-                    "unreachable",
-                    format!(
-                        "`{}` can never run: no path of `children`/`next` edges leads to it from `{}`",
-                        b.name,
-                        bs[start.index()].name
-                    ),
-                );
-            }
+        // Only the unreachable ones are read.
+        for (v, _) in seen.iter().enumerate().filter(|(_, seen)| !**seen) {
+            self.warn(
+                bs[v].loc,
+                "unreachable",
+                format!(
+                    "`{}` can never run: no path of `children`/`next` edges leads to it from `{}`",
+                    bs[v].name,
+                    bs[start.index()].name
+                ),
+            );
         }
     }
 
     /// `runs(x)` counts the starts of `x` in the current execution of the
     /// parent of the behavior whose condition it is in; an `x` that never
     /// runs under the same parent is always 0 — a mistake, not a loop count.
-    fn check_runs_scope(&mut self, bs: &[Behavior], start: BehaviorId) {
+    fn check_runs_scope(&mut self, bs: &[Behavior], g: &Edges, start: BehaviorId) {
         if self.runs_refs.is_empty() {
             return;
         }
         // The parents each behavior can run under (None: the top-level chain).
         let mut parents: Vec<BTreeSet<Option<BehaviorId>>> = vec![BTreeSet::new(); bs.len()];
-        for b in seq_reach(bs, start) {
+        for b in seq_reach(g, start) {
             parents[b.index()].insert(None);
         }
-        for p in bs {
-            for c in &p.children {
-                for b in seq_reach(bs, *c) {
-                    parents[b.index()].insert(Some(p.id));
+        for p in 0..bs.len() {
+            for c in g.children(p) {
+                for b in seq_reach(g, *c) {
+                    parents[b.index()].insert(Some(BehaviorId(p as u32)));
                 }
             }
         }
@@ -1177,15 +1223,15 @@ pub(crate) fn make_binding(
 /// (iterative Tarjan): each behavior's component, and how many there are.
 /// Components are numbered in the order they complete, so every edge
 /// leaving a component leads to one with a lower number.
-fn components(bs: &[Behavior]) -> (Vec<u32>, usize) {
+fn components(g: &Edges) -> (Vec<u32>, usize) {
     const NEW: u32 = u32::MAX;
-    let n = bs.len();
+    let n = g.len();
     // The i-th edge of v: its children, then its successors.
     let edge = |v: usize, i: usize| -> Option<usize> {
-        let b = &bs[v];
-        match i.checked_sub(b.children.len()) {
-            None => Some(b.children[i].index()),
-            Some(j) => b.next.get(j).map(|x| x.index()),
+        let children = g.children(v);
+        match i.checked_sub(children.len()) {
+            None => Some(children[i].index()),
+            Some(j) => g.next(v).get(j).map(|x| x.index()),
         }
     };
     let mut index = vec![NEW; n];
@@ -1241,11 +1287,11 @@ fn components(bs: &[Behavior]) -> (Vec<u32>, usize) {
 }
 
 /// Behaviors reachable from `b` along sequential edges, `b` included.
-fn seq_reach(bs: &[Behavior], b: BehaviorId) -> BTreeSet<BehaviorId> {
+fn seq_reach(g: &Edges, b: BehaviorId) -> BTreeSet<BehaviorId> {
     let mut seen = BTreeSet::from([b]);
     let mut q = VecDeque::from([b]);
     while let Some(x) = q.pop_front() {
-        for n in &bs[x.index()].next {
+        for n in g.next(x.index()) {
             if seen.insert(*n) {
                 q.push_back(*n);
             }
@@ -1255,17 +1301,84 @@ fn seq_reach(bs: &[Behavior], b: BehaviorId) -> BTreeSet<BehaviorId> {
 }
 
 /// Behaviors with no incoming edge of either kind (candidates for `start`).
-fn roots(bs: &[Behavior]) -> Vec<BehaviorId> {
-    let mut has_in = vec![false; bs.len()];
-    for b in bs {
-        for n in b.children.iter().chain(&b.next) {
+fn roots(g: &Edges) -> Vec<BehaviorId> {
+    let mut has_in = vec![false; g.len()];
+    for v in 0..g.len() {
+        for n in g.children(v).iter().chain(g.next(v)) {
             has_in[n.index()] = true;
         }
     }
-    bs.iter()
-        .filter(|b| !has_in[b.id.index()])
-        .map(|b| b.id)
+    (0..g.len())
+        .filter(|&v| !has_in[v])
+        .map(|v| BehaviorId(v as u32))
         .collect()
+}
+
+/// Every behavior's `children` and `next` edges, packed: the graph-wide
+/// checks walk these instead of the behaviors themselves (their walks
+/// were cache misses on behaviors of a few hundred bytes each).
+struct Edges {
+    /// Behavior v's children: `children[child_at[v]..child_at[v + 1]]`.
+    children: Vec<BehaviorId>,
+    child_at: Vec<u32>,
+    /// Its successors: `next[next_at[v]..next_at[v + 1]]`.
+    next: Vec<BehaviorId>,
+    next_at: Vec<u32>,
+}
+
+impl Edges {
+    fn with_capacity(n: usize) -> Self {
+        let mut at = Vec::with_capacity(n + 1);
+        at.push(0);
+        Edges {
+            children: Vec::with_capacity(n),
+            child_at: at.clone(),
+            next: Vec::with_capacity(n),
+            next_at: at,
+        }
+    }
+    /// The next behavior's edges (as `Made::edges` found them).
+    fn push(&mut self, children: &[(BehaviorId, Loc)], next: &[(BehaviorId, Loc)]) {
+        self.children.extend(children.iter().map(|(c, _)| *c));
+        self.child_at.push(self.children.len() as u32);
+        self.next.extend(next.iter().map(|(x, _)| *x));
+        self.next_at.push(self.next.len() as u32);
+    }
+    fn len(&self) -> usize {
+        self.child_at.len() - 1
+    }
+    fn children(&self, v: usize) -> &[BehaviorId] {
+        &self.children[self.child_at[v] as usize..self.child_at[v + 1] as usize]
+    }
+    fn next(&self, v: usize) -> &[BehaviorId] {
+        &self.next[self.next_at[v] as usize..self.next_at[v + 1] as usize]
+    }
+    /// Who leads into each behavior by a `next` edge, in the behaviors'
+    /// order, as the `children` of the result.
+    fn incoming_next(&self) -> Edges {
+        let n = self.len();
+        let mut at = vec![0u32; n + 1];
+        for x in &self.next {
+            at[x.index() + 1] += 1;
+        }
+        for v in 0..n {
+            at[v + 1] += at[v];
+        }
+        let mut fill = at.clone();
+        let mut from = vec![BehaviorId(0); self.next.len()];
+        for v in 0..n {
+            for x in self.next(v) {
+                from[fill[x.index()] as usize] = BehaviorId(v as u32);
+                fill[x.index()] += 1;
+            }
+        }
+        Edges {
+            children: from,
+            child_at: at,
+            next: Vec::new(),
+            next_at: vec![0; n + 1],
+        }
+    }
 }
 
 fn stem(file: &str) -> String {
