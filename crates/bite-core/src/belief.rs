@@ -30,6 +30,13 @@ impl Symbols {
     pub fn new() -> Self {
         Self::default()
     }
+    /// An empty table with room for `n` names.
+    pub fn with_capacity(n: usize) -> Self {
+        Symbols {
+            names: Vec::with_capacity(n),
+            index: hashbrown::HashTable::with_capacity(n),
+        }
+    }
     /// The hash a name is found by ([`Symbols::intern_hashed`]).
     pub fn hash(name: &str) -> u64 {
         use std::hash::BuildHasher as _;

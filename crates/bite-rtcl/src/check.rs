@@ -183,11 +183,11 @@ impl Checker<'_, '_> {
         // Where a missing parameter would go: after the last one written.
         let end = cmd.params.last().map_or(cmd.name.span.end, |p| p.span.end);
         let mut values = Vec::with_capacity(def.params.len());
-        let mut spans = Vec::with_capacity(def.params.len());
+        // Where parameter i is written (or would go), for messages.
+        let span_of = |i: usize| cmd.params.get(i).map_or(Span::point(end), |g| g.span);
         for (i, p) in def.params.iter().enumerate() {
             let given = cmd.params.get(i);
-            let span = given.map_or(Span::point(end), |g| g.span);
-            spans.push(span);
+            let span = span_of(i);
             let v = match given.map(|g| &g.kind) {
                 None | Some(ParamKind::Empty) => {
                     if !p.optional {
@@ -230,7 +230,7 @@ impl Checker<'_, '_> {
                 // Only when the parameter itself was not already reported.
                 if def.params[i].optional {
                     self.error(
-                        spans[i],
+                        span_of(i),
                         "missing-param",
                         format!(
                             "`{}` needs `{}` too: `{x}` and `{y}` make the point `{point}`, and `{other}` is given",

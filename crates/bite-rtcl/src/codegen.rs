@@ -169,97 +169,140 @@ pub fn generate(
     // (too large, or a duplicate name cut a command short), and those the
     // merge below still reaches are made then, so the messages are the same.
     let made = AtomicUsize::new(parts[0].len());
-    let ahead = |s: &Step| -> Option<StepOut> {
-        let def = lib.command(&s.command)?;
-        if made.load(Ordering::Relaxed) > bite_core::graph::MAX_BEHAVIORS {
-            return None;
-        }
-        let out = g.step(s, def);
-        made.fetch_add(out.entries.len(), Ordering::Relaxed);
-        Some(out)
-    };
-    let mut outs: Vec<Option<StepOut>> = if steps.len() >= PARALLEL_FROM {
-        steps.par_iter().map(ahead).collect()
-    } else {
-        steps.iter().map(ahead).collect()
-    };
-    // Names taken so far, as places in `parts` (no copy of a name).
-    let made = made.into_inner();
-    parts.reserve(steps.len());
-    let mut names: hashbrown::HashTable<(u32, u32)> = hashbrown::HashTable::with_capacity(made + 1);
-    names.insert_unique(name_hash("mission"), (0, 0), |_| name_hash("mission"));
-    let mut count = parts[0].len();
-    // Skills, beliefs and targets in the mission's order, put in their maps
-    // at the end: sorted once (a later one with the same name replaces an
-    // earlier, as inserting one after the other would).
-    // Their sizes are known: no list grows by copies onto fresh pages.
-    let total = |f: fn(&StepOut) -> usize| outs.iter().flatten().map(f).sum::<usize>();
-    let mut skills = Vec::with_capacity(total(|o| o.skills.len()));
-    let mut beliefs = Vec::with_capacity(total(|o| o.beliefs.len()));
-    let mut targets = Vec::with_capacity(total(|o| usize::from(o.target.is_some())));
-    let mut infos = Vec::with_capacity(steps.len());
-    let mut diags = Vec::new();
-    let mut warnings = Vec::new();
-    let mut heads = Vec::with_capacity(steps.len());
-    for (s, out) in steps.iter().zip(&mut outs) {
+    // What each command gives the world (skills, beliefs, its target) is
+    // split from its behaviors where it is made: the two are put together
+    // side by side below.
+    let ahead = |s: &Step| -> (Option<StepOut>, Option<World>) {
         let Some(def) = lib.command(&s.command) else {
-            continue;
+            return (None, None);
         };
-        let mut out = out.take().unwrap_or_else(|| g.step(s, def));
-        warnings.append(&mut out.warnings);
-        let head = parts.len();
-        parts.push(out.entries);
-        // Its behaviors in order, up to the first name already taken.
-        let mut failed = None;
-        let name = |&(c, i): &(u32, u32)| &parts[c as usize][i as usize].0.value;
-        for (j, &h) in out.hashes.iter().enumerate() {
-            let at = (head as u32, j as u32);
-            let taken = |p: &(u32, u32)| name(p) == name(&at);
-            match names.entry(h, taken, |p| name_hash(name(p))) {
-                hashbrown::hash_table::Entry::Occupied(_) => {
-                    let msg = format!("two behaviors would be called `{}`", name(&at));
-                    failed = Some((j, g.lib_error(s, def, def.loc, msg)));
-                    break;
-                }
-                hashbrown::hash_table::Entry::Vacant(v) => {
-                    v.insert(at);
-                }
-            }
+        if made.load(Ordering::Relaxed) > bite_core::graph::MAX_BEHAVIORS {
+            return (None, None);
         }
-        if let Some((j, _)) = failed {
-            parts[head].truncate(j);
-        }
-        count += parts[head].len();
-        match failed.map_or(out.result, |(_, d)| Err(d)) {
-            Ok(name) => {
-                heads.push((head, name));
-                skills.extend(out.skills);
-                beliefs.extend(out.beliefs);
-                targets.extend(out.target);
-                infos.extend(out.info);
-            }
-            Err(d) => diags.push(*d),
-        }
-        if count > bite_core::graph::MAX_BEHAVIORS {
-            diags.push(Diagnostic::error(
-                map.file(),
-                Loc::UNKNOWN,
-                "too-large",
-                format!(
-                    "the mission needs more than {} behaviors, the most a graph may have",
-                    bite_core::graph::MAX_BEHAVIORS
-                ),
-            ));
-            break;
-        }
-    }
-    if !diags.is_empty() {
-        return Err(diags);
-    }
+        let mut out = g.step(s, def);
+        made.fetch_add(out.entries.len(), Ordering::Relaxed);
+        let world = World {
+            skills: std::mem::take(&mut out.skills),
+            beliefs: std::mem::take(&mut out.beliefs),
+            target: out.target.take(),
+        };
+        (Some(out), Some(world))
+    };
     let parallel = steps.len() >= PARALLEL_FROM;
-    let skills = sorted_map(skills, parallel);
-    let beliefs = sorted_map(beliefs, parallel);
-    let targets = sorted_map(targets, parallel);
+    let (mut outs, worlds): (Vec<Option<StepOut>>, Vec<Option<World>>) = if parallel {
+        steps.par_iter().map(ahead).unzip()
+    } else {
+        steps.iter().map(ahead).unzip()
+    };
+    let made = made.into_inner();
+    // The behaviors, in the mission's order: names checked for
+    // duplicates, the graph's size bounded.
+    let merge = move || -> Result<Merged, Vec<Diagnostic>> {
+        parts.reserve(steps.len());
+        // Names taken so far, as places in `parts` (no copy of a name).
+        let mut names: hashbrown::HashTable<(u32, u32)> =
+            hashbrown::HashTable::with_capacity(made + 1);
+        names.insert_unique(name_hash("mission"), (0, 0), |_| name_hash("mission"));
+        let mut count = parts[0].len();
+        let mut infos = Vec::with_capacity(steps.len());
+        let mut diags = Vec::new();
+        let mut warnings = Vec::new();
+        let mut heads = Vec::with_capacity(steps.len());
+        for (s, out) in steps.iter().zip(&mut outs) {
+            let Some(def) = lib.command(&s.command) else {
+                continue;
+            };
+            // A command skipped ahead is made now (its world is not needed:
+            // the mission fails).
+            let mut out = out.take().unwrap_or_else(|| g.step(s, def));
+            warnings.append(&mut out.warnings);
+            let head = parts.len();
+            parts.push(out.entries);
+            // Its behaviors in order, up to the first name already taken.
+            let mut failed = None;
+            let name = |&(c, i): &(u32, u32)| &parts[c as usize][i as usize].0.value;
+            for (j, &h) in out.hashes.iter().enumerate() {
+                let at = (head as u32, j as u32);
+                let taken = |p: &(u32, u32)| name(p) == name(&at);
+                match names.entry(h, taken, |p| name_hash(name(p))) {
+                    hashbrown::hash_table::Entry::Occupied(_) => {
+                        let msg = format!("two behaviors would be called `{}`", name(&at));
+                        failed = Some((j, g.lib_error(s, def, def.loc, msg)));
+                        break;
+                    }
+                    hashbrown::hash_table::Entry::Vacant(v) => {
+                        v.insert(at);
+                    }
+                }
+            }
+            if let Some((j, _)) = failed {
+                parts[head].truncate(j);
+            }
+            count += parts[head].len();
+            match failed.map_or(out.result, |(_, d)| Err(d)) {
+                Ok(name) => {
+                    heads.push((head, name));
+                    infos.extend(out.info);
+                }
+                Err(d) => diags.push(*d),
+            }
+            if count > bite_core::graph::MAX_BEHAVIORS {
+                diags.push(Diagnostic::error(
+                    map.file(),
+                    Loc::UNKNOWN,
+                    "too-large",
+                    format!(
+                        "the mission needs more than {} behaviors, the most a graph may have",
+                        bite_core::graph::MAX_BEHAVIORS
+                    ),
+                ));
+                break;
+            }
+        }
+        if !diags.is_empty() {
+            return Err(diags);
+        }
+        Ok(Merged {
+            parts,
+            count,
+            heads,
+            infos,
+            warnings,
+        })
+    };
+    // Skills, beliefs and targets in the mission's order, put in their
+    // maps: sorted once (a later one with the same name replaces an
+    // earlier, as inserting one after the other would). Only a mission
+    // that compiles uses them, and then every command was made ahead.
+    let maps = move || {
+        let total = |f: fn(&World) -> usize| worlds.iter().flatten().map(f).sum::<usize>();
+        // Their sizes are known: no list grows by copies onto fresh pages.
+        let mut skills = Vec::with_capacity(total(|w| w.skills.len()));
+        let mut beliefs = Vec::with_capacity(total(|w| w.beliefs.len()));
+        let mut targets = Vec::with_capacity(total(|w| usize::from(w.target.is_some())));
+        for w in worlds.into_iter().flatten() {
+            skills.extend(w.skills);
+            beliefs.extend(w.beliefs);
+            targets.extend(w.target);
+        }
+        (
+            sorted_map(skills, parallel),
+            sorted_map(beliefs, parallel),
+            sorted_map(targets, parallel),
+        )
+    };
+    let (merged, (skills, beliefs, targets)) = if parallel {
+        rayon::join(merge, maps)
+    } else {
+        (merge(), maps())
+    };
+    let Merged {
+        mut parts,
+        count,
+        heads,
+        infos,
+        warnings,
+    } = merged?;
     // The chain: mission → B1 → B2 → ... → Bn (each name is one edge's:
     // moved there).
     let mut before: Option<usize> = None;
@@ -341,6 +384,24 @@ struct Gen<'a, 's> {
     map: &'a SourceMap<'s>,
     lib: &'a Library,
     opts: &'a CompileOptions,
+}
+
+/// What one command gives the world.
+struct World {
+    skills: Vec<(String, Vec<Json>)>,
+    beliefs: Vec<(String, String)>,
+    target: Option<(String, Target)>,
+}
+
+/// The commands' behaviors put together in order.
+struct Merged {
+    parts: Vec<Vec<BehaviorEntry>>,
+    /// Number of behaviors.
+    count: usize,
+    /// Each command's first list in `parts`, and its behavior's name.
+    heads: Vec<(usize, String)>,
+    infos: Vec<StepInfo>,
+    warnings: Vec<Diagnostic>,
 }
 
 /// What one command generated, in the order the sequential generator made

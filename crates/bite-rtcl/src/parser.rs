@@ -164,7 +164,13 @@ impl<'a> Parser<'a, '_> {
             text: head.text(src).to_string(),
             span: head.span,
         };
-        let mut params = Vec::new();
+        // One parameter per `:` before the end of the line: the list is
+        // made at its size.
+        let colons = (self.toks.get(self.pos..).unwrap_or_default().iter())
+            .take_while(|t| !matches!(t.kind, TokenKind::Newline | TokenKind::Eof))
+            .filter(|t| t.kind == TokenKind::Colon)
+            .count();
+        let mut params = Vec::with_capacity(colons);
         let mut result = None;
         let mut end = head.span;
         loop {

@@ -137,8 +137,6 @@ struct Cx<'a> {
 /// with the other behaviors' afterwards.
 #[derive(Default)]
 struct Made {
-    crefs: Vec<(BehaviorId, Loc)>,
-    nrefs: Vec<(BehaviorId, Loc)>,
     member_loc: Option<Loc>,
     /// Its messages, in the order they were found.
     diags: Vec<Diagnostic>,
@@ -233,10 +231,8 @@ impl Made {
     ) -> (Behavior, Made) {
         let mut made = Made::default();
         let loc = Loc::from(name.referenced);
-        let (children, crefs) = made.edges(cx, &spec.children, &name.value, "child");
-        let (next, nrefs) = made.edges(cx, &spec.next, &name.value, "successor");
-        made.crefs = crefs;
-        made.nrefs = nrefs;
+        let children = made.edges(cx, &spec.children, &name.value, "child");
+        let next = made.edges(cx, &spec.next, &name.value, "successor");
         for c in &spec.children {
             if spec.next.iter().any(|n| n.value == c.value) {
                 made.err(
@@ -294,16 +290,16 @@ impl Made {
         (behavior, made)
     }
 
-    /// The ids of an edge list, and where each edge is written.
+    /// The ids of an edge list (where each is written is looked up again
+    /// for a message: [`EdgeLocs`]).
     fn edges(
         &mut self,
         cx: &Cx<'_>,
         refs: &[Spanned<String>],
         owner: &str,
         what: &str,
-    ) -> (Vec<BehaviorId>, Vec<(BehaviorId, Loc)>) {
+    ) -> Vec<BehaviorId> {
         let mut ids: Vec<BehaviorId> = Vec::with_capacity(refs.len());
-        let mut locs = Vec::with_capacity(refs.len());
         let mut seen: rustc_hash::FxHashSet<BehaviorId> = rustc_hash::FxHashSet::default();
         let long = refs.len() > SHORT_LIST;
         for r in refs {
@@ -323,10 +319,7 @@ impl Made {
                         format!("`{}` is listed twice as a {what} of `{owner}`", r.value),
                     );
                 }
-                Some(id) => {
-                    ids.push(id);
-                    locs.push((id, loc));
-                }
+                Some(id) => ids.push(id),
                 None => {
                     let hint = did_you_mean(&r.value, cx.names.all());
                     let d = self.err(
@@ -342,7 +335,7 @@ impl Made {
                 }
             }
         }
-        (ids, locs)
+        ids
     }
 
     fn condition(
@@ -493,16 +486,21 @@ impl Builder<'_> {
         } else {
             entries.iter().enumerate().map(one).unzip()
         };
-        let mut symbols = Symbols::new();
-        let mut child_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(n);
-        let mut next_refs: Vec<Vec<(BehaviorId, Loc)>> = Vec::with_capacity(n);
+        // Belief names read, counted with repeats: the tables are made at
+        // their largest size (growing them copies them on this thread).
+        let reads: usize = if n >= PARALLEL_FROM {
+            use rayon::prelude::*;
+            made.par_iter().map(|m| m.beliefs.len()).sum()
+        } else {
+            made.iter().map(|m| m.beliefs.len()).sum()
+        };
+        let mut symbols = Symbols::with_capacity(reads);
         let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(n);
         // Behavior i's belief ids in the graph's table, `ids[remap[i]..
         // remap[i + 1]]`, left empty where they are its own numbering.
-        let mut ids: Vec<BeliefId> = Vec::new();
+        let mut ids: Vec<BeliefId> = Vec::with_capacity(reads);
         let mut remap: Vec<u32> = Vec::with_capacity(n + 1);
         remap.push(0);
-        let mut edges = Edges::with_capacity(n);
         for (i, (m, &(_, body))) in made.into_iter().zip(entries).enumerate() {
             let from = ids.len();
             ids.extend(
@@ -530,9 +528,6 @@ impl Builder<'_> {
                     .into_iter()
                     .map(|(x, field, loc)| (id, x, field, loc)),
             );
-            edges.push(&m.crefs, &m.nrefs);
-            child_refs.push(m.crefs);
-            next_refs.push(m.nrefs);
             member_locs.push(m.member_loc);
         }
         // The conditions' belief ids renumbered, side by side.
@@ -553,6 +548,11 @@ impl Builder<'_> {
         } else {
             out.iter_mut().enumerate().for_each(renumber);
         }
+        let edges = Edges::of(&out, n >= PARALLEL_FROM);
+        let locs = EdgeLocs {
+            entries,
+            names: &names,
+        };
 
         let start = match &spec.start {
             None => {
@@ -589,9 +589,9 @@ impl Builder<'_> {
             },
         };
 
-        self.check_decomposition(&out, &edges, &child_refs);
-        self.check_loops_and_depth(&out, &edges, &next_refs);
-        self.check_chain_heads(&out, &edges, &child_refs);
+        self.check_decomposition(&out, &edges, &locs);
+        self.check_loops_and_depth(&out, &edges, &locs);
+        self.check_chain_heads(&out, &edges, &locs);
         self.check_bindings_fit(&out);
         self.check_members(&out, &edges, &member_locs);
         if let Some(start) = start {
@@ -795,12 +795,7 @@ impl Builder<'_> {
     }
 
     /// V must be acyclic (a behavior cannot be its own ancestor).
-    fn check_decomposition(
-        &mut self,
-        bs: &[Behavior],
-        g: &Edges,
-        child_refs: &[Vec<(BehaviorId, Loc)>],
-    ) {
+    fn check_decomposition(&mut self, bs: &[Behavior], g: &Edges, locs: &EdgeLocs<'_>) {
         // Iterative DFS with colours: 0 new, 1 on the path, 2 done.
         let n = bs.len();
         let mut colour = vec![0u8; n];
@@ -830,10 +825,7 @@ impl Builder<'_> {
                                 cycle.push(c);
                                 let path: Vec<&str> =
                                     cycle.iter().map(|x| bs[*x].name.as_str()).collect();
-                                let loc = child_refs[v]
-                                    .iter()
-                                    .find(|(id, _)| id.index() == c)
-                                    .map_or(bs[v].loc, |(_, l)| *l);
+                                let loc = locs.child(v, c).unwrap_or(bs[v].loc);
                                 let d = self.err(
                                     loc,
                                     "decomposition-cycle",
@@ -874,12 +866,7 @@ impl Builder<'_> {
     /// Linear in the size of the graph: strongly connected components of
     /// the `children` + `next` edges, one search per component that holds
     /// both kinds of edge, and levels over the components' DAG.
-    fn check_loops_and_depth(
-        &mut self,
-        bs: &[Behavior],
-        g: &Edges,
-        next_refs: &[Vec<(BehaviorId, Loc)>],
-    ) {
+    fn check_loops_and_depth(&mut self, bs: &[Behavior], g: &Edges, locs: &EdgeLocs<'_>) {
         let n = bs.len();
         let (comp, ncomp) = components(g);
         // Nodes of each component, in graph order (a counting sort).
@@ -986,10 +973,7 @@ impl Builder<'_> {
                 path.push_str(&bs[w].name);
             }
             let levels = walk.iter().filter(|e| e.2).count();
-            let loc = next_refs[from]
-                .iter()
-                .find(|(id, _)| id.index() == to)
-                .map_or(bs[from].loc, |(_, l)| *l);
+            let loc = locs.next(from, to).unwrap_or(bs[from].loc);
             let (f, a) = (&bs[from].name, &bs[to].name);
             let d = self.err(
                 loc,
@@ -1021,17 +1005,11 @@ impl Builder<'_> {
 
     /// A child must head an execution chain: nothing may enter it by a
     /// sequential edge except from its own chain (a cycle back to the head).
-    fn check_chain_heads(
-        &mut self,
-        bs: &[Behavior],
-        g: &Edges,
-        child_refs: &[Vec<(BehaviorId, Loc)>],
-    ) {
+    fn check_chain_heads(&mut self, bs: &[Behavior], g: &Edges, locs: &EdgeLocs<'_>) {
         let incoming = g.incoming_next();
-        let mut checked = BTreeSet::new();
-        for (p, refs) in child_refs.iter().enumerate() {
-            for (c, loc) in refs {
-                if incoming.children(c.index()).is_empty() || !checked.insert((p, c.index())) {
+        for p in 0..g.len() {
+            for c in g.children(p) {
+                if incoming.children(c.index()).is_empty() {
                     continue;
                 }
                 let chain = seq_reach(g, *c);
@@ -1041,7 +1019,7 @@ impl Builder<'_> {
                         let (child, parent, from) =
                             (&bs[c.index()].name, &bs[p].name, &bs[x.index()].name);
                         let d = self.err(
-                            *loc,
+                            locs.child(p, c.index()).unwrap_or(bs[p].loc),
                             "child-not-chain-head",
                             format!(
                                 "`{child}` is a child of `{parent}`, so it must head an execution chain, but `{from}` leads into it sequentially from outside its chain"
@@ -1327,22 +1305,42 @@ struct Edges {
 }
 
 impl Edges {
-    fn with_capacity(n: usize) -> Self {
-        let mut at = Vec::with_capacity(n + 1);
-        at.push(0);
+    /// The edges of `bs`, read side by side when `parallel`.
+    fn of(bs: &[Behavior], parallel: bool) -> Self {
+        use rayon::prelude::*;
+        let lens: Vec<(u32, u32)> = if parallel {
+            let lens = |b: &Behavior| (b.children.len() as u32, b.next.len() as u32);
+            bs.par_iter().map(lens).collect()
+        } else {
+            bs.iter()
+                .map(|b| (b.children.len() as u32, b.next.len() as u32))
+                .collect()
+        };
+        let at = |f: fn(&(u32, u32)) -> u32| {
+            let mut at = Vec::with_capacity(bs.len() + 1);
+            at.push(0u32);
+            let mut sum = 0;
+            for l in &lens {
+                sum += f(l);
+                at.push(sum);
+            }
+            at
+        };
+        let list = |f: fn(&Behavior) -> &[BehaviorId]| -> Vec<BehaviorId> {
+            if parallel {
+                bs.par_iter()
+                    .flat_map_iter(|b| f(b).iter().copied())
+                    .collect()
+            } else {
+                bs.iter().flat_map(|b| f(b).iter().copied()).collect()
+            }
+        };
         Edges {
-            children: Vec::with_capacity(n),
-            child_at: at.clone(),
-            next: Vec::with_capacity(n),
-            next_at: at,
+            children: list(|b| &b.children),
+            child_at: at(|l| l.0),
+            next: list(|b| &b.next),
+            next_at: at(|l| l.1),
         }
-    }
-    /// The next behavior's edges (as `Made::edges` found them).
-    fn push(&mut self, children: &[(BehaviorId, Loc)], next: &[(BehaviorId, Loc)]) {
-        self.children.extend(children.iter().map(|(c, _)| *c));
-        self.child_at.push(self.children.len() as u32);
-        self.next.extend(next.iter().map(|(x, _)| *x));
-        self.next_at.push(self.next.len() as u32);
     }
     fn len(&self) -> usize {
         self.child_at.len() - 1
@@ -1378,6 +1376,29 @@ impl Edges {
             next: Vec::new(),
             next_at: vec![0; n + 1],
         }
+    }
+}
+
+/// Where each edge is written, looked up for a message (the behaviors
+/// keep the ids only).
+struct EdgeLocs<'a> {
+    entries: &'a [&'a BehaviorEntry],
+    names: &'a Names<'a>,
+}
+
+impl EdgeLocs<'_> {
+    /// Where `from` names `to` among its children.
+    fn child(&self, from: usize, to: usize) -> Option<Loc> {
+        self.find(&self.entries[from].1.value.children, to)
+    }
+    /// Where `from` names `to` among its successors.
+    fn next(&self, from: usize, to: usize) -> Option<Loc> {
+        self.find(&self.entries[from].1.value.next, to)
+    }
+    fn find(&self, refs: &[Spanned<String>], to: usize) -> Option<Loc> {
+        (refs.iter())
+            .find(|r| self.names.get(&r.value).is_some_and(|id| id.index() == to))
+            .map(|r| Loc::from(r.referenced))
     }
 }
 
