@@ -869,26 +869,18 @@ impl Builder<'_> {
     fn check_loops_and_depth(&mut self, bs: &[Behavior], g: &Edges, locs: &EdgeLocs<'_>) {
         let n = bs.len();
         let (comp, ncomp) = components(g);
-        // Nodes of each component, in graph order (a counting sort).
-        let mut start = vec![0usize; ncomp + 1];
-        for &c in &comp {
-            start[c as usize + 1] += 1;
-        }
-        for c in 0..ncomp {
-            start[c + 1] += start[c];
-        }
-        let mut fill = start.clone();
-        let mut nodes = vec![0u32; n];
-        for (v, &c) in comp.iter().enumerate() {
-            nodes[fill[c as usize]] = v as u32;
-            fill[c as usize] += 1;
-        }
+        // Nodes of each component, in graph order.
+        let (start, nodes) = grouped(
+            ncomp,
+            (comp.iter().enumerate()).map(|(v, &c)| (c as usize, v as u32)),
+            0,
+        );
         // Layered search state, reused across components (they are
         // disjoint): for (node, descended), the step that reached it.
         let mut prev: Vec<Option<(u32, bool, bool)>> = vec![None; 2 * n];
         let mut level = vec![0usize; ncomp];
         for c in 0..ncomp {
-            let members = &nodes[start[c]..start[c + 1]];
+            let members = &nodes[start[c] as usize..start[c + 1] as usize];
             let inside = |v: usize| comp[v] as usize == c;
             let mut descends = false;
             let mut closing: Option<(usize, usize)> = None;
@@ -1308,13 +1300,11 @@ impl Edges {
     /// The edges of `bs`, read side by side when `parallel`.
     fn of(bs: &[Behavior], parallel: bool) -> Self {
         use rayon::prelude::*;
+        let len = |b: &Behavior| (b.children.len() as u32, b.next.len() as u32);
         let lens: Vec<(u32, u32)> = if parallel {
-            let lens = |b: &Behavior| (b.children.len() as u32, b.next.len() as u32);
-            bs.par_iter().map(lens).collect()
+            bs.par_iter().map(len).collect()
         } else {
-            bs.iter()
-                .map(|b| (b.children.len() as u32, b.next.len() as u32))
-                .collect()
+            bs.iter().map(len).collect()
         };
         let at = |f: fn(&(u32, u32)) -> u32| {
             let mut at = Vec::with_capacity(bs.len() + 1);
@@ -1355,21 +1345,11 @@ impl Edges {
     /// order, as the `children` of the result.
     fn incoming_next(&self) -> Edges {
         let n = self.len();
-        let mut at = vec![0u32; n + 1];
-        for x in &self.next {
-            at[x.index() + 1] += 1;
-        }
-        for v in 0..n {
-            at[v + 1] += at[v];
-        }
-        let mut fill = at.clone();
-        let mut from = vec![BehaviorId(0); self.next.len()];
-        for v in 0..n {
-            for x in self.next(v) {
-                from[fill[x.index()] as usize] = BehaviorId(v as u32);
-                fill[x.index()] += 1;
-            }
-        }
+        let edges = (0..n).flat_map(|v| {
+            let from = BehaviorId(v as u32);
+            self.next(v).iter().map(move |x| (x.index(), from))
+        });
+        let (at, from) = grouped(n, edges, BehaviorId(0));
         Edges {
             children: from,
             child_at: at,
@@ -1377,6 +1357,30 @@ impl Edges {
             next_at: vec![0; n + 1],
         }
     }
+}
+
+/// `(key, value)` pairs grouped by key, in the order given (a counting
+/// sort): group k is `values[at[k]..at[k + 1]]`, for keys below `keys`
+/// (`blank` fills the list before the values are put in place).
+fn grouped<V: Copy>(
+    keys: usize,
+    pairs: impl Iterator<Item = (usize, V)> + Clone,
+    blank: V,
+) -> (Vec<u32>, Vec<V>) {
+    let mut at = vec![0u32; keys + 1];
+    for (k, _) in pairs.clone() {
+        at[k + 1] += 1;
+    }
+    for k in 0..keys {
+        at[k + 1] += at[k];
+    }
+    let mut fill = at.clone();
+    let mut values = vec![blank; at[keys] as usize];
+    for (k, v) in pairs {
+        values[fill[k] as usize] = v;
+        fill[k] += 1;
+    }
+    (at, values)
 }
 
 /// Where each edge is written, looked up for a message (the behaviors
