@@ -18,7 +18,7 @@ use std::sync::Arc;
 #[derive(Clone, Debug, Default)]
 pub struct Symbols {
     names: Vec<Arc<str>>,
-    /// Hashed ([`Symbols::hash`]): a graph's conditions look up every name
+    /// Hashed ([`crate::ids::name_hash`]): a graph's conditions look up every name
     /// they read when it is loaded (a B-tree's string comparisons were most
     /// of that). A table of ids, so that the loader can intern names its
     /// workers hashed ([`Symbols::intern_hashed`]).
@@ -37,23 +37,18 @@ impl Symbols {
             index: hashbrown::HashTable::with_capacity(n),
         }
     }
-    /// The hash a name is found by ([`Symbols::intern_hashed`]).
-    pub fn hash(name: &str) -> u64 {
-        use std::hash::BuildHasher as _;
-        rustc_hash::FxBuildHasher.hash_one(name)
-    }
     /// The id of `name`, adding it if it is new.
     pub fn intern(&mut self, name: &str) -> BeliefId {
-        self.intern_hashed(Self::hash(name), name)
+        self.intern_hashed(crate::ids::name_hash(name), name)
     }
-    /// The id of `name`, whose [`Symbols::hash`] is `hash`, adding it if it
+    /// The id of `name`, whose [`crate::ids::name_hash`] is `hash`, adding it if it
     /// is new.
     pub fn intern_hashed(&mut self, hash: u64, name: &str) -> BeliefId {
         let names = &self.names;
         match self.index.entry(
             hash,
             |id| *names[id.index()] == *name,
-            |id| Self::hash(&names[id.index()]),
+            |id| crate::ids::name_hash(&names[id.index()]),
         ) {
             hashbrown::hash_table::Entry::Occupied(e) => *e.get(),
             hashbrown::hash_table::Entry::Vacant(v) => {
@@ -67,7 +62,9 @@ impl Symbols {
     /// The id of `name`, if it is known.
     pub fn get(&self, name: &str) -> Option<BeliefId> {
         (self.index)
-            .find(Self::hash(name), |id| *self.names[id.index()] == *name)
+            .find(crate::ids::name_hash(name), |id| {
+                *self.names[id.index()] == *name
+            })
             .copied()
     }
     /// The name of `id`.

@@ -256,6 +256,14 @@ impl fmt::Display for InstanceKey {
     }
 }
 
+/// The hash a name (a behavior's, a belief's) is found by in the tables
+/// that index names by it: one function, so that a hash made by one part
+/// (a loader's worker, the compiler) is the one another looks up with.
+pub fn name_hash(name: &str) -> u64 {
+    use std::hash::BuildHasher as _;
+    rustc_hash::FxBuildHasher.hash_one(name)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -23,10 +23,10 @@ use bite_core::graph::spec::{
     BehaviorSpec, BindingSpec, DefaultsSpec, GraphSpec, MembersSpec, Ordered, RobotsSpec,
     SkillSpec, TeamSpec,
 };
+use bite_core::ids::name_hash;
 use serde_saphyr::{Location, Spanned};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
-use std::hash::BuildHasher as _;
 
 /// One behavior of the generated graph.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -330,12 +330,6 @@ pub fn generate(
         steps: infos,
         warnings,
     })
-}
-
-/// The hash behavior names are told apart by when commands are put
-/// together.
-fn name_hash(name: &str) -> u64 {
-    rustc_hash::FxBuildHasher.hash_one(name)
 }
 
 /// A map of `pairs`, the last of equal keys kept (as inserting them in

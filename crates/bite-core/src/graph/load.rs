@@ -12,7 +12,7 @@ use crate::belief::Symbols;
 use crate::cond::{CondError, Expr, Resolver};
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
 use crate::ids::Kind;
-use crate::ids::{BehaviorId, BeliefId};
+use crate::ids::{BehaviorId, BeliefId, name_hash};
 use crate::roster::{RobotInfo, Roster};
 use crate::time::parse_duration;
 use crate::value::Value;
@@ -144,7 +144,7 @@ struct Made {
     /// its conditions' belief ids index this until the graph's table of
     /// names is filled, in the behaviors' order.
     beliefs: Vec<Box<str>>,
-    /// Their hashes ([`Symbols::hash`]), made by the thread that made the
+    /// Their hashes ([`crate::ids::name_hash`]), made by the thread that made the
     /// behavior: the table of names is filled from them.
     belief_hashes: Vec<u64>,
     /// `runs(x)` in its conditions: (x, field, where).
@@ -269,7 +269,7 @@ impl Made {
             name: s.value.name.clone(),
             params: s.value.params.clone(),
         });
-        made.belief_hashes = made.beliefs.iter().map(|b| Symbols::hash(b)).collect();
+        made.belief_hashes = made.beliefs.iter().map(|b| name_hash(b)).collect();
         let behavior = Behavior {
             id,
             name: name.value.clone(),
@@ -443,7 +443,7 @@ impl Builder<'_> {
         // are hashed and checked side by side for large graphs (each read
         // once, by one thread), then put in the table in order.
         let hashed =
-            |&(name, _): &&BehaviorEntry| (NameIndex::hash(&name.value), valid_name(&name.value));
+            |&(name, _): &&BehaviorEntry| (name_hash(&name.value), valid_name(&name.value));
         let hashes: Vec<(u64, bool)> = if entries.len() >= PARALLEL_FROM {
             use rayon::prelude::*;
             entries.par_iter().map(hashed).collect()

@@ -151,19 +151,14 @@ pub(crate) struct NameIndex {
 }
 
 impl NameIndex {
-    pub(crate) fn hash(name: &str) -> u64 {
-        use std::hash::BuildHasher as _;
-        rustc_hash::FxBuildHasher.hash_one(name)
-    }
-
     /// The ids `0..n` by their names (`name(i)`); a name given twice keeps
     /// its last id.
     pub(crate) fn new<'a>(n: usize, name: impl Fn(usize) -> &'a str) -> NameIndex {
-        Self::hashed(n, |i| Self::hash(name(i)), &name)
+        Self::hashed(n, |i| crate::ids::name_hash(name(i)), &name)
     }
 
     /// [`NameIndex::new`] with each name's hash given (`hash(i)`, made
-    /// by [`NameIndex::hash`]): a name is read only to tell it from
+    /// by [`crate::ids::name_hash`]): a name is read only to tell it from
     /// another of the same hash.
     pub(crate) fn hashed<'a>(
         n: usize,
@@ -191,7 +186,7 @@ impl NameIndex {
     /// the index was made with).
     pub(crate) fn get<'a>(&self, key: &str, name: impl Fn(usize) -> &'a str) -> Option<BehaviorId> {
         self.table
-            .find(Self::hash(key), |&j| name(j as usize) == key)
+            .find(crate::ids::name_hash(key), |&j| name(j as usize) == key)
             .map(|&j| BehaviorId(j))
     }
 }
