@@ -29,6 +29,7 @@ use bite_core::ids::{BehaviorId, RobotId, TeamId};
 use bite_core::mission::Mission;
 use bite_core::msg::{InstanceKey, Kind};
 use bite_core::time::Time;
+use rustc_hash::{FxHashMap, FxHashSet};
 use serde::Serialize;
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
@@ -165,29 +166,36 @@ pub struct Checker {
     sync: BTreeMap<InstanceKey, BTreeMap<RobotId, Option<BehaviorId>>>,
     alloc: BTreeMap<InstanceKey, BTreeMap<RobotId, LogList<(BehaviorId, MembersLog)>>>,
     ended: BTreeMap<InstanceKey, Time>,
+    // What is only looked up, never walked in order, is kept in hash
+    // tables: at 100,000 robots they hold an entry per robot and
+    // execution, and a B-tree of millions of entries was a fifth of a
+    // decision's time (docs/performance.md, "2026-11-28"). Whatever a
+    // violation is reported from is walked in order (B-trees).
     /// Who each robot presumes lost, as the run goes (for "could talk").
-    lost_now: BTreeMap<RobotId, BTreeSet<RobotId>>,
+    lost_now: FxHashMap<RobotId, BTreeSet<RobotId>>,
     /// Whom each robot ever presumed lost.
-    ever_lost: BTreeMap<RobotId, BTreeSet<RobotId>>,
-    view_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
+    ever_lost: FxHashMap<RobotId, BTreeSet<RobotId>>,
+    /// Whom each robot's instance presumed lost or left out when it
+    /// decided, by instance.
+    view_at: FxHashMap<InstanceKey, FxHashMap<RobotId, BTreeSet<RobotId>>>,
     /// Whom each robot's instance left out from its start, and whom it
     /// presumed lost while the instance ran.
-    left_out_at: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
-    lost_during: BTreeMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
+    left_out_at: FxHashMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
+    lost_during: FxHashMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
     /// What each robot's instance saw it could choose.
-    options_at: BTreeMap<(InstanceKey, RobotId), LogList<BehaviorId>>,
-    open: BTreeMap<RobotId, BTreeSet<InstanceKey>>,
-    timed_out_at: BTreeSet<InstanceKey>,
+    options_at: FxHashMap<(InstanceKey, RobotId), LogList<BehaviorId>>,
+    open: FxHashMap<RobotId, BTreeSet<InstanceKey>>,
+    timed_out_at: FxHashSet<InstanceKey>,
     selected: BTreeMap<Exec, BTreeSet<RobotId>>,
-    terminated: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time>,
-    started: BTreeMap<(TeamId, BehaviorId, u32, RobotId), Time>,
-    last_epoch: BTreeMap<(RobotId, TeamId, BehaviorId), u32>,
+    terminated: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Time>,
+    started: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Time>,
+    last_epoch: FxHashMap<(RobotId, TeamId, BehaviorId), u32>,
     /// After each point (team, behavior, epoch), what each member ran.
     legs: BTreeMap<Exec, BTreeMap<RobotId, Vec<Leg>>>,
     /// Where each robot's legs are, to close them when they end.
-    running_leg: BTreeMap<(RobotId, TeamId, BehaviorId, u32), Exec>,
+    running_leg: FxHashMap<(RobotId, TeamId, BehaviorId, u32), Exec>,
     /// The version of the mission each robot runs.
-    version: BTreeMap<RobotId, u32>,
+    version: FxHashMap<RobotId, u32>,
     /// After each point, the version each member chose its successor in,
     /// and whom it presumed lost then.
     chosen_in: BTreeMap<Exec, BTreeMap<RobotId, (u32, BTreeSet<RobotId>)>>,
@@ -202,21 +210,21 @@ impl Checker {
             sync: BTreeMap::new(),
             alloc: BTreeMap::new(),
             ended: BTreeMap::new(),
-            lost_now: BTreeMap::new(),
-            ever_lost: BTreeMap::new(),
-            view_at: BTreeMap::new(),
-            left_out_at: BTreeMap::new(),
-            lost_during: BTreeMap::new(),
-            options_at: BTreeMap::new(),
-            open: BTreeMap::new(),
-            timed_out_at: BTreeSet::new(),
+            lost_now: FxHashMap::default(),
+            ever_lost: FxHashMap::default(),
+            view_at: FxHashMap::default(),
+            left_out_at: FxHashMap::default(),
+            lost_during: FxHashMap::default(),
+            options_at: FxHashMap::default(),
+            open: FxHashMap::default(),
+            timed_out_at: FxHashSet::default(),
             selected: BTreeMap::new(),
-            terminated: BTreeMap::new(),
-            started: BTreeMap::new(),
-            last_epoch: BTreeMap::new(),
+            terminated: FxHashMap::default(),
+            started: FxHashMap::default(),
+            last_epoch: FxHashMap::default(),
             legs: BTreeMap::new(),
-            running_leg: BTreeMap::new(),
-            version: BTreeMap::new(),
+            running_leg: FxHashMap::default(),
+            version: FxHashMap::default(),
             chosen_in: BTreeMap::new(),
         }
     }
@@ -305,7 +313,10 @@ impl Checker {
                         view.extend(x.iter().copied());
                     }
                 }
-                self.view_at.insert((*instance, robot), view);
+                self.view_at
+                    .entry(*instance)
+                    .or_default()
+                    .insert(robot, view);
             }
             _ => {}
         }
@@ -521,8 +532,9 @@ impl Checker {
     /// after a teammate timed out (each learnt the outcome from a
     /// different side).
     fn could_talk(&self, key: &InstanceKey, a: RobotId, b: RobotId) -> bool {
-        let va = self.view_at.get(&(*key, a));
-        let vb = self.view_at.get(&(*key, b));
+        let views = self.view_at.get(key);
+        let va = views.and_then(|v| v.get(&a));
+        let vb = views.and_then(|v| v.get(&b));
         let silent = self
             .mission
             .bound(key.behavior, key.kind)
@@ -673,8 +685,8 @@ impl Checker {
             // if it came back meanwhile: it rejoins at the next point.
             let left_out = |r: RobotId| {
                 self.view_at
-                    .range((*key, RobotId(0))..=(*key, RobotId(u32::MAX)))
-                    .any(|(_, v)| v.contains(&r))
+                    .get(key)
+                    .is_some_and(|views| views.values().any(|v| v.contains(&r)))
             };
             for r in holders.iter().copied() {
                 if !seen.contains(&r) && room && !left_out(r) {

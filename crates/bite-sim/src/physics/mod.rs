@@ -156,6 +156,28 @@ fn gauss(rng: &mut Rng) -> f64 {
     rand_distr::StandardNormal.sample(rng)
 }
 
+/// Half the thinnest extent of a shape, m.
+fn half_thickness(shape: &Shape) -> f64 {
+    match shape {
+        Shape::Box(s) => s.x.min(s.y) / 2.0,
+        Shape::Disc(r) => *r,
+    }
+}
+
+/// Whether robots need continuous collision detection: a robot at full
+/// speed moves more in one physics step than half the thinnest thing it
+/// could pass through (itself, a wall, an obstacle, an object), so that a
+/// step could carry it across. Otherwise rapier's contacts stop it in
+/// time, and CCD's per-step sweep of every robot is pure cost (a tenth of
+/// the physics at 10,000 robots; docs/performance.md, "2026-11-28"). The
+/// shipped scenarios move 2 cm a step against 10 cm and more.
+fn needs_ccd(spec: &PhysicsSpec) -> bool {
+    let thinnest = (spec.obstacles.iter().map(|o| half_thickness(&o.shape)))
+        .chain(spec.objects.iter().map(|o| half_thickness(&o.shape)))
+        .fold(spec.robot.radius.min(f64::from(place::WALL_HALF)), f64::min);
+    spec.robot.max_speed / spec.hz > thinnest / 2.0
+}
+
 fn collider_of(shape: &Shape) -> rp::ColliderBuilder {
     match shape {
         Shape::Box(s) => rp::ColliderBuilder::cuboid(s.x as f32 / 2.0, s.y as f32 / 2.0),
@@ -290,6 +312,7 @@ impl World {
             }
         }
         let poses = start_poses(&spec, names);
+        let ccd = needs_ccd(&spec);
         for (i, name) in names.iter().enumerate() {
             let Some((at, heading)) = poses[i] else {
                 errors.push(
@@ -311,7 +334,7 @@ impl World {
                 rp::RigidBodyBuilder::dynamic()
                     .translation(v32(at))
                     .rotation(heading as f32)
-                    .ccd_enabled(true),
+                    .ccd_enabled(ccd),
                 rp::ColliderBuilder::ball(spec.robot.radius as f32)
                     .mass(spec.robot.mass as f32)
                     .friction(0.2),
@@ -1084,6 +1107,51 @@ mod tests {
         let names: Vec<String> = (0..n).map(|i| format!("r{i}")).collect();
         let spec = sc.physics.clone().expect("physical");
         World::new(spec, &names, g.symbols(), &Arc::from("s"), 1).expect("world")
+    }
+
+    /// Continuous collision detection is on exactly where a step at full
+    /// speed could carry a robot across something: off in every shipped
+    /// physical scenario and the coverage mission at scale, on for a fast
+    /// robot or a thin obstacle.
+    #[test]
+    fn continuous_collision_detection_where_a_step_could_tunnel() {
+        let shipped = [
+            include_str!("../../../../examples/scenarios/box-push-hidden-physics.yaml"),
+            include_str!("../../../../examples/scenarios/box-push-physics.yaml"),
+            include_str!("../../../../examples/scenarios/coverage-physics.yaml"),
+            include_str!("../../../../examples/scenarios/coverage-sweep-physics.yaml"),
+            include_str!("../../../../examples/scenarios/formation-physics.yaml"),
+            include_str!("../../../../examples/scenarios/formation-walk-physics.yaml"),
+            include_str!("../../../../examples/scenarios/red-cube-physics.yaml"),
+            include_str!("../../../../examples/scenarios/search-rescue-hidden-physics.yaml"),
+            include_str!("../../../../examples/scenarios/search-rescue-physics.yaml"),
+        ];
+        let mut spec = None;
+        for text in shipped {
+            let sc = crate::Scenario::load_str(&Arc::from("s"), text).expect("scenario");
+            let s = sc.physics.clone().expect("physical");
+            assert!(!needs_ccd(&s), "{}", sc.name);
+            spec = Some(s);
+        }
+        let (_, s) = swarm::coverage_mission(1000, 10.0);
+        let sc = crate::Scenario::load_str(&Arc::from("s"), &s).expect("scenario");
+        assert!(!needs_ccd(sc.physics.as_ref().expect("physical")));
+        let mut s = (*spec.expect("a shipped scenario")).clone();
+        let slow = s.robot.max_speed;
+        s.robot.max_speed = s.hz * s.robot.radius; // a radius per step
+        assert!(needs_ccd(&s), "fast robot");
+        s.robot.max_speed = slow;
+        s.obstacles.push(spec::Body {
+            name: None,
+            at: DVec2::ONE,
+            place: None,
+            angle: 0.0,
+            shape: Shape::Box(DVec2::new(2.0, slow / s.hz)), // a step thick
+            colour: None,
+            mass: 1.0,
+            damping: 0.0,
+        });
+        assert!(needs_ccd(&s), "thin obstacle");
     }
 
     /// Everything within `range` of `at`, by scanning every collider.

@@ -50,9 +50,12 @@ fn shape_of(shape: &Shape) -> rp::SharedShape {
 }
 
 /// The walls round the arena, as the world builds them.
+/// Half the thickness of the arena's walls, m.
+pub(super) const WALL_HALF: f32 = 0.1;
+
 pub(super) fn walls(arena: DVec2) -> [(rp::Vector, rp::Vector); 4] {
     let (w, h) = (arena.x as f32, arena.y as f32);
-    let t = 0.1f32;
+    let t = WALL_HALF;
     [
         (
             rp::Vector::new(w / 2.0, -t),
