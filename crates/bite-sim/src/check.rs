@@ -168,9 +168,10 @@ pub struct Checker {
     ended: BTreeMap<InstanceKey, Time>,
     // What is only looked up, never walked in order, is kept in hash
     // tables: at 100,000 robots they hold an entry per robot and
-    // execution, and a B-tree of millions of entries was a fifth of a
-    // decision's time (docs/performance.md, "2026-11-28"). Whatever a
-    // violation is reported from is walked in order (B-trees).
+    // execution, and as B-trees of millions of entries they cost a large
+    // team's first decisions about 15 % (docs/performance.md,
+    // "2026-11-28"). Whatever a violation is reported from is walked in
+    // order (B-trees).
     /// Who each robot presumes lost, as the run goes (for "could talk").
     lost_now: FxHashMap<RobotId, BTreeSet<RobotId>>,
     /// Whom each robot ever presumed lost.

@@ -49,10 +49,10 @@ fn shape_of(shape: &Shape) -> rp::SharedShape {
     }
 }
 
-/// The walls round the arena, as the world builds them.
 /// Half the thickness of the arena's walls, m.
 pub(super) const WALL_HALF: f32 = 0.1;
 
+/// The walls round the arena, as the world builds them.
 pub(super) fn walls(arena: DVec2) -> [(rp::Vector, rp::Vector); 4] {
     let (w, h) = (arena.x as f32, arena.y as f32);
     let t = WALL_HALF;
