@@ -524,9 +524,18 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         "r0",
         seal_with(&t.key, &scope, FrameKind::Heartbeat, 1, unix_micros(), &hb),
     );
+    // 6. Addressed to r1 alone, on r0's key to r1, with r1's own identity:
+    //    r1 takes the sender from the chunk after `net` (r0, not the
+    //    addressee's chunk, which would pass it off as its own echo) and
+    //    rejects it; r2 never receives it.
+    put(
+        "r0/r1",
+        seal_with(&t.key, &scope, FrameKind::Heartbeat, 1, unix_micros(), &hb),
+    );
     t.all_complete(Duration::from_secs(240));
-    // r1 and r2 each received every injected frame once.
-    for r in ["r1", "r2"] {
+    // r1 and r2 each received every injected frame once, and r1 the frame
+    // addressed to it.
+    for (r, addressed) in [("r1", 1), ("r2", 0)] {
         let log = read_jsonl(&t.out.join(format!("{r}.jsonl")));
         let fin = log
             .iter()
@@ -537,12 +546,12 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         assert_eq!(rej["replay"], 1, "{r}: {fin}");
         assert_eq!(rej["bad-mac"], 2, "{r}: {fin}");
         assert_eq!(rej["not-member"], 1, "{r}: {fin}");
-        assert_eq!(rej["wrong-sender"], 1, "{r}: {fin}");
+        assert_eq!(rej["wrong-sender"], 1 + addressed, "{r}: {fin}");
         let logged = log
             .iter()
             .filter(|e| e["event"] == "frame_rejected")
             .count();
-        assert_eq!(logged, 5, "{r}");
+        assert_eq!(logged, 5 + addressed as usize, "{r}");
         assert!(fin["auth"]["accepted"].as_u64().unwrap() > 10, "{fin}");
     }
     check_agreement(&t.out, &["r0", "r1", "r2"]);

@@ -38,9 +38,28 @@ impl Keys {
             prefix: format!("bite/{team}"),
         }
     }
-    /// Authenticated frames from `robot`.
+    /// Authenticated frames from `robot` to the whole team (heartbeats,
+    /// team multicasts).
     pub fn net(&self, robot: &str) -> String {
         format!("{}/net/{robot}", self.prefix)
+    }
+    /// Authenticated frames from `robot` to one teammate, `to`: only `to`
+    /// subscribes to them, so no other robot's process wakes for them.
+    pub fn net_to(&self, robot: &str, to: &str) -> String {
+        format!("{}/net/{robot}/{to}", self.prefix)
+    }
+    /// What `robot` subscribes to for the frames addressed to it alone.
+    pub fn net_for(&self, robot: &str) -> String {
+        format!("{}/net/*/{robot}", self.prefix)
+    }
+    /// The sender named by a frame's key (`bite/T/net/<sender>` or
+    /// `bite/T/net/<sender>/<to>`); empty for any other key.
+    pub fn sender_of(key: &str) -> &str {
+        let mut chunks = key.split('/');
+        match (chunks.next(), chunks.next(), chunks.next(), chunks.next()) {
+            (Some("bite"), Some(_), Some("net"), Some(sender)) => sender,
+            _ => "",
+        }
     }
     /// Status (JSON) of `robot`.
     pub fn status(&self, robot: &str) -> String {
@@ -113,4 +132,20 @@ pub fn valid_chunk(name: &str) -> bool {
         && name
             .bytes()
             .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_' || b == b'.')
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Keys;
+
+    #[test]
+    fn frame_keys_name_their_sender() {
+        let k = Keys::new("t");
+        assert_eq!(Keys::sender_of(&k.net("r3")), "r3");
+        assert_eq!(Keys::sender_of(&k.net_to("r3", "r7")), "r3");
+        assert_eq!(Keys::sender_of("bite/t/status/r3"), "");
+        assert_eq!(Keys::sender_of("bite/t/net"), "");
+        assert_eq!(Keys::sender_of("other/t/net/r3"), "");
+        assert_eq!(k.net_for("r7"), "bite/t/net/*/r7");
+    }
 }

@@ -28,6 +28,7 @@ use bite_agent::scenario::{FailureDetector, Scenario};
 use bite_agent::schema::Sensed;
 use bite_core::graph::BehaviorGraph;
 use bite_core::ids::RobotId;
+use bite_core::interaction::Recipients;
 use bite_core::mission::Mission;
 use bite_core::time::Time;
 use serde_json::json;
@@ -140,6 +141,14 @@ struct Outlets {
 struct Frames {
     key: String,
     publisher: Option<zenoh::pubsub::Publisher<'static>>,
+    /// The team's keys and this robot's name, for frames to one teammate.
+    keys: Keys,
+    me: String,
+    /// How frames are published (a publisher per addressee is declared
+    /// the first time it is written to, unless frames are `put`).
+    publish: Publish,
+    /// Publishers of frames to one teammate, by its name.
+    to_one: BTreeMap<String, zenoh::pubsub::Publisher<'static>>,
     /// Frames published.
     sent: u64,
     /// Bursts: calls of `flush_agent` that published at least one frame,
@@ -148,7 +157,21 @@ struct Frames {
     bursts: u64,
 }
 
+/// The name of the one teammate a kernel message goes to, if it goes to
+/// one (a team multicast goes to the team's key).
+fn one_of<'a>(names: &'a [String], to: &Recipients) -> Option<&'a str> {
+    match to {
+        Recipients::One(r) => names.get(r.index()).map(String::as_str),
+        Recipients::Team(_) => None,
+    }
+}
+
+/// Publishers kept for frames to one teammate at most (a robot that met
+/// more names over its missions starts the table again).
+const TO_ONE_KEPT: usize = 1024;
+
 impl Frames {
+    /// Publish `frame` to the team.
     fn send(&mut self, session: &zenoh::Session, frame: Vec<u8>) {
         self.sent += 1;
         // A frame that cannot be sent is lost, as on a lossy network: the
@@ -157,6 +180,38 @@ impl Frames {
             Some(p) => p.put(frame).wait(),
             None => session.put(&self.key, frame).wait(),
         };
+    }
+
+    /// Publish `frame`, addressed to `to` alone, on `to`'s own key: the
+    /// other robots' processes do not receive it (nor wake for it).
+    fn send_to(&mut self, session: &zenoh::Session, to: &str, frame: Vec<u8>) {
+        self.sent += 1;
+        let key = self.keys.net_to(&self.me, to);
+        if self.publish == Publish::Put {
+            let _ = session.put(&key, frame).wait();
+            return;
+        }
+        if !self.to_one.contains_key(to) {
+            if self.to_one.len() >= TO_ONE_KEPT {
+                self.to_one.clear();
+            }
+            match session
+                .declare_publisher(key.clone())
+                .express(self.publish == Publish::Express)
+                .wait()
+            {
+                Ok(p) => {
+                    self.to_one.insert(to.to_string(), p);
+                }
+                Err(_) => {
+                    let _ = session.put(&key, frame).wait();
+                    return;
+                }
+            }
+        }
+        if let Some(p) = self.to_one.get(to) {
+            let _ = p.put(frame).wait();
+        }
     }
 }
 
@@ -339,6 +394,10 @@ pub fn run_on(
     let frames = Frames {
         key: net_key,
         publisher,
+        keys: keys.clone(),
+        me: opts.name.clone(),
+        publish: opts.publish,
+        to_one: BTreeMap::new(),
         sent: 0,
         bursts: 0,
     };
@@ -377,16 +436,17 @@ pub fn run_on(
         overflow: AtomicU64::new(0),
     });
     let mut subscribers = Vec::new();
-    {
+    // Frames to the whole team, and frames to this robot alone.
+    for key in [keys.all("net"), keys.net_for(&opts.name)] {
         let (shared, tx) = (shared.clone(), tx.clone());
         let me = opts.name.clone();
         let frames = session
-            .declare_subscriber(keys.all("net"))
+            .declare_subscriber(key)
             .callback(move |s| {
                 // Oversized frames are dropped before they are copied; the
                 // robot's own (Zenoh hands a session its own publications)
                 // before anything else is done.
-                let from = Keys::robot_of(s.key_expr().as_str());
+                let from = Keys::sender_of(s.key_expr().as_str());
                 if s.payload().len()
                     > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC
                     || from == me
@@ -1257,7 +1317,10 @@ impl Node {
                         &wire::encode_kernel(&to, &envelope),
                         unix_micros(),
                     );
-                    self.frames.send(&self.session, frame);
+                    match one_of(&r.names, &to) {
+                        Some(name) => self.frames.send_to(&self.session, name, frame),
+                        None => self.frames.send(&self.session, frame),
+                    }
                 }
                 AgentOutput::Inform(o) => {
                     records.push(json!({
@@ -1274,7 +1337,13 @@ impl Node {
                         &wire::encode_inform(&o.to, &o.msg),
                         unix_micros(),
                     );
-                    self.frames.send(&self.session, frame);
+                    match o.to.as_slice() {
+                        [one] if one.index() < r.names.len() => {
+                            self.frames
+                                .send_to(&self.session, &r.names[one.index()], frame)
+                        }
+                        _ => self.frames.send(&self.session, frame),
+                    }
                 }
                 AgentOutput::Event(e) => {
                     records.push(Namer::new(&r.graph).record(now, r.me, &e));
@@ -1502,3 +1571,19 @@ fn linger_us(r: &Running) -> u64 {
 
 /// Shared flag set by a signal handler.
 pub type StopFlag = Arc<AtomicBool>;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bite_core::members::MemberSet;
+
+    #[test]
+    fn a_message_to_one_teammate_goes_to_its_own_key_and_a_multicast_to_the_team() {
+        let names: Vec<String> = ["r0", "r1", "r2"].map(String::from).to_vec();
+        assert_eq!(one_of(&names, &Recipients::One(RobotId(2))), Some("r2"));
+        // Off the roster: nobody's key (the team's, where receivers drop it).
+        assert_eq!(one_of(&names, &Recipients::One(RobotId(7))), None);
+        let team = Arc::new(MemberSet::all(3));
+        assert_eq!(one_of(&names, &Recipients::Team(team)), None);
+    }
+}
