@@ -157,11 +157,11 @@ struct Frames {
     bursts: u64,
 }
 
-/// The name of the one teammate a kernel message goes to, if it goes to
-/// one (a team multicast goes to the team's key).
-fn one_of<'a>(names: &'a [String], to: &Recipients) -> Option<&'a str> {
+/// The one teammate a kernel message goes to, if it goes to one (a team
+/// multicast goes to the team's key).
+fn one_of(to: &Recipients) -> Option<RobotId> {
     match to {
-        Recipients::One(r) => names.get(r.index()).map(String::as_str),
+        Recipients::One(r) => Some(*r),
         Recipients::Team(_) => None,
     }
 }
@@ -182,36 +182,45 @@ impl Frames {
         };
     }
 
-    /// Publish `frame`, addressed to `to` alone, on `to`'s own key: the
-    /// other robots' processes do not receive it (nor wake for it).
-    fn send_to(&mut self, session: &zenoh::Session, to: &str, frame: Vec<u8>) {
+    /// Publish `frame`: on the addressee's own key when it is for one
+    /// teammate on the roster `names` (the other robots' processes then
+    /// neither receive it nor wake for it), else on the team's.
+    fn send_to(
+        &mut self,
+        session: &zenoh::Session,
+        names: &[String],
+        one: Option<RobotId>,
+        frame: Vec<u8>,
+    ) {
+        let Some(to) = one.and_then(|r| names.get(r.index())) else {
+            return self.send(session, frame);
+        };
         self.sent += 1;
-        let key = self.keys.net_to(&self.me, to);
-        if self.publish == Publish::Put {
-            let _ = session.put(&key, frame).wait();
-            return;
-        }
-        if !self.to_one.contains_key(to) {
-            if self.to_one.len() >= TO_ONE_KEPT {
-                self.to_one.clear();
-            }
-            match session
-                .declare_publisher(key.clone())
-                .express(self.publish == Publish::Express)
-                .wait()
-            {
-                Ok(p) => {
-                    self.to_one.insert(to.to_string(), p);
-                }
-                Err(_) => {
-                    let _ = session.put(&key, frame).wait();
-                    return;
-                }
-            }
-        }
         if let Some(p) = self.to_one.get(to) {
             let _ = p.put(frame).wait();
+            return;
         }
+        let key = self.keys.net_to(&self.me, to);
+        let declared = (self.publish != Publish::Put)
+            .then(|| {
+                session
+                    .declare_publisher(key.clone())
+                    .express(self.publish == Publish::Express)
+                    .wait()
+                    .ok()
+            })
+            .flatten();
+        let _ = match declared {
+            Some(p) => {
+                let sent = p.put(frame).wait();
+                if self.to_one.len() >= TO_ONE_KEPT {
+                    self.to_one.clear();
+                }
+                self.to_one.insert(to.clone(), p);
+                sent
+            }
+            None => session.put(&key, frame).wait(),
+        };
     }
 }
 
@@ -1317,10 +1326,8 @@ impl Node {
                         &wire::encode_kernel(&to, &envelope),
                         unix_micros(),
                     );
-                    match one_of(&r.names, &to) {
-                        Some(name) => self.frames.send_to(&self.session, name, frame),
-                        None => self.frames.send(&self.session, frame),
-                    }
+                    self.frames
+                        .send_to(&self.session, &r.names, one_of(&to), frame);
                 }
                 AgentOutput::Inform(o) => {
                     records.push(json!({
@@ -1337,13 +1344,11 @@ impl Node {
                         &wire::encode_inform(&o.to, &o.msg),
                         unix_micros(),
                     );
-                    match o.to.as_slice() {
-                        [one] if one.index() < r.names.len() => {
-                            self.frames
-                                .send_to(&self.session, &r.names[one.index()], frame)
-                        }
-                        _ => self.frames.send(&self.session, frame),
-                    }
+                    let one = match o.to.as_slice() {
+                        [one] => Some(*one),
+                        _ => None,
+                    };
+                    self.frames.send_to(&self.session, &r.names, one, frame);
                 }
                 AgentOutput::Event(e) => {
                     records.push(Namer::new(&r.graph).record(now, r.me, &e));
@@ -1579,11 +1584,8 @@ mod tests {
 
     #[test]
     fn a_message_to_one_teammate_goes_to_its_own_key_and_a_multicast_to_the_team() {
-        let names: Vec<String> = ["r0", "r1", "r2"].map(String::from).to_vec();
-        assert_eq!(one_of(&names, &Recipients::One(RobotId(2))), Some("r2"));
-        // Off the roster: nobody's key (the team's, where receivers drop it).
-        assert_eq!(one_of(&names, &Recipients::One(RobotId(7))), None);
+        assert_eq!(one_of(&Recipients::One(RobotId(2))), Some(RobotId(2)));
         let team = Arc::new(MemberSet::all(3));
-        assert_eq!(one_of(&names, &Recipients::Team(team)), None);
+        assert_eq!(one_of(&Recipients::Team(team)), None);
     }
 }
