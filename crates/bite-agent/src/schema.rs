@@ -909,12 +909,31 @@ pub fn command(
 /// Wheel commands for a differential-drive robot: forward speed and turn
 /// rate that steer the heading onto the command.
 pub fn differential(cmd: &Command, heading: f64, max_speed: f64, max_turn: f64) -> (f64, f64) {
+    differential_toward(steering(cmd), heading, max_speed, max_turn)
+}
+
+/// What a differential drive steers toward for `cmd`: the heading it
+/// wants (its velocity's direction, else the way it says to face; `None`:
+/// anywhere) and its speed. It depends on the command only, so a drive
+/// that follows one command over several physics steps works it out once
+/// ([`differential_toward`] does the rest).
+pub fn steering(cmd: &Command) -> (Option<f64>, f64) {
     let speed = cmd.v.length();
     let want = if speed > 1e-3 {
         Some(cmd.v.y.atan2(cmd.v.x))
     } else {
         cmd.face
     };
+    (want, speed)
+}
+
+/// [`differential`] for a command's [`steering`].
+pub fn differential_toward(
+    (want, speed): (Option<f64>, f64),
+    heading: f64,
+    max_speed: f64,
+    max_turn: f64,
+) -> (f64, f64) {
     let Some(want) = want else {
         return (0.0, 0.0);
     };

@@ -289,6 +289,9 @@ struct Sim<'a, 'w> {
     /// The physical world stepping to the next control tick on another
     /// thread, while the events until then are handled on this one.
     stepping: Option<Stepping>,
+    /// Where the live robots were at the last control tick, for the
+    /// stall detector (kept from tick to tick).
+    positions: Vec<Option<glam::DVec2>>,
     /// When robots crash or come back, in order: the world does not step
     /// ahead across one (a stopped robot stands still from the tick before).
     crash_times: Vec<Time>,
@@ -1100,10 +1103,11 @@ impl Sim<'_, '_> {
                     }
                     self.stall.idle_check(self.now);
                     if let Some(w) = &self.physics {
-                        let at: Vec<Option<glam::DVec2>> = (0..n)
-                            .map(|i| (!self.crashed[i]).then(|| w.pose(i).pos))
-                            .collect();
+                        let mut at = std::mem::take(&mut self.positions);
+                        at.clear();
+                        at.extend((0..n).map(|i| (!self.crashed[i]).then(|| w.position(i))));
                         self.stall.motion(self.now, &at);
+                        self.positions = at;
                     }
                     if self.stall.stalled().is_some() {
                         return self.now;
@@ -1449,6 +1453,7 @@ pub fn run(
         batch_from: opts.batch_from.unwrap_or(BATCH_FROM),
         batched: Batched::default(),
         stepping: None,
+        positions: Vec::new(),
         crash_times: Vec::new(),
     };
     sim.crash_times = (sim.resolved.crashes.iter())

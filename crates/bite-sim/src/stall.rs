@@ -131,7 +131,11 @@ impl StallWatch {
                 .any(|(p, m)| p.is_some_and(|p| p.distance(*m) > STEP)),
         };
         if moved {
-            let marks = at.iter().map(|p| p.unwrap_or_default()).collect();
+            // The marks' buffer is kept from tick to tick (a large team's
+            // would be a fresh allocation at every control tick).
+            let mut marks = self.moved.take().map(|(m, _)| m).unwrap_or_default();
+            marks.clear();
+            marks.extend(at.iter().map(|p| p.unwrap_or_default()));
             self.moved = Some((marks, now));
         }
         if let (Some(after), Some((_, since))) = (self.limits.after, &self.moved)

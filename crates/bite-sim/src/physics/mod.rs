@@ -19,6 +19,7 @@
 //! `Agent` and its command comes back to [`World::actuate`]. Everything is
 //! seeded: a run is a pure function of its inputs.
 
+mod grid;
 mod place;
 pub mod svg;
 
@@ -75,6 +76,10 @@ struct Robot {
     turn: f64,
     /// Commanded.
     cmd: Command,
+    /// What a differential drive steers toward for `cmd`
+    /// ([`schema::steering`], worked out when the command arrives rather than
+    /// at each physics step it drives).
+    steering: (Option<f64>, f64),
     odometer: f64,
     last_pos: DVec2,
     trail: Vec<Sample>,
@@ -93,6 +98,11 @@ pub struct World {
     /// Each robot's sensor noise (apart from the bodies, so that robots
     /// can be sensed side by side on several threads).
     rngs: Vec<Rng>,
+    /// Where everything is for sensing, as of the physics step it was
+    /// built at (rebuilt on the first sensing after a step).
+    grid: grid::Grid,
+    /// Physics steps taken.
+    steps: u64,
     coverage: Coverage,
     /// When the next trajectory sample is due (`spec.trail`).
     next_trail: f64,
@@ -347,6 +357,7 @@ impl World {
                 vel: DVec2::ZERO,
                 turn: 0.0,
                 cmd: Command::default(),
+                steering: schema::steering(&Command::default()),
                 odometer: 0.0,
                 last_pos: at,
                 trail: Vec::new(),
@@ -366,8 +377,7 @@ impl World {
         };
         let n_objects = objects.len();
         // One step at rest before the clock starts: it fills the broad
-        // phase's hierarchy that scene queries (what each robot can sense)
-        // read, and the contacts the start check below reads; nothing
+        // phase and the contacts the start check below reads; nothing
         // moves unless it was placed overlapping something.
         rw.step();
         // A robot placed inside a wall, an obstacle, an object or another
@@ -434,6 +444,8 @@ impl World {
             rngs: (0..robots.len())
                 .map(|i| Rng::seed_from_u64(derive_seed(seed, "sensors", i as u32)))
                 .collect(),
+            grid: grid::Grid::default(),
+            steps: 0,
             coverage,
             next_trail: 0.0,
             robots,
@@ -459,6 +471,12 @@ impl World {
             pos: v64(b.translation()),
             heading: b.rotation().angle() as f64,
         }
+    }
+
+    /// True position of robot `i` (its [`World::pose`] without the
+    /// heading, which costs an arctangent).
+    pub fn position(&self, i: usize) -> DVec2 {
+        v64(self.rw.bodies[self.robots[i].body].translation())
     }
 
     /// True position of object `i`.
@@ -495,7 +513,17 @@ impl World {
     /// Step the physics up to `now`, driving each robot by its command
     /// (robots in `stopped` stand still).
     pub fn advance(&mut self, now: Time, stopped: &[bool]) {
-        self.step_until(now, stopped);
+        // The floor the robots covered at the last tick is marked while
+        // the bodies move (on a second thread of the pool the world steps
+        // on, when it has one; it reads only the positions recorded).
+        let mut coverage = std::mem::take(&mut self.coverage);
+        if rayon::current_thread_index().is_some() {
+            rayon::join(|| coverage.flush(), || self.step_until(now, stopped));
+        } else {
+            coverage.flush();
+            self.step_until(now, stopped);
+        }
+        self.coverage = coverage;
         self.settle();
     }
 
@@ -506,19 +534,34 @@ impl World {
     /// changing the run.
     pub fn step_until(&mut self, until: Time, stopped: &[bool]) {
         let until = until.as_secs_f64();
+        // A robot's odometer counts a step at the next step's drive (one
+        // pass over the bodies per step, not two), and after the last.
+        let mut stepped = false;
         while self.t + self.dt <= until + 1e-9 {
             for i in 0..self.robots.len() {
+                if stepped {
+                    self.count_odometer(i);
+                }
                 self.drive(i, stopped.get(i).copied().unwrap_or(false));
             }
             self.rw.step();
+            self.steps += 1;
             self.t += self.dt;
+            stepped = true;
+        }
+        if stepped {
             for i in 0..self.robots.len() {
-                let p = self.pose(i).pos;
-                let r = &mut self.robots[i];
-                r.odometer += p.distance(r.last_pos);
-                r.last_pos = p;
+                self.count_odometer(i);
             }
         }
+    }
+
+    /// Robot `i`'s odometer counts how far it went since it last counted.
+    fn count_odometer(&mut self, i: usize) {
+        let p = self.position(i);
+        let r = &mut self.robots[i];
+        r.odometer += p.distance(r.last_pos);
+        r.last_pos = p;
     }
 
     /// The physics' own time: the last whole step taken, s.
@@ -591,7 +634,13 @@ impl World {
                 (r.vel, r.turn)
             }
             (Drive::Differential, None) => {
-                let (f, turn) = schema::differential(&cmd, heading, m.max_speed, m.max_turn);
+                let steering = if stopped {
+                    schema::steering(&cmd)
+                } else {
+                    r.steering
+                };
+                let (f, turn) =
+                    schema::differential_toward(steering, heading, m.max_speed, m.max_turn);
                 let cur = r.vel.x;
                 let f = cur + (f - cur).clamp(-step, step);
                 r.vel = DVec2::new(f, 0.0);
@@ -643,7 +692,7 @@ impl World {
             {
                 let lead = self.pose(l as usize);
                 let at = schema::slot_position(lead.pos, lead.heading, side, d);
-                let e = at.distance(self.pose(i).pos);
+                let e = at.distance(self.position(i));
                 self.slot_error.0 += e;
                 self.slot_error.1 += 1;
                 self.slot_error.2 = self.slot_error.2.max(e);
@@ -657,11 +706,13 @@ impl World {
             self.next_trail = self.t + every;
         }
         for i in 0..self.robots.len() {
-            let p = self.pose(i);
-            self.coverage.mark(i, p.pos);
             if !keep {
+                let p = self.position(i);
+                self.coverage.note(i, p);
                 continue;
             }
+            let p = self.pose(i);
+            self.coverage.note(i, p.pos);
             let label = self.robots[i].cmd.label;
             self.robots[i].trail.push(Sample {
                 t: self.t,
@@ -787,22 +838,37 @@ impl World {
             .flatten()
     }
 
-    /// Every collider near `at` (within `range` on each axis) but robot
-    /// `i`'s own, from the physics engine's bounding-volume hierarchy
-    /// rather than a scan of the whole team; sorted, so that rays and noise
-    /// are drawn in the same order every run.
-    fn near(&self, i: usize, at: DVec2, range: f64, out: &mut Vec<(Kind, rp::ColliderHandle)>) {
-        out.clear();
-        let half = rp::Vector::new(range as f32, range as f32);
-        let aabb = rp::Aabb::from_half_extents(v32(at), half);
-        let q = self.rw.query_pipeline();
-        for (c, _) in q.intersect_aabb_conservative(aabb) {
-            match self.kind(c) {
-                Some(Kind::Robot(j)) if j == i => {}
-                Some(k) => out.push((k, c)),
-                None => {}
-            }
+    /// How far a robot's sensors reach: its camera, or its rays from its
+    /// rim (with a margin for rounding: what is within reach is tested
+    /// exactly afterwards).
+    fn reach(&self) -> f64 {
+        let s = self.spec.sensors;
+        s.camera_range.max(s.ray_range + self.spec.robot.radius) + 0.25
+    }
+
+    /// Bring the sensing grid to the present physics step (once per step
+    /// at most, before robots sense).
+    fn fresh_grid(&mut self) {
+        if self.grid.is_at(self.steps) {
+            return;
         }
+        let mut grid = std::mem::take(&mut self.grid);
+        let colliders = (self.rw.colliders.iter())
+            .filter_map(|(h, co)| Some((co.compute_aabb(), self.kind(h)?, h)));
+        grid.rebuild(self.steps, 2.0 * self.reach() as f32, colliders);
+        self.grid = grid;
+    }
+
+    /// Every collider near `at` (its box within `range` on each axis) but
+    /// robot `i`'s own, from the sensing grid rather than a scan of the
+    /// whole team; sorted, so that rays and noise are drawn in the same
+    /// order every run. Rays and the camera test what they are given
+    /// exactly, so what they read is the same for any superset of what
+    /// is within their reach.
+    fn near(&self, i: usize, at: DVec2, range: f64, out: &mut Vec<(Kind, rp::ColliderHandle)>) {
+        debug_assert!(self.grid.is_at(self.steps), "the sensing grid is fresh");
+        out.clear();
+        self.grid.query(at, range, Kind::Robot(i), out);
         out.sort_unstable_by_key(|(k, c)| {
             let (a, b) = match k {
                 Kind::Robot(j) => (0, *j),
@@ -871,6 +937,7 @@ impl World {
     /// and whether it touches something (the world's side of sensing; the
     /// noise comes from the robot's own seeded stream).
     pub fn observe(&mut self, i: usize) -> Sensed {
+        self.fresh_grid();
         let mut rng = std::mem::replace(&mut self.rngs[i], Rng::seed_from_u64(0));
         let (sensed, seen) = self.sense(i, &mut rng, &mut Vec::new());
         self.rngs[i] = rng;
@@ -885,6 +952,7 @@ impl World {
     /// number of threads.
     pub fn observe_all(&mut self, skip: &[bool], parallel: bool) -> Vec<Option<Sensed>> {
         use rayon::prelude::*;
+        self.fresh_grid();
         let mut rngs = std::mem::take(&mut self.rngs);
         let this = &*self;
         let sense = |near: &mut Vec<(Kind, rp::ColliderHandle)>, (i, rng): (usize, &mut Rng)| {
@@ -935,11 +1003,9 @@ impl World {
             pos: truth.pos + DVec2::new(nx, ny) * s.pose_noise,
             heading: truth.heading + nh * s.pose_noise,
         };
-        // Everything a ray or the camera can reach. The hierarchy holds
-        // bounding boxes as of the last step: a margin covers what moved.
+        // Everything a ray or the camera can reach.
         let radius = self.spec.robot.radius;
-        let reach = s.camera_range.max(s.ray_range + radius) + 0.5;
-        self.near(i, truth.pos, reach, near);
+        self.near(i, truth.pos, self.reach(), near);
         // Range rays, all round.
         let mut rays = Vec::new();
         for k in 0..s.rays {
@@ -986,6 +1052,7 @@ impl World {
     /// next physics step on (what a simulator server does with a command
     /// a robot process sends).
     pub fn actuate(&mut self, i: usize, cmd: Command) {
+        self.robots[i].steering = schema::steering(&cmd);
         self.robots[i].cmd = cmd;
     }
 
@@ -1031,13 +1098,16 @@ pub const COVER_RADIUS: f64 = 0.5;
 /// The floor covered so far: cells of `CELL` m within `COVER_RADIUS` of
 /// some robot's path, marked as the robots move (kept incrementally, so
 /// large teams need no trajectories to measure it).
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 struct Coverage {
     nx: usize,
     ny: usize,
     covered: fixedbitset::FixedBitSet,
     /// Where each robot last marked the floor.
     last: Vec<Option<DVec2>>,
+    /// Where robots were at control ticks, in order, not marked yet
+    /// ([`Coverage::flush`]).
+    noted: Vec<(u32, DVec2)>,
 }
 
 impl Coverage {
@@ -1056,7 +1126,24 @@ impl Coverage {
             ny,
             covered: fixedbitset::FixedBitSet::with_capacity(nx * ny),
             last: vec![None; robots],
+            noted: Vec::new(),
         }
+    }
+
+    /// Robot `i` is at `p`: marked at the next [`Coverage::flush`] (the
+    /// world marks while it steps).
+    fn note(&mut self, i: usize, p: DVec2) {
+        self.noted.push((i as u32, p));
+    }
+
+    /// Mark what was noted, in the order it was.
+    fn flush(&mut self) {
+        let mut noted = std::mem::take(&mut self.noted);
+        for &(i, p) in &noted {
+            self.mark(i as usize, p);
+        }
+        noted.clear();
+        self.noted = noted;
     }
 
     /// Robot `i` is at `p`.
@@ -1079,7 +1166,14 @@ impl Coverage {
         }
     }
 
+    /// Share of the floor covered, counting what is noted but not marked
+    /// yet.
     fn share(&self) -> f64 {
+        if !self.noted.is_empty() {
+            let mut all = self.clone();
+            all.flush();
+            return all.share();
+        }
         if self.covered.is_empty() {
             return 0.0;
         }
@@ -1175,12 +1269,33 @@ mod tests {
     }
 
     #[test]
-    fn the_hierarchy_query_finds_everything_a_full_scan_does() {
+    fn the_floor_covered_at_a_tick_counts_before_the_world_steps() {
+        let mut w = world(4);
+        let stopped = vec![false; 4];
+        let mut shares = Vec::new();
+        for step in 0..20 {
+            w.record();
+            // Noted, not marked yet: the share counts it all the same.
+            let noted = coverage(&w);
+            w.advance(Time::from_secs_f64((step + 1) as f64 * 0.1), &stopped);
+            assert!(w.coverage.noted.is_empty(), "marked as the world stepped");
+            w.coverage.last.iter().for_each(|l| assert!(l.is_some()));
+            shares.push((noted, coverage(&w)));
+        }
+        for (noted, marked) in &shares {
+            assert_eq!(noted, marked);
+        }
+        assert!(shares[0].0 > 0.0 && shares.windows(2).all(|s| s[0].1 <= s[1].0));
+    }
+
+    #[test]
+    fn the_sensing_grid_finds_everything_a_full_scan_does() {
         let mut w = world(40);
         let stopped = vec![false; 40];
         let mut near = Vec::new();
         for step in 0..30 {
             // Invariant 10: at every control tick, from the first on.
+            w.fresh_grid();
             for i in 0..40 {
                 let at = w.pose(i).pos;
                 w.near(i, at, 3.5, &mut near);
