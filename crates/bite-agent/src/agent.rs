@@ -472,7 +472,10 @@ impl Agent {
     fn control(&mut self, now: Time, world: Time, sensed: Option<&Sensed>) {
         let mut percepts = std::mem::take(&mut self.percepts);
         let me = self.kernel.me();
-        let shared = self.shared.clone();
+        // Borrowed, not cloned: every robot's mind holds the same `Shared`,
+        // and a count bumped by every robot at every tick on two threads
+        // is one cache line the cores hand back and forth.
+        let shared = &self.shared;
         self.body_t = world.max(self.body_t);
         let world = self.body_t;
         while let Some((at, robots, set)) = shared.facts.get(self.next_fact)

@@ -527,8 +527,7 @@ impl Sim<'_, '_> {
             for to in audience.iter() {
                 self.beacons.0 += 1;
                 self.beacons.1 += bytes;
-                let pos = pos.clone();
-                self.send(r, to, move || What::Peer {
+                self.send(r, to, || What::Peer {
                     to,
                     from: r,
                     pos: pos.clone(),
