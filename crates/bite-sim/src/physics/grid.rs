@@ -35,6 +35,8 @@ pub(super) struct Grid {
     items: Vec<u32>,
     /// Each collider: its box, the first cell it overlaps, what it is.
     entries: Vec<Entry>,
+    /// Where the next entry of each cell goes, while it is built.
+    fill: Vec<u32>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -109,7 +111,9 @@ impl Grid {
         let total = self.starts[self.starts.len() - 1] as usize;
         self.items.clear();
         self.items.resize(total, 0);
-        let mut fill: Vec<u32> = self.starts[..self.starts.len() - 1].to_vec();
+        let mut fill = std::mem::take(&mut self.fill);
+        fill.clear();
+        fill.extend_from_slice(&self.starts[..self.starts.len() - 1]);
         for (k, e) in self.entries.iter().enumerate() {
             let ([x0, y0], [x1, y1]) = self.span(e.aabb.mins, e.aabb.maxs);
             for y in y0..=y1 {
@@ -120,6 +124,7 @@ impl Grid {
                 }
             }
         }
+        self.fill = fill;
     }
 
     /// The cells (first and last along each axis) a box overlaps,
