@@ -60,6 +60,7 @@ impl NetOptions {
         if !self.connect.is_empty() {
             set(&mut c, "connect/endpoints", list(&self.connect))?;
         }
+        refuse_low_latency(&c)?;
         Ok(c)
     }
 
@@ -71,6 +72,26 @@ impl NetOptions {
             .wait()
             .map_err(|e| ConfigError(format!("cannot open the session: {e}")))
     }
+}
+
+/// Zenoh's low-latency transport (`transport/unicast/lowlatency`) is
+/// refused: with it, one robot process of ten hung at its start in two runs
+/// of six (`bite bench zenoh`, 2026-11-28; docs/performance.md), and it was
+/// slower per protocol hop in all of them. A configuration that the robot
+/// runtime was seen to hang with is an error, not a surprise in the field.
+fn refuse_low_latency(c: &zenoh::Config) -> Result<(), ConfigError> {
+    let on = c
+        .get_json("transport/unicast/lowlatency")
+        .is_ok_and(|v| v.trim() == "true");
+    if on {
+        return Err(ConfigError(
+            "transport/unicast/lowlatency = true is not supported by the robot runtime \
+             (robot processes were seen to hang at start with it; see docs/zenoh-interface.md): \
+             remove it"
+                .into(),
+        ));
+    }
+    Ok(())
 }
 
 fn load(p: &Path) -> Result<zenoh::Config, ConfigError> {
@@ -184,6 +205,46 @@ pub fn free_ports(n: usize) -> std::io::Result<Vec<u16>> {
     held.iter()
         .map(|l| l.local_addr().map(|a| a.port()))
         .collect()
+}
+
+#[cfg(test)]
+mod config_tests {
+    use super::*;
+
+    fn with_file(text: &str) -> Result<zenoh::Config, ConfigError> {
+        let dir = std::env::temp_dir().join(format!(
+            "bite-zenoh-config-{}-{}",
+            std::process::id(),
+            text.len()
+        ));
+        std::fs::create_dir_all(&dir).expect("dir");
+        let p = dir.join("zenoh.json5");
+        std::fs::write(&p, text).expect("write");
+        let opts = NetOptions {
+            config: Some(p),
+            ..NetOptions::default()
+        };
+        let c = opts.zenoh_config();
+        let _ = std::fs::remove_dir_all(&dir);
+        c
+    }
+
+    #[test]
+    fn the_low_latency_transport_is_refused_with_a_reason() {
+        let e =
+            with_file("{ transport: { unicast: { lowlatency: true, qos: { enabled: false } } } }")
+                .expect_err("refused");
+        assert!(e.to_string().contains("lowlatency"), "{e}");
+        // Off, or not said: accepted, and multicast scouting is off.
+        let c = with_file("{ transport: { unicast: { lowlatency: false } } }").expect("off");
+        assert_eq!(
+            c.get_json("scouting/multicast/enabled")
+                .expect("key")
+                .trim(),
+            "false"
+        );
+        NetOptions::default().zenoh_config().expect("default");
+    }
 }
 
 #[cfg(test)]
