@@ -33,7 +33,7 @@ pub(super) struct Grid {
     starts: Vec<u32>,
     /// Indices into `entries`, cell by cell.
     items: Vec<u32>,
-    /// Each collider: its box, the first cell it overlaps, what it is.
+    /// Each collider: its box, the cells it overlaps, what it is.
     entries: Vec<Entry>,
     /// Where the next entry of each cell goes, while it is built.
     fill: Vec<u32>,
@@ -42,7 +42,9 @@ pub(super) struct Grid {
 #[derive(Clone, Copy, Debug)]
 struct Entry {
     aabb: rp::Aabb,
+    /// The first and last cell it overlaps along each axis.
     first: [u32; 2],
+    last: [u32; 2],
     kind: Kind,
     handle: rp::ColliderHandle,
 }
@@ -76,6 +78,7 @@ impl Grid {
             self.entries.push(Entry {
                 aabb,
                 first: [0, 0],
+                last: [0, 0],
                 kind,
                 handle,
             });
@@ -99,6 +102,7 @@ impl Grid {
             let e = self.entries[k];
             let ([x0, y0], [x1, y1]) = self.span(e.aabb.mins, e.aabb.maxs);
             self.entries[k].first = [x0 as u32, y0 as u32];
+            self.entries[k].last = [x1 as u32, y1 as u32];
             for y in y0..=y1 {
                 for x in x0..=x1 {
                     self.starts[y * self.nx + x + 1] += 1;
@@ -115,9 +119,9 @@ impl Grid {
         fill.clear();
         fill.extend_from_slice(&self.starts[..self.starts.len() - 1]);
         for (k, e) in self.entries.iter().enumerate() {
-            let ([x0, y0], [x1, y1]) = self.span(e.aabb.mins, e.aabb.maxs);
-            for y in y0..=y1 {
-                for x in x0..=x1 {
+            let ([x0, y0], [x1, y1]) = (e.first, e.last);
+            for y in y0 as usize..=y1 as usize {
+                for x in x0 as usize..=x1 as usize {
                     let c = y * self.nx + x;
                     self.items[fill[c] as usize] = k as u32;
                     fill[c] += 1;
