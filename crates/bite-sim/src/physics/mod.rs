@@ -956,28 +956,33 @@ impl World {
         let mut rngs = std::mem::take(&mut self.rngs);
         let this = &*self;
         let sense = |near: &mut Vec<(Kind, rp::ColliderHandle)>, (i, rng): (usize, &mut Rng)| {
-            (!skip.get(i).copied().unwrap_or(false)).then(|| this.sense(i, rng, near))
+            if skip.get(i).copied().unwrap_or(false) {
+                (None, Vec::new())
+            } else {
+                let (sensed, seen) = this.sense(i, rng, near);
+                (Some(sensed), seen)
+            }
         };
-        let out: Vec<Option<(Sensed, Vec<usize>)>> = if parallel {
+        // What each robot sensed and what its camera saw, side by side in
+        // two vectors (pairs collected and then moved into a vector of
+        // their own were 10,000 readings copied on the run's thread at
+        // every tick).
+        let (out, seen): (Vec<Option<Sensed>>, Vec<Vec<usize>>) = if parallel {
             (rngs.par_iter_mut().enumerate())
                 .with_min_len(16)
                 .map_init(Vec::new, sense)
-                .collect()
+                .unzip()
         } else {
             let mut near = Vec::new();
             (rngs.iter_mut().enumerate())
                 .map(|x| sense(&mut near, x))
-                .collect()
+                .unzip()
         };
         self.rngs = rngs;
-        out.into_iter()
-            .map(|o| {
-                o.map(|(sensed, seen)| {
-                    self.mark_seen(&seen);
-                    sensed
-                })
-            })
-            .collect()
+        for seen in &seen {
+            self.mark_seen(seen);
+        }
+        out
     }
 
     /// Objects some camera saw now.
