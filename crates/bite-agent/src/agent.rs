@@ -532,6 +532,28 @@ impl Agent {
         self.out.pop_front()
     }
 
+    /// The outputs not polled yet, in order, left where they are.
+    pub fn pending(&self) -> impl Iterator<Item = &AgentOutput> {
+        self.out.iter()
+    }
+
+    /// Take the drive commands out of the outputs not polled yet (the
+    /// others stay, in order) and give the last: what the body follows
+    /// once they are all applied in order. For a runtime that drives the
+    /// body before it carries out the rest (a drive is the only output
+    /// that reaches the body).
+    pub fn take_drive(&mut self) -> Option<Command> {
+        let mut last = None;
+        self.out.retain(|o| match o {
+            AgentOutput::Drive(cmd) => {
+                last = Some(*cmd);
+                false
+            }
+            _ => true,
+        });
+        last
+    }
+
     /// Offer version `version` of the mission (`shared`: built for it with
     /// [`Shared::new`] from its aligned graph and the same scenario). The
     /// kernel holds it until its team's next safe point, then the skills,

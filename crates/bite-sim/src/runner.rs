@@ -329,7 +329,17 @@ struct Sim<'a, 'w> {
     handed: usize,
     /// What a robot's mind asked, being carried out (kept to reuse).
     outs: Vec<AgentOutput>,
+    /// Each robot's drive command from the last control tick and its
+    /// steering, taken out of what its mind asked and worked out while the
+    /// minds ran side by side (kept to reuse; see [`Sim::control_tick`]).
+    drives: Vec<Option<(bite_agent::schema::Command, Steering)>>,
+    /// Whether what each robot's mind asked at the last control tick
+    /// has an event (for the stall watch, which sees them first).
+    eventful: Vec<bool>,
 }
+
+/// What a differential drive steers toward (`schema::steering`).
+type Steering = (Option<f64>, f64);
 
 /// The physical world away, stepping to the next control tick.
 struct Stepping {
@@ -437,11 +447,16 @@ impl Sim<'_, '_> {
     /// Every live robot's control tick: each senses the world and its
     /// mind ticks, side by side on the threads of the current rayon pool
     /// for a large team (a robot's mind reads nothing of the others', and
-    /// the world does not change while they think); then what each asks is
-    /// carried out in robot order, one robot after the other. The run is
-    /// the same whatever the number of threads, and the same as handing
-    /// the robots their ticks one by one (nothing a mind asks reaches
-    /// another mind or the world before the tick ends).
+    /// the world does not change while they think); then each robot's
+    /// drive command goes to its body and the stall watch sees the events,
+    /// in robot order. The rest of what the minds asked is carried out by
+    /// [`Sim::carry_out_tick`], in robot order too, once the world has
+    /// left to step to the next tick: nothing else a mind asks reaches the
+    /// world, and who hears a message is answered from where the robots
+    /// stand now either way. The run is the same whatever the number of
+    /// threads, and the same as handing the robots their ticks one by one
+    /// (nothing a mind asks reaches another mind or the world before the
+    /// tick ends).
     fn control_tick(&mut self) {
         use rayon::prelude::*;
         let n = self.agents.len();
@@ -460,25 +475,58 @@ impl Sim<'_, '_> {
         }
         let clocks: Vec<Time> = (0..n).map(|i| self.clock(i)).collect();
         let (world, crashed) = (self.now, &self.crashed);
-        let tick = |(i, a): (usize, &mut Agent)| {
+        self.drives.resize(n, None);
+        self.eventful.resize(n, false);
+        type Asked<'a> = (
+            &'a mut Option<(bite_agent::schema::Command, Steering)>,
+            &'a mut bool,
+        );
+        let tick = |((i, a), (drive, eventful)): ((usize, &mut Agent), Asked<'_>)| {
+            *drive = None;
+            *eventful = false;
             if !crashed[i] {
                 let sensed = sensed.get(i).and_then(Option::as_ref);
                 a.handle(clocks[i], Input::Tick { world, sensed });
+                *drive = (a.take_drive()).map(|cmd| (cmd, bite_agent::schema::steering(&cmd)));
+                *eventful = a.pending().any(|o| matches!(o, AgentOutput::Event(_)));
             }
         };
-        let agents = &mut self.agents;
+        let (agents, drives, eventful) = (&mut self.agents, &mut self.drives, &mut self.eventful);
         if par {
             on_pool(&mut || {
                 (agents.par_iter_mut().enumerate())
+                    .zip(drives.par_iter_mut().zip(eventful.par_iter_mut()))
                     .with_min_len(16)
                     .for_each(tick)
             });
         } else {
-            agents.iter_mut().enumerate().for_each(tick);
+            (agents.iter_mut().enumerate())
+                .zip(drives.iter_mut().zip(eventful.iter_mut()))
+                .for_each(tick);
         }
         for i in 0..n {
+            if let Some((cmd, steering)) = self.drives[i].take()
+                && let Some(w) = self.physics.as_mut()
+            {
+                w.actuate_steered(i, cmd, steering);
+            }
+            if self.eventful[i] {
+                let r = RobotId(i as u32);
+                for o in self.agents[i].pending() {
+                    if let AgentOutput::Event(e) = o {
+                        self.stall.observe(self.now, r, e, &self.graph);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Carry out the rest of what the minds asked at the control tick
+    /// ([`Sim::control_tick`]), in robot order.
+    fn carry_out_tick(&mut self) {
+        for i in 0..self.agents.len() {
             if !self.crashed[i] {
-                self.drain(RobotId(i as u32));
+                self.drain_observed(RobotId(i as u32), true);
             }
         }
     }
@@ -681,17 +729,33 @@ impl Sim<'_, '_> {
     /// network, events into the aggregator, checker, stall watch and log,
     /// commands to its body; and keep its timer scheduled.
     fn drain(&mut self, r: RobotId) {
+        self.drain_observed(r, false);
+    }
+
+    /// [`Sim::drain`]; `observed`: the stall watch has seen its events.
+    fn drain_observed(&mut self, r: RobotId, observed: bool) {
         let i = r.index();
         let mut outs = std::mem::take(&mut self.outs);
         outs.extend(std::iter::from_fn(|| self.agents[i].poll()));
         let timeout = self.agents[i].poll_timeout();
-        self.carry_out(r, &mut outs, timeout);
+        self.carry_out_observed(r, &mut outs, timeout, observed);
         self.outs = outs;
     }
 
     /// Carry out what robot `r`'s mind asked (`outs`, emptied), and keep
     /// its timer scheduled for `timeout` (its clock), as [`Sim::drain`].
     fn carry_out(&mut self, r: RobotId, outs: &mut Vec<AgentOutput>, timeout: Option<Time>) {
+        self.carry_out_observed(r, outs, timeout, false);
+    }
+
+    /// [`Sim::carry_out`]; `observed`: the stall watch has seen its events.
+    fn carry_out_observed(
+        &mut self,
+        r: RobotId,
+        outs: &mut Vec<AgentOutput>,
+        timeout: Option<Time>,
+        observed: bool,
+    ) {
         let i = r.index();
         for o in outs.drain(..) {
             match o {
@@ -723,7 +787,9 @@ impl Sim<'_, '_> {
                 AgentOutput::Event(e) => {
                     self.agg.event(self.now, r, &e);
                     self.checker.observe(self.now, r, &e);
-                    self.stall.observe(self.now, r, &e, &self.graph);
+                    if !observed {
+                        self.stall.observe(self.now, r, &e, &self.graph);
+                    }
                     if self.log.is_writing() {
                         let rec = Namer::new(&self.graph).record(self.now, r, &e);
                         self.log.write(&rec);
@@ -1075,6 +1141,10 @@ impl Sim<'_, '_> {
                         w.record();
                     }
                     self.control_tick();
+                    // The poses the log and a watcher get at this tick,
+                    // taken while the world is home and written after
+                    // the minds' events (see `carry_out_tick`).
+                    let mut poses = (None, None);
                     if let Some(w) = &self.physics {
                         let g = &self.graph;
                         let name = |b: BehaviorId| g.name_of(b).to_string();
@@ -1082,51 +1152,61 @@ impl Sim<'_, '_> {
                         if self.now >= self.next_poses {
                             self.next_poses = self.now + Duration::from_secs(1);
                             if self.log.is_writing() {
-                                let rec = w.poses_record(t, &name);
-                                // A watcher with its own pace sees its own.
-                                match self.watch_poses {
-                                    Some(_) => self.log.write_only(&rec),
-                                    None => self.log.write(&rec),
-                                }
+                                poses.0 = Some(w.poses_record(t, &name));
                             }
                         }
                         if let Some((every, next)) = self.watch_poses.as_mut()
                             && self.now >= *next
                         {
                             *next = self.now + *every;
-                            self.log.show(&w.poses_record(t, &name));
+                            poses.1 = Some(w.poses_record(t, &name));
                         }
                     }
-                    if self.live_all_finished() {
-                        return self.now;
-                    }
-                    self.stall.idle_check(self.now);
-                    if let Some(w) = &self.physics {
-                        let mut at = std::mem::take(&mut self.positions);
-                        at.clear();
-                        at.extend((0..n).map(|i| (!self.crashed[i]).then(|| w.position(i))));
-                        self.stall.motion(self.now, &at);
-                        self.positions = at;
-                    }
-                    if self.stall.stalled().is_some() {
-                        return self.now;
-                    }
-                    if self.now >= next_progress {
-                        next_progress = self.now + Duration::from_secs(1);
-                        let finished = (self.agents.iter())
-                            .filter(|a| a.kernel().is_finished())
-                            .count();
-                        if let Some(p) = self.progress.as_mut() {
-                            p(Progress {
-                                now: self.now,
-                                finished,
-                                robots: n,
-                            });
+                    let over = self.live_all_finished() || {
+                        self.stall.idle_check(self.now);
+                        if let Some(w) = &self.physics {
+                            let mut at = std::mem::take(&mut self.positions);
+                            at.clear();
+                            at.extend((0..n).map(|i| (!self.crashed[i]).then(|| w.position(i))));
+                            self.stall.motion(self.now, &at);
+                            self.positions = at;
                         }
-                    }
+                        self.stall.stalled().is_some()
+                    };
                     let next = self.now + period;
+                    if !over {
+                        if self.now >= next_progress {
+                            next_progress = self.now + Duration::from_secs(1);
+                            let finished = (self.agents.iter())
+                                .filter(|a| a.kernel().is_finished())
+                                .count();
+                            if let Some(p) = self.progress.as_mut() {
+                                p(Progress {
+                                    now: self.now,
+                                    finished,
+                                    robots: n,
+                                });
+                            }
+                        }
+                        // The world leaves first: what is left of the tick
+                        // is carried out while it steps.
+                        self.step_ahead(next, limit);
+                    }
+                    self.carry_out_tick();
+                    if let Some(rec) = poses.0 {
+                        // A watcher with its own pace sees its own.
+                        match self.watch_poses {
+                            Some(_) => self.log.write_only(&rec),
+                            None => self.log.write(&rec),
+                        }
+                    }
+                    if let Some(rec) = poses.1 {
+                        self.log.show(&rec);
+                    }
+                    if over {
+                        return self.now;
+                    }
                     self.schedule(next, What::Control);
-                    self.step_ahead(next, limit);
                 }
                 What::Deliver { .. }
                 | What::Inform { .. }
@@ -1448,6 +1528,8 @@ pub fn run(
         changes: Vec::new(),
         handed: 0,
         outs: Vec::new(),
+        drives: Vec::new(),
+        eventful: Vec::new(),
         pool: opts.pool.clone(),
         batch_from: opts.batch_from.unwrap_or(BATCH_FROM),
         batched: Batched::default(),

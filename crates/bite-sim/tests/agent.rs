@@ -184,3 +184,60 @@ fn agents_reallocate_when_a_teammate_is_lost() {
     );
     assert_agreement(&events);
 }
+
+/// A runtime may drive the body before it carries out the rest of what a
+/// tick asked (the simulator does, so that the world steps while the
+/// rest goes out): `take_drive` gives the last drive and leaves every
+/// other output, in order, to `poll`; `pending` shows them in place.
+#[test]
+fn the_drive_comes_out_of_a_tick_first_and_the_rest_stays_in_order() {
+    let sc = Scenario::load_str(&"formation-physics.yaml".into(), FORMATION_PHYSICS).unwrap();
+    let g = graph("formation.yaml", FORMATION);
+    let mission = prepare(&g, &sc, None, &bite_protocols::registry()).unwrap();
+    let n = mission.graph().roster().len();
+    let names: Vec<String> = (0..n as u32)
+        .map(|r| mission.graph().roster().name(RobotId(r)))
+        .collect();
+    let spec = sc.physics.clone().unwrap();
+    let mut world =
+        bite_sim::physics::World::new(spec, &names, mission.graph().symbols(), &sc.file, 1)
+            .unwrap();
+    // Two agents fed the same: one polled whole, one drive-first.
+    let mut whole = Agent::new(mission.clone(), &sc, RobotId(0), 1).unwrap();
+    let mut split = Agent::new(mission.clone(), &sc, RobotId(0), 1).unwrap();
+    let describe = |o: &AgentOutput| format!("{o:?}");
+    let mut drives = 0;
+    for k in 0..20u64 {
+        let now = Time::ZERO + Duration::from_millis(100 * k);
+        let s = world.observe(0);
+        whole.tick(now, Some(&s));
+        split.tick(now, Some(&s));
+        let all: Vec<AgentOutput> = std::iter::from_fn(|| whole.poll()).collect();
+        let pending: Vec<String> = split.pending().map(describe).collect();
+        assert_eq!(pending, all.iter().map(describe).collect::<Vec<_>>());
+        let drive = split.take_drive();
+        let rest: Vec<String> = std::iter::from_fn(|| split.poll())
+            .map(|o| describe(&o))
+            .collect();
+        let last_drive = all.iter().rev().find_map(|o| match o {
+            AgentOutput::Drive(c) => Some(*c),
+            _ => None,
+        });
+        assert_eq!(drive, last_drive, "tick {k}: the last drive");
+        let others: Vec<String> = (all.iter())
+            .filter(|o| !matches!(o, AgentOutput::Drive(_)))
+            .map(describe)
+            .collect();
+        assert_eq!(rest, others, "tick {k}: the rest, in order");
+        assert!(split.take_drive().is_none(), "taken once");
+        drives += usize::from(drive.is_some());
+        if let Some(cmd) = drive {
+            world.actuate(0, cmd);
+        }
+        world.advance(now + Duration::from_millis(100), &vec![false; n]);
+    }
+    assert!(
+        drives > 10,
+        "a physical robot drives at its ticks ({drives})"
+    );
+}

@@ -1057,7 +1057,13 @@ impl World {
     /// next physics step on (what a simulator server does with a command
     /// a robot process sends).
     pub fn actuate(&mut self, i: usize, cmd: Command) {
-        self.robots[i].steering = schema::steering(&cmd);
+        self.actuate_steered(i, cmd, schema::steering(&cmd));
+    }
+
+    /// [`World::actuate`] with the command's [`schema::steering`] worked
+    /// out already (by the robots' threads, side by side).
+    pub fn actuate_steered(&mut self, i: usize, cmd: Command, steering: (Option<f64>, f64)) {
+        self.robots[i].steering = steering;
         self.robots[i].cmd = cmd;
     }
 
