@@ -197,6 +197,18 @@ impl Shared {
     }
 }
 
+/// The stages of [`Agent::prefetch`], in the order a runner asks for
+/// them, robots apart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Ahead {
+    /// The agent's own fields.
+    Agent,
+    /// What they point to: its pilot, its buffers, its kernel's state.
+    Buffers,
+    /// What its pilot points to.
+    Pilot,
+}
+
 /// What an agent asks its runtime to do.
 #[derive(Debug)]
 pub enum AgentOutput {
@@ -530,6 +542,40 @@ impl Agent {
     /// The next output.
     pub fn poll(&mut self) -> Option<AgentOutput> {
         self.out.pop_front()
+    }
+
+    /// Ask for what a control tick reads first of this robot's mind to be
+    /// brought into the cache, one [`Ahead`] stage at a time: a large
+    /// team's minds tick one after the other, each on state of its own
+    /// scattered in memory, and the runner asks for the next robots'
+    /// while one thinks (each stage reads only what the one before
+    /// brought in).
+    pub fn prefetch(&self, stage: Ahead) {
+        use bite_core::hint::{prefetch_lines, prefetch_slice};
+        match stage {
+            // The agent itself: stored side by side with the others, but
+            // two kilobytes apart.
+            Ahead::Agent => prefetch_lines(
+                self as *const Agent,
+                std::mem::size_of::<Agent>().div_ceil(64),
+            ),
+            Ahead::Buffers => {
+                if let Some(p) = self.pilot.as_deref() {
+                    let lines = std::mem::size_of::<Piloted>().div_ceil(64);
+                    prefetch_lines(p as *const Piloted, lines);
+                }
+                prefetch_slice(&self.percepts, 2);
+                let (front, back) = self.out.as_slices();
+                prefetch_slice(front, 2);
+                prefetch_slice(back, 2);
+                self.kernel.prefetch();
+            }
+            Ahead::Pilot => {
+                if let Some(p) = self.pilot.as_deref() {
+                    p.pilot.prefetch();
+                }
+            }
+        }
     }
 
     /// The outputs not polled yet, in order, left where they are.

@@ -501,6 +501,15 @@ impl Pilot {
         self.view.rank = rank;
     }
 
+    /// Ask for the state [`Pilot::perceive`] and the schemas read first
+    /// to be brought into the cache (see `Agent::prefetch`).
+    pub fn prefetch(&self) {
+        use bite_core::hint::{prefetch, prefetch_slice};
+        prefetch_slice(&self.states, 8);
+        prefetch_slice(&self.values, 16);
+        prefetch(self.view.rays.as_ptr());
+    }
+
     /// What it makes of a tick's readings: updates what it remembers of
     /// objects and teammates, and writes the graph beliefs its percepts
     /// give into `out`.

@@ -130,6 +130,12 @@ pub struct BeliefStore {
 }
 
 impl BeliefStore {
+    /// Ask for the first belief slots to be brought into the cache
+    /// (see [`crate::kernel::Kernel::prefetch`]).
+    pub fn prefetch(&self) {
+        crate::hint::prefetch_lines(self.slots.as_ptr(), 4);
+    }
+
     /// An empty store over the graph's symbol table.
     pub fn new(symbols: Arc<Symbols>) -> Self {
         let slots = vec![None; symbols.len()];

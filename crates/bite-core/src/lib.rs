@@ -27,6 +27,7 @@ pub mod cond;
 pub mod diag;
 pub mod event;
 pub mod graph;
+pub mod hint;
 pub mod ids;
 pub mod interaction;
 pub mod kernel;

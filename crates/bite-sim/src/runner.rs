@@ -9,7 +9,7 @@
 use crate::log::{Namer, RunLog};
 use crate::net::SimNet;
 use crate::summary::{Aggregator, Summary};
-use bite_agent::agent::{Agent, AgentOutput, Input, Shared};
+use bite_agent::agent::{Agent, AgentOutput, Ahead, Input, Shared};
 use bite_agent::scenario::{Resolved, Scenario};
 use bite_agent::schema::Sensed;
 use bite_core::diag::{Diagnostic, Diagnostics};
@@ -332,14 +332,20 @@ struct Sim<'a, 'w> {
     /// Each robot's drive command from the last control tick and its
     /// steering, taken out of what its mind asked and worked out while the
     /// minds ran side by side (kept to reuse; see [`Sim::control_tick`]).
-    drives: Vec<Option<(bite_agent::schema::Command, Steering)>>,
+    drives: Vec<Drive>,
     /// Whether what each robot's mind asked at the last control tick
     /// has an event (for the stall watch, which sees them first).
     eventful: Vec<bool>,
 }
 
+/// Robots a thread's control tick takes at a time (see `Sim::control_tick`).
+const RUN: usize = 64;
+
 /// What a differential drive steers toward (`schema::steering`).
 type Steering = (Option<f64>, f64);
+
+/// A robot's drive command from a control tick, with its steering.
+type Drive = Option<(bite_agent::schema::Command, Steering)>;
 
 /// The physical world away, stepping to the next control tick.
 struct Stepping {
@@ -477,10 +483,7 @@ impl Sim<'_, '_> {
         let (world, crashed) = (self.now, &self.crashed);
         self.drives.resize(n, None);
         self.eventful.resize(n, false);
-        type Asked<'a> = (
-            &'a mut Option<(bite_agent::schema::Command, Steering)>,
-            &'a mut bool,
-        );
+        type Asked<'a> = (&'a mut Drive, &'a mut bool);
         let tick = |((i, a), (drive, eventful)): ((usize, &mut Agent), Asked<'_>)| {
             *drive = None;
             *eventful = false;
@@ -491,18 +494,55 @@ impl Sim<'_, '_> {
                 *eventful = a.pending().any(|o| matches!(o, AgentOutput::Event(_)));
             }
         };
+        // In runs of robots, each thread asking for the next robots'
+        // state while one thinks: a robot's agent four robots ahead, what
+        // it points to two ahead, its pilot's state one ahead.
+        type Run<'a> = (usize, ((&'a mut [Agent], &'a mut [Drive]), &'a mut [bool]));
+        let run = |(k, ((agents, drives), eventful)): Run<'_>| {
+            let ahead = |agents: &[Agent], j: usize| {
+                if let Some(a) = agents.get(j + 4) {
+                    a.prefetch(Ahead::Agent);
+                }
+                if let Some(a) = agents.get(j + 2) {
+                    a.prefetch(Ahead::Buffers);
+                }
+                if let Some(a) = agents.get(j + 1) {
+                    a.prefetch(Ahead::Pilot);
+                }
+            };
+            for (j, a) in agents.iter().take(4).enumerate() {
+                a.prefetch(Ahead::Agent);
+                if j < 2 {
+                    a.prefetch(Ahead::Buffers);
+                }
+            }
+            if let Some(a) = agents.first() {
+                a.prefetch(Ahead::Pilot);
+            }
+            let first = k * RUN;
+            for j in 0..agents.len() {
+                ahead(agents, j);
+                tick((
+                    (first + j, &mut agents[j]),
+                    (&mut drives[j], &mut eventful[j]),
+                ));
+            }
+        };
         let (agents, drives, eventful) = (&mut self.agents, &mut self.drives, &mut self.eventful);
         if par {
             on_pool(&mut || {
-                (agents.par_iter_mut().enumerate())
-                    .zip(drives.par_iter_mut().zip(eventful.par_iter_mut()))
-                    .with_min_len(16)
-                    .for_each(tick)
+                (agents.par_chunks_mut(RUN))
+                    .zip(drives.par_chunks_mut(RUN))
+                    .zip(eventful.par_chunks_mut(RUN))
+                    .enumerate()
+                    .for_each(run)
             });
         } else {
-            (agents.iter_mut().enumerate())
-                .zip(drives.iter_mut().zip(eventful.iter_mut()))
-                .for_each(tick);
+            (agents.chunks_mut(RUN))
+                .zip(drives.chunks_mut(RUN))
+                .zip(eventful.chunks_mut(RUN))
+                .enumerate()
+                .for_each(run);
         }
         for i in 0..n {
             if let Some((cmd, steering)) = self.drives[i].take()

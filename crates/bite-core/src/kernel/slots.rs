@@ -31,6 +31,11 @@ impl<V> Slots<V> {
         self.slots.binary_search_by(|(k, _)| k.cmp(key))
     }
 
+    /// See [`super::Kernel::prefetch`].
+    pub(super) fn prefetch(&self) {
+        crate::hint::prefetch_lines(self.slots.as_ptr(), 2);
+    }
+
     pub(super) fn len(&self) -> usize {
         self.slots.len()
     }
