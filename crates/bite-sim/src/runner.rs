@@ -742,9 +742,37 @@ impl Sim<'_, '_> {
         // waiting for it costs more).
         let few = tasks.len() < 2 * 32;
         self.batched.pooled += u64::from(!few);
-        let mut side_by_side = || tasks.par_iter_mut().with_min_len(32).map(work).collect();
+        // In runs of robots, with the next robots' minds on their way into
+        // the cache (as in `control_tick`).
+        let run = |tasks: &mut [(&mut Agent, &[(u32, u32)])]| -> Vec<Vec<(u32, Done)>> {
+            for (j, (a, _)) in tasks.iter().take(2).enumerate() {
+                a.prefetch(Ahead::Agent);
+                if j == 0 {
+                    a.prefetch(Ahead::Buffers);
+                }
+            }
+            let mut out = Vec::with_capacity(tasks.len());
+            for j in 0..tasks.len() {
+                if let Some((a, _)) = tasks.get(j + 2) {
+                    a.prefetch(Ahead::Agent);
+                }
+                if let Some((a, _)) = tasks.get(j + 1) {
+                    a.prefetch(Ahead::Buffers);
+                }
+                out.push(work(&mut tasks[j]));
+            }
+            out
+        };
+        let mut side_by_side = || {
+            (tasks.par_chunks_mut(RUN))
+                .map(run)
+                .collect::<Vec<_>>()
+                .into_iter()
+                .flatten()
+                .collect()
+        };
         let results: Vec<Vec<(u32, Done)>> = match &self.pool {
-            _ if few => tasks.iter_mut().map(work).collect(),
+            _ if few => run(&mut tasks),
             Some(pool) => pool.install(side_by_side),
             None => side_by_side(),
         };
@@ -1254,7 +1282,19 @@ impl Sim<'_, '_> {
                 | What::Beacon(_)
                 | What::Peer { .. } => match batching {
                     Some(window) => self.batch(at, seq, what, window, limit),
-                    None => self.agent_event(what),
+                    None => {
+                        // The next robot's mind on its way into the cache
+                        // while this one's event is handled (a hint: the
+                        // next event may change meanwhile).
+                        let next = (self.queue.peek()).and_then(|(_, _, w)| robot_event(w));
+                        if let Some(r) = next {
+                            self.agents[r.index()].prefetch(Ahead::Agent);
+                        }
+                        self.agent_event(what);
+                        if let Some(r) = next {
+                            self.agents[r.index()].prefetch(Ahead::Buffers);
+                        }
+                    }
                 },
                 What::Lost { observer, subject } => {
                     let o = observer.index();
