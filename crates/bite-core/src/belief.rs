@@ -133,7 +133,7 @@ impl BeliefStore {
     /// Ask for the first belief slots to be brought into the cache
     /// (see [`crate::kernel::Kernel::prefetch`]).
     pub fn prefetch(&self) {
-        crate::hint::prefetch_lines(self.slots.as_ptr(), 4);
+        crate::hint::prefetch_slice(&self.slots, 4);
     }
 
     /// An empty store over the graph's symbol table.

@@ -568,7 +568,7 @@ impl Kernel {
     /// the tick: a large team's minds tick one after the other, each on
     /// state of its own scattered in memory.
     pub fn prefetch(&self) {
-        crate::hint::prefetch_lines(self.stack.as_ptr(), 4);
+        crate::hint::prefetch_slice(&self.stack, 4);
         self.beliefs.prefetch();
         self.instances.prefetch();
     }

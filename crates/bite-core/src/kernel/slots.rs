@@ -33,7 +33,7 @@ impl<V> Slots<V> {
 
     /// See [`super::Kernel::prefetch`].
     pub(super) fn prefetch(&self) {
-        crate::hint::prefetch_lines(self.slots.as_ptr(), 2);
+        crate::hint::prefetch_slice(&self.slots, 2);
     }
 
     pub(super) fn len(&self) -> usize {
