@@ -151,6 +151,7 @@ fn the_robot_runtime_without_the_sim_server_links_no_physics_engine() {
 /// Modules of `bite-core` in layer order: a module may use (`crate::x`)
 /// only modules listed before it, or itself. Doc comments do not count.
 const CORE_LAYERS: &[&str] = &[
+    "hint",
     "time",
     "value",
     "diag",
