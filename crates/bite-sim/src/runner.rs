@@ -494,39 +494,16 @@ impl Sim<'_, '_> {
                 *eventful = a.pending().any(|o| matches!(o, AgentOutput::Event(_)));
             }
         };
-        // In runs of robots, each thread asking for the next robots'
-        // state while one thinks: a robot's agent four robots ahead, what
-        // it points to two ahead, its pilot's state one ahead.
+        // In runs of robots, each thread with the next robots' minds on
+        // their way into the cache (`look_ahead`).
         type Run<'a> = (usize, ((&'a mut [Agent], &'a mut [Drive]), &'a mut [bool]));
         let run = |(k, ((agents, drives), eventful)): Run<'_>| {
-            let ahead = |agents: &[Agent], j: usize| {
-                if let Some(a) = agents.get(j + 4) {
-                    a.prefetch(Ahead::Agent);
-                }
-                if let Some(a) = agents.get(j + 2) {
-                    a.prefetch(Ahead::Buffers);
-                }
-                if let Some(a) = agents.get(j + 1) {
-                    a.prefetch(Ahead::Pilot);
-                }
-            };
-            for (j, a) in agents.iter().take(4).enumerate() {
-                a.prefetch(Ahead::Agent);
-                if j < 2 {
-                    a.prefetch(Ahead::Buffers);
-                }
-            }
-            if let Some(a) = agents.first() {
-                a.prefetch(Ahead::Pilot);
-            }
             let first = k * RUN;
-            for j in 0..agents.len() {
-                ahead(agents, j);
-                tick((
-                    (first + j, &mut agents[j]),
-                    (&mut drives[j], &mut eventful[j]),
-                ));
-            }
+            look_ahead(
+                agents,
+                |a| a,
+                |j, a| tick(((first + j, a), (&mut drives[j], &mut eventful[j]))),
+            );
         };
         let (agents, drives, eventful) = (&mut self.agents, &mut self.drives, &mut self.eventful);
         if par {
@@ -743,24 +720,10 @@ impl Sim<'_, '_> {
         let few = tasks.len() < 2 * 32;
         self.batched.pooled += u64::from(!few);
         // In runs of robots, with the next robots' minds on their way into
-        // the cache (as in `control_tick`).
+        // the cache (`look_ahead`).
         let run = |tasks: &mut [(&mut Agent, &[(u32, u32)])]| -> Vec<Vec<(u32, Done)>> {
-            for (j, (a, _)) in tasks.iter().take(2).enumerate() {
-                a.prefetch(Ahead::Agent);
-                if j == 0 {
-                    a.prefetch(Ahead::Buffers);
-                }
-            }
             let mut out = Vec::with_capacity(tasks.len());
-            for j in 0..tasks.len() {
-                if let Some((a, _)) = tasks.get(j + 2) {
-                    a.prefetch(Ahead::Agent);
-                }
-                if let Some((a, _)) = tasks.get(j + 1) {
-                    a.prefetch(Ahead::Buffers);
-                }
-                out.push(work(&mut tasks[j]));
-            }
+            look_ahead(tasks, |(a, _)| &**a, |_, task| out.push(work(task)));
             out
         };
         let mut side_by_side = || {
@@ -1444,6 +1407,33 @@ fn beacon_of(a: &Agent) -> Option<Beacon> {
             pos: Arc::new(pos),
         }
     })
+}
+
+/// Call `f` on each of `items` in order, with the next items' minds on
+/// their way into the cache (`Agent::prefetch`): the agent of the item four
+/// ahead, what it points to two ahead, its pilot's state one ahead (each
+/// stage reads only what the one before brought in). A large team's minds
+/// are handled one after the other, each on state of its own scattered in
+/// memory.
+fn look_ahead<T>(items: &mut [T], agent: impl Fn(&T) -> &Agent, mut f: impl FnMut(usize, &mut T)) {
+    let ask = |items: &[T], j: usize, stage: Ahead| {
+        if let Some(x) = items.get(j) {
+            agent(x).prefetch(stage);
+        }
+    };
+    for j in 0..4 {
+        ask(items, j, Ahead::Agent);
+    }
+    for j in 0..2 {
+        ask(items, j, Ahead::Buffers);
+    }
+    ask(items, 0, Ahead::Pilot);
+    for j in 0..items.len() {
+        ask(items, j + 4, Ahead::Agent);
+        ask(items, j + 2, Ahead::Buffers);
+        ask(items, j + 1, Ahead::Pilot);
+        f(j, &mut items[j]);
+    }
 }
 
 /// The robot whose event it is, if it is one robot's (a message, a
