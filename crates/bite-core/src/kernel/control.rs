@@ -98,11 +98,14 @@ impl Kernel {
             if beh.until.is_none() && beh.urgent.is_none() {
                 continue;
             }
-            let timed = beh
-                .until
-                .iter()
-                .chain(&beh.urgent)
-                .any(|e| e.depends_on_time());
+            let reads = |e: &Option<Box<crate::cond::Expr>>| {
+                e.as_ref().map_or((false, false), |e| {
+                    (e.depends_on_time(), e.depends_on_runs())
+                })
+            };
+            let ((t1, r1), (t2, r2)) = (reads(&beh.until), reads(&beh.urgent));
+            let timed = t1 || t2;
+            let vers = if r1 || r2 { vers } else { (vers.0, u64::MAX) };
             if !timed && f.until_false_at == Some(vers) {
                 continue;
             }

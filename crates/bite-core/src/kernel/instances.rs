@@ -126,7 +126,7 @@ impl Kernel {
             }
         }
         let excluded = (!gone.is_empty() && !team.members.is_disjoint(&gone)).then_some(gone);
-        let inst = Instance {
+        let inst = Box::new(Instance {
             excluded,
             protocol: bound.protocol.name(),
             team,
@@ -149,12 +149,11 @@ impl Kernel {
             sent: 0,
             bytes: 0,
             received: 0,
-        };
+        });
         let protocol = inst.protocol;
-        self.instances.insert(key, Box::new(inst));
         if !armed {
-            let excluded = self.instances[&key].excluded_members();
-            let options: LogList<BehaviorId> = match &self.instances[&key].input {
+            let excluded = inst.excluded_members();
+            let options: LogList<BehaviorId> = match &inst.input {
                 PointInput::Sync { candidates, .. } => candidates.as_slice().into(),
                 PointInput::Allocate { children } => {
                     match (self.mission.child_slots_shared(key.behavior))
@@ -174,7 +173,9 @@ impl Kernel {
                 options,
             });
         }
-        self.call(key, |imp, cx| imp.start(cx));
+        // Started before it is put in the table: absent meanwhile, as an
+        // instance is during every call into it.
+        self.call_with(key, inst, |imp, cx| imp.start(cx));
         self.refresh_due();
         // A teammate's word on how the instance was decided without this
         // robot (`Missed`) comes before the protocol's messages that
@@ -222,9 +223,20 @@ impl Kernel {
         key: InstanceKey,
         f: impl FnOnce(&mut dyn Interaction, &mut Cx<'_>),
     ) {
-        let Some(mut inst) = self.instances.remove(&key) else {
+        let Some(inst) = self.instances.take(&key) else {
             return;
         };
+        self.call_with(key, inst, f);
+    }
+
+    /// [`Kernel::call`] with the instance out of the table; it is put
+    /// (back) under `key` after its effects.
+    fn call_with(
+        &mut self,
+        key: InstanceKey,
+        mut inst: Box<Instance>,
+        f: impl FnOnce(&mut dyn Interaction, &mut Cx<'_>),
+    ) {
         let mut fx = Effects::default();
         {
             let mut cx = Cx::new(CxParts {
@@ -468,7 +480,7 @@ impl Kernel {
             .instances
             .iter()
             .filter(|(_, i)| i.wake.is_some_and(|w| w <= now))
-            .map(|(k, _)| *k)
+            .map(|(k, _)| k)
             .collect();
         for k in due {
             if let Some(i) = self.instances.get_mut(&k) {
@@ -480,7 +492,7 @@ impl Kernel {
             .instances
             .iter()
             .filter(|(_, i)| i.state == State::Active && i.deadline <= now)
-            .map(|(k, _)| *k)
+            .map(|(k, _)| k)
             .collect();
         for k in expired {
             if self.awaited_at_work(k) {
@@ -518,15 +530,18 @@ impl Kernel {
     }
 
     pub(super) fn refresh_due(&mut self) {
-        self.next_due = self
-            .instances
-            .values()
-            .flat_map(|i| {
-                let d = (i.state == State::Active).then_some(i.deadline);
-                i.wake.into_iter().chain(d)
-            })
-            .chain(self.fence_wait.map(|(_, t)| t + change::FENCE_WAIT))
-            .min();
+        // A plain loop: this runs after every call into an instance.
+        let mut due = self.fence_wait.map(|(_, t)| t + change::FENCE_WAIT);
+        let mut earlier = |t: Time| due = Some(due.map_or(t, |d| d.min(t)));
+        for i in self.instances.values() {
+            if let Some(w) = i.wake {
+                earlier(w);
+            }
+            if i.state == State::Active {
+                earlier(i.deadline);
+            }
+        }
+        self.next_due = due;
     }
 
     // ----- messages ------------------------------------------------------
@@ -544,7 +559,7 @@ impl Kernel {
 
     /// Decide instance `key` with `outcome`, outside its protocol.
     pub(super) fn force(&mut self, key: InstanceKey, outcome: Outcome) {
-        let Some(mut inst) = self.instances.remove(&key) else {
+        let Some(mut inst) = self.instances.take(&key) else {
             return;
         };
         let fx = Effects {
@@ -563,19 +578,16 @@ impl Kernel {
         // A finished instance (decided or left) stays while it still has
         // work (a timer: e.g. telling stragglers of a release); then only
         // its outcome is kept, to answer late teammates.
-        let done: Vec<(InstanceKey, Closed)> = self
-            .instances
-            .iter()
-            .filter(|(_, i)| {
-                matches!(i.state, State::Decided | State::Aborted)
-                    && i.outcome.is_none()
-                    && i.wake.is_none()
-            })
-            .filter_map(|(k, i)| i.closed.clone().map(|c| (*k, c)))
-            .collect();
-        for (k, c) in done {
-            self.instances.remove(&k);
-            self.bury(k, c);
+        let done = self.instances.remove_where(|i| {
+            matches!(i.state, State::Decided | State::Aborted)
+                && i.outcome.is_none()
+                && i.wake.is_none()
+                && i.closed.is_some()
+        });
+        for (k, i) in done {
+            if let Some(c) = i.closed {
+                self.bury(k, c);
+            }
         }
         for senders in self.seen.values_mut() {
             senders.retain(|_, t| now - *t < DEDUP_MEMORY);

@@ -20,7 +20,7 @@ impl Kernel {
                 i.team.contains(r)
                     && (matches!(i.state, State::Armed | State::Active) || i.wake.is_some())
             })
-            .map(|(k, _)| *k)
+            .map(|(k, _)| k)
             .collect();
         for k in affected {
             self.exclude(k, &[r]);
@@ -157,15 +157,9 @@ impl Kernel {
         let here = &self.stack[i];
         let (team, behavior, epoch) = (here.team, here.behavior, here.epoch);
         let mut above: Vec<InstanceKey> = self.stack[..=i].iter().map(Frame::term_key).collect();
-        above.extend(
-            self.instances
-                .keys()
-                .filter(|k| {
-                    k.kind == Kind::Allocate
-                        && (k.team, k.behavior, k.epoch) == (team, behavior, epoch)
-                })
-                .copied(),
-        );
+        above.extend(self.instances.keys().filter(|k| {
+            k.kind == Kind::Allocate && (k.team, k.behavior, k.epoch) == (team, behavior, epoch)
+        }));
         let below: Vec<InstanceKey> = self
             .instances
             .iter()
@@ -178,7 +172,7 @@ impl Kernel {
                         .bound(k.behavior, k.kind)
                         .is_some_and(|b| b.protocol.communicates())
             })
-            .map(|(k, _)| *k)
+            .map(|(k, _)| k)
             .collect();
         if !below.is_empty() {
             let who = who.to_vec();

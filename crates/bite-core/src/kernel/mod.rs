@@ -144,7 +144,10 @@ pub struct Frame {
     /// without the team.
     #[serde(skip)]
     urgent: bool,
-    /// Belief and stack versions at which `until` was last found false.
+    /// Belief and stack versions at which `until` was last found false
+    /// (the stack's only for conditions that read `runs`: other ones read
+    /// nothing a push or a pop changes; a change of mission changes the
+    /// belief version).
     #[serde(skip)]
     until_false_at: Option<(u64, u64)>,
     /// The control tick during whose period it was pushed.

@@ -503,7 +503,7 @@ impl Kernel {
                 && inst.waiting_since.is_some_and(|t| now - t >= inst.retry)
         });
         let ask: Vec<InstanceKey> = waiting
-            .map(|(k, _)| *k)
+            .map(|(k, _)| k)
             .filter(|k| pos.went_past(*k))
             .collect();
         for k in ask {
