@@ -11,7 +11,6 @@ use crate::interaction::{
     Assignment, ByIdMemo, ChildSlot, Factory, Params, Protocol, Registry, Setup,
 };
 use crate::org::Split;
-use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Arc;
 use std::sync::{Mutex, Weak};
@@ -81,7 +80,9 @@ type Execution = (TeamId, BehaviorId, (u32, u32));
 
 #[derive(Debug, Default)]
 struct SplitTable {
-    by_execution: BTreeMap<Execution, Vec<Weak<Split>>>,
+    /// Looked up by execution and swept, never walked in order: a hash
+    /// map (a B-tree of a thousand executions was a tenth of a decision).
+    by_execution: rustc_hash::FxHashMap<Execution, Vec<Weak<Split>>>,
     /// Entries (weak pointers) in `by_execution`.
     entries: usize,
     /// Entries left by the last sweep of dead ones.
