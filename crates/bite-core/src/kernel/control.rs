@@ -98,15 +98,14 @@ impl Kernel {
             if beh.until.is_none() && beh.urgent.is_none() {
                 continue;
             }
-            let reads = |e: &Option<Box<crate::cond::Expr>>| {
-                e.as_ref().map_or((false, false), |e| {
-                    (e.depends_on_time(), e.depends_on_runs())
-                })
-            };
-            let ((t1, r1), (t2, r2)) = (reads(&beh.until), reads(&beh.urgent));
-            let timed = t1 || t2;
-            let vers = if r1 || r2 { vers } else { (vers.0, u64::MAX) };
-            if !timed && f.until_false_at == Some(vers) {
+            let conds = || beh.until.iter().chain(&beh.urgent);
+            // Found false at this belief version, and at this stack
+            // version or (`u64::MAX`) at any: see `until_false_at`.
+            if let Some((b, s)) = f.until_false_at
+                && b == vers.0
+                && (s == vers.1 || s == u64::MAX)
+                && !conds().any(|e| e.depends_on_time())
+            {
                 continue;
             }
             let runs = match i {
@@ -134,7 +133,11 @@ impl Kernel {
                 self.out.push_back(Output::Event(e));
                 return Some((i, EndReason::Until));
             }
-            self.stack[i].until_false_at = Some(vers);
+            let stack = match conds().any(|e| e.depends_on_runs()) {
+                true => vers.1,
+                false => u64::MAX,
+            };
+            self.stack[i].until_false_at = Some((vers.0, stack));
         }
         None
     }
