@@ -140,14 +140,15 @@ impl<V> Slots<V> {
     }
 
     /// Remove every value `pred` accepts, in one pass: the removed, with
-    /// their keys, in key order.
+    /// their keys, in key order. Empty slots go too (a value taken and
+    /// put back later gets a new one).
     pub(super) fn remove_where(
         &mut self,
         mut pred: impl FnMut(&V) -> bool,
     ) -> Vec<(InstanceKey, V)> {
         let out: Vec<(InstanceKey, V)> = self
             .slots
-            .extract_if(.., |(_, v)| v.as_ref().is_some_and(&mut pred))
+            .extract_if(.., |(_, v)| v.as_ref().is_none_or(&mut pred))
             .filter_map(|(k, v)| v.map(|v| (k.key(), v)))
             .collect();
         self.live -= out.len();
