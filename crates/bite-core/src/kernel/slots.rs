@@ -117,16 +117,6 @@ impl<V> Slots<V> {
         }
     }
 
-    #[cfg(test)]
-    pub(super) fn remove(&mut self, key: &InstanceKey) -> Option<V> {
-        let i = self.find(key).ok()?;
-        let old = self.slots.remove(i).1;
-        if old.is_some() {
-            self.live -= 1;
-        }
-        old
-    }
-
     /// Take the value under `key` out to be put back with
     /// [`Slots::insert`]: absent meanwhile, as if removed, but its slot
     /// stays, so that neither moves the values after it.
@@ -259,7 +249,8 @@ mod tests {
                     Op::Remove(k) => {
                         prop_assert_eq!(slots.contains_key(&k), map.contains_key(&k));
                         prop_assert_eq!(slots.get(&k), map.get(&k));
-                        prop_assert_eq!(slots.remove(&k), map.remove(&k));
+                        // Taken and never put back: removed, to every query.
+                        prop_assert_eq!(slots.take(&k), map.remove(&k));
                     }
                     Op::Bump(k) => {
                         if let (Some(a), Some(b)) = (slots.get_mut(&k), map.get_mut(&k)) {
