@@ -6,6 +6,7 @@ use crate::ids::{BehaviorId, RobotId, TeamId};
 use crate::members::Assignment;
 use crate::value::Value;
 use serde::{Deserialize, Serialize};
+use smallvec::SmallVec;
 use std::sync::{Arc, OnceLock};
 
 /// How a behavior came to be selected.
@@ -85,8 +86,8 @@ pub const LOG_MEMBERS_LIMIT: usize = 64;
 #[derive(Clone, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum MembersLog {
-    /// Every member.
-    List(Vec<RobotId>),
+    /// Every member (inline up to four: a list is made at every allocation).
+    List(SmallVec<[RobotId; 4]>),
     /// A large subteam.
     Summary {
         /// Number of members.
@@ -147,7 +148,7 @@ impl OutcomeLog {
             .map(|(b, m)| {
                 let n = m.len();
                 let log = if n <= LOG_MEMBERS_LIMIT {
-                    MembersLog::List(m.to_vec())
+                    MembersLog::List(m.iter().collect())
                 } else {
                     MembersLog::Summary {
                         count: n as u32,
@@ -173,8 +174,9 @@ fn mix(h: u64, x: u64) -> u64 {
 /// A list in events that many robots report alike (the children of an
 /// allocation point, an allocation): shared rather than copied, compared
 /// by address first, and logged in full up to [`LOG_CHILDREN_LIMIT`]
-/// entries, as a count and a fingerprint (computed once) beyond.
-pub struct LogList<T>(Arc<ListInner<T>>);
+/// entries, as a count and a fingerprint (computed once) beyond. An
+/// empty list holds nothing (a termination's options, every time).
+pub struct LogList<T>(Option<Arc<ListInner<T>>>);
 
 struct ListInner<T> {
     items: Vec<T>,
@@ -224,15 +226,21 @@ impl LogItem for (BehaviorId, MembersLog) {
 impl<T> LogList<T> {
     /// True when both are the same list (not just equal ones).
     pub fn ptr_eq(&self, other: &Self) -> bool {
-        Arc::ptr_eq(&self.0, &other.0)
+        match (&self.0, &other.0) {
+            (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+            (a, b) => a.is_none() && b.is_none(),
+        }
     }
 }
 
 impl<T: LogItem> LogList<T> {
     /// Total weight and fingerprint of the entries.
     fn summary(&self) -> (u64, u64) {
-        *self.0.summary.get_or_init(|| {
-            let items = &self.0.items;
+        let Some(inner) = &self.0 else {
+            return (0, 0);
+        };
+        *inner.summary.get_or_init(|| {
+            let items = &inner.items;
             (
                 items.iter().map(LogItem::weight).sum(),
                 items.iter().fold(0, |h, x| x.mix(h)),
@@ -243,10 +251,13 @@ impl<T: LogItem> LogList<T> {
 
 impl<T> From<Vec<T>> for LogList<T> {
     fn from(items: Vec<T>) -> Self {
-        LogList(Arc::new(ListInner {
+        if items.is_empty() {
+            return LogList(None);
+        }
+        LogList(Some(Arc::new(ListInner {
             items,
             summary: OnceLock::new(),
-        }))
+        })))
     }
 }
 
@@ -264,7 +275,7 @@ impl<T> FromIterator<T> for LogList<T> {
 
 impl<T> Default for LogList<T> {
     fn default() -> Self {
-        Vec::new().into()
+        LogList(None)
     }
 }
 
@@ -277,13 +288,13 @@ impl<T> Clone for LogList<T> {
 impl<T> std::ops::Deref for LogList<T> {
     type Target = [T];
     fn deref(&self) -> &[T] {
-        &self.0.items
+        self.0.as_ref().map_or(&[], |i| &i.items)
     }
 }
 
 impl<T: PartialEq> PartialEq for LogList<T> {
     fn eq(&self, other: &Self) -> bool {
-        self.ptr_eq(other) || self.0.items == other.0.items
+        self.ptr_eq(other) || **self == **other
     }
 }
 
@@ -291,14 +302,14 @@ impl<T: Eq> Eq for LogList<T> {}
 
 impl<T: std::fmt::Debug> std::fmt::Debug for LogList<T> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        self.0.items.fmt(f)
+        (**self).fmt(f)
     }
 }
 
 impl Serialize for LogList<BehaviorId> {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         if self.len() <= LOG_CHILDREN_LIMIT {
-            return self.0.items.serialize(s);
+            return (**self).serialize(s);
         }
         #[derive(Serialize)]
         struct Summary {
@@ -316,7 +327,7 @@ impl Serialize for LogList<BehaviorId> {
 impl Serialize for LogList<(BehaviorId, MembersLog)> {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         if self.len() <= LOG_CHILDREN_LIMIT {
-            return self.0.items.serialize(s);
+            return (**self).serialize(s);
         }
         #[derive(Serialize)]
         struct Summary {
@@ -612,4 +623,32 @@ pub enum Event {
     /// Too many transitions in one step (conditions that are immediately
     /// true around a sequential cycle); the kernel yields until the next input.
     TransitionLimit,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_empty_list_is_logged_and_compared_like_any_other() {
+        let empty: LogList<BehaviorId> = LogList::default();
+        let made: LogList<BehaviorId> = Vec::new().into();
+        assert!(empty.ptr_eq(&made) && empty == made && empty.is_empty());
+        assert_eq!(serde_json::to_string(&empty).expect("json"), "[]");
+        let one: LogList<BehaviorId> = vec![BehaviorId(3)].into();
+        assert!(!one.ptr_eq(&empty) && one != empty);
+        assert!(one.ptr_eq(&one.clone()));
+        assert_eq!(serde_json::to_string(&one).expect("json"), "[3]");
+    }
+
+    #[test]
+    fn a_short_member_list_reads_back_as_it_was_written() {
+        let log = MembersLog::List([RobotId(0), RobotId(2)].into_iter().collect());
+        let json = serde_json::to_string(&log).expect("json");
+        assert_eq!(json, "[0,2]");
+        let back: MembersLog = serde_json::from_str(&json).expect("parse");
+        assert_eq!(back, log);
+        let many: MembersLog = serde_json::from_str("[1,2,3,4,5,6]").expect("parse");
+        assert_eq!(many.len(), 6);
+    }
 }

@@ -361,10 +361,11 @@ pub enum LocalEnd {
 pub enum PointInput {
     /// Choose the next behavior after the point behavior.
     Sync {
-        /// Successors whose preconditions hold for this robot, graph order.
-        candidates: Vec<BehaviorId>,
-        /// All successors, graph order.
-        successors: Vec<BehaviorId>,
+        /// Successors whose preconditions hold for this robot, graph order
+        /// (the same list as `successors` when they all do).
+        candidates: Arc<[BehaviorId]>,
+        /// All successors, graph order (shared with the mission).
+        successors: Arc<[BehaviorId]>,
     },
     /// Split the team among the point behavior's children.
     Allocate {

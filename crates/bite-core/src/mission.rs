@@ -56,6 +56,9 @@ pub struct Mission {
     /// The children of each behavior, as ids (shared by every robot's
     /// record of an allocation that saw them all enabled).
     child_ids: Vec<LogList<BehaviorId>>,
+    /// The successors of each behavior that has any, shared by every
+    /// synchronization at it, with the same list as the run log shows it.
+    next: Vec<Option<(Arc<[BehaviorId]>, LogList<BehaviorId>)>>,
     /// The children of each behavior with their positions, by id.
     child_index: Vec<Vec<(BehaviorId, u32)>>,
     /// Behaviors none of whose children has a precondition.
@@ -199,6 +202,18 @@ impl Mission {
             .iter()
             .map(|b| LogList::from(b.children.as_slice()))
             .collect();
+        let next = graph
+            .behaviors()
+            .iter()
+            .map(|b| {
+                (!b.next.is_empty()).then(|| {
+                    (
+                        Arc::from(b.next.as_slice()),
+                        LogList::from(b.next.as_slice()),
+                    )
+                })
+            })
+            .collect();
         let child_index = graph
             .behaviors()
             .iter()
@@ -221,6 +236,7 @@ impl Mission {
             bound,
             slots,
             child_ids,
+            next,
             child_index,
             unconditional,
             splits: Splits::default(),
@@ -254,6 +270,11 @@ impl Mission {
     /// The children of `b`, shared.
     pub fn child_ids(&self, b: BehaviorId) -> Option<&LogList<BehaviorId>> {
         self.child_ids.get(b.index())
+    }
+    /// The successors of `b`, shared, and as the run log shows them
+    /// (`None` when it has none).
+    pub fn next_shared(&self, b: BehaviorId) -> Option<&(Arc<[BehaviorId]>, LogList<BehaviorId>)> {
+        self.next.get(b.index())?.as_ref()
     }
     /// The position of `child` among the children of `b`.
     pub fn child_index(&self, b: BehaviorId, child: BehaviorId) -> Option<u32> {

@@ -10,6 +10,7 @@
 
 use crate::ids::{BehaviorId, Fnv1a, RobotId, TeamId};
 pub use crate::members::{Assignment, MemberSet, Members};
+use smallvec::SmallVec;
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
 use std::sync::{Arc, OnceLock};
 
@@ -55,14 +56,14 @@ pub struct Split {
     point: BehaviorId,
     stamp: (u32, u32),
     assignment: Arc<Assignment>,
-    /// The subteams, in the assignment's order.
-    teams: Vec<Team>,
-    /// The child each subteam was made for.
-    heads: Vec<BehaviorId>,
-    /// Indices of `teams`, by team id.
-    by_id: Vec<u32>,
+    /// The subteams with the child each was made for, in the
+    /// assignment's order.
+    teams: Vec<(BehaviorId, Team)>,
+    /// Indices of `teams`, by team id (inline for a few subteams, as
+    /// below: a split is made at every allocation).
+    by_id: SmallVec<[u32; 8]>,
     /// Indices of `teams`, by child.
-    by_head: Vec<u32>,
+    by_head: SmallVec<[u32; 8]>,
     /// For each robot of the roster, 1 + the index of its subteam (0:
     /// none); only for splits with many subteams.
     member_of: Vec<u32>,
@@ -84,8 +85,7 @@ impl Split {
         assignment: Arc<Assignment>,
         index: impl Fn(BehaviorId) -> Option<u32>,
     ) -> Split {
-        let mut teams = Vec::new();
-        let mut heads = Vec::new();
+        let mut teams = Vec::with_capacity(assignment.0.len());
         let mut h = Fnv1a::new();
         for (child, members) in &assignment.0 {
             if members.is_empty() {
@@ -96,24 +96,24 @@ impl Split {
             };
             let id = TeamId::derive(parent, point, stamp, idx, members.fingerprint());
             h.write(&id.0.to_le_bytes());
-            teams.push(Team {
+            let team = Team {
                 id,
                 members: Arc::new(members.clone()),
                 size: members.len() as u32,
                 parent: Some(parent),
                 origin: Some((point, stamp.0, idx)),
-            });
-            heads.push(*child);
+            };
+            teams.push((*child, team));
         }
-        let mut by_id: Vec<u32> = (0..teams.len() as u32).collect();
-        by_id.sort_by_key(|i| teams[*i as usize].id);
-        let mut by_head: Vec<u32> = (0..teams.len() as u32).collect();
-        by_head.sort_by_key(|i| heads[*i as usize]);
+        let mut by_id: SmallVec<[u32; 8]> = (0..teams.len() as u32).collect();
+        by_id.sort_by_key(|i| teams[*i as usize].1.id);
+        let mut by_head: SmallVec<[u32; 8]> = (0..teams.len() as u32).collect();
+        by_head.sort_by_key(|i| teams[*i as usize].0);
         let mut member_of = Vec::new();
         if teams.len() > INDEXED_SPLIT {
-            let roster = teams.first().map_or(0, |t| t.members.roster_len());
+            let roster = teams.first().map_or(0, |(_, t)| t.members.roster_len());
             member_of = vec![0; roster];
-            for (i, t) in teams.iter().enumerate() {
+            for (i, (_, t)) in teams.iter().enumerate() {
                 for r in t.members.iter() {
                     if member_of[r.index()] == 0 {
                         member_of[r.index()] = i as u32 + 1;
@@ -127,7 +127,6 @@ impl Split {
             stamp,
             assignment,
             teams,
-            heads,
             by_id,
             by_head,
             member_of,
@@ -153,7 +152,7 @@ impl Split {
     }
     /// The subteams, with the child each runs, in the assignment's order.
     pub fn subteams(&self) -> impl Iterator<Item = (BehaviorId, &Team)> {
-        self.heads.iter().copied().zip(&self.teams)
+        self.teams.iter().map(|(b, t)| (*b, t))
     }
     /// Number of subteams.
     pub fn len(&self) -> usize {
@@ -166,13 +165,13 @@ impl Split {
     /// The position of subteam `id` in the assignment's order.
     fn index(&self, id: TeamId) -> Option<usize> {
         self.by_id
-            .binary_search_by_key(&id, |i| self.teams[*i as usize].id)
+            .binary_search_by_key(&id, |i| self.teams[*i as usize].1.id)
             .ok()
             .map(|k| self.by_id[k] as usize)
     }
     /// A subteam of this split.
     pub fn team(&self, id: TeamId) -> Option<&Team> {
-        self.index(id).map(|i| &self.teams[i])
+        self.index(id).map(|i| &self.teams[i].1)
     }
     /// True when `id` is one of its subteams.
     pub fn contains(&self, id: TeamId) -> bool {
@@ -181,18 +180,19 @@ impl Split {
     /// The subteam made for child `b`.
     fn of_head(&self, b: BehaviorId) -> Option<&Team> {
         self.by_head
-            .binary_search_by_key(&b, |i| self.heads[*i as usize])
+            .binary_search_by_key(&b, |i| self.teams[*i as usize].0)
             .ok()
-            .map(|k| &self.teams[self.by_head[k] as usize])
+            .map(|k| &self.teams[self.by_head[k] as usize].1)
     }
     /// The child robot `r` was given, and its subteam.
     pub fn subteam_of(&self, r: RobotId) -> Option<(BehaviorId, &Team)> {
         let i = if self.member_of.is_empty() {
-            self.teams.iter().position(|t| t.contains(r))?
+            self.teams.iter().position(|(_, t)| t.contains(r))?
         } else {
             (*self.member_of.get(r.index())? as usize).checked_sub(1)?
         };
-        Some((self.heads[i], &self.teams[i]))
+        let (b, t) = &self.teams[i];
+        Some((*b, t))
     }
     /// FNV-1a over the subteam ids in order: equal for robots that applied
     /// the same allocation (what positions carry to compare allocations).
@@ -294,7 +294,11 @@ impl Organization {
     }
     /// Every live team: the root, then each allocation's subteams.
     pub fn teams(&self) -> impl Iterator<Item = &Team> {
-        std::iter::once(&self.root).chain(self.splits.iter().flat_map(|s| s.teams.iter()))
+        std::iter::once(&self.root).chain(
+            self.splits
+                .iter()
+                .flat_map(|s| s.teams.iter().map(|(_, t)| t)),
+        )
     }
     /// The live splits, oldest first.
     pub fn splits(&self) -> &[Arc<Split>] {
@@ -305,7 +309,7 @@ impl Organization {
         self.splits
             .iter()
             .filter(move |s| s.parent == id)
-            .flat_map(|s| s.teams.iter())
+            .flat_map(|s| s.teams.iter().map(|(_, t)| t))
     }
     /// True when `id` was a team that has since been dissolved.
     pub fn is_dead(&self, id: TeamId) -> bool {
@@ -374,7 +378,7 @@ impl Organization {
             }
             return;
         }
-        for t in &split.teams {
+        for (_, t) in &split.teams {
             if self.dead_set.insert(t.id) {
                 self.dead.push_back(t.id);
                 if self.dead.len() > DEAD_TEAMS_REMEMBERED
@@ -437,7 +441,7 @@ impl Organization {
             .map(|(_, b)| *b)
             .collect();
         if let Some(s) = self.split_of(t)
-            && let Some(b) = s.index(t).map(|i| s.heads[i])
+            && let Some(b) = s.index(t).map(|i| s.teams[i].0)
             && !self.unlinked.contains(&(b, t))
         {
             bs.push(b);
@@ -483,7 +487,7 @@ impl Organization {
             let Some(pt) = self.team(s.parent) else {
                 return Err(format!("the subteams of {} outlive their parent", s.parent));
             };
-            for t in &s.teams {
+            for (_, t) in &s.teams {
                 if t.parent != Some(s.parent) {
                     return Err(format!(
                         "team {} does not name its parent {}",

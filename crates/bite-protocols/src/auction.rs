@@ -532,7 +532,7 @@ mod tests {
                         for (b, members) in assignment.iter() {
                             let j = children.iter().position(|c| c == b);
                             if let (Some(j), MembersLog::List(v)) = (j, members) {
-                                out[j] = v.clone();
+                                out[j] = v.to_vec();
                             }
                         }
                         *decided = Some(out);

@@ -48,7 +48,7 @@ pub(crate) use bite_core::interaction::no_params;
 
 pub(crate) fn successors(cx: &Cx<'_>) -> Vec<BehaviorId> {
     match cx.input() {
-        PointInput::Sync { successors, .. } => successors.clone(),
+        PointInput::Sync { successors, .. } => successors.to_vec(),
         _ => Vec::new(),
     }
 }

@@ -407,7 +407,7 @@ pub fn probe(spec: &ProbeSpec, registry: &Registry) -> Result<ProbeResult, Diagn
                         a.iter()
                             .map(|(b, m)| {
                                 let list = match m {
-                                    MembersLog::List(v) => v.clone(),
+                                    MembersLog::List(v) => v.to_vec(),
                                     MembersLog::Summary { .. } => Vec::new(),
                                 };
                                 (*b, list)

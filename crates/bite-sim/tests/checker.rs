@@ -20,7 +20,7 @@ struct AnarchyInst;
 impl Interaction for AnarchyInst {
     fn start(&mut self, cx: &mut Cx<'_>) {
         let succ = match cx.input() {
-            bite_core::interaction::PointInput::Sync { successors, .. } => successors.clone(),
+            bite_core::interaction::PointInput::Sync { successors, .. } => successors.to_vec(),
             _ => Vec::new(),
         };
         let i = cx.rng().random_range(0..succ.len().max(1));

@@ -653,12 +653,6 @@ impl Kernel {
                 if beh.next.is_empty() {
                     return self.chain_end();
                 }
-                let enabled: Vec<BehaviorId> = beh
-                    .next
-                    .iter()
-                    .copied()
-                    .filter(|s| self.pre_holds(&graph, *s))
-                    .collect();
                 if graph.is_sync_point(b) && !frame.urgent {
                     // The team decides jointly even when this robot sees
                     // fewer than two enabled successors: its teammates may
@@ -673,19 +667,42 @@ impl Kernel {
                     if let Phase::Selecting { key: k, .. } = &mut self.phase {
                         *k = Some(key);
                     }
+                    // The mission's list, shared, and the same list again
+                    // for the candidates when every successor is enabled.
+                    let successors: Arc<[BehaviorId]> = match self.mission.next_shared(b) {
+                        Some((all, _)) => all.clone(),
+                        None => beh.next.as_slice().into(),
+                    };
+                    let candidates =
+                        match successors.iter().position(|s| !self.pre_holds(&graph, *s)) {
+                            None => successors.clone(),
+                            Some(first) => successors[..first]
+                                .iter()
+                                .chain(
+                                    successors[first + 1..]
+                                        .iter()
+                                        .filter(|s| self.pre_holds(&graph, **s)),
+                                )
+                                .copied()
+                                .collect(),
+                        };
                     self.start_instance(
                         key,
                         PointInput::Sync {
-                            candidates: enabled,
-                            successors: beh.next.clone(),
+                            candidates,
+                            successors,
                         },
                         &[],
                     );
                     return true;
                 }
-                match enabled.first() {
+                match beh
+                    .next
+                    .iter()
+                    .copied()
+                    .find(|s| self.pre_holds(&graph, *s))
+                {
                     Some(s) => {
-                        let s = *s;
                         if let Some(pre) = &graph.behavior(s).pre {
                             let e = self.condition_event(s, "pre", pre);
                             self.emit(e);

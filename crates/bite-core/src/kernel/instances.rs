@@ -154,7 +154,12 @@ impl Kernel {
         if !armed {
             let excluded = inst.excluded_members();
             let options: LogList<BehaviorId> = match &inst.input {
-                PointInput::Sync { candidates, .. } => candidates.as_slice().into(),
+                PointInput::Sync { candidates, .. } => match self.mission.next_shared(key.behavior)
+                {
+                    // Every successor: the mission's list, shared.
+                    Some((all, ids)) if Arc::ptr_eq(all, candidates) => ids.clone(),
+                    _ => candidates.as_ref().into(),
+                },
                 PointInput::Allocate { children } => {
                     match (self.mission.child_slots_shared(key.behavior))
                         .zip(self.mission.child_ids(key.behavior))
