@@ -47,6 +47,10 @@ impl fmt::Debug for Bound {
     }
 }
 
+/// A behavior's successors, shared, and the same list as the run log
+/// shows it.
+pub type Successors = (Arc<[BehaviorId]>, LogList<BehaviorId>);
+
 /// A graph ready to run.
 #[derive(Debug)]
 pub struct Mission {
@@ -58,7 +62,7 @@ pub struct Mission {
     child_ids: Vec<LogList<BehaviorId>>,
     /// The successors of each behavior that has any, shared by every
     /// synchronization at it, with the same list as the run log shows it.
-    next: Vec<Option<(Arc<[BehaviorId]>, LogList<BehaviorId>)>>,
+    next: Vec<Option<Successors>>,
     /// The children of each behavior with their positions, by id.
     child_index: Vec<Vec<(BehaviorId, u32)>>,
     /// Behaviors none of whose children has a precondition.
@@ -273,7 +277,7 @@ impl Mission {
     }
     /// The successors of `b`, shared, and as the run log shows them
     /// (`None` when it has none).
-    pub fn next_shared(&self, b: BehaviorId) -> Option<&(Arc<[BehaviorId]>, LogList<BehaviorId>)> {
+    pub fn next_shared(&self, b: BehaviorId) -> Option<&Successors> {
         self.next.get(b.index())?.as_ref()
     }
     /// The position of `child` among the children of `b`.
