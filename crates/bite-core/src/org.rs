@@ -460,7 +460,12 @@ impl Organization {
     }
     /// Make the count of `t`'s executions of `b` at least `n` (an execution
     /// burned or adopted to converge with teammates is never started again).
+    /// A team dissolved here never runs again: its count is not kept (a
+    /// teammate's word on it would otherwise linger for good).
     pub fn runs_at_least(&mut self, t: TeamId, b: BehaviorId, n: u32) {
+        if self.is_dead(t) {
+            return;
+        }
         let c = self.runs.entry((t, b)).or_insert(0);
         *c = (*c).max(n);
     }
@@ -512,6 +517,17 @@ impl Organization {
         }
         if self.links.len() != self.links_by_team.len() {
             return Err("links and their inverses differ".into());
+        }
+        // Counts are kept for teams not formed here yet (a teammate's word
+        // on them), never for dissolved ones.
+        if let Some((t, b)) = (self.runs.keys()).find(|(t, _)| self.is_dead(*t)) {
+            return Err(format!("runs of b{} kept for dissolved team {}", b.0, t));
+        }
+        if let Some((b, t)) = (self.unlinked.iter()).find(|(_, t)| self.team(*t).is_none()) {
+            return Err(format!(
+                "behavior b{} unlinked from dissolved team {}",
+                b.0, t
+            ));
         }
         Ok(())
     }
@@ -586,6 +602,13 @@ mod tests {
         assert_eq!(org.runs(t2, follow), 0);
         assert_eq!(org.teams_of(RobotId(2)), vec![TeamId::ROOT]);
         assert_eq!(org.teams().count(), 1);
+        org.check_invariants().unwrap();
+        // A teammate's word on a dissolved team's runs is not kept; on a
+        // team not formed here yet, it is.
+        org.runs_at_least(t2, follow, 5);
+        assert_eq!(org.runs(t2, follow), 0);
+        org.runs_at_least(TeamId(77), follow, 5);
+        assert_eq!(org.runs(TeamId(77), follow), 5);
         org.check_invariants().unwrap();
     }
 
