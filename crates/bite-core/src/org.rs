@@ -163,6 +163,7 @@ impl Split {
         self.teams.is_empty()
     }
     /// The position of subteam `id` in the assignment's order.
+    #[inline]
     fn index(&self, id: TeamId) -> Option<usize> {
         self.by_id
             .binary_search_by_key(&id, |i| self.teams[*i as usize].1.id)
