@@ -408,14 +408,25 @@ impl Kernel {
         if self.mission.children_unconditional(top.behavior) {
             return all.clone();
         }
-        match all.iter().position(|c| !self.pre_holds(graph, c.behavior)) {
+        self.enabled_of(graph, all, |c| c.behavior)
+    }
+
+    /// The entries of `all` whose behavior's precondition holds: `all`
+    /// itself, shared, when every one does.
+    fn enabled_of<T: Copy>(
+        &self,
+        graph: &BehaviorGraph,
+        all: &Arc<[T]>,
+        behavior: impl Fn(&T) -> BehaviorId,
+    ) -> Arc<[T]> {
+        match all.iter().position(|c| !self.pre_holds(graph, behavior(c))) {
             None => all.clone(),
             Some(first) => all[..first]
                 .iter()
                 .chain(
                     all[first + 1..]
                         .iter()
-                        .filter(|c| self.pre_holds(graph, c.behavior)),
+                        .filter(|c| self.pre_holds(graph, behavior(c))),
                 )
                 .copied()
                 .collect(),
@@ -673,19 +684,7 @@ impl Kernel {
                         Some((all, _)) => all.clone(),
                         None => beh.next.as_slice().into(),
                     };
-                    let candidates =
-                        match successors.iter().position(|s| !self.pre_holds(&graph, *s)) {
-                            None => successors.clone(),
-                            Some(first) => successors[..first]
-                                .iter()
-                                .chain(
-                                    successors[first + 1..]
-                                        .iter()
-                                        .filter(|s| self.pre_holds(&graph, **s)),
-                                )
-                                .copied()
-                                .collect(),
-                        };
+                    let candidates = self.enabled_of(&graph, &successors, |s| *s);
                     self.start_instance(
                         key,
                         PointInput::Sync {
