@@ -147,6 +147,9 @@ pub fn check_logs(
 /// An execution: team, behavior, epoch.
 type Exec = (TeamId, BehaviorId, u32);
 
+/// A member's runs of the successors of one point: nearly always one.
+type Legs = smallvec::SmallVec<[Leg; 1]>;
+
 /// One member's run of a successor of a point.
 #[derive(Clone, Copy, Debug)]
 struct Leg {
@@ -176,23 +179,38 @@ pub struct Checker {
     lost_now: FxHashMap<RobotId, BTreeSet<RobotId>>,
     /// Whom each robot ever presumed lost.
     ever_lost: FxHashMap<RobotId, BTreeSet<RobotId>>,
+    // A run's records grow with robots × executions, so what a check
+    // reads only while an instance runs is dropped when it ends, and an
+    // empty set is not stored (absent reads as empty): a 100,000-robot
+    // formation run peaked at 3.6 GB, mostly here (docs/performance.md,
+    // "2026-11-28, evening").
     /// Whom each robot's instance presumed lost or left out when it
-    /// decided, by instance.
+    /// decided, by instance (robots whose view was empty: absent).
     view_at: FxHashMap<InstanceKey, FxHashMap<RobotId, BTreeSet<RobotId>>>,
-    /// Whom each robot's instance left out from its start, and whom it
-    /// presumed lost while the instance ran.
+    /// Synchronizations and allocations run by a silent rule (no
+    /// messages), under the mission version they started in: only their
+    /// members' perceptions say whether they should have agreed.
+    silent: FxHashSet<InstanceKey>,
+    /// Whom each robot's instance left out from its start (kept to the end
+    /// for a silent rule; otherwise until the robot's instance ends, and
+    /// only when not empty), and whom it presumed lost while the instance
+    /// ran (until it ends).
     left_out_at: FxHashMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
     lost_during: FxHashMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
-    /// What each robot's instance saw it could choose.
+    /// What each robot's instance of a silent rule saw it could choose.
     options_at: FxHashMap<(InstanceKey, RobotId), LogList<BehaviorId>>,
     open: FxHashMap<RobotId, BTreeSet<InstanceKey>>,
     timed_out_at: FxHashSet<InstanceKey>,
     selected: BTreeMap<Exec, BTreeSet<RobotId>>,
+    /// Behaviors whose termination communicates in some version of the
+    /// mission seen so far (by index): only their executions' starts and
+    /// ends are read (team termination).
+    team_ended: Vec<bool>,
     terminated: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Time>,
     started: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Time>,
     last_epoch: FxHashMap<(RobotId, TeamId, BehaviorId), u32>,
     /// After each point (team, behavior, epoch), what each member ran.
-    legs: BTreeMap<Exec, BTreeMap<RobotId, Vec<Leg>>>,
+    legs: BTreeMap<Exec, BTreeMap<RobotId, Legs>>,
     /// Where each robot's legs are, to close them when they end.
     running_leg: FxHashMap<(RobotId, TeamId, BehaviorId, u32), Exec>,
     /// The version of the mission each robot runs.
@@ -205,7 +223,7 @@ pub struct Checker {
 impl Checker {
     /// A checker for runs of `mission`.
     pub fn new(mission: Arc<Mission>) -> Self {
-        Checker {
+        let mut c = Checker {
             mission,
             v: Vec::new(),
             sync: BTreeMap::new(),
@@ -214,12 +232,14 @@ impl Checker {
             lost_now: FxHashMap::default(),
             ever_lost: FxHashMap::default(),
             view_at: FxHashMap::default(),
+            silent: FxHashSet::default(),
             left_out_at: FxHashMap::default(),
             lost_during: FxHashMap::default(),
             options_at: FxHashMap::default(),
             open: FxHashMap::default(),
             timed_out_at: FxHashSet::default(),
             selected: BTreeMap::new(),
+            team_ended: Vec::new(),
             terminated: FxHashMap::default(),
             started: FxHashMap::default(),
             last_epoch: FxHashMap::default(),
@@ -227,7 +247,30 @@ impl Checker {
             running_leg: FxHashMap::default(),
             version: FxHashMap::default(),
             chosen_in: BTreeMap::new(),
+        };
+        c.note_team_ended();
+        c
+    }
+
+    /// Mark the behaviors whose termination communicates in the current
+    /// mission (marks from earlier versions stay).
+    fn note_team_ended(&mut self) {
+        let graph = self.mission.graph();
+        self.team_ended
+            .resize(graph.len().max(self.team_ended.len()), false);
+        for i in 0..graph.len() {
+            if self
+                .mission
+                .bound(BehaviorId(i as u32), Kind::Terminate)
+                .is_some_and(|x| x.protocol.communicates())
+            {
+                self.team_ended[i] = true;
+            }
         }
+    }
+
+    fn team_ends(&self, b: BehaviorId) -> bool {
+        self.team_ended.get(b.index()).copied().unwrap_or(false)
     }
 
     /// A newer version of the mission was handed to the team: name
@@ -235,6 +278,7 @@ impl Checker {
     /// earlier version's behaviors too).
     pub fn set_mission(&mut self, mission: Arc<Mission>) {
         self.mission = mission;
+        self.note_team_ended();
     }
 
     /// Robot `r`'s process restarted with a fresh mind: it is held to
@@ -293,10 +337,24 @@ impl Checker {
                 options,
                 ..
             } => {
-                self.left_out_at
-                    .insert((*instance, robot), excluded.iter().copied().collect());
-                if instance.kind != Kind::Terminate {
-                    self.options_at.insert((*instance, robot), options.clone());
+                // A termination's start is only tracked as open (its
+                // members' losses are not read).
+                let key = (*instance, robot);
+                let silent = instance.kind != Kind::Terminate
+                    && self
+                        .mission
+                        .bound(instance.behavior, instance.kind)
+                        .is_some_and(|x| !x.protocol.communicates());
+                if silent {
+                    self.silent.insert(*instance);
+                    self.left_out_at
+                        .insert(key, excluded.iter().copied().collect());
+                    self.options_at.insert(key, options.clone());
+                } else if instance.kind != Kind::Terminate && !excluded.is_empty() {
+                    self.left_out_at
+                        .insert(key, excluded.iter().copied().collect());
+                } else {
+                    self.left_out_at.remove(&key);
                 }
                 self.open.entry(robot).or_default().insert(*instance);
             }
@@ -308,16 +366,35 @@ impl Checker {
                 if *timed_out {
                     self.timed_out_at.insert(*instance);
                 }
+                let key = (*instance, robot);
                 let mut view = self.lost_now.get(&robot).cloned().unwrap_or_default();
-                for x in [&self.left_out_at, &self.lost_during] {
-                    if let Some(x) = x.get(&(*instance, robot)) {
-                        view.extend(x.iter().copied());
-                    }
+                if let Some(x) = self.left_out_at.get(&key) {
+                    view.extend(x.iter().copied());
                 }
-                self.view_at
-                    .entry(*instance)
-                    .or_default()
-                    .insert(robot, view);
+                if !self.silent.contains(instance) {
+                    self.left_out_at.remove(&key);
+                }
+                if let Some(x) = self.lost_during.remove(&key) {
+                    view.extend(x);
+                }
+                if !view.is_empty() {
+                    self.view_at
+                        .entry(*instance)
+                        .or_default()
+                        .insert(robot, view);
+                } else if let Some(views) = self.view_at.get_mut(instance) {
+                    views.remove(&robot);
+                }
+            }
+            // A termination decided, or an instance abandoned: what it
+            // presumed lost is not read again.
+            Event::InteractionDecided { instance, .. }
+            | Event::InteractionAborted { instance, .. } => {
+                let key = (*instance, robot);
+                self.lost_during.remove(&key);
+                if !self.silent.contains(instance) {
+                    self.left_out_at.remove(&key);
+                }
             }
             _ => {}
         }
@@ -346,10 +423,13 @@ impl Checker {
                         .insert(robot, *choice);
                 }
                 OutcomeLog::Allocate { assignment } => {
-                    self.alloc
-                        .entry(*instance)
-                        .or_default()
-                        .insert(robot, assignment.clone());
+                    let views = self.alloc.entry(*instance).or_default();
+                    // Members that agree share one copy of the assignment.
+                    let a = match views.values().next() {
+                        Some(first) if first == assignment => first.clone(),
+                        _ => assignment.clone(),
+                    };
+                    views.insert(robot, a);
                 }
                 OutcomeLog::Terminate { .. } => {
                     let communicates = self
@@ -375,7 +455,9 @@ impl Checker {
                     .entry((*team, *behavior, *epoch))
                     .or_default()
                     .insert(robot);
-                self.started.insert((*team, *behavior, *epoch, robot), t);
+                if self.team_ends(*behavior) {
+                    self.started.insert((*team, *behavior, *epoch, robot), t);
+                }
                 let last = self
                     .last_epoch
                     .entry((robot, *team, *behavior))
@@ -432,7 +514,9 @@ impl Checker {
                         ),
                     });
                 }
-                self.terminated.insert((*team, *behavior, *epoch, robot), t);
+                if self.team_ends(*behavior) {
+                    self.terminated.insert((*team, *behavior, *epoch, robot), t);
+                }
                 if let Some(point) = self.running_leg.remove(&(robot, *team, *behavior, *epoch))
                     && let Some(legs) = self.legs.get_mut(&point).and_then(|m| m.get_mut(&robot))
                     && let Some(l) = legs
@@ -536,10 +620,7 @@ impl Checker {
         let views = self.view_at.get(key);
         let va = views.and_then(|v| v.get(&a));
         let vb = views.and_then(|v| v.get(&b));
-        let silent = self
-            .mission
-            .bound(key.behavior, key.kind)
-            .is_some_and(|x| !x.protocol.communicates());
+        let silent = self.silent.contains(key);
         !va.is_some_and(|v| v.contains(&b))
             && !vb.is_some_and(|v| v.contains(&a))
             && (!silent
@@ -823,7 +904,7 @@ impl Checker {
 /// team) then runs only where this says yes. Conservative: it does not
 /// ask whether the two are different robots that could talk.
 fn may_split(
-    members: &BTreeMap<RobotId, Vec<Leg>>,
+    members: &BTreeMap<RobotId, Legs>,
     end: Time,
     crashed: &dyn Fn(RobotId) -> bool,
 ) -> bool {
@@ -881,7 +962,7 @@ mod tests {
     /// The pairs the exact check would look at, without the who-could-talk
     /// part: two legs of different behaviors overlapping by more than the
     /// bound.
-    fn brute(members: &BTreeMap<RobotId, Vec<Leg>>, end: Time) -> bool {
+    fn brute(members: &BTreeMap<RobotId, Legs>, end: Time) -> bool {
         let legs: Vec<&Leg> = members.values().flatten().collect();
         legs.iter().any(|a| {
             legs.iter().any(|b| {
@@ -892,13 +973,87 @@ mod tests {
         })
     }
 
+    /// The formation run, recorded, with the bindings of `config` (none:
+    /// the graph's own, which communicate), robot r2 crashing for good at
+    /// 12 s and 10 % of messages lost: teammates are left out and presumed
+    /// lost while instances run.
+    fn recorded(config: Option<&str>, crash_at: f64) -> (RunReport, Arc<Mission>) {
+        let file = Arc::from("formation.yaml");
+        let mut g =
+            bite_core::graph::load_str(&file, include_str!("../../../examples/formation.yaml"))
+                .unwrap_or_else(|d| panic!("{d}"));
+        if let Some(c) = config {
+            let cfg = bite_core::graph::Config::load_str(&Arc::from("config.yaml"), c)
+                .unwrap_or_else(|d| panic!("{d}"));
+            g = g.with_config(&cfg).unwrap_or_else(|d| panic!("{d}"));
+        }
+        let text = format!(
+            "{}crashes:\n  - {{ robot: r2, at: {crash_at}s }}\n",
+            include_str!("../../../examples/scenarios/formation.yaml")
+                .replace("  latency: 5ms\n", "  latency: 5ms\n  loss: 0.1\n")
+        );
+        let sc = crate::Scenario::load_str(&Arc::from("formation-scenario.yaml"), &text)
+            .unwrap_or_else(|d| panic!("{d}"));
+        let mission = crate::prepare(&g, &sc, None, &bite_protocols::registry())
+            .unwrap_or_else(|d| panic!("{d}"));
+        let options = crate::RunOptions {
+            record: true,
+            ..crate::RunOptions::default()
+        };
+        let report = crate::run(mission.clone(), &sc, options).unwrap_or_else(|d| panic!("{d}"));
+        (report, mission)
+    }
+
+    /// What only a running instance needs (whom it left out or presumed
+    /// lost) is dropped when the robot's instance ends, unless a silent
+    /// rule ran it (its agreement check compares what each member's
+    /// instance saw, at the end); empty views are not stored; starts and
+    /// ends are kept only for behaviors a team ends together. A run's
+    /// records otherwise grew with robots × executions.
+    #[test]
+    fn an_ended_instance_leaves_only_what_the_end_checks_read() {
+        let configs = [
+            include_str!("../../../examples/configs/5.yaml"), // votes at A and B
+            include_str!("../../../examples/configs/1.yaml"), // silent everywhere
+        ];
+        for (i, config) in configs.into_iter().enumerate() {
+            // r2 crashes while its teammates wait for it at a point.
+            let (report, mission) = recorded(Some(config), 13.0);
+            let mut c = Checker::new(mission.clone());
+            // The most presumed-lost records of talking instances at once.
+            let mut most_lost = 0;
+            for rec in &report.history {
+                c.observe(rec.t, rec.robot, &rec.event);
+                let talking = (c.lost_during.keys()).filter(|k| !c.silent.contains(&k.0));
+                most_lost = most_lost.max(talking.count());
+            }
+            assert!(most_lost > 0, "r2 is presumed lost while instances wait");
+            assert!(
+                !c.silent.is_empty(),
+                "both configurations have silent points"
+            );
+            if i == 1 {
+                assert!(!c.options_at.is_empty() && !c.left_out_at.is_empty());
+            }
+            let open: FxHashSet<(InstanceKey, RobotId)> = (c.open.iter())
+                .flat_map(|(r, ks)| ks.iter().map(move |k| (*k, *r)))
+                .collect();
+            assert!(c.lost_during.keys().all(|k| open.contains(k)));
+            assert!((c.left_out_at.keys()).all(|k| open.contains(k) || c.silent.contains(&k.0)));
+            assert!(c.options_at.keys().all(|k| c.silent.contains(&k.0)));
+            assert!((c.view_at.values()).all(|m| m.values().all(|v| !v.is_empty())));
+            assert!(c.started.keys().all(|(_, b, _, _)| c.team_ends(*b)));
+            assert!(c.terminated.keys().all(|(_, b, _, _)| c.team_ends(*b)));
+        }
+    }
+
     proptest! {
         #[test]
         fn the_sweep_finds_exactly_the_overlapping_pairs(
             legs in proptest::collection::vec((0u32..6, 0u32..3, 0u32..40, 0u32..20, any::<bool>()), 0..14),
         ) {
             let end = Time::from_secs_f64(50.0);
-            let mut members: BTreeMap<RobotId, Vec<Leg>> = BTreeMap::new();
+            let mut members: BTreeMap<RobotId, Legs> = BTreeMap::new();
             for (r, b, from, len, open) in legs {
                 let from = Time::from_secs_f64(f64::from(from));
                 members.entry(RobotId(r)).or_default().push(Leg {
