@@ -541,7 +541,13 @@ impl Agent {
 
     /// The next output.
     pub fn poll(&mut self) -> Option<AgentOutput> {
-        self.out.pop_front()
+        let o = self.out.pop_front();
+        // Drained: give back the room of a large burst (see
+        // `Kernel::poll_output`; the runtimes drain after every input).
+        if o.is_none() && self.out.capacity() > bite_core::kernel::OUT_KEPT {
+            self.out.shrink_to(bite_core::kernel::OUT_KEPT);
+        }
+        o
     }
 
     /// Ask for what a control tick reads first of this robot's mind to be

@@ -63,6 +63,9 @@ pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Po
 const DEDUP_MEMORY: Duration = Duration::from_secs(120);
 /// Most `(sender, seq)` pairs remembered per sender.
 const DEDUP_PER_SENDER: usize = 4096;
+/// Room for outputs kept between bursts (the kernel's queue, and the
+/// agent's after it).
+pub const OUT_KEPT: usize = 8;
 /// Finished instances whose outcome is remembered to answer late teammates.
 const TOMBSTONES: usize = 1024;
 /// How many instances decided without a lost teammate are remembered per
@@ -578,7 +581,22 @@ impl Kernel {
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<Output> {
-        self.out.pop_front()
+        let o = self.out.pop_front();
+        if o.is_none() && self.is_finished() {
+            self.release_outputs_room();
+        }
+        o
+    }
+    /// Give back the room of a burst of outputs once it is drained: a
+    /// robot's queue keeps the size of its largest burst (its mission's
+    /// end, a decision), and a large team's robots each held kilobytes of
+    /// it for good (docs/performance.md, "2026-11-28, evening"). While the
+    /// mission runs this happens at `gc` (once a second), so a decision's
+    /// burst does not allocate again every cycle.
+    fn release_outputs_room(&mut self) {
+        if self.out.capacity() > OUT_KEPT && self.out.len() <= OUT_KEPT {
+            self.out.shrink_to(OUT_KEPT);
+        }
     }
     /// When the kernel next needs a [`Kernel::timer`] call.
     pub fn poll_timeout(&self) -> Option<Time> {

@@ -1027,3 +1027,33 @@ fn a_silent_protocol_names_itself_when_sent_a_message() {
         "{what:?}"
     );
 }
+
+/// A mission's end is a burst of outputs (every frame terminated at once):
+/// once the robot has finished and drained it, its queue gives the room
+/// back, as every robot of a large team otherwise kept it for good.
+#[test]
+fn a_finished_robot_gives_back_its_outputs_room() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [p] }
+  p: { children: [q] }
+  q: { children: [r] }
+  r: { children: [s] }
+  s: { children: [t] }
+  t: { skill: x, until: done }",
+        1,
+    );
+    h.tick(0, &[]);
+    assert_eq!(h.stack(0), ["root", "p", "q", "r", "s", "t"]);
+    let before = h.events_of(0).len();
+    h.tick(100, &[("done", T)]);
+    assert!(h.kernels[0].is_finished());
+    let burst = h.events_of(0).len() - before;
+    assert!(
+        burst > super::OUT_KEPT,
+        "the end is a burst ({burst} events)"
+    );
+    assert!(h.kernels[0].out.capacity() <= super::OUT_KEPT);
+}
