@@ -182,7 +182,7 @@ pub struct Checker {
     // A run's records grow with robots × executions, so what a check
     // reads only while an instance runs is dropped when it ends, and an
     // empty set is not stored (absent reads as empty): a 100,000-robot
-    // formation run peaked at 3.6 GB, mostly here (docs/performance.md,
+    // formation run peaked at 3.6 GB, a fifth of it here (docs/performance.md,
     // "2026-11-28, evening").
     /// Whom each robot's instance presumed lost or left out when it
     /// decided, by instance (robots whose view was empty: absent).
