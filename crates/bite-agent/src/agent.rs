@@ -541,13 +541,15 @@ impl Agent {
 
     /// The next output.
     pub fn poll(&mut self) -> Option<AgentOutput> {
-        let o = self.out.pop_front();
         // Drained: give back the room of a large burst (see
         // `Kernel::poll_output`; the runtimes drain after every input).
-        if o.is_none() && self.out.capacity() > bite_core::kernel::OUT_KEPT {
-            self.out.shrink_to(bite_core::kernel::OUT_KEPT);
+        if self.out.is_empty() {
+            if self.out.capacity() > bite_core::kernel::OUT_KEPT {
+                self.out.shrink_to(bite_core::kernel::OUT_KEPT);
+            }
+            return None;
         }
-        o
+        self.out.pop_front()
     }
 
     /// Ask for what a control tick reads first of this robot's mind to be

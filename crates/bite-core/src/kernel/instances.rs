@@ -598,7 +598,6 @@ impl Kernel {
             senders.retain(|_, t| now - *t < DEDUP_MEMORY);
         }
         self.seen.retain(|_, s| !s.is_empty());
-        self.release_outputs_room();
         let ttl = self.limits.pending_ttl;
         let closed = &self.closed;
         let org = &self.org;

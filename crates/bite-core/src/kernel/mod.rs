@@ -63,8 +63,8 @@ pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Po
 const DEDUP_MEMORY: Duration = Duration::from_secs(120);
 /// Most `(sender, seq)` pairs remembered per sender.
 const DEDUP_PER_SENDER: usize = 4096;
-/// Room for outputs kept between bursts (the kernel's queue, and the
-/// agent's after it).
+/// Room for outputs kept after a burst: by the kernel's queue once its
+/// mission is over, by the agent's always.
 pub const OUT_KEPT: usize = 8;
 /// Finished instances whose outcome is remembered to answer late teammates.
 const TOMBSTONES: usize = 1024;
@@ -581,20 +581,21 @@ impl Kernel {
 
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<Output> {
-        let o = self.out.pop_front();
-        if o.is_none() && self.is_finished() {
-            self.release_outputs_room();
+        if self.out.is_empty() {
+            self.drained();
+            return None;
         }
-        o
+        self.out.pop_front()
     }
-    /// Give back the room of a burst of outputs once it is drained: a
-    /// robot's queue keeps the size of its largest burst (its mission's
-    /// end, a decision), and a large team's robots each held kilobytes of
-    /// it for good (docs/performance.md, "2026-11-28, evening"). While the
-    /// mission runs this happens at `gc` (once a second), so a decision's
-    /// burst does not allocate again every cycle.
-    fn release_outputs_room(&mut self) {
-        if self.out.capacity() > OUT_KEPT && self.out.len() <= OUT_KEPT {
+    /// The outputs are drained. At the mission's end, give back the room
+    /// of its burst (every frame ends at once), which each of a large
+    /// team's robots otherwise held for good (docs/performance.md,
+    /// "2026-11-28, evening"). Not while the mission runs: a decision's
+    /// burst would then allocate again every cycle. Out of line, so that
+    /// polling stays small enough to inline.
+    #[inline(never)]
+    fn drained(&mut self) {
+        if self.out.capacity() > OUT_KEPT && self.is_finished() {
             self.out.shrink_to(OUT_KEPT);
         }
     }
