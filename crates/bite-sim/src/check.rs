@@ -347,12 +347,11 @@ impl Checker {
                         .is_some_and(|x| !x.protocol.communicates());
                 if silent {
                     self.silent.insert(*instance);
-                    self.left_out_at
-                        .insert(key, excluded.iter().copied().collect());
                     self.options_at.insert(key, options.clone());
-                } else if instance.kind != Kind::Terminate && !excluded.is_empty() {
-                    self.left_out_at
-                        .insert(key, excluded.iter().copied().collect());
+                }
+                if silent || (instance.kind != Kind::Terminate && !excluded.is_empty()) {
+                    let excluded = excluded.iter().copied().collect();
+                    self.left_out_at.insert(key, excluded);
                 } else {
                     self.left_out_at.remove(&key);
                 }
