@@ -541,11 +541,11 @@ impl Agent {
 
     /// The next output.
     pub fn poll(&mut self) -> Option<AgentOutput> {
-        // Drained: give back the room of a large burst (see
-        // `Kernel::poll_output`; the runtimes drain after every input).
+        // The runtimes drain after every input: once the mission is over,
+        // the drained queue gives back its room, as the kernel's does.
         if self.out.is_empty() {
-            if self.out.capacity() > bite_core::kernel::OUT_KEPT {
-                self.out.shrink_to(bite_core::kernel::OUT_KEPT);
+            if self.kernel.is_finished() {
+                bite_core::kernel::give_back_room(&mut self.out);
             }
             return None;
         }

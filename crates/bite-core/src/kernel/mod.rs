@@ -63,9 +63,20 @@ pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Po
 const DEDUP_MEMORY: Duration = Duration::from_secs(120);
 /// Most `(sender, seq)` pairs remembered per sender.
 const DEDUP_PER_SENDER: usize = 4096;
-/// Room for outputs kept after a burst: by the kernel's queue once its
-/// mission is over, by the agent's always.
-pub const OUT_KEPT: usize = 8;
+/// Room for outputs a drained queue keeps (see [`give_back_room`]).
+const OUT_KEPT: usize = 8;
+
+/// Give back a drained output queue's room beyond a few outputs. Called
+/// once the robot's mission is over, for the kernel's queue and the
+/// agent's after it: the mission's end is a burst (every frame ends at
+/// once) whose room each of a large team's robots otherwise held for good
+/// (docs/performance.md, "2026-11-28, evening"). Not while the mission
+/// runs: a decision's burst would then allocate again every cycle.
+pub fn give_back_room<T>(queue: &mut VecDeque<T>) {
+    if queue.capacity() > OUT_KEPT {
+        queue.shrink_to(OUT_KEPT);
+    }
+}
 /// Finished instances whose outcome is remembered to answer late teammates.
 const TOMBSTONES: usize = 1024;
 /// How many instances decided without a lost teammate are remembered per
@@ -587,16 +598,12 @@ impl Kernel {
         }
         self.out.pop_front()
     }
-    /// The outputs are drained. At the mission's end, give back the room
-    /// of its burst (every frame ends at once), which each of a large
-    /// team's robots otherwise held for good (docs/performance.md,
-    /// "2026-11-28, evening"). Not while the mission runs: a decision's
-    /// burst would then allocate again every cycle. Out of line, so that
-    /// polling stays small enough to inline.
+    /// The outputs are drained: once the mission is over, give back their
+    /// room. Out of line, so that polling stays small enough to inline.
     #[inline(never)]
     fn drained(&mut self) {
-        if self.out.capacity() > OUT_KEPT && self.is_finished() {
-            self.out.shrink_to(OUT_KEPT);
+        if self.is_finished() {
+            give_back_room(&mut self.out);
         }
     }
     /// When the kernel next needs a [`Kernel::timer`] call.
