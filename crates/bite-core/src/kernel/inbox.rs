@@ -115,16 +115,9 @@ impl Kernel {
         if !well_formed {
             return self.drop_msg(from, DropReason::Malformed);
         }
-        let seen = self.seen.entry(from).or_default();
-        if env.seq == 0 || seen.contains_key(&env.seq) {
+        if !(self.seen).accept(from, env.seq, self.now, DEDUP_PER_SENDER) {
             return self.drop_msg(from, DropReason::Duplicate);
         }
-        if seen.len() >= DEDUP_PER_SENDER
-            && let Some((&oldest, _)) = seen.iter().next()
-        {
-            seen.remove(&oldest);
-        }
-        seen.insert(env.seq, self.now);
         if key.kind == Kind::Allocate && key.round > 0 && !self.instances.contains_key(&key) {
             let frame = self
                 .stack

@@ -594,10 +594,7 @@ impl Kernel {
                 self.bury(k, c);
             }
         }
-        for senders in self.seen.values_mut() {
-            senders.retain(|_, t| now - *t < DEDUP_MEMORY);
-        }
-        self.seen.retain(|_, s| !s.is_empty());
+        self.seen.forget_older(now, DEDUP_MEMORY);
         let ttl = self.limits.pending_ttl;
         let closed = &self.closed;
         let org = &self.org;

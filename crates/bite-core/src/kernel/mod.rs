@@ -47,6 +47,7 @@ use std::time::Duration;
 
 mod change;
 mod control;
+mod dedup;
 mod heal;
 mod inbox;
 mod instances;
@@ -63,18 +64,18 @@ pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Po
 const DEDUP_MEMORY: Duration = Duration::from_secs(120);
 /// Most `(sender, seq)` pairs remembered per sender.
 const DEDUP_PER_SENDER: usize = 4096;
-/// Room for outputs a drained queue keeps (see [`give_back_room`]).
-const OUT_KEPT: usize = 8;
-
-/// Give back a drained output queue's room beyond a few outputs. Called
-/// once the robot's mission is over, for the kernel's queue and the
-/// agent's after it: the mission's end is a burst (every frame ends at
-/// once) whose room each of a large team's robots otherwise held for good
-/// (docs/performance.md, "2026-11-28, evening"). Not while the mission
-/// runs: a decision's burst would then allocate again every cycle.
+/// Give back a drained output queue's room. Called once the robot's
+/// mission is over, for the kernel's queue and the agent's after it: the
+/// mission's end is a burst (every frame ends at once) whose room each of
+/// a large team's robots otherwise held for good (docs/performance.md,
+/// "2026-11-28, evening"; even room for eight outputs was a fifteenth of
+/// a 10,000-robot run's memory, "2026-11-29"). A finished robot outputs
+/// rarely (an answer to a late teammate), so the room is not kept for it.
+/// Not while the mission runs: a decision's burst would then allocate
+/// again every cycle.
 pub fn give_back_room<T>(queue: &mut VecDeque<T>) {
-    if queue.capacity() > OUT_KEPT {
-        queue.shrink_to(OUT_KEPT);
+    if queue.is_empty() && queue.capacity() > 0 {
+        *queue = VecDeque::new();
     }
 }
 /// Finished instances whose outcome is remembered to answer late teammates.
@@ -391,7 +392,7 @@ pub struct Kernel {
     tomb_order: VecDeque<InstanceKey>,
     /// Recently accepted `(sender, seq)` with when: a message is acted upon
     /// at most once, whatever the order it arrives in.
-    seen: BTreeMap<RobotId, BTreeMap<u64, Time>>,
+    seen: dedup::Accepted,
     next_seq: u64,
     out: VecDeque<Output>,
     now: Time,
@@ -463,7 +464,7 @@ impl Kernel {
             ever_lost: MemberSet::empty(n),
             tombstones: Default::default(),
             tomb_order: VecDeque::new(),
-            seen: BTreeMap::new(),
+            seen: dedup::Accepted::default(),
             next_seq: 1,
             out: VecDeque::new(),
             now: Time::ZERO,
@@ -672,7 +673,7 @@ impl Kernel {
             instances: self.instances.len(),
             closed: self.closed.len(),
             pending: self.inbox.len(),
-            seen: self.seen.values().map(BTreeMap::len).sum(),
+            seen: self.seen.len(),
             teams: self.org.teams().count(),
         }
     }
