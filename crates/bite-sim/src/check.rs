@@ -159,6 +159,39 @@ struct Leg {
     until: Option<Time>,
 }
 
+/// What the members of a silent rule's instance saw when they started it:
+/// whom it left out and what it could choose. Members nearly always see
+/// the same, so each distinct pair is stored once and a member holds its
+/// index (at 100,000 robots, a pair per member and instance was a tenth of
+/// a run's memory: docs/performance.md, "2026-11-29").
+#[derive(Default)]
+struct SilentViews {
+    distinct: Vec<(BTreeSet<RobotId>, LogList<BehaviorId>)>,
+    of: FxHashMap<RobotId, u32>,
+}
+
+impl SilentViews {
+    /// Robot `r`'s instance started (again) with this view.
+    fn insert(&mut self, r: RobotId, left_out: BTreeSet<RobotId>, options: &LogList<BehaviorId>) {
+        // Only the latest few are compared: a view equal to an older one
+        // is stored again, which costs room, never a wrong answer.
+        let tail = self.distinct.len().saturating_sub(4);
+        let found = (self.distinct[tail..].iter())
+            .position(|(l, o)| *l == left_out && o == options)
+            .map(|i| tail + i);
+        let i = found.unwrap_or_else(|| {
+            self.distinct.push((left_out, options.clone()));
+            self.distinct.len() - 1
+        });
+        self.of.insert(r, i as u32);
+    }
+
+    /// What robot `r`'s instance saw, if it started.
+    fn of(&self, r: RobotId) -> Option<&(BTreeSet<RobotId>, LogList<BehaviorId>)> {
+        self.of.get(&r).map(|&i| &self.distinct[i as usize])
+    }
+}
+
 /// Checks invariants as a run goes: fed every event in order
 /// ([`Checker::observe`]), it keeps only what later checks need, then
 /// [`Checker::finish`] reports the violations. Every simulated run (`bite
@@ -188,17 +221,15 @@ pub struct Checker {
     /// decided, by instance (robots whose view was empty: absent).
     view_at: FxHashMap<InstanceKey, FxHashMap<RobotId, BTreeSet<RobotId>>>,
     /// Synchronizations and allocations run by a silent rule (no
-    /// messages), under the mission version they started in: only their
-    /// members' perceptions say whether they should have agreed.
-    silent: FxHashSet<InstanceKey>,
-    /// Whom each robot's instance left out from its start (kept to the end
-    /// for a silent rule; otherwise until the robot's instance ends, and
-    /// only when not empty), and whom it presumed lost while the instance
-    /// ran (until it ends).
+    /// messages), under the mission version they started in, with what
+    /// each member's instance saw when it started: only their members'
+    /// perceptions say whether they should have agreed. Kept to the end.
+    silent: FxHashMap<InstanceKey, SilentViews>,
+    /// Whom each robot's instance of a talking rule left out from its
+    /// start (only when not empty, until the robot's instance ends), and
+    /// whom it presumed lost while the instance ran (until it ends).
     left_out_at: FxHashMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
     lost_during: FxHashMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
-    /// What each robot's instance of a silent rule saw it could choose.
-    options_at: FxHashMap<(InstanceKey, RobotId), LogList<BehaviorId>>,
     open: FxHashMap<RobotId, BTreeSet<InstanceKey>>,
     timed_out_at: FxHashSet<InstanceKey>,
     selected: BTreeMap<Exec, BTreeSet<RobotId>>,
@@ -232,10 +263,9 @@ impl Checker {
             lost_now: FxHashMap::default(),
             ever_lost: FxHashMap::default(),
             view_at: FxHashMap::default(),
-            silent: FxHashSet::default(),
+            silent: FxHashMap::default(),
             left_out_at: FxHashMap::default(),
             lost_during: FxHashMap::default(),
-            options_at: FxHashMap::default(),
             open: FxHashMap::default(),
             timed_out_at: FxHashSet::default(),
             selected: BTreeMap::new(),
@@ -346,10 +376,9 @@ impl Checker {
                         .bound(instance.behavior, instance.kind)
                         .is_some_and(|x| !x.protocol.communicates());
                 if silent {
-                    self.silent.insert(*instance);
-                    self.options_at.insert(key, options.clone());
-                }
-                if silent || (instance.kind != Kind::Terminate && !excluded.is_empty()) {
+                    let excluded = excluded.iter().copied().collect();
+                    (self.silent.entry(*instance).or_default()).insert(robot, excluded, options);
+                } else if instance.kind != Kind::Terminate && !excluded.is_empty() {
                     let excluded = excluded.iter().copied().collect();
                     self.left_out_at.insert(key, excluded);
                 } else {
@@ -367,12 +396,12 @@ impl Checker {
                 }
                 let key = (*instance, robot);
                 let mut view = self.lost_now.get(&robot).cloned().unwrap_or_default();
-                if let Some(x) = self.left_out_at.get(&key) {
-                    view.extend(x.iter().copied());
-                }
-                if !self.silent.contains(instance) {
-                    self.left_out_at.remove(&key);
-                }
+                let left_out = (self.silent.get(instance))
+                    .and_then(|views| views.of(robot))
+                    .map(|(l, _)| l)
+                    .or_else(|| self.left_out_at.get(&key));
+                view.extend(left_out.into_iter().flatten().copied());
+                self.left_out_at.remove(&key);
                 if let Some(x) = self.lost_during.remove(&key) {
                     view.extend(x);
                 }
@@ -391,9 +420,7 @@ impl Checker {
             | Event::InteractionAborted { instance, .. } => {
                 let key = (*instance, robot);
                 self.lost_during.remove(&key);
-                if !self.silent.contains(instance) {
-                    self.left_out_at.remove(&key);
-                }
+                self.left_out_at.remove(&key);
             }
             _ => {}
         }
@@ -619,12 +646,9 @@ impl Checker {
         let views = self.view_at.get(key);
         let va = views.and_then(|v| v.get(&a));
         let vb = views.and_then(|v| v.get(&b));
-        let silent = self.silent.contains(key);
         !va.is_some_and(|v| v.contains(&b))
             && !vb.is_some_and(|v| v.contains(&a))
-            && (!silent
-                || (self.left_out_at.get(&(*key, a)) == self.left_out_at.get(&(*key, b))
-                    && self.options_at.get(&(*key, a)) == self.options_at.get(&(*key, b))))
+            && self.silent.get(key).is_none_or(|s| s.of(a) == s.of(b))
             && (!self.timed_out_at.contains(key) || va == vb)
     }
 
@@ -1023,7 +1047,7 @@ mod tests {
             let mut most_lost = 0;
             for rec in &report.history {
                 c.observe(rec.t, rec.robot, &rec.event);
-                let talking = (c.lost_during.keys()).filter(|k| !c.silent.contains(&k.0));
+                let talking = (c.lost_during.keys()).filter(|k| !c.silent.contains_key(&k.0));
                 most_lost = most_lost.max(talking.count());
             }
             assert!(most_lost > 0, "r2 is presumed lost while instances wait");
@@ -1032,14 +1056,18 @@ mod tests {
                 "both configurations have silent points"
             );
             if i == 1 {
-                assert!(!c.options_at.is_empty() && !c.left_out_at.is_empty());
+                // Members that saw the same share one copy of it.
+                let members: usize = c.silent.values().map(|s| s.of.len()).sum();
+                let distinct: usize = c.silent.values().map(|s| s.distinct.len()).sum();
+                assert!(distinct < members, "{distinct} views for {members} members");
             }
             let open: FxHashSet<(InstanceKey, RobotId)> = (c.open.iter())
                 .flat_map(|(r, ks)| ks.iter().map(move |k| (*k, *r)))
                 .collect();
             assert!(c.lost_during.keys().all(|k| open.contains(k)));
-            assert!((c.left_out_at.keys()).all(|k| open.contains(k) || c.silent.contains(&k.0)));
-            assert!(c.options_at.keys().all(|k| c.silent.contains(&k.0)));
+            assert!(
+                (c.left_out_at.keys()).all(|k| open.contains(k) && !c.silent.contains_key(&k.0))
+            );
             assert!((c.view_at.values()).all(|m| m.values().all(|v| !v.is_empty())));
             assert!(c.started.keys().all(|(_, b, _, _)| c.team_ends(*b)));
             assert!(c.terminated.keys().all(|(_, b, _, _)| c.team_ends(*b)));
