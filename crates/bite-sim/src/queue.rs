@@ -47,6 +47,15 @@ impl<T> Ord for Keyed<T> {
     }
 }
 
+/// The most events an emptied list may have room for to be kept for a
+/// later bucket. A bucket holding a leader's heartbeat to a large team
+/// has room for tens of thousands; kept, every list would in time have
+/// that much room, one per bucket ahead: at 100,000 robots, hundreds of
+/// megabytes that grew with the length of the run (docs/performance.md,
+/// "2026-11-29"). Such a bucket grows its own list again (a few
+/// reallocations every heartbeat period).
+const SPARE_ROOM: usize = 4096;
+
 /// Events in order of `(time, order of scheduling)`.
 pub(crate) struct EventQueue<T> {
     /// What is left of the bucket being drained, sorted.
@@ -143,7 +152,9 @@ impl<T> EventQueue<T> {
             // Both conversions keep the storage (no copy: the emptied
             // deque has nothing to move).
             let old = std::mem::replace(&mut self.sorted, VecDeque::from(list));
-            self.spare.push(Vec::from(old));
+            if old.capacity() <= SPARE_ROOM {
+                self.spare.push(Vec::from(old));
+            }
         }
         Some(match (self.sorted.front(), self.current.peek()) {
             (Some(a), Some(Reverse(b))) => b < a,
