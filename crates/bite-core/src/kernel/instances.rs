@@ -595,6 +595,7 @@ impl Kernel {
             }
         }
         self.seen.forget_older(now, DEDUP_MEMORY);
+        self.quiet_peers();
         let ttl = self.limits.pending_ttl;
         let closed = &self.closed;
         let org = &self.org;

@@ -421,6 +421,8 @@ pub struct Kernel {
     /// team's run in cache misses (keys are roster indices, checked before
     /// they are inserted; nothing iterates it in an order that matters).
     peers: rustc_hash::FxHashMap<RobotId, position::Peer>,
+    /// Teammates not heard for a while (see [`position::Quiet`]).
+    quiet: rustc_hash::FxHashMap<RobotId, position::Quiet>,
     /// The version of the mission it runs (see `change.rs`).
     version: u32,
     /// Newer versions, held until a safe point (the newest few).
@@ -481,6 +483,7 @@ impl Kernel {
             splits_seen: std::collections::BTreeSet::new(),
             rejoin_since: None,
             peers: Default::default(),
+            quiet: Default::default(),
             version: 0,
             pending: BTreeMap::new(),
             fences: VecDeque::new(),

@@ -110,8 +110,47 @@ pub(super) struct Peer {
     pub frames: smallvec::SmallVec<[(FrameId, FrameState); 4]>,
 }
 
+/// What a robot keeps of a teammate it has not heard for longer than
+/// [`FRESH`]. Nothing reads such a peer (the audience of a finished
+/// robot's heartbeats and the wait for slow teammates read only those
+/// heard within [`FRESH`]) until it is heard again, and then only one
+/// thing: whether its position changed meanwhile, which says whether it
+/// moved. That needs a digest of its frames, not the frames: at 100,000
+/// robots each member's leaders of finished subteams, kept whole, were a
+/// seventh of a run's memory (docs/performance.md, "2026-11-29").
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Quiet {
+    /// [`Peer::moved`] in microseconds (`u64::MAX`: `None`).
+    moved: u64,
+    /// [`digest`] of [`Peer::frames`].
+    frames: u64,
+}
+
+impl Quiet {
+    fn of(p: &Peer) -> Self {
+        Quiet {
+            moved: p.moved.map_or(u64::MAX, |t| t.0),
+            frames: digest(p.frames.iter().copied()),
+        }
+    }
+    fn moved(self) -> Option<Time> {
+        (self.moved != u64::MAX).then_some(Time(self.moved))
+    }
+}
+
+/// A digest of a peer's frames (SipHash with fixed keys: deterministic,
+/// and two different stacks share a digest once in 2^64).
+fn digest(frames: impl Iterator<Item = (FrameId, FrameState)>) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut h = std::hash::DefaultHasher::new();
+    for f in frames {
+        f.hash(&mut h);
+    }
+    h.finish()
+}
+
 /// Where a frame of a position is in its life.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub enum FrameState {
     /// On the stack: it runs (or runs something below it).
     Running,
@@ -451,7 +490,11 @@ impl Kernel {
         if matches!(self.phase, Phase::Finished) {
             // Only who still sends heartbeats matters now: they get an
             // answer (see `beacon_audience`).
-            let p = self.peers.entry(from).or_default();
+            let quiet = &mut self.quiet;
+            let p = self.peers.entry(from).or_insert_with(|| Peer {
+                moved: quiet.remove(&from).and_then(Quiet::moved),
+                ..Peer::default()
+            });
             p.heard = self.now;
             p.frames.clear();
             return;
@@ -471,11 +514,16 @@ impl Kernel {
                 }
             }
             None => {
+                // Heard again after a while: it moved if its frames changed.
+                let moved = match self.quiet.remove(&from) {
+                    Some(q) if q.frames == digest(engaged()) => q.moved(),
+                    _ => Some(now),
+                };
                 self.peers.insert(
                     from,
                     Peer {
                         heard: now,
-                        moved: Some(now),
+                        moved,
                         frames: engaged().collect(),
                     },
                 );
@@ -704,6 +752,23 @@ impl Kernel {
             }
         }
         running
+    }
+
+    /// Teammates not heard for longer than [`FRESH`] keep only what their
+    /// next heartbeat is compared with (see [`Quiet`]).
+    pub(super) fn quiet_peers(&mut self) {
+        let now = self.now;
+        let quiet = &mut self.quiet;
+        self.peers.retain(|r, p| {
+            let fresh = now - p.heard <= FRESH;
+            if !fresh {
+                quiet.insert(*r, Quiet::of(p));
+            }
+            fresh
+        });
+        if self.peers.capacity() > 4 * self.peers.len() + 4 {
+            self.peers.shrink_to_fit();
+        }
     }
 
     /// Record an execution this robot ended (for its heartbeats).

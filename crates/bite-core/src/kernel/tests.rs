@@ -1054,3 +1054,40 @@ behaviors:
     assert!(burst > 8, "the end is a burst ({burst} events)");
     assert_eq!(h.kernels[0].out.capacity(), 0);
 }
+
+/// A teammate not heard for longer than `FRESH` keeps only what its next
+/// heartbeat is compared with; heard again, it moved exactly when its
+/// frames changed meanwhile, as when it was kept whole.
+#[test]
+fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
+    let mut h = Harness::new(COURSE, 2);
+    h.tick(0, &[]);
+    h.beacons();
+    let r1 = RobotId(1);
+    let first = h.kernels[0].peers[&r1].moved;
+    assert!(first.is_some());
+    let same = h.kernels[1].position();
+    // Five seconds without a heartbeat from robot 1: quiet.
+    for ms in (1000..=5000).step_by(1000) {
+        h.tick_one(0, ms, &[]);
+    }
+    assert!(!h.kernels[0].peers.contains_key(&r1));
+    assert!(h.kernels[0].quiet.contains_key(&r1));
+    // Heard again where it was: it has not moved since.
+    h.kernels[0].peer(Time::from_millis(5100), r1, &same);
+    assert_eq!(h.kernels[0].peers[&r1].moved, first);
+    assert!(!h.kernels[0].quiet.contains_key(&r1));
+    // Quiet again, then heard somewhere else: it moved.
+    for ms in (6000..=10_000).step_by(1000) {
+        h.tick_one(0, ms, &[]);
+    }
+    assert!(h.kernels[0].quiet.contains_key(&r1));
+    h.tick_one(1, 10_000, &[("a_done", T)]);
+    let moved_on = h.kernels[1].position();
+    assert_ne!(moved_on.frames, same.frames);
+    h.kernels[0].peer(Time::from_millis(10_100), r1, &moved_on);
+    assert_eq!(
+        h.kernels[0].peers[&r1].moved,
+        Some(Time::from_millis(10_100))
+    );
+}
