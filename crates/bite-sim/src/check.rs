@@ -150,11 +150,31 @@ type Exec = (TeamId, BehaviorId, u32);
 /// A member's runs of the successors of one point: nearly always one.
 type Legs = smallvec::SmallVec<[Leg; 1]>;
 
+/// When a member started and terminated one execution (`Time(u64::MAX)`:
+/// not seen; one table of both, not two of one each).
+#[derive(Clone, Copy, Debug)]
+struct Span {
+    started: Time,
+    terminated: Time,
+}
+
+impl Span {
+    const NONE: Span = Span {
+        started: Time(u64::MAX),
+        terminated: Time(u64::MAX),
+    };
+    fn started(self) -> Option<Time> {
+        (self.started != Span::NONE.started).then_some(self.started)
+    }
+    fn terminated(self) -> Option<Time> {
+        (self.terminated != Span::NONE.terminated).then_some(self.terminated)
+    }
+}
+
 /// One member's run of a successor of a point.
 #[derive(Clone, Copy, Debug)]
 struct Leg {
     behavior: BehaviorId,
-    epoch: u32,
     from: Time,
     until: Option<Time>,
 }
@@ -237,18 +257,21 @@ pub struct Checker {
     /// mission seen so far (by index): only their executions' starts and
     /// ends are read (team termination).
     team_ended: Vec<bool>,
-    terminated: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Time>,
-    started: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Time>,
+    /// When each member started and terminated each execution of those.
+    spans: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Span>,
     last_epoch: FxHashMap<(RobotId, TeamId, BehaviorId), u32>,
-    /// After each point (team, behavior, epoch), what each member ran.
-    legs: BTreeMap<Exec, BTreeMap<RobotId, Legs>>,
-    /// Where each robot's legs are, to close them when they end.
-    running_leg: FxHashMap<(RobotId, TeamId, BehaviorId, u32), Exec>,
+    /// After each point (team, behavior, epoch), what its members ran, in
+    /// the order they started it (grouped by member at the end: a B-tree
+    /// per point, half-full nodes of 40-byte entries, was twice the room).
+    legs: BTreeMap<Exec, Vec<(RobotId, Leg)>>,
+    /// Where each robot's running legs are, to close them when they end.
+    running_leg: FxHashMap<(RobotId, TeamId, BehaviorId, u32), (Exec, usize)>,
     /// The version of the mission each robot runs.
     version: FxHashMap<RobotId, u32>,
     /// After each point, the version each member chose its successor in,
-    /// and whom it presumed lost then.
-    chosen_in: BTreeMap<Exec, BTreeMap<RobotId, (u32, BTreeSet<RobotId>)>>,
+    /// and whom it presumed lost then (nearly always nobody), in the order
+    /// they chose (a later choice replaces an earlier one).
+    chosen_in: BTreeMap<Exec, Vec<(RobotId, u32, Option<Box<BTreeSet<RobotId>>>)>>,
 }
 
 impl Checker {
@@ -270,8 +293,7 @@ impl Checker {
             timed_out_at: FxHashSet::default(),
             selected: BTreeMap::new(),
             team_ended: Vec::new(),
-            terminated: FxHashMap::default(),
-            started: FxHashMap::default(),
+            spans: FxHashMap::default(),
             last_epoch: FxHashMap::default(),
             legs: BTreeMap::new(),
             running_leg: FxHashMap::default(),
@@ -482,7 +504,8 @@ impl Checker {
                     .or_default()
                     .insert(robot);
                 if self.team_ends(*behavior) {
-                    self.started.insert((*team, *behavior, *epoch, robot), t);
+                    let span = self.spans.entry((*team, *behavior, *epoch, robot));
+                    span.or_insert(Span::NONE).started = t;
                 }
                 let last = self
                     .last_epoch
@@ -506,19 +529,17 @@ impl Checker {
                 if let Some(a) = after {
                     let point = (*team, a.behavior, a.epoch);
                     self.check_version(robot, point);
-                    self.legs
-                        .entry(point)
-                        .or_default()
-                        .entry(robot)
-                        .or_default()
-                        .push(Leg {
+                    let legs = self.legs.entry(point).or_default();
+                    self.running_leg
+                        .insert((robot, *team, *behavior, *epoch), (point, legs.len()));
+                    legs.push((
+                        robot,
+                        Leg {
                             behavior: *behavior,
-                            epoch: *epoch,
                             from: t,
                             until: None,
-                        });
-                    self.running_leg
-                        .insert((robot, *team, *behavior, *epoch), point);
+                        },
+                    ));
                 }
             }
             Event::Terminated {
@@ -541,14 +562,12 @@ impl Checker {
                     });
                 }
                 if self.team_ends(*behavior) {
-                    self.terminated.insert((*team, *behavior, *epoch, robot), t);
+                    let span = self.spans.entry((*team, *behavior, *epoch, robot));
+                    span.or_insert(Span::NONE).terminated = t;
                 }
-                if let Some(point) = self.running_leg.remove(&(robot, *team, *behavior, *epoch))
-                    && let Some(legs) = self.legs.get_mut(&point).and_then(|m| m.get_mut(&robot))
-                    && let Some(l) = legs
-                        .iter_mut()
-                        .rev()
-                        .find(|l| (l.behavior, l.epoch) == (*behavior, *epoch))
+                if let Some((point, i)) =
+                    self.running_leg.remove(&(robot, *team, *behavior, *epoch))
+                    && let Some((_, l)) = self.legs.get_mut(&point).and_then(|m| m.get_mut(i))
                 {
                     l.until = Some(t);
                 }
@@ -567,11 +586,13 @@ impl Checker {
     /// its earlier choice).
     fn check_version(&mut self, robot: RobotId, point: Exec) {
         let v = self.version.get(&robot).copied().unwrap_or(0);
-        let lost = self.lost_now.get(&robot).cloned().unwrap_or_default();
+        let lost = (self.lost_now.get(&robot))
+            .filter(|l| !l.is_empty())
+            .map(|l| Box::new(l.clone()));
         self.chosen_in
             .entry(point)
             .or_default()
-            .insert(robot, (v, lost));
+            .push((robot, v, lost));
     }
 
     /// Every member of a team chooses what follows a point under the same
@@ -580,7 +601,11 @@ impl Checker {
     /// other lost then, cut off from each other, each decide on their
     /// own side).
     fn check_versions(&mut self) {
-        for (point, members) in std::mem::take(&mut self.chosen_in) {
+        let none = BTreeSet::new();
+        for (point, choices) in std::mem::take(&mut self.chosen_in) {
+            let members: BTreeMap<RobotId, (u32, &BTreeSet<RobotId>)> = (choices.iter())
+                .map(|(r, v, lost)| (*r, (*v, lost.as_deref().unwrap_or(&none))))
+                .collect();
             // Usually everyone chose in the same version: one linear pass
             // settles it (the pairwise search below is quadratic).
             let mut versions = members.values().map(|(v, _)| *v);
@@ -816,8 +841,12 @@ impl Checker {
                 && !self.ever_lost.get(&b).is_some_and(|s| s.contains(&a))
         };
         let mut v = Vec::new();
-        for ((team, point, epoch), members) in &self.legs {
-            if !may_split(members, end, &crashed) {
+        for ((team, point, epoch), legs) in &self.legs {
+            let mut members: BTreeMap<RobotId, Legs> = BTreeMap::new();
+            for (r, l) in legs {
+                members.entry(*r).or_default().push(*l);
+            }
+            if !may_split(&members, end, &crashed) {
                 continue;
             }
             let robots: Vec<&RobotId> = members.keys().collect();
@@ -826,8 +855,8 @@ impl Checker {
                     if crashed(**a) || crashed(**b) || !talked(**a, **b) {
                         continue;
                     }
-                    for la in &members[*a] {
-                        for lb in &members[*b] {
+                    for la in &members[a] {
+                        for lb in &members[b] {
                             if la.behavior == lb.behavior {
                                 continue;
                             }
@@ -889,17 +918,14 @@ impl Checker {
                 }
                 // A member that started this epoch after the team ended it
                 // gets the same grace from its own start.
-                let start = self
-                    .started
+                let span = (self.spans)
                     .get(&(key.team, key.behavior, key.epoch, *r))
-                    .copied();
-                let limit = start.map_or(limit, |s| limit.max(s + grace));
+                    .copied()
+                    .unwrap_or(Span::NONE);
+                let limit = span.started().map_or(limit, |s| limit.max(s + grace));
                 let limit = resumed.get(r).map_or(limit, |u| limit.max(*u + grace));
-                let late = match self
-                    .terminated
-                    .get(&(key.team, key.behavior, key.epoch, *r))
-                {
-                    Some(at) => *at > limit,
+                let late = match span.terminated() {
+                    Some(at) => at > limit,
                     None => end > limit,
                 };
                 if late {
@@ -1069,8 +1095,7 @@ mod tests {
                 (c.left_out_at.keys()).all(|k| open.contains(k) && !c.silent.contains_key(&k.0))
             );
             assert!((c.view_at.values()).all(|m| m.values().all(|v| !v.is_empty())));
-            assert!(c.started.keys().all(|(_, b, _, _)| c.team_ends(*b)));
-            assert!(c.terminated.keys().all(|(_, b, _, _)| c.team_ends(*b)));
+            assert!(c.spans.keys().all(|(_, b, _, _)| c.team_ends(*b)));
         }
     }
 
@@ -1085,7 +1110,6 @@ mod tests {
                 let from = Time::from_secs_f64(f64::from(from));
                 members.entry(RobotId(r)).or_default().push(Leg {
                     behavior: BehaviorId(b),
-                    epoch: 1,
                     from,
                     until: (!open).then(|| from + Duration::from_secs(u64::from(len))),
                 });

@@ -31,7 +31,7 @@ pub use bite_agent::scenario::StallLimits;
 /// many times each child was started under it.
 struct Seen {
     behavior: BehaviorId,
-    starts: BTreeMap<BehaviorId, u32>,
+    starts: rustc_hash::FxHashMap<BehaviorId, u32>,
 }
 
 /// Watches a run for stalls.
@@ -40,7 +40,7 @@ pub struct StallWatch {
     last_progress: Time,
     /// Per robot: its stack as seen from its events, and the start counts of
     /// its top-level chain.
-    stacks: BTreeMap<RobotId, (BTreeMap<BehaviorId, u32>, Vec<Seen>)>,
+    stacks: BTreeMap<RobotId, (rustc_hash::FxHashMap<BehaviorId, u32>, Vec<Seen>)>,
     stalled: Option<(Time, String)>,
     /// Physical world: where the robots were when one last moved away (by
     /// more than [`STEP`] from there), and when.
@@ -91,7 +91,7 @@ impl StallWatch {
                 }
                 stack.push(Seen {
                     behavior: *behavior,
-                    starts: BTreeMap::new(),
+                    starts: Default::default(),
                 });
             }
             Event::Terminated { .. }
