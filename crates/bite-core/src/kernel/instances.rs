@@ -552,14 +552,7 @@ impl Kernel {
     // ----- messages ------------------------------------------------------
 
     pub(super) fn bury(&mut self, key: InstanceKey, closed: Closed) {
-        if self.tombstones.insert(key, closed).is_none() {
-            self.tomb_order.push_back(key);
-        }
-        while self.tomb_order.len() > TOMBSTONES {
-            if let Some(old) = self.tomb_order.pop_front() {
-                self.tombstones.remove(&old);
-            }
-        }
+        self.tombstones.bury(key, closed, TOMBSTONES);
     }
 
     /// Decide instance `key` with `outcome`, outside its protocol.

@@ -54,6 +54,7 @@ mod instances;
 mod membership;
 mod position;
 mod slots;
+mod tombs;
 pub use change::{FENCE_WAIT, Fence};
 use inbox::Inbox;
 pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position};
@@ -385,11 +386,8 @@ pub struct Kernel {
     missed: BTreeMap<RobotId, VecDeque<InstanceKey>>,
     /// Teammates presumed lost at some point of the mission.
     ever_lost: MemberSet,
-    /// Outcomes of forgotten instances, to answer late teammates (looked up
-    /// by key, forgotten in `tomb_order`: a hash map, a thousand entries
-    /// deep once a mission has run a while).
-    tombstones: rustc_hash::FxHashMap<InstanceKey, Closed>,
-    tomb_order: VecDeque<InstanceKey>,
+    /// Outcomes of forgotten instances, to answer late teammates.
+    tombstones: tombs::Tombstones,
     /// Recently accepted `(sender, seq)` with when: a message is acted upon
     /// at most once, whatever the order it arrives in.
     seen: dedup::Accepted,
@@ -465,7 +463,6 @@ impl Kernel {
             missed: BTreeMap::new(),
             ever_lost: MemberSet::empty(n),
             tombstones: Default::default(),
-            tomb_order: VecDeque::new(),
             seen: dedup::Accepted::default(),
             next_seq: 1,
             out: VecDeque::new(),
@@ -603,11 +600,16 @@ impl Kernel {
         self.out.pop_front()
     }
     /// The outputs are drained: once the mission is over, give back their
-    /// room. Out of line, so that polling stays small enough to inline.
+    /// room, and the emptied stack's (a large team's robots all finish at
+    /// once, and each kept room for a stack of frames it will not run
+    /// again). Out of line, so that polling stays small enough to inline.
     #[inline(never)]
     fn drained(&mut self) {
         if self.is_finished() {
             give_back_room(&mut self.out);
+            if self.stack.is_empty() && self.stack.capacity() > 0 {
+                self.stack = Vec::new();
+            }
         }
     }
     /// When the kernel next needs a [`Kernel::timer`] call.

@@ -1030,7 +1030,8 @@ fn a_silent_protocol_names_itself_when_sent_a_message() {
 
 /// A mission's end is a burst of outputs (every frame terminated at once):
 /// once the robot has finished and drained it, its queue gives the room
-/// back, as every robot of a large team otherwise kept it for good.
+/// back, and so does its emptied stack, as every robot of a large team
+/// otherwise kept them for good.
 #[test]
 fn a_finished_robot_gives_back_its_outputs_room() {
     let mut h = Harness::new(
@@ -1053,6 +1054,7 @@ behaviors:
     let burst = h.events_of(0).len() - before;
     assert!(burst > 8, "the end is a burst ({burst} events)");
     assert_eq!(h.kernels[0].out.capacity(), 0);
+    assert_eq!(h.kernels[0].stack.capacity(), 0);
 }
 
 /// A teammate not heard for longer than `FRESH` keeps only what its next
