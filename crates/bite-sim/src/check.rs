@@ -258,8 +258,12 @@ pub struct Checker {
     /// ends are read (team termination).
     team_ended: Vec<bool>,
     /// When each member started and terminated each execution of those.
-    spans: FxHashMap<(TeamId, BehaviorId, u32, RobotId), Span>,
-    last_epoch: FxHashMap<(RobotId, TeamId, BehaviorId), u32>,
+    /// (By execution, then member: one table keyed by both repeated the
+    /// execution's 16 bytes in every member's entry.)
+    spans: FxHashMap<Exec, FxHashMap<RobotId, Span>>,
+    /// Each member's last epoch of each team's behavior (by team and
+    /// behavior, then member, as `spans`).
+    last_epoch: FxHashMap<(TeamId, BehaviorId), FxHashMap<RobotId, u32>>,
     /// After each point (team, behavior, epoch), what its members ran, in
     /// the order they started it (grouped by member at the end: a B-tree
     /// per point, half-full nodes of 40-byte entries, was twice the room).
@@ -340,7 +344,9 @@ impl Checker {
         for members in self.selected.values_mut() {
             members.remove(&r);
         }
-        self.last_epoch.retain(|(robot, _, _), _| *robot != r);
+        for members in self.last_epoch.values_mut() {
+            members.remove(&r);
+        }
         self.running_leg.retain(|(robot, _, _, _), _| *robot != r);
         self.open.remove(&r);
     }
@@ -504,15 +510,16 @@ impl Checker {
                     .or_default()
                     .insert(robot);
                 if self.team_ends(*behavior) {
-                    let span = self.spans.entry((*team, *behavior, *epoch, robot));
-                    span.or_insert(Span::NONE).started = t;
+                    let span = self.spans.entry((*team, *behavior, *epoch)).or_default();
+                    span.entry(robot).or_insert(Span::NONE).started = t;
                 }
-                let last = self
-                    .last_epoch
-                    .entry((robot, *team, *behavior))
+                let last = (self.last_epoch.entry((*team, *behavior)).or_default())
+                    .entry(robot)
                     .or_insert(0);
-                if *epoch <= *last {
-                    let last = *last;
+                let before = *last;
+                *last = before.max(*epoch);
+                if *epoch <= before {
+                    let last = before;
                     self.v.push(Violation {
                         invariant: "epochs",
                         detail: format!(
@@ -521,11 +528,6 @@ impl Checker {
                         ),
                     });
                 }
-                let last = self
-                    .last_epoch
-                    .entry((robot, *team, *behavior))
-                    .or_insert(0);
-                *last = (*last).max(*epoch);
                 if let Some(a) = after {
                     let point = (*team, a.behavior, a.epoch);
                     self.check_version(robot, point);
@@ -562,8 +564,8 @@ impl Checker {
                     });
                 }
                 if self.team_ends(*behavior) {
-                    let span = self.spans.entry((*team, *behavior, *epoch, robot));
-                    span.or_insert(Span::NONE).terminated = t;
+                    let span = self.spans.entry((*team, *behavior, *epoch)).or_default();
+                    span.entry(robot).or_insert(Span::NONE).terminated = t;
                 }
                 if let Some((point, i)) =
                     self.running_leg.remove(&(robot, *team, *behavior, *epoch))
@@ -919,7 +921,8 @@ impl Checker {
                 // A member that started this epoch after the team ended it
                 // gets the same grace from its own start.
                 let span = (self.spans)
-                    .get(&(key.team, key.behavior, key.epoch, *r))
+                    .get(&(key.team, key.behavior, key.epoch))
+                    .and_then(|s| s.get(r))
                     .copied()
                     .unwrap_or(Span::NONE);
                 let limit = span.started().map_or(limit, |s| limit.max(s + grace));
@@ -1095,7 +1098,7 @@ mod tests {
                 (c.left_out_at.keys()).all(|k| open.contains(k) && !c.silent.contains_key(&k.0))
             );
             assert!((c.view_at.values()).all(|m| m.values().all(|v| !v.is_empty())));
-            assert!(c.spans.keys().all(|(_, b, _, _)| c.team_ends(*b)));
+            assert!(c.spans.keys().all(|(_, b, _)| c.team_ends(*b)));
         }
     }
 

@@ -55,6 +55,10 @@ impl<T> Ord for Keyed<T> {
 /// "2026-11-29"). Such a bucket grows its own list again (a few
 /// reallocations every heartbeat period).
 const SPARE_ROOM: usize = 4096;
+/// The most emptied lists kept: timers scheduled seconds ahead keep
+/// hundreds of buckets open at once, and a spare for each, at up to
+/// [`SPARE_ROOM`] events, held tens of megabytes no bucket needed.
+const SPARES: usize = 32;
 
 /// Events in order of `(time, order of scheduling)`.
 pub(crate) struct EventQueue<T> {
@@ -152,7 +156,7 @@ impl<T> EventQueue<T> {
             // Both conversions keep the storage (no copy: the emptied
             // deque has nothing to move).
             let old = std::mem::replace(&mut self.sorted, VecDeque::from(list));
-            if old.capacity() <= SPARE_ROOM {
+            if old.capacity() <= SPARE_ROOM && self.spare.len() < SPARES {
                 self.spare.push(Vec::from(old));
             }
         }
