@@ -209,6 +209,10 @@ pub enum Ahead {
     Pilot,
 }
 
+/// How long a drained output queue keeps its room while the mission runs
+/// (see [`Agent::poll`]).
+const ROOM_KEPT: std::time::Duration = std::time::Duration::from_secs(1);
+
 /// What an agent asks its runtime to do.
 #[derive(Debug)]
 pub enum AgentOutput {
@@ -250,6 +254,8 @@ pub struct Agent {
     /// dated earlier is taken at this time, and counted).
     last: Time,
     backwards: u64,
+    /// When the drained output queue next gives back its room.
+    room_until: Time,
     out: VecDeque<AgentOutput>,
     /// Where every input and what it produced are written, if recording.
     recorder: Option<crate::record::Recorder>,
@@ -318,6 +324,7 @@ impl Agent {
             body_t: Time::ZERO,
             last: Time::ZERO,
             backwards: 0,
+            room_until: Time::ZERO,
             out: VecDeque::new(),
             recorder: None,
             percepts: Vec::new(),
@@ -541,15 +548,28 @@ impl Agent {
 
     /// The next output.
     pub fn poll(&mut self) -> Option<AgentOutput> {
-        // The runtimes drain after every input: once the mission is over,
-        // the drained queue gives back its room, as the kernel's does.
         if self.out.is_empty() {
-            if self.kernel.is_finished() {
-                bite_core::kernel::give_back_room(&mut self.out);
+            if self.out.capacity() > 0 {
+                self.drained();
             }
             return None;
         }
         self.out.pop_front()
+    }
+
+    /// The runtimes drain after every input. The drained queue gives back
+    /// its room once the mission is over, as the kernel's does, and while
+    /// it runs at most once every [`ROOM_KEPT`]: a decision's burst leaves
+    /// room for eight outputs that a robot then mostly does not use (at
+    /// 100,000 robots, 96 MB; docs/performance.md, "2026-11-29"), and a
+    /// robot deciding often allocates again at most once a second.
+    #[inline(never)]
+    fn drained(&mut self) {
+        let now = self.kernel.now();
+        if self.kernel.is_finished() || now >= self.room_until {
+            bite_core::kernel::give_back_room(&mut self.out);
+            self.room_until = now + ROOM_KEPT;
+        }
     }
 
     /// Ask for what a control tick reads first of this robot's mind to be

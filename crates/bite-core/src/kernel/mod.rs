@@ -72,8 +72,9 @@ const DEDUP_PER_SENDER: usize = 4096;
 /// "2026-11-28, evening"; even room for eight outputs was a fifteenth of
 /// a 10,000-robot run's memory, "2026-11-29"). A finished robot outputs
 /// rarely (an answer to a late teammate), so the room is not kept for it.
-/// Not while the mission runs: a decision's burst would then allocate
-/// again every cycle.
+/// The kernel's not while the mission runs: a decision's burst would then
+/// allocate again every cycle (the agent's, at most once a second: see
+/// `bite_agent::agent::Agent::poll`).
 pub fn give_back_room<T>(queue: &mut VecDeque<T>) {
     if queue.is_empty() && queue.capacity() > 0 {
         *queue = VecDeque::new();

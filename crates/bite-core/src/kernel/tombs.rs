@@ -46,15 +46,17 @@ impl Tombstones {
     pub fn bury(&mut self, key: InstanceKey, closed: Closed, most: usize) {
         let h = hash(&key);
         let (ring, first) = (&mut self.ring, self.first);
-        if let Some(&n) = self.index.find(h, |&n| ring[n.wrapping_sub(first) as usize].0 == key) {
+        if let Some(&n) = self
+            .index
+            .find(h, |&n| ring[n.wrapping_sub(first) as usize].0 == key)
+        {
             ring[n.wrapping_sub(first) as usize].1 = closed;
         } else {
             let n = first.wrapping_add(ring.len() as u32);
             ring.push_back((key, closed));
             let ring = &self.ring;
-            self.index.insert_unique(h, n, |&m| {
-                hash(&ring[m.wrapping_sub(first) as usize].0)
-            });
+            self.index
+                .insert_unique(h, n, |&m| hash(&ring[m.wrapping_sub(first) as usize].0));
         }
         while self.ring.len() > most {
             let Some((old, _)) = self.ring.pop_front() else {
