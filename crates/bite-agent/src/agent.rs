@@ -557,6 +557,12 @@ impl Agent {
         self.out.pop_front()
     }
 
+    /// Room the output queue holds, in outputs (to check that a robot's
+    /// memory stays small between decisions).
+    pub fn output_room(&self) -> usize {
+        self.out.capacity()
+    }
+
     /// The runtimes drain after every input. The drained queue gives back
     /// its room once the mission is over, as the kernel's does, and while
     /// it runs at most once every [`ROOM_KEPT`]: a decision's burst leaves

@@ -171,6 +171,10 @@ impl Span {
     }
 }
 
+/// A member's choice after a point: the version it chose in, and whom it
+/// presumed lost then (`None`: nobody).
+type Chosen = (RobotId, u32, Option<Box<BTreeSet<RobotId>>>);
+
 /// One member's run of a successor of a point.
 #[derive(Clone, Copy, Debug)]
 struct Leg {
@@ -297,7 +301,7 @@ pub struct Checker {
     /// After each point, the version each member chose its successor in,
     /// and whom it presumed lost then (nearly always nobody), in the order
     /// they chose (a later choice replaces an earlier one).
-    chosen_in: BTreeMap<Exec, Vec<(RobotId, u32, Option<Box<BTreeSet<RobotId>>>)>>,
+    chosen_in: BTreeMap<Exec, Vec<Chosen>>,
 }
 
 impl Checker {

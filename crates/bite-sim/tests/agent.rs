@@ -241,3 +241,66 @@ fn the_drive_comes_out_of_a_tick_first_and_the_rest_stays_in_order() {
         "a physical robot drives at its ticks ({drives})"
     );
 }
+
+/// A drained output queue keeps its room while the mission runs for at
+/// most a second after it last gave it back (a robot deciding often does
+/// not allocate at every decision), then gives it back at its next drain
+/// (a large team's robots mostly do not use it between decisions).
+#[test]
+fn a_drained_output_queue_gives_back_its_room_at_most_once_a_second() {
+    let sc = Scenario::load_str(&"formation.yaml".into(), FORMATION_TIMED).unwrap();
+    let g = graph("formation.yaml", FORMATION);
+    let mission = prepare(&g, &sc, None, &bite_protocols::registry()).unwrap();
+    let n = mission.graph().roster().len();
+    let mut agents: Vec<Agent> = (0..n as u32)
+        .map(|r| Agent::new(mission.clone(), &sc, RobotId(r), 1).unwrap())
+        .collect();
+    let mut last_given = vec![Time::ZERO; n];
+    let (mut kept, mut given_back) = (0, 0);
+    // Drain robot `k`, check its room, and hand back what it asked.
+    let mut drain = |a: &mut Agent, k: usize, now: Time, queue: &mut Vec<(usize, AgentOutput)>| {
+        let before = queue.len();
+        queue.extend(std::iter::from_fn(|| a.poll()).map(|o| (k, o)));
+        if a.output_room() == 0 {
+            last_given[k] = now;
+            given_back += usize::from(queue.len() > before);
+        } else {
+            kept += 1;
+            assert!(
+                now - last_given[k] < Duration::from_secs(1),
+                "{k} kept room at {now}"
+            );
+        }
+    };
+    let mut now = Time::ZERO;
+    while now < Time::ZERO + Duration::from_secs(120) {
+        let mut queue = Vec::new();
+        for (k, a) in agents.iter_mut().enumerate() {
+            a.tick(now, None);
+            drain(a, k, now, &mut queue);
+        }
+        while let Some((from, o)) = queue.pop() {
+            if let AgentOutput::Send { to, envelope, .. } = o {
+                let targets: Vec<usize> = match &to {
+                    Recipients::One(x) => vec![x.index()],
+                    Recipients::Team(set) => (set.iter().map(|r| r.index()))
+                        .filter(|x| *x != from)
+                        .collect(),
+                };
+                for t in targets {
+                    agents[t].message(now, envelope.clone());
+                    drain(&mut agents[t], t, now, &mut queue);
+                }
+            }
+        }
+        if agents.iter().all(|a| a.kernel().is_finished()) {
+            break;
+        }
+        now += Duration::from_millis(100);
+    }
+    assert!(agents.iter().all(|a| a.kernel().is_finished()));
+    assert!(
+        kept > 0 && given_back > n,
+        "kept {kept}, given back {given_back}"
+    );
+}
