@@ -567,7 +567,7 @@ impl Agent {
     /// its room once the mission is over, as the kernel's does, and while
     /// it runs at most once every [`ROOM_KEPT`]: a decision's burst leaves
     /// room for eight outputs that a robot then mostly does not use (at
-    /// 100,000 robots, 96 MB; docs/performance.md, "2026-11-29"), and a
+    /// 100,000 robots, 96 MB; docs/performance.md, "2026-11-28, late"), and a
     /// robot deciding often allocates again at most once a second.
     #[inline(never)]
     fn drained(&mut self) {

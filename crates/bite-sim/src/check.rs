@@ -209,7 +209,7 @@ impl LegOf {
 /// whom it left out and what it could choose. Members nearly always see
 /// the same, so each distinct pair is stored once and a member holds its
 /// index (at 100,000 robots, a pair per member and instance was a tenth of
-/// a run's memory: docs/performance.md, "2026-11-29").
+/// a run's memory: docs/performance.md, "2026-11-28, late").
 #[derive(Default)]
 struct SilentViews {
     distinct: Vec<(BTreeSet<RobotId>, LogList<BehaviorId>)>,

@@ -52,7 +52,7 @@ impl<T> Ord for Keyed<T> {
 /// has room for tens of thousands; kept, every list would in time have
 /// that much room, one per bucket ahead: at 100,000 robots, hundreds of
 /// megabytes that grew with the length of the run (docs/performance.md,
-/// "2026-11-29"). Such a bucket grows its own list again (a few
+/// "2026-11-28, late"). Such a bucket grows its own list again (a few
 /// reallocations every heartbeat period).
 const SPARE_ROOM: usize = 4096;
 /// The most emptied lists kept: timers scheduled seconds ahead keep

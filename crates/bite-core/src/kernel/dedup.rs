@@ -4,7 +4,7 @@
 //!
 //! Every robot keeps one, and at 100,000 robots its shape is most of its
 //! cost: a B-tree per sender (a 192-byte node for two or three numbers)
-//! was a sixth of a large team's memory (docs/performance.md, "2026-11-29").
+//! was a sixth of a large team's memory (docs/performance.md, "2026-11-28, late").
 //! A sender's accepted numbers are now a short sorted vector: its messages
 //! mostly arrive in the order it sent them, so an insert is nearly always
 //! a push.

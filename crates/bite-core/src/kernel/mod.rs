@@ -70,7 +70,7 @@ const DEDUP_PER_SENDER: usize = 4096;
 /// mission's end is a burst (every frame ends at once) whose room each of
 /// a large team's robots otherwise held for good (docs/performance.md,
 /// "2026-11-28, evening"; even room for eight outputs was a fifteenth of
-/// a 10,000-robot run's memory, "2026-11-29"). A finished robot outputs
+/// a 10,000-robot run's memory, "2026-11-28, late"). A finished robot outputs
 /// rarely (an answer to a late teammate), so the room is not kept for it.
 /// The kernel's not while the mission runs: a decision's burst would then
 /// allocate again every cycle (the agent's, at most once a second: see

@@ -117,7 +117,7 @@ pub(super) struct Peer {
 /// thing: whether its position changed meanwhile, which says whether it
 /// moved. That needs a digest of its frames, not the frames: at 100,000
 /// robots each member's leaders of finished subteams, kept whole, were a
-/// seventh of a run's memory (docs/performance.md, "2026-11-29").
+/// seventh of a run's memory (docs/performance.md, "2026-11-28, late").
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Quiet {
     /// [`Peer::moved`] in microseconds (`u64::MAX`: `None`).

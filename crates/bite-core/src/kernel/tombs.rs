@@ -5,7 +5,7 @@
 //! One ring of (key, outcome) in burial order and a table of positions in
 //! it: the hash map of outcomes beside a queue of keys stored every key
 //! twice, a sixth of a robot's memory of finished work at 100,000 robots
-//! (docs/performance.md, "2026-11-29").
+//! (docs/performance.md, "2026-11-28, late").
 
 use crate::ids::InstanceKey;
 use crate::interaction::Closed;
