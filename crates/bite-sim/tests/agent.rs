@@ -18,6 +18,17 @@ use std::time::Duration;
 const FORMATION_TIMED: &str = include_str!("../../../examples/scenarios/formation.yaml");
 const FORMATION_PHYSICS: &str = include_str!("../../../examples/scenarios/formation-physics.yaml");
 
+/// The robots a message from `from` goes to, by index (a team message
+/// not back to its sender).
+fn targets(to: &Recipients, from: usize) -> Vec<usize> {
+    match to {
+        Recipients::One(x) => vec![x.index()],
+        Recipients::Team(set) => (set.iter().map(|r| r.index()))
+            .filter(|x| *x != from)
+            .collect(),
+    }
+}
+
 /// Run a team of agents: control ticks at the scenario's rate, messages
 /// delivered at once, kernel timers at their time; in the physical world
 /// the simulator's `World` plays the body (observe / actuate), as
@@ -89,15 +100,7 @@ fn run_team(
             while let Some((from, o)) = queue.pop() {
                 match o {
                     AgentOutput::Send { to, envelope, .. } => {
-                        let targets: Vec<usize> = match &to {
-                            Recipients::One(x) => vec![x.index()],
-                            Recipients::Team(set) => set
-                                .iter()
-                                .map(|r| r.index())
-                                .filter(|x| *x != from)
-                                .collect(),
-                        };
-                        for t in targets {
+                        for t in targets(&to, from) {
                             if !dead[t] {
                                 agents[t].message(now, envelope.clone());
                                 while let Some(o) = agents[t].poll() {
@@ -281,13 +284,7 @@ fn a_drained_output_queue_gives_back_its_room_at_most_once_a_second() {
         }
         while let Some((from, o)) = queue.pop() {
             if let AgentOutput::Send { to, envelope, .. } = o {
-                let targets: Vec<usize> = match &to {
-                    Recipients::One(x) => vec![x.index()],
-                    Recipients::Team(set) => (set.iter().map(|r| r.index()))
-                        .filter(|x| *x != from)
-                        .collect(),
-                };
-                for t in targets {
+                for t in targets(&to, from) {
                     agents[t].message(now, envelope.clone());
                     drain(&mut agents[t], t, now, &mut queue);
                 }
