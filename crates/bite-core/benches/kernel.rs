@@ -147,25 +147,7 @@ fn decision_step(b: divan::Bencher) {
         w
     })
     .bench_local_values(|mut w| {
-        // The leg is over: walk ends, the team chooses `search` (point B),
-        // and the robot starts searching; then the search ends, the team
-        // chooses `walk` (point A), allocates the roles (point C) and
-        // expands down to `lead`.
-        let peers = w
-            .kernel
-            .beliefs()
-            .symbols()
-            .get("peers_located")
-            .expect("belief");
-        w.kernel.tick(
-            w.now,
-            &[(w.leg, Value::Num(2.0)), (peers, Value::Bool(false))],
-        );
-        w.kernel.tick(
-            w.now + std::time::Duration::from_millis(100),
-            &[(peers, Value::Bool(true)), (w.leg, Value::Num(0.0))],
-        );
-        while w.kernel.poll_output().is_some() {}
+        decide(&mut w);
         divan::black_box(w.kernel.leaf().map(|f| f.behavior));
         w
     });
