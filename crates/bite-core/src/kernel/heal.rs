@@ -184,20 +184,25 @@ impl Kernel {
                 },
             };
             let id = f.id();
-            let Some(team) = self.org.team(f.team) else {
-                continue;
-            };
-            let known = f.departed.as_ref();
             let report = (pos.frames.iter().find(|g| g.id == id)).and_then(|g| g.departed.as_ref());
-            let news = report.map(|d| d.news(&team.members, known));
-            let covers = news.as_ref().is_none_or(|n| n.covers);
-            let mut who: Option<MemberSet> = news.and_then(|n| n.fresh);
             let ended = pos.ended.iter().any(|e| e.id == id)
                 || pos.burned.contains(&id)
                 || pos
                     .frames
                     .iter()
                     .any(|g| g.id == id && g.state != FrameState::Running);
+            // Nothing to learn: the team is not looked up (its split is
+            // cold in a large team, and most heartbeats report nothing).
+            if report.is_none() && !ended {
+                continue;
+            }
+            let Some(team) = self.org.team(f.team) else {
+                continue;
+            };
+            let known = f.departed.as_ref();
+            let news = report.map(|d| d.news(&team.members, known));
+            let covers = news.as_ref().is_none_or(|n| n.covers);
+            let mut who: Option<MemberSet> = news.and_then(|n| n.fresh);
             // What is new from the report is in the report; the sender
             // (never this robot: see `peer`) may not be.
             debug_assert_ne!(from, self.me);
