@@ -132,6 +132,13 @@ impl<T> EventQueue<T> {
         Some((k.at, k.seq, k.item))
     }
 
+    /// The event `k` places after the next one in the bucket being drained,
+    /// if there is one: a hint for fetching ahead (an event scheduled
+    /// meanwhile may come first; events of later buckets are not seen).
+    pub fn ahead(&self, k: usize) -> Option<&T> {
+        self.sorted.get(k + 1).map(|e| &e.item)
+    }
+
     /// The time and place of the next event, and the event, without
     /// taking it.
     pub fn peek(&mut self) -> Option<(Time, u64, &T)> {

@@ -1246,9 +1246,21 @@ impl Sim<'_, '_> {
                 | What::Peer { .. } => match batching {
                     Some(window) => self.batch(at, seq, what, window, limit),
                     None => {
-                        // The next robot's mind on its way into the cache
-                        // while this one's event is handled (a hint: the
-                        // next event may change meanwhile).
+                        // The next robots' minds on their way into the
+                        // cache while this one's event is handled (hints:
+                        // the next events may change meanwhile): the
+                        // agent three events ahead, what it points to and
+                        // the heartbeat it hears two ahead, the next one's
+                        // agent in case it was not seen coming.
+                        if let Some(r) = self.queue.ahead(1).and_then(robot_event) {
+                            self.agents[r.index()].prefetch(Ahead::Agent);
+                        }
+                        if let Some(w) = self.queue.ahead(0) {
+                            if let Some(r) = robot_event(w) {
+                                self.agents[r.index()].prefetch(Ahead::Buffers);
+                            }
+                            prefetch_carried(w);
+                        }
                         let next = (self.queue.peek()).and_then(|(_, _, w)| robot_event(w));
                         if let Some(r) = next {
                             self.agents[r.index()].prefetch(Ahead::Agent);
@@ -1443,6 +1455,15 @@ fn robot_event(what: &What) -> Option<RobotId> {
         What::Deliver { to, .. } | What::Inform { to, .. } | What::Peer { to, .. } => Some(*to),
         What::Timer(r) | What::Beacon(r) => Some(*r),
         _ => None,
+    }
+}
+
+/// Ask for what an event carries to be brought into the cache: a
+/// heartbeat's position (shared by its whole audience, but heard between
+/// other robots' events, so cold by then).
+fn prefetch_carried(what: &What) {
+    if let What::Peer { pos, .. } = what {
+        bite_core::hint::prefetch_lines(Arc::as_ptr(pos), 2);
     }
 }
 
