@@ -583,13 +583,15 @@ impl Kernel {
     // ----- outputs ------------------------------------------------------
 
     /// Ask for the state a control tick reads first (the stack, the
-    /// belief slots, the instances) to be brought into the cache, ahead of
+    /// belief slots, the instances, the execution counts) to be brought
+    /// into the cache, ahead of
     /// the tick: a large team's minds tick one after the other, each on
     /// state of its own scattered in memory.
     pub fn prefetch(&self) {
         crate::hint::prefetch_slice(&self.stack, 4);
         self.beliefs.prefetch();
         self.instances.prefetch();
+        self.org.prefetch();
     }
 
     /// The next output, if any.
