@@ -1259,7 +1259,7 @@ impl Sim<'_, '_> {
                             if let Some(r) = robot_event(w) {
                                 self.agents[r.index()].prefetch(Ahead::Buffers);
                             }
-                            prefetch_carried(w);
+                            prefetch_carried(&self.agents, w);
                         }
                         let next = (self.queue.peek()).and_then(|(_, _, w)| robot_event(w));
                         if let Some(r) = next {
@@ -1460,10 +1460,15 @@ fn robot_event(what: &What) -> Option<RobotId> {
 
 /// Ask for what an event carries to be brought into the cache: a
 /// heartbeat's position (shared by its whole audience, but heard between
-/// other robots' events, so cold by then).
-fn prefetch_carried(what: &What) {
-    if let What::Peer { pos, .. } = what {
+/// other robots' events, so cold by then), and what its hearer keeps of
+/// its sender (where a large team's leader knows the place without
+/// reading memory: see `Kernel::prefetch_peer`).
+fn prefetch_carried(agents: &[Agent], what: &What) {
+    if let What::Peer { pos, to, from } = what {
         bite_core::hint::prefetch_lines(Arc::as_ptr(pos), 2);
+        if let Some(a) = agents.get(to.index()) {
+            a.kernel().prefetch_peer(*from);
+        }
     }
 }
 

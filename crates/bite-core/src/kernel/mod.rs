@@ -52,6 +52,7 @@ mod heal;
 mod inbox;
 mod instances;
 mod membership;
+mod peers;
 mod position;
 mod slots;
 mod tombs;
@@ -415,11 +416,13 @@ pub struct Kernel {
     /// A restarted process: since when it waits to hear where its team is.
     rejoin_since: Option<Time>,
     /// What each teammate heard from said (see [`position::Peer`]). A
-    /// hash map: a team leader looks one up for every heartbeat of every
-    /// member, and a B-tree of 10,000 teammates was a fifth of a large
-    /// team's run in cache misses (keys are roster indices, checked before
-    /// they are inserted; nothing iterates it in an order that matters).
-    peers: rustc_hash::FxHashMap<RobotId, position::Peer>,
+    /// hash map, or a table by roster place for a leader of a large team
+    /// (`peers.rs`): a team leader looks one up for every heartbeat of
+    /// every member, and a B-tree of 10,000 teammates was a fifth of a
+    /// large team's run in cache misses (keys are roster indices, checked
+    /// before they are inserted; nothing iterates it in an order that
+    /// matters).
+    peers: peers::Peers,
     /// Teammates not heard for a while (see [`position::Quiet`]).
     quiet: rustc_hash::FxHashMap<RobotId, position::Quiet>,
     /// The version of the mission it runs (see `change.rs`).
@@ -582,9 +585,9 @@ impl Kernel {
 
     // ----- outputs ------------------------------------------------------
 
-    /// Ask for the state a control tick reads first (the stack, the
-    /// belief slots, the instances, the execution counts) to be brought
-    /// into the cache, ahead of
+    /// Ask for the state a control tick or a heartbeat reads first (the
+    /// stack, the belief slots, the instances, the execution counts and
+    /// the newest dissolved teams) to be brought into the cache, ahead of
     /// the tick: a large team's minds tick one after the other, each on
     /// state of its own scattered in memory.
     pub fn prefetch(&self) {
@@ -592,6 +595,13 @@ impl Kernel {
         self.beliefs.prefetch();
         self.instances.prefetch();
         self.org.prefetch();
+    }
+
+    /// Ask for what this robot keeps of teammate `from` to be brought into
+    /// the cache ahead of `from`'s heartbeat (a hint: only a large team's
+    /// leader knows where without reading memory; see `peers.rs`).
+    pub fn prefetch_peer(&self, from: RobotId) {
+        self.peers.prefetch(from);
     }
 
     /// The next output, if any.

@@ -435,9 +435,9 @@ impl Kernel {
         // beacon to the whole team from every finished robot would be
         // quadratic).
         if self.stack.is_empty() && matches!(self.phase, Phase::Finished) {
-            for (r, p) in &self.peers {
+            for (r, p) in self.peers.iter() {
                 if self.now - p.heard <= FRESH {
-                    to.insert(*r);
+                    to.insert(r);
                 }
             }
             if let Some(l) = self.heal_leader(TeamId::ROOT, 0) {
@@ -491,12 +491,15 @@ impl Kernel {
             // Only who still sends heartbeats matters now: they get an
             // answer (see `beacon_audience`).
             let quiet = &mut self.quiet;
-            let p = self.peers.entry(from).or_insert_with(|| Peer {
+            let roster_len = self.org.roster_len();
+            let p = self.peers.get_or_insert_with(from, roster_len, || Peer {
                 moved: quiet.remove(&from).and_then(Quiet::moved),
                 ..Peer::default()
             });
-            p.heard = self.now;
-            p.frames.clear();
+            if let Some(p) = p {
+                p.heard = self.now;
+                p.frames.clear();
+            }
             return;
         }
         self.stats.positions += 1;
@@ -526,6 +529,7 @@ impl Kernel {
                         moved,
                         frames: engaged().collect(),
                     },
+                    self.org.roster_len(),
                 );
             }
         }
@@ -762,13 +766,10 @@ impl Kernel {
         self.peers.retain(|r, p| {
             let fresh = now - p.heard <= FRESH;
             if !fresh {
-                quiet.insert(*r, Quiet::of(p));
+                quiet.insert(r, Quiet::of(p));
             }
             fresh
         });
-        if self.peers.capacity() > 4 * self.peers.len() + 4 {
-            self.peers.shrink_to_fit();
-        }
     }
 
     /// Record an execution this robot ended (for its heartbeats).

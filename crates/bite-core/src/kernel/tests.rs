@@ -1066,7 +1066,7 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     h.tick(0, &[]);
     h.beacons();
     let r1 = RobotId(1);
-    let first = h.kernels[0].peers[&r1].moved;
+    let first = h.kernels[0].peers.get(&r1).expect("heard").moved;
     assert!(first.is_some());
     let same = h.kernels[1].position();
     // Five seconds without a heartbeat from robot 1: quiet.
@@ -1077,7 +1077,7 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     assert!(h.kernels[0].quiet.contains_key(&r1));
     // Heard again where it was: it has not moved since.
     h.kernels[0].peer(Time::from_millis(5100), r1, &same);
-    assert_eq!(h.kernels[0].peers[&r1].moved, first);
+    assert_eq!(h.kernels[0].peers.get(&r1).expect("heard").moved, first);
     assert!(!h.kernels[0].quiet.contains_key(&r1));
     // Quiet again, then heard somewhere else: it moved.
     for ms in (6000..=10_000).step_by(1000) {
@@ -1089,7 +1089,7 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     assert_ne!(moved_on.frames, same.frames);
     h.kernels[0].peer(Time::from_millis(10_100), r1, &moved_on);
     assert_eq!(
-        h.kernels[0].peers[&r1].moved,
+        h.kernels[0].peers.get(&r1).expect("heard").moved,
         Some(Time::from_millis(10_100))
     );
 }

@@ -1,0 +1,248 @@
+//! The teammates a robot heard lately ([`Peer`]), by robot.
+//!
+//! A hash map while they are few (a member hears its leaders); a table
+//! indexed by roster place once they are a large share of the roster (a
+//! leader hearing every member of a large team). At 100,000 robots half of
+//! all heartbeats go to the root team's leader: in the hash map each cost
+//! two cache misses (the control bytes, then the entry), in the table one,
+//! at an address known before the heartbeat is handled, so the simulator
+//! asks for it ahead ([`Peers::prefetch`]; docs/performance.md,
+//! "2026-11-28, night: heartbeats at 100,000 robots").
+
+use super::position::Peer;
+use crate::ids::RobotId;
+use rustc_hash::FxHashMap;
+
+/// The fewest teammates heard that make a table (below, a hash map of a
+/// few hundred entries stays in the cache anyway).
+const TABLE_FROM: usize = 1024;
+/// A table is made once the teammates heard are this share of the roster
+/// (one in four: the table's empty slots cost at most three entries per
+/// entry, a hash map's up to one).
+const TABLE_SHARE: usize = 4;
+/// A table goes back to a hash map once they are fewer than this share
+/// (one in sixteen: far below the share that makes one, so a team that
+/// hovers around it does not switch back and forth).
+const MAP_SHARE: usize = 16;
+
+/// Teammates heard, by robot. Nothing reads them in an order that matters.
+#[derive(Clone, Debug)]
+pub(super) enum Peers {
+    /// Few: by hash.
+    Map(FxHashMap<RobotId, Peer>),
+    /// Many: by roster place, and how many are there.
+    Table { slots: Vec<Option<Peer>>, len: usize },
+}
+
+impl Default for Peers {
+    fn default() -> Self {
+        Peers::Map(FxHashMap::default())
+    }
+}
+
+impl Peers {
+    #[cfg(test)]
+    pub fn len(&self) -> usize {
+        match self {
+            Peers::Map(m) => m.len(),
+            Peers::Table { len, .. } => *len,
+        }
+    }
+
+    pub fn get(&self, r: &RobotId) -> Option<&Peer> {
+        match self {
+            Peers::Map(m) => m.get(r),
+            Peers::Table { slots, .. } => slots.get(r.index())?.as_ref(),
+        }
+    }
+
+    pub fn get_mut(&mut self, r: &RobotId) -> Option<&mut Peer> {
+        match self {
+            Peers::Map(m) => m.get_mut(r),
+            Peers::Table { slots, .. } => slots.get_mut(r.index())?.as_mut(),
+        }
+    }
+
+    #[cfg(test)]
+    pub fn contains_key(&self, r: &RobotId) -> bool {
+        self.get(r).is_some()
+    }
+
+    /// The entry of `r`, made with `new` if absent; `None` only for a
+    /// robot off the roster of `roster_len` robots (which the caller
+    /// checks first).
+    pub fn get_or_insert_with(
+        &mut self,
+        r: RobotId,
+        roster_len: usize,
+        new: impl FnOnce() -> Peer,
+    ) -> Option<&mut Peer> {
+        if self.get(&r).is_none() {
+            self.insert(r, new(), roster_len);
+        }
+        self.get_mut(&r)
+    }
+
+    /// Keep `p` for `r`, on a roster of `roster_len` robots (checked by the
+    /// caller: `r.index() < roster_len`).
+    pub fn insert(&mut self, r: RobotId, p: Peer, roster_len: usize) {
+        if let Peers::Map(m) = self {
+            let n = m.len() + 1;
+            if n >= TABLE_FROM && n * TABLE_SHARE >= roster_len && r.index() < roster_len {
+                let mut slots: Vec<Option<Peer>> = Vec::new();
+                slots.resize_with(roster_len, || None);
+                let mut len = 0;
+                for (q, peer) in m.drain() {
+                    if let Some(s) = slots.get_mut(q.index()) {
+                        *s = Some(peer);
+                        len += 1;
+                    }
+                }
+                *self = Peers::Table { slots, len };
+            }
+        }
+        match self {
+            Peers::Map(m) => {
+                m.insert(r, p);
+            }
+            Peers::Table { slots, len } => {
+                if let Some(s) = slots.get_mut(r.index()) {
+                    *len += usize::from(s.is_none());
+                    *s = Some(p);
+                }
+            }
+        }
+    }
+
+    /// Each teammate heard and what it said, in no order that matters.
+    pub fn iter(&self) -> Box<dyn Iterator<Item = (RobotId, &Peer)> + '_> {
+        match self {
+            Peers::Map(m) => Box::new(m.iter().map(|(r, p)| (*r, p))),
+            Peers::Table { slots, .. } => Box::new(
+                (slots.iter().enumerate())
+                    .filter_map(|(i, p)| Some((RobotId(i as u32), p.as_ref()?))),
+            ),
+        }
+    }
+
+    /// Keep only the teammates `keep` says to, then give back room: a
+    /// table that became sparse goes back to a hash map, a hash map that
+    /// shrank gives back most of its room.
+    pub fn retain(&mut self, mut keep: impl FnMut(RobotId, &Peer) -> bool) {
+        match self {
+            Peers::Map(m) => {
+                m.retain(|r, p| keep(*r, p));
+                if m.capacity() > 4 * m.len() + 4 {
+                    m.shrink_to_fit();
+                }
+            }
+            Peers::Table { slots, len } => {
+                for (i, s) in slots.iter_mut().enumerate() {
+                    if s.as_ref().is_some_and(|p| !keep(RobotId(i as u32), p)) {
+                        *s = None;
+                        *len -= 1;
+                    }
+                }
+                if *len * MAP_SHARE < slots.len() {
+                    let m = (slots.iter_mut().enumerate())
+                        .filter_map(|(i, s)| Some((RobotId(i as u32), s.take()?)))
+                        .collect();
+                    *self = Peers::Map(m);
+                }
+            }
+        }
+    }
+
+    /// Ask for `r`'s entry to be brought into the cache ahead of its
+    /// heartbeat (a hint; only a table knows where an entry is without
+    /// reading memory).
+    pub fn prefetch(&self, r: RobotId) {
+        if let Peers::Table { slots, .. } = self {
+            crate::hint::prefetch_lines(slots.as_ptr().wrapping_add(r.index()), 2);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::time::Time;
+    use proptest::prelude::*;
+    use std::collections::BTreeMap;
+
+    fn peer(t: u64) -> Peer {
+        Peer {
+            heard: Time::from_millis(t),
+            ..Peer::default()
+        }
+    }
+
+    proptest! {
+        /// The same answers as a map, whatever the inserts and removals,
+        /// across the switches to a table and back (a small roster and
+        /// small thresholds are not needed: a roster of `TABLE_FROM` makes
+        /// a table from the first quarter heard).
+        #[test]
+        fn answers_as_a_map(
+            ops in proptest::collection::vec((0u32..1200, 0u8..4), 0..4000),
+        ) {
+            let roster = TABLE_FROM + 100;
+            let mut p = Peers::default();
+            let mut map: BTreeMap<u32, u64> = BTreeMap::new();
+            let mut tables = 0;
+            for (k, (r, op)) in ops.into_iter().enumerate() {
+                let t = k as u64;
+                match op {
+                    0 | 1 => {
+                        p.insert(RobotId(r), peer(t), roster);
+                        map.insert(r, t);
+                    }
+                    2 => {
+                        let e = p.get_or_insert_with(RobotId(r), roster, || peer(t));
+                        let v = *map.entry(r).or_insert(t);
+                        prop_assert_eq!(e.map(|e| e.heard), Some(Time::from_millis(v)));
+                    }
+                    _ => {
+                        // Forget those heard before `t - 500`.
+                        let cut = t.saturating_sub(500);
+                        p.retain(|_, q| q.heard >= Time::from_millis(cut));
+                        map.retain(|_, v| *v >= cut);
+                    }
+                }
+                tables += usize::from(matches!(p, Peers::Table { .. }));
+                prop_assert!(tables == 0 || map.len() >= roster / MAP_SHARE || matches!(p, Peers::Map(_)));
+                prop_assert_eq!(p.len(), map.len());
+                let mut seen: Vec<(u32, Time)> = p.iter().map(|(r, q)| (r.0, q.heard)).collect();
+                seen.sort_unstable_by_key(|(r, _)| *r);
+                let want: Vec<(u32, Time)> =
+                    map.iter().map(|(r, t)| (*r, Time::from_millis(*t))).collect();
+                prop_assert_eq!(seen, want);
+                for r in [0u32, 7, 600, 1199] {
+                    prop_assert_eq!(
+                        p.get(&RobotId(r)).map(|q| q.heard),
+                        map.get(&r).map(|t| Time::from_millis(*t))
+                    );
+                }
+            }
+        }
+    }
+
+    /// A leader that hears a quarter of a large roster keeps a table, and
+    /// goes back to a map when most of them go quiet.
+    #[test]
+    fn many_teammates_make_a_table_and_few_a_map_again() {
+        let roster = 8 * TABLE_FROM;
+        let mut p = Peers::default();
+        for r in 0..(roster / TABLE_SHARE) as u32 {
+            p.insert(RobotId(r), peer(u64::from(r)), roster);
+        }
+        assert!(matches!(p, Peers::Table { .. }));
+        assert_eq!(p.len(), roster / TABLE_SHARE);
+        p.retain(|r, _| r.index() < 100);
+        assert!(matches!(p, Peers::Map(_)));
+        assert_eq!(p.len(), 100);
+        assert_eq!(p.get(&RobotId(99)).map(|q| q.heard), Some(Time::from_millis(99)));
+        // Out of the roster: not kept by a table (the caller checks first).
+        p.prefetch(RobotId(u32::MAX));
+    }
+}
