@@ -336,8 +336,7 @@ impl Organization {
         // executions of teams dissolved moments ago, again and again, and
         // at 100,000 robots the hash set's cache misses were half of
         // counting executions (`runs_at_least`).
-        let newest = self.dead.iter().rev().take(NEWEST_DEAD);
-        newest.into_iter().any(|t| *t == id)
+        self.dead.iter().rev().take(NEWEST_DEAD).any(|t| *t == id)
             || self.dead_set.contains(&id)
             || self.dead_splits.iter().any(|s| s.contains(id))
     }
@@ -645,6 +644,34 @@ mod tests {
         assert_eq!(org.runs(t2, follow), 0);
         org.runs_at_least(TeamId(77), follow, 5);
         assert_eq!(org.runs(TeamId(77), follow), 5);
+        org.check_invariants().unwrap();
+    }
+
+    /// Every dissolved team is dead, the newest (read in place) and the
+    /// older ones (only in the set) alike; a count is kept for a live team
+    /// and raised, never lowered.
+    #[test]
+    fn dissolved_teams_are_dead_past_the_newest_few() {
+        let (walk, lead) = (BehaviorId(1), BehaviorId(2));
+        let mut org = Organization::new(4);
+        let mut gone = Vec::new();
+        for k in 1..=(3 * NEWEST_DEAD as u32) {
+            let a = Assignment(vec![(lead, set(4, &[0, 1]))]);
+            let s = Arc::new(Split::new(TeamId::ROOT, walk, (k, 0), Arc::new(a), |_| Some(0)));
+            org.add_split(s.clone());
+            let t = s.subteams().next().map(|(_, t)| t.id).unwrap();
+            org.runs_at_least(t, lead, 2);
+            org.runs_at_least(t, lead, 1);
+            assert_eq!(org.runs(t, lead), 2, "raised, never lowered");
+            org.dissolve_children(TeamId::ROOT);
+            gone.push(t);
+        }
+        for t in &gone {
+            assert!(org.is_dead(*t) && org.team(*t).is_none());
+            org.runs_at_least(*t, lead, 9);
+            assert_eq!(org.runs(*t, lead), 0, "no count for a dissolved team");
+        }
+        assert!(!org.is_dead(TeamId::ROOT));
         org.check_invariants().unwrap();
     }
 
