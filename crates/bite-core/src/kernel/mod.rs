@@ -591,7 +591,10 @@ impl Kernel {
     /// the tick: a large team's minds tick one after the other, each on
     /// state of its own scattered in memory.
     pub fn prefetch(&self) {
-        crate::hint::prefetch_slice(&self.stack, 4);
+        // The whole stack of a formation (four frames of 168 bytes): a
+        // heartbeat reads every frame's anchor; four lines covered one and
+        // a half frames (10,000 robots: 3-12 % faster with twelve).
+        crate::hint::prefetch_slice(&self.stack, 12);
         self.beliefs.prefetch();
         self.instances.prefetch();
         self.org.prefetch();
