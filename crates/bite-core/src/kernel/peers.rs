@@ -1,18 +1,25 @@
 //! The teammates a robot heard lately ([`Peer`]), by robot.
 //!
-//! A hash map while they are few (a member hears its leaders); a table
+//! Three forms, by how many: two short vectors side by side while they are
+//! a handful (a member hears its leaders), a hash map beyond, a table
 //! indexed by roster place once they are a large share of the roster (a
 //! leader hearing every member of a large team). At 100,000 robots half of
-//! all heartbeats go to the root team's leader: in the hash map each cost
-//! two cache misses (the control bytes, then the entry), in the table one,
-//! at an address known before the heartbeat is handled, so the simulator
-//! asks for it ahead ([`Peers::prefetch`]; docs/performance.md,
-//! "2026-11-28, night: heartbeats at 100,000 robots").
+//! all heartbeats go to the root team's leader and half to members with at
+//! most eight teammates heard: in a hash map each cost two cache misses
+//! (the control bytes, then the entry). The vectors and the table are
+//! where the simulator can ask for them ahead of the heartbeat without
+//! reading memory ([`Peers::prefetch`]; docs/performance.md, "2026-11-28,
+//! night: heartbeats at 100,000 robots").
 
 use super::position::Peer;
 use crate::ids::RobotId;
 use rustc_hash::FxHashMap;
 
+/// The most teammates heard kept in two short vectors (their ids fill a
+/// cache line); a hash map beyond.
+const FEW: usize = 16;
+/// A hash map goes back to vectors once they are this few.
+const FEW_AGAIN: usize = 8;
 /// The fewest teammates heard that make a table (below, a hash map of a
 /// few hundred entries stays in the cache anyway).
 const TABLE_FROM: usize = 1024;
@@ -28,7 +35,9 @@ const MAP_SHARE: usize = 16;
 /// Teammates heard, by robot. Nothing reads them in an order that matters.
 #[derive(Clone, Debug)]
 pub(super) enum Peers {
-    /// Few: by hash.
+    /// A handful: their ids, and what each said at the same place.
+    Few { ids: Vec<RobotId>, peers: Vec<Peer> },
+    /// More: by hash.
     Map(FxHashMap<RobotId, Peer>),
     /// Many: by roster place, and how many are there.
     Table { slots: Vec<Option<Peer>>, len: usize },
@@ -36,7 +45,10 @@ pub(super) enum Peers {
 
 impl Default for Peers {
     fn default() -> Self {
-        Peers::Map(FxHashMap::default())
+        Peers::Few {
+            ids: Vec::new(),
+            peers: Vec::new(),
+        }
     }
 }
 
@@ -44,6 +56,7 @@ impl Peers {
     #[cfg(test)]
     pub fn len(&self) -> usize {
         match self {
+            Peers::Few { ids, .. } => ids.len(),
             Peers::Map(m) => m.len(),
             Peers::Table { len, .. } => *len,
         }
@@ -51,6 +64,7 @@ impl Peers {
 
     pub fn get(&self, r: &RobotId) -> Option<&Peer> {
         match self {
+            Peers::Few { ids, peers } => peers.get(ids.iter().position(|x| x == r)?),
             Peers::Map(m) => m.get(r),
             Peers::Table { slots, .. } => slots.get(r.index())?.as_ref(),
         }
@@ -58,6 +72,7 @@ impl Peers {
 
     pub fn get_mut(&mut self, r: &RobotId) -> Option<&mut Peer> {
         match self {
+            Peers::Few { ids, peers } => peers.get_mut(ids.iter().position(|x| x == r)?),
             Peers::Map(m) => m.get_mut(r),
             Peers::Table { slots, .. } => slots.get_mut(r.index())?.as_mut(),
         }
@@ -86,6 +101,19 @@ impl Peers {
     /// Keep `p` for `r`, on a roster of `roster_len` robots (checked by the
     /// caller: `r.index() < roster_len`).
     pub fn insert(&mut self, r: RobotId, p: Peer, roster_len: usize) {
+        if let Some(q) = self.get_mut(&r) {
+            *q = p;
+            return;
+        }
+        if let Peers::Few { ids, peers } = self {
+            if ids.len() < FEW {
+                ids.push(r);
+                peers.push(p);
+                return;
+            }
+            let m = ids.drain(..).zip(peers.drain(..)).collect();
+            *self = Peers::Map(m);
+        }
         if let Peers::Map(m) = self {
             let n = m.len() + 1;
             if n >= TABLE_FROM && n * TABLE_SHARE >= roster_len && r.index() < roster_len {
@@ -102,6 +130,7 @@ impl Peers {
             }
         }
         match self {
+            Peers::Few { .. } => {}
             Peers::Map(m) => {
                 m.insert(r, p);
             }
@@ -117,6 +146,7 @@ impl Peers {
     /// Each teammate heard and what it said, in no order that matters.
     pub fn iter(&self) -> Box<dyn Iterator<Item = (RobotId, &Peer)> + '_> {
         match self {
+            Peers::Few { ids, peers } => Box::new(ids.iter().copied().zip(peers)),
             Peers::Map(m) => Box::new(m.iter().map(|(r, p)| (*r, p))),
             Peers::Table { slots, .. } => Box::new(
                 (slots.iter().enumerate())
@@ -126,13 +156,32 @@ impl Peers {
     }
 
     /// Keep only the teammates `keep` says to, then give back room: a
-    /// table that became sparse goes back to a hash map, a hash map that
-    /// shrank gives back most of its room.
+    /// table that became sparse goes back to a hash map, a hash map of a
+    /// handful back to vectors, a hash map that shrank gives back most of
+    /// its room.
     pub fn retain(&mut self, mut keep: impl FnMut(RobotId, &Peer) -> bool) {
         match self {
+            Peers::Few { ids, peers } => {
+                let mut i = 0;
+                while i < ids.len() {
+                    if keep(ids[i], &peers[i]) {
+                        i += 1;
+                    } else {
+                        ids.swap_remove(i);
+                        peers.swap_remove(i);
+                    }
+                }
+                if peers.capacity() > 2 * peers.len() + 1 {
+                    ids.shrink_to_fit();
+                    peers.shrink_to_fit();
+                }
+            }
             Peers::Map(m) => {
                 m.retain(|r, p| keep(*r, p));
-                if m.capacity() > 4 * m.len() + 4 {
+                if m.len() <= FEW_AGAIN {
+                    let (ids, peers) = m.drain().unzip();
+                    *self = Peers::Few { ids, peers };
+                } else if m.capacity() > 4 * m.len() + 4 {
                     m.shrink_to_fit();
                 }
             }
@@ -154,11 +203,19 @@ impl Peers {
     }
 
     /// Ask for `r`'s entry to be brought into the cache ahead of its
-    /// heartbeat (a hint; only a table knows where an entry is without
-    /// reading memory).
+    /// heartbeat (a hint): a table's entry, or a handful's ids and the
+    /// first two entries (a member mostly hears its one or two leaders,
+    /// the first it heard); a hash map's place is known only by reading it.
     pub fn prefetch(&self, r: RobotId) {
-        if let Peers::Table { slots, .. } = self {
-            crate::hint::prefetch_lines(slots.as_ptr().wrapping_add(r.index()), 2);
+        match self {
+            Peers::Few { ids, peers } => {
+                crate::hint::prefetch_slice(ids, 1);
+                crate::hint::prefetch_slice(peers, 4);
+            }
+            Peers::Map(_) => {}
+            Peers::Table { slots, .. } => {
+                crate::hint::prefetch_lines(slots.as_ptr().wrapping_add(r.index()), 2);
+            }
         }
     }
 }
@@ -178,18 +235,17 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(ProptestConfig::with_cases(48))]
         /// The same answers as a map, whatever the inserts and removals,
-        /// across the switches to a table and back (a small roster and
-        /// small thresholds are not needed: a roster of `TABLE_FROM` makes
-        /// a table from the first quarter heard).
+        /// across the switches between the three forms (a roster of 1,200:
+        /// a table once 1,024 are heard within the last 4,000 steps).
         #[test]
         fn answers_as_a_map(
-            ops in proptest::collection::vec((0u32..1200, 0u8..4), 0..4000),
+            ops in proptest::collection::vec((0u32..1200, 0u8..4), 0..8000),
         ) {
-            let roster = TABLE_FROM + 100;
+            let roster = 1200;
             let mut p = Peers::default();
             let mut map: BTreeMap<u32, u64> = BTreeMap::new();
-            let mut tables = 0;
             for (k, (r, op)) in ops.into_iter().enumerate() {
                 let t = k as u64;
                 match op {
@@ -203,32 +259,42 @@ mod tests {
                         prop_assert_eq!(e.map(|e| e.heard), Some(Time::from_millis(v)));
                     }
                     _ => {
-                        // Forget those heard before `t - 500`.
-                        let cut = t.saturating_sub(500);
+                        // Forget those heard before `t - 4000`.
+                        let cut = t.saturating_sub(4000);
                         p.retain(|_, q| q.heard >= Time::from_millis(cut));
                         map.retain(|_, v| *v >= cut);
                     }
                 }
-                tables += usize::from(matches!(p, Peers::Table { .. }));
-                prop_assert!(tables == 0 || map.len() >= roster / MAP_SHARE || matches!(p, Peers::Map(_)));
+                // Each form where its size says, once a retain has looked.
+                if op == 3 {
+                    let n = map.len();
+                    match &p {
+                        Peers::Few { .. } => prop_assert!(n <= FEW),
+                        Peers::Map(_) => prop_assert!(n > FEW_AGAIN),
+                        Peers::Table { .. } => prop_assert!(n * MAP_SHARE >= roster),
+                    }
+                }
                 prop_assert_eq!(p.len(), map.len());
-                let mut seen: Vec<(u32, Time)> = p.iter().map(|(r, q)| (r.0, q.heard)).collect();
-                seen.sort_unstable_by_key(|(r, _)| *r);
-                let want: Vec<(u32, Time)> =
-                    map.iter().map(|(r, t)| (*r, Time::from_millis(*t))).collect();
-                prop_assert_eq!(seen, want);
-                for r in [0u32, 7, 600, 1199] {
+                for r in [0u32, 7, 600, 1199, r] {
                     prop_assert_eq!(
                         p.get(&RobotId(r)).map(|q| q.heard),
                         map.get(&r).map(|t| Time::from_millis(*t))
                     );
                 }
+                if op != 3 {
+                    continue;
+                }
+                let mut seen: Vec<(u32, Time)> = p.iter().map(|(r, q)| (r.0, q.heard)).collect();
+                seen.sort_unstable_by_key(|(r, _)| *r);
+                let want: Vec<(u32, Time)> =
+                    map.iter().map(|(r, t)| (*r, Time::from_millis(*t))).collect();
+                prop_assert_eq!(seen, want);
             }
         }
     }
 
     /// A leader that hears a quarter of a large roster keeps a table, and
-    /// goes back to a map when most of them go quiet.
+    /// goes back to a map when most of them go quiet, then to vectors.
     #[test]
     fn many_teammates_make_a_table_and_few_a_map_again() {
         let roster = 8 * TABLE_FROM;
@@ -242,6 +308,11 @@ mod tests {
         assert!(matches!(p, Peers::Map(_)));
         assert_eq!(p.len(), 100);
         assert_eq!(p.get(&RobotId(99)).map(|q| q.heard), Some(Time::from_millis(99)));
+        p.retain(|r, _| r.index() < FEW_AGAIN);
+        assert!(matches!(p, Peers::Few { .. }));
+        assert_eq!(p.get(&RobotId(3)).map(|q| q.heard), Some(Time::from_millis(3)));
+        p.retain(|_, _| false);
+        assert_eq!(p.len(), 0);
         // Out of the roster: not kept by a table (the caller checks first).
         p.prefetch(RobotId(u32::MAX));
     }
