@@ -10,8 +10,8 @@
 
 use crate::ids::{BehaviorId, Fnv1a, RobotId, TeamId};
 pub use crate::members::{Assignment, MemberSet, Members};
-use smallvec::SmallVec;
 use litemap::LiteMap;
+use smallvec::SmallVec;
 use std::collections::VecDeque;
 use std::sync::{Arc, OnceLock};
 
@@ -657,7 +657,9 @@ mod tests {
         let mut gone = Vec::new();
         for k in 1..=(3 * NEWEST_DEAD as u32) {
             let a = Assignment(vec![(lead, set(4, &[0, 1]))]);
-            let s = Arc::new(Split::new(TeamId::ROOT, walk, (k, 0), Arc::new(a), |_| Some(0)));
+            let s = Arc::new(Split::new(TeamId::ROOT, walk, (k, 0), Arc::new(a), |_| {
+                Some(0)
+            }));
             org.add_split(s.clone());
             let t = s.subteams().next().map(|(_, t)| t.id).unwrap();
             org.runs_at_least(t, lead, 2);

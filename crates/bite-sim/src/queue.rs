@@ -223,4 +223,32 @@ mod tests {
             prop_assert_eq!(q.pop(), None);
         }
     }
+
+    /// Looking ahead names the events after the next one in the bucket
+    /// being drained, in order, and nothing past its end (nor what was
+    /// scheduled into the bucket while it drains).
+    #[test]
+    fn ahead_names_the_events_after_the_next() {
+        let mut q = EventQueue::default();
+        let at = |i: u32| Time(2 * BUCKET + u64::from(i));
+        for i in 0..5u32 {
+            q.push(at(i), i);
+        }
+        q.push(Time(10 * BUCKET), 99);
+        assert_eq!(q.peek().map(|(_, _, i)| *i), Some(0));
+        assert_eq!(
+            (q.ahead(0), q.ahead(2), q.ahead(3)),
+            (Some(&1), Some(&3), Some(&4))
+        );
+        assert_eq!(q.ahead(4), None, "a later bucket is not seen");
+        assert_eq!(q.pop(), Some((at(0), 0)));
+        assert_eq!(q.ahead(0), Some(&2));
+        q.push(at(1), 7);
+        assert_eq!(q.peek().map(|(_, _, i)| *i), Some(1));
+        assert_eq!(
+            q.ahead(0),
+            Some(&2),
+            "a hint: what was scheduled meanwhile is not seen"
+        );
+    }
 }

@@ -1461,8 +1461,7 @@ fn robot_event(what: &What) -> Option<RobotId> {
 /// Ask for what an event carries to be brought into the cache: a
 /// heartbeat's position (shared by its whole audience, but heard between
 /// other robots' events, so cold by then), and what its hearer keeps of
-/// its sender (where a large team's leader knows the place without
-/// reading memory: see `Kernel::prefetch_peer`).
+/// its sender (see `Kernel::prefetch_peer`).
 fn prefetch_carried(agents: &[Agent], what: &What) {
     if let What::Peer { pos, to, from } = what {
         bite_core::hint::prefetch_lines(Arc::as_ptr(pos), 2);

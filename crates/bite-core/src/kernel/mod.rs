@@ -415,13 +415,13 @@ pub struct Kernel {
     splits_seen: std::collections::BTreeSet<(RobotId, FrameId)>,
     /// A restarted process: since when it waits to hear where its team is.
     rejoin_since: Option<Time>,
-    /// What each teammate heard from said (see [`position::Peer`]). A
-    /// hash map, or a table by roster place for a leader of a large team
-    /// (`peers.rs`): a team leader looks one up for every heartbeat of
-    /// every member, and a B-tree of 10,000 teammates was a fifth of a
-    /// large team's run in cache misses (keys are roster indices, checked
-    /// before they are inserted; nothing iterates it in an order that
-    /// matters).
+    /// What each teammate heard from said (see [`position::Peer`]): two
+    /// short vectors, a hash map, or a table by roster place for a leader
+    /// of a large team (`peers.rs`). A team leader looks one up for every
+    /// heartbeat of every member, and a B-tree of 10,000 teammates was a
+    /// fifth of a large team's run in cache misses (keys are roster
+    /// indices, checked before they are inserted; nothing iterates it in an
+    /// order that matters).
     peers: peers::Peers,
     /// Teammates not heard for a while (see [`position::Quiet`]).
     quiet: rustc_hash::FxHashMap<RobotId, position::Quiet>,

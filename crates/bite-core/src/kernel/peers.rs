@@ -40,7 +40,10 @@ pub(super) enum Peers {
     /// More: by hash.
     Map(FxHashMap<RobotId, Peer>),
     /// Many: by roster place, and how many are there.
-    Table { slots: Vec<Option<Peer>>, len: usize },
+    Table {
+        slots: Vec<Option<Peer>>,
+        len: usize,
+    },
 }
 
 impl Default for Peers {
@@ -307,10 +310,16 @@ mod tests {
         p.retain(|r, _| r.index() < 100);
         assert!(matches!(p, Peers::Map(_)));
         assert_eq!(p.len(), 100);
-        assert_eq!(p.get(&RobotId(99)).map(|q| q.heard), Some(Time::from_millis(99)));
+        assert_eq!(
+            p.get(&RobotId(99)).map(|q| q.heard),
+            Some(Time::from_millis(99))
+        );
         p.retain(|r, _| r.index() < FEW_AGAIN);
         assert!(matches!(p, Peers::Few { .. }));
-        assert_eq!(p.get(&RobotId(3)).map(|q| q.heard), Some(Time::from_millis(3)));
+        assert_eq!(
+            p.get(&RobotId(3)).map(|q| q.heard),
+            Some(Time::from_millis(3))
+        );
         p.retain(|_, _| false);
         assert_eq!(p.len(), 0);
         // Out of the roster: not kept by a table (the caller checks first).
