@@ -159,9 +159,9 @@ impl Peers {
     }
 
     /// Keep only the teammates `keep` says to, then give back room: a
-    /// table that became sparse goes back to a hash map, a hash map of a
-    /// handful back to vectors, a hash map that shrank gives back most of
-    /// its room.
+    /// table that became sparse goes back to a hash map (or vectors, if a
+    /// handful are left), a hash map of a handful back to vectors, a hash
+    /// map or vectors that shrank give back most of their room.
     pub fn retain(&mut self, mut keep: impl FnMut(RobotId, &Peer) -> bool) {
         match self {
             Peers::Few { ids, peers } => {
@@ -196,10 +196,14 @@ impl Peers {
                     }
                 }
                 if *len * MAP_SHARE < slots.len() {
-                    let m = (slots.iter_mut().enumerate())
-                        .filter_map(|(i, s)| Some((RobotId(i as u32), s.take()?)))
-                        .collect();
-                    *self = Peers::Map(m);
+                    let left = (slots.iter_mut().enumerate())
+                        .filter_map(|(i, s)| Some((RobotId(i as u32), s.take()?)));
+                    *self = if *len <= FEW_AGAIN {
+                        let (ids, peers) = left.unzip();
+                        Peers::Few { ids, peers }
+                    } else {
+                        Peers::Map(left.collect())
+                    };
                 }
             }
         }
@@ -322,6 +326,14 @@ mod tests {
         );
         p.retain(|_, _| false);
         assert_eq!(p.len(), 0);
+        // A table whose teammates nearly all went quiet at once: vectors.
+        for r in 0..(roster / TABLE_SHARE) as u32 {
+            p.insert(RobotId(r), peer(u64::from(r)), roster);
+        }
+        assert!(matches!(p, Peers::Table { .. }));
+        p.retain(|r, _| r.index() < 2);
+        assert!(matches!(p, Peers::Few { .. }));
+        assert_eq!(p.len(), 2);
         // Out of the roster: not kept by a table (the caller checks first).
         p.prefetch(RobotId(u32::MAX));
     }
