@@ -601,8 +601,9 @@ impl Kernel {
     }
 
     /// Ask for what this robot keeps of teammate `from` to be brought into
-    /// the cache ahead of `from`'s heartbeat (a hint: only a large team's
-    /// leader knows where without reading memory; see `peers.rs`).
+    /// the cache ahead of `from`'s heartbeat (a hint: a robot that heard a
+    /// handful, or a large team's leader, knows where without reading
+    /// memory; see `peers.rs`).
     pub fn prefetch_peer(&self, from: RobotId) {
         self.peers.prefetch(from);
     }
