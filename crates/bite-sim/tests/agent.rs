@@ -29,6 +29,14 @@ fn targets(to: &Recipients, from: usize) -> Vec<usize> {
     }
 }
 
+/// The formation mission on the scenario `text` (read as `file`).
+fn formation_on(file: &str, text: &str) -> (Scenario, std::sync::Arc<bite_core::mission::Mission>) {
+    let sc = Scenario::load_str(&file.into(), text).unwrap();
+    let g = graph("formation.yaml", FORMATION);
+    let mission = prepare(&g, &sc, None, &bite_protocols::registry()).unwrap();
+    (sc, mission)
+}
+
 /// Run a team of agents: control ticks at the scenario's rate, messages
 /// delivered at once, kernel timers at their time; in the physical world
 /// the simulator's `World` plays the body (observe / actuate), as
@@ -194,9 +202,7 @@ fn agents_reallocate_when_a_teammate_is_lost() {
 /// other output, in order, to `poll`; `pending` shows them in place.
 #[test]
 fn the_drive_comes_out_of_a_tick_first_and_the_rest_stays_in_order() {
-    let sc = Scenario::load_str(&"formation-physics.yaml".into(), FORMATION_PHYSICS).unwrap();
-    let g = graph("formation.yaml", FORMATION);
-    let mission = prepare(&g, &sc, None, &bite_protocols::registry()).unwrap();
+    let (sc, mission) = formation_on("formation-physics.yaml", FORMATION_PHYSICS);
     let n = mission.graph().roster().len();
     let names: Vec<String> = (0..n as u32)
         .map(|r| mission.graph().roster().name(RobotId(r)))
@@ -251,9 +257,7 @@ fn the_drive_comes_out_of_a_tick_first_and_the_rest_stays_in_order() {
 /// (a large team's robots mostly do not use it between decisions).
 #[test]
 fn a_drained_output_queue_gives_back_its_room_at_most_once_a_second() {
-    let sc = Scenario::load_str(&"formation.yaml".into(), FORMATION_TIMED).unwrap();
-    let g = graph("formation.yaml", FORMATION);
-    let mission = prepare(&g, &sc, None, &bite_protocols::registry()).unwrap();
+    let (sc, mission) = formation_on("formation.yaml", FORMATION_TIMED);
     let n = mission.graph().roster().len();
     let mut agents: Vec<Agent> = (0..n as u32)
         .map(|r| Agent::new(mission.clone(), &sc, RobotId(r), 1).unwrap())
