@@ -258,7 +258,7 @@ fn condition(b: divan::Bencher, src: &str) {
     ] {
         store.set_named(name, v, t, Source::Given);
     }
-    let runs = std::collections::BTreeMap::new();
+    let runs = bite_core::belief::RunCounts::new();
     let env = bite_core::belief::BeliefEnv {
         beliefs: &store,
         runs: &runs,
@@ -276,7 +276,7 @@ fn condition_eval(b: divan::Bencher) {
     let walk = g.find("formation").expect("formation");
     let until = g.behavior(walk).until.clone().expect("until");
     let w = walking();
-    let runs = std::collections::BTreeMap::new();
+    let runs = bite_core::belief::RunCounts::new();
     let env = bite_core::belief::BeliefEnv {
         beliefs: w.kernel.beliefs(),
         runs: &runs,

@@ -249,6 +249,45 @@ impl BeliefStore {
     }
 }
 
+/// How many times each behavior was started directly under one execution
+/// of its parent (what `runs` reads in conditions): a few entries, sorted
+/// by behavior, kept in place.
+///
+/// Every frame on a robot's stack holds one: a B-tree allocated a node at
+/// the first start under each frame, an allocation per decision and a
+/// node per frame of every robot of a large team.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct RunCounts(smallvec::SmallVec<[(crate::ids::BehaviorId, u32); 2]>);
+
+impl RunCounts {
+    /// No behavior started yet.
+    pub fn new() -> RunCounts {
+        RunCounts::default()
+    }
+    /// How many times `b` was started (0 when never).
+    #[inline]
+    pub fn get(&self, b: crate::ids::BehaviorId) -> u32 {
+        self.0.iter().find(|(x, _)| *x == b).map_or(0, |(_, n)| *n)
+    }
+    /// Count one more start of `b`.
+    pub fn bump(&mut self, b: crate::ids::BehaviorId) {
+        match self.0.binary_search_by_key(&b, |(x, _)| *x) {
+            Ok(i) => self.0[i].1 += 1,
+            Err(i) => self.0.insert(i, (b, 1)),
+        }
+    }
+    /// Forget one start of `b` (a start abandoned); never below zero.
+    pub fn unbump(&mut self, b: crate::ids::BehaviorId) {
+        if let Ok(i) = self.0.binary_search_by_key(&b, |(x, _)| *x) {
+            self.0[i].1 = self.0[i].1.saturating_sub(1);
+        }
+    }
+    /// Every behavior started, with its count, in behavior order.
+    pub fn iter(&self) -> impl Iterator<Item = (crate::ids::BehaviorId, u32)> + '_ {
+        self.0.iter().copied()
+    }
+}
+
 /// What a condition reads when evaluated for a behavior `own`: the robot's
 /// beliefs, the run counts of `own`'s parent execution, and time.
 ///
@@ -258,7 +297,7 @@ pub struct BeliefEnv<'a> {
     /// The robot's beliefs.
     pub beliefs: &'a BeliefStore,
     /// Starts of each behavior in the current execution of `own`'s parent.
-    pub runs: &'a BTreeMap<crate::ids::BehaviorId, u32>,
+    pub runs: &'a RunCounts,
     /// Now.
     pub now: Time,
     /// When `own` started (now, for a behavior not started yet).
@@ -281,7 +320,7 @@ impl crate::cond::Env for BeliefEnv<'_> {
         (self.now - self.started).as_secs_f64()
     }
     fn runs(&self, b: Option<crate::ids::BehaviorId>) -> u32 {
-        self.runs.get(&b.unwrap_or(self.own)).copied().unwrap_or(0)
+        self.runs.get(b.unwrap_or(self.own))
     }
 }
 
@@ -305,5 +344,35 @@ mod tests {
         assert_eq!(store.iter().count(), 2);
         assert!(store.clear(a));
         assert!(store.value(a).is_none());
+    }
+
+    proptest::proptest! {
+        /// The same counts as the B-tree it replaces, whatever the starts
+        /// and abandoned starts, past the few kept in place.
+        #[test]
+        fn run_counts_count_as_a_map(ops in proptest::collection::vec((0u32..6, proptest::bool::ANY), 0..60)) {
+            use crate::ids::BehaviorId;
+            let mut counts = RunCounts::new();
+            let mut map: BTreeMap<BehaviorId, u32> = BTreeMap::new();
+            for (b, start) in ops {
+                let b = BehaviorId(b);
+                if start {
+                    counts.bump(b);
+                    *map.entry(b).or_insert(0) += 1;
+                } else {
+                    counts.unbump(b);
+                    if let Some(n) = map.get_mut(&b) {
+                        *n = n.saturating_sub(1);
+                    }
+                }
+                for x in 0..6 {
+                    let x = BehaviorId(x);
+                    proptest::prop_assert_eq!(counts.get(x), map.get(&x).copied().unwrap_or(0));
+                }
+                let listed: Vec<(BehaviorId, u32)> = counts.iter().collect();
+                let expected: Vec<(BehaviorId, u32)> = map.iter().map(|(b, n)| (*b, *n)).collect();
+                proptest::prop_assert_eq!(&listed, &expected);
+            }
+        }
     }
 }

@@ -428,7 +428,7 @@ pub struct Cx<'a> {
     lost: Option<&'a MemberSet>,
     live: u32,
     org: &'a Organization,
-    runs: &'a BTreeMap<BehaviorId, u32>,
+    runs: &'a crate::belief::RunCounts,
     graph: &'a BehaviorGraph,
     memo: Option<&'a ByIdMemo>,
     roster: &'a Roster,
@@ -461,7 +461,7 @@ pub struct CxParts<'a> {
     /// This robot's organization hierarchy.
     pub org: &'a Organization,
     /// Run counts of the candidates' parent execution (what `runs` reads).
-    pub runs: &'a BTreeMap<BehaviorId, u32>,
+    pub runs: &'a crate::belief::RunCounts,
     /// The behavior graph.
     pub graph: &'a BehaviorGraph,
     /// The allocations by id the robots of this process share, when the

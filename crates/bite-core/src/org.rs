@@ -45,6 +45,10 @@ impl Team {
 /// Splits with more subteams than this index their members by robot.
 const INDEXED_SPLIT: usize = 16;
 
+/// Splits of at most this many subteams find one by reading their ids in
+/// order, not by binary search through `by_id`.
+const FEW_SUBTEAMS: usize = 8;
+
 /// The subteams one allocation made, one per child given members, each
 /// linked to its child. Immutable, and shared (behind an `Arc`) by every
 /// robot of a process that applied the same allocation: a simulator
@@ -166,6 +170,11 @@ impl Split {
     /// The position of subteam `id` in the assignment's order.
     #[inline]
     fn index(&self, id: TeamId) -> Option<usize> {
+        // A few subteams (nearly every split): read their ids in a row;
+        // asked of every link and count when the split dissolves.
+        if self.teams.len() <= FEW_SUBTEAMS {
+            return self.teams.iter().position(|(_, t)| t.id == id);
+        }
         self.by_id
             .binary_search_by_key(&id, |i| self.teams[*i as usize].1.id)
             .ok()

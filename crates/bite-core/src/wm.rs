@@ -517,7 +517,7 @@ impl WorldModel {
         };
         let env = BeliefEnv {
             beliefs,
-            runs: &BTreeMap::new(),
+            runs: &crate::belief::RunCounts::new(),
             now,
             started,
             own: b,

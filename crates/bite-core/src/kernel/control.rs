@@ -331,7 +331,7 @@ impl Kernel {
             Some(p) => &mut p.runs,
             None => &mut self.root_runs,
         };
-        *parent_runs.entry(b).or_insert(0) += 1;
+        parent_runs.bump(b);
         let epoch = self.org.start_run(team, b);
         self.org.link(b, team);
         let depth = self.stack.len() as u32;
@@ -347,7 +347,7 @@ impl Kernel {
             urgent: false,
             until_false_at: None,
             born: self.ticks,
-            runs: BTreeMap::new(),
+            runs: crate::belief::RunCounts::new(),
             departed: None,
             anchor,
             alloc_heals: 0,

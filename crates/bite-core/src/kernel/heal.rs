@@ -390,9 +390,7 @@ impl Kernel {
             Some(p) => &mut p.runs,
             None => &mut self.root_runs,
         };
-        if let Some(n) = parent_runs.get_mut(&mine.behavior) {
-            *n = n.saturating_sub(1);
-        }
+        parent_runs.unbump(mine.behavior);
         self.org
             .runs_at_least(team, theirs.behavior, theirs.epoch.saturating_sub(1));
         self.phase = Phase::Run;

@@ -174,7 +174,7 @@ pub struct Frame {
     /// How many times each behavior has been started directly under this
     /// frame, during this execution of it (what `runs` reads in conditions).
     #[serde(skip)]
-    runs: BTreeMap<BehaviorId, u32>,
+    runs: crate::belief::RunCounts,
     /// Teammates known to be done with this behavior: left out of every
     /// instance below it.
     #[serde(skip)]
@@ -402,7 +402,7 @@ pub struct Kernel {
     /// Whether the input being handled is a control tick.
     in_tick: bool,
     /// Run counts of the top-level execution chain (behaviors with no parent frame).
-    root_runs: BTreeMap<BehaviorId, u32>,
+    root_runs: crate::belief::RunCounts,
     next_due: Option<Time>,
     gc_at: Time,
     limits: Limits,
@@ -474,7 +474,7 @@ impl Kernel {
             stack_version: 0,
             ticks: 0,
             in_tick: false,
-            root_runs: BTreeMap::new(),
+            root_runs: crate::belief::RunCounts::new(),
             next_due: None,
             gc_at: Time::ZERO,
             limits: Limits::for_team(n),
