@@ -1341,6 +1341,7 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
                     "peak_rss_kb": peak,
                     "completed": s.completed, "messages": s.messages.total(),
                     "delivered": s.network.delivered, "seed": b.seed,
+                    "side_by_side": report.batched,
                 }));
             }
             points.push((robots, factors));

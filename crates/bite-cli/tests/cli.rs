@@ -535,6 +535,8 @@ fn bench_commands_print_json_rows_for_scripts() {
     assert_eq!(key(&rows[7]), (2.into(), 12.into(), 1.into()));
     // The same run on one thread and on two: the same messages.
     assert_eq!(rows[0]["messages"], rows[4]["messages"]);
+    // One thread handles no robots' events side by side.
+    assert_eq!(rows[0]["side_by_side"]["windows"], 0, "{:?}", rows[0]);
     let picture = std::fs::read_to_string(&svg).expect("the plot");
     assert!(picture.contains("one thread") && picture.contains("2 threads"));
     let _ = std::fs::remove_dir_all(&dir);

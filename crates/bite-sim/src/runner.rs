@@ -207,7 +207,7 @@ pub struct RunReport {
 
 /// Robots' events handled side by side in a run (`Sim::batch`): what a
 /// test of that path checks it took.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Batched {
     /// Windows of robots' events (`Sim::batch`).
     pub windows: u64,
