@@ -64,8 +64,8 @@ pub struct Split {
     /// The subteams with the child each was made for, in the
     /// assignment's order.
     teams: Vec<(BehaviorId, Team)>,
-    /// Indices of `teams`, by team id (inline for a few subteams, as
-    /// below: a split is made at every allocation).
+    /// Indices of `teams`, by team id, for splits of more than
+    /// [`FEW_SUBTEAMS`] (empty otherwise).
     by_id: SmallVec<[u32; 8]>,
     /// Indices of `teams`, by child.
     by_head: SmallVec<[u32; 8]>,
@@ -110,8 +110,12 @@ impl Split {
             };
             teams.push((*child, team));
         }
-        let mut by_id: SmallVec<[u32; 8]> = (0..teams.len() as u32).collect();
-        by_id.sort_by_key(|i| teams[*i as usize].1.id);
+        // A few subteams are found without it (see `Split::index`).
+        let mut by_id: SmallVec<[u32; 8]> = SmallVec::new();
+        if teams.len() > FEW_SUBTEAMS {
+            by_id.extend(0..teams.len() as u32);
+            by_id.sort_by_key(|i| teams[*i as usize].1.id);
+        }
         let mut by_head: SmallVec<[u32; 8]> = (0..teams.len() as u32).collect();
         by_head.sort_by_key(|i| teams[*i as usize].0);
         let mut member_of = Vec::new();
@@ -684,6 +688,27 @@ mod tests {
         }
         assert!(!org.is_dead(TeamId::ROOT));
         org.check_invariants().unwrap();
+    }
+
+    /// A subteam is found by id, and a stranger is not, in a split of a
+    /// few subteams (ids read in a row) as in a larger one (by binary
+    /// search), each robot in the subteam of its child.
+    #[test]
+    fn splits_find_their_subteams_whatever_their_number() {
+        let walk = BehaviorId(1);
+        for k in [1u32, 3, FEW_SUBTEAMS as u32, FEW_SUBTEAMS as u32 + 1, 40] {
+            let n = k as usize;
+            let a = Assignment((0..k).map(|i| (BehaviorId(10 + i), set(n, &[i]))).collect());
+            let s = Split::new(TeamId::ROOT, walk, (1, 0), Arc::new(a), |b| Some(b.0 - 10));
+            assert_eq!(s.len(), n);
+            for (child, t) in s.subteams() {
+                assert_eq!(s.team(t.id).map(|x| x.id), Some(t.id), "{k} subteams");
+                assert_eq!(s.of_head(child).map(|x| x.id), Some(t.id));
+                let r = RobotId(child.0 - 10);
+                assert_eq!(s.subteam_of(r).map(|(b, x)| (b, x.id)), Some((child, t.id)));
+            }
+            assert!(!s.contains(TeamId::ROOT) && !s.contains(TeamId(77)));
+        }
     }
 
     #[test]

@@ -206,7 +206,7 @@ pub struct RunReport {
 }
 
 /// Robots' events handled side by side in a run (`Sim::batch`): what a
-/// test of that path checks it took.
+/// test of that path checks it took, and `bite bench team --json` reports.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Batched {
     /// Windows of robots' events (`Sim::batch`).
