@@ -11,6 +11,7 @@ use crate::interaction::{
     Assignment, ByIdMemo, ChildSlot, Factory, Params, Protocol, Registry, Setup,
 };
 use crate::org::Split;
+use smallvec::SmallVec;
 use std::fmt;
 use std::sync::Arc;
 use std::sync::{Mutex, Weak};
@@ -89,7 +90,11 @@ type Execution = (TeamId, BehaviorId, (u32, u32));
 struct SplitTable {
     /// Looked up by execution and swept, never walked in order: a hash
     /// map (a B-tree of a thousand executions was a tenth of a decision).
-    by_execution: rustc_hash::FxHashMap<Execution, Vec<Weak<Split>>>,
+    /// Nearly always one split per execution (more only where robots of
+    /// this process applied different allocations): kept inline, as a
+    /// list allocated for every split cost an allocation and a free per
+    /// split.
+    by_execution: rustc_hash::FxHashMap<Execution, SmallVec<[Weak<Split>; 1]>>,
     /// Entries (weak pointers) in `by_execution`.
     entries: usize,
     /// Entries left by the last sweep of dead ones.
@@ -139,7 +144,7 @@ impl SplitTable {
                 v.retain(|w| w.strong_count() > 0);
                 !v.is_empty()
             });
-            self.entries = self.by_execution.values().map(Vec::len).sum();
+            self.entries = self.by_execution.values().map(|v| v.len()).sum();
             self.kept = self.entries;
         }
     }
