@@ -775,6 +775,13 @@ impl Kernel {
     /// Record an execution this robot ended (for its heartbeats).
     pub(super) fn note_ended(&mut self, id: FrameId, parent: Option<FrameId>) {
         push_recent(&mut self.recent_ended, Ended { id, parent });
+        // The bits of ids pushed out stay until the filter fills up (a
+        // stale bit only sends a lookup to the list).
+        self.recent_ended_filter |= super::heal::filter_bit(&id);
+        if self.recent_ended_filter.count_ones() as usize > 2 * RECENT {
+            self.recent_ended_filter =
+                (self.recent_ended.iter()).fold(0, |m, e| m | super::heal::filter_bit(&e.id));
+        }
     }
 }
 

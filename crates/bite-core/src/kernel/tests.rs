@@ -1093,3 +1093,28 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
         Some(Time::from_millis(10_100))
     );
 }
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(64))]
+    /// The filter of the executions a robot ended has the bit of every one
+    /// it remembers (a missing bit would make `count_past` miss it), and
+    /// stays sparse as executions come and go.
+    #[test]
+    fn the_filter_of_ended_executions_misses_none(
+        ended in proptest::collection::vec((0u64..6, 0u32..5, 1u32..40), 0..200),
+    ) {
+        let h = Harness::new(
+            "start: root\ndefaults: { terminate: term.local }\nbehaviors:\n  root: { skill: idle, until: done }",
+            1,
+        );
+        let mut k = h.kernels.into_iter().next().expect("one robot");
+        for (team, behavior, epoch) in ended {
+            let id = FrameId { team: TeamId(team), behavior: BehaviorId(behavior), epoch };
+            k.note_ended(id, None);
+            for e in &k.recent_ended {
+                proptest::prop_assert!(k.recent_ended_filter & heal::filter_bit(&e.id) != 0);
+            }
+            proptest::prop_assert!(k.recent_ended_filter.count_ones() as usize <= 2 * position::RECENT + 1);
+        }
+    }
+}
