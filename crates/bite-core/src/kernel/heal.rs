@@ -115,15 +115,7 @@ impl Kernel {
         if self.recent_ended.is_empty() && popped.is_none() {
             return;
         }
-        // Most ids a heartbeat names are not among the executions this
-        // robot ended: a one-word filter of them, kept beside the list,
-        // answers for those without reading it (a leader asks this of
-        // every member's heartbeat).
-        let filter = self.recent_ended_filter | popped.as_ref().map_or(0, filter_bit);
-        let gone = |id: &FrameId| {
-            filter & filter_bit(id) != 0
-                && (popped == Some(*id) || self.recent_ended.iter().any(|e| e.id == *id))
-        };
+        let gone = |id: &FrameId| popped == Some(*id) || self.recent_ended.contains(id);
         let mut never: SmallVec<[FrameId; RECENT]> = SmallVec::new();
         for w in pos.frames.windows(2) {
             if gone(&w[0].id) || never.contains(&w[0].id) {
@@ -440,14 +432,4 @@ impl Kernel {
             }
         }
     }
-}
-
-/// One bit of a 64-bit filter of execution ids (see `count_past`).
-#[inline]
-pub(super) fn filter_bit(id: &FrameId) -> u64 {
-    let h = (id.team.0 ^ (id.team.0 >> 29))
-        .wrapping_add(u64::from(id.behavior.0) << 7)
-        .wrapping_add(u64::from(id.epoch))
-        .wrapping_mul(0x9e37_79b9_7f4a_7c15);
-    1 << (h >> 58)
 }

@@ -408,10 +408,7 @@ pub struct Kernel {
     limits: Limits,
     stats: Stats,
     /// Executions this robot ended recently (for its heartbeats).
-    recent_ended: VecDeque<Ended>,
-    /// A filter of `recent_ended`, a bit per id (`heal::filter_bit`): set
-    /// for every id in it, and for a few that left it.
-    recent_ended_filter: u64,
+    recent_ended: position::RecentEnded,
     /// Executions burned recently, here or by teammates.
     recent_burned: VecDeque<FrameId>,
     /// Splits this robot, as healing leader, has already recorded.
@@ -482,8 +479,7 @@ impl Kernel {
             gc_at: Time::ZERO,
             limits: Limits::for_team(n),
             stats: Stats::default(),
-            recent_ended: VecDeque::new(),
-            recent_ended_filter: 0,
+            recent_ended: position::RecentEnded::default(),
             recent_burned: VecDeque::new(),
             splits_seen: std::collections::BTreeSet::new(),
             rejoin_since: None,

@@ -325,6 +325,54 @@ pub(super) enum Slot {
     Popped,
 }
 
+/// The executions a robot ended recently ([`RECENT`] of them, for its
+/// heartbeats), with a one-word filter of their ids: a bit per id, set for
+/// every one in the list and for a few that left it (a stale bit only
+/// sends a lookup to the list). Most ids a heartbeat names are not in it,
+/// and the filter answers for those without reading it (a leader asks for
+/// every member's heartbeat).
+#[derive(Clone, Debug, Default)]
+pub(super) struct RecentEnded {
+    list: std::collections::VecDeque<Ended>,
+    filter: u64,
+}
+
+impl RecentEnded {
+    pub(super) fn push(&mut self, e: Ended) {
+        let bit = filter_bit(&e.id);
+        push_recent(&mut self.list, e);
+        self.filter |= bit;
+        if self.filter.count_ones() as usize > 2 * RECENT {
+            self.filter = self.list.iter().fold(0, |m, e| m | filter_bit(&e.id));
+        }
+    }
+    /// Whether execution `id` is in the list.
+    #[inline]
+    pub(super) fn contains(&self, id: &FrameId) -> bool {
+        self.filter & filter_bit(id) != 0 && self.list.iter().any(|e| e.id == *id)
+    }
+    pub(super) fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+    pub(super) fn iter(&self) -> impl Iterator<Item = &Ended> {
+        self.list.iter()
+    }
+    #[cfg(test)]
+    pub(super) fn filter(&self) -> u64 {
+        self.filter
+    }
+}
+
+/// One bit of a 64-bit filter of execution ids.
+#[inline]
+fn filter_bit(id: &FrameId) -> u64 {
+    let h = (id.team.0 ^ (id.team.0 >> 29))
+        .wrapping_add(u64::from(id.behavior.0) << 7)
+        .wrapping_add(u64::from(id.epoch))
+        .wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    1 << (h >> 58)
+}
+
 pub(super) fn push_recent<T: PartialEq>(ring: &mut std::collections::VecDeque<T>, id: T) {
     if ring.contains(&id) {
         return;
@@ -774,14 +822,7 @@ impl Kernel {
 
     /// Record an execution this robot ended (for its heartbeats).
     pub(super) fn note_ended(&mut self, id: FrameId, parent: Option<FrameId>) {
-        push_recent(&mut self.recent_ended, Ended { id, parent });
-        // The bits of ids pushed out stay until the filter fills up (a
-        // stale bit only sends a lookup to the list).
-        self.recent_ended_filter |= super::heal::filter_bit(&id);
-        if self.recent_ended_filter.count_ones() as usize > 2 * RECENT {
-            self.recent_ended_filter =
-                (self.recent_ended.iter()).fold(0, |m, e| m | super::heal::filter_bit(&e.id));
-        }
+        self.recent_ended.push(Ended { id, parent });
     }
 }
 

@@ -1111,10 +1111,10 @@ proptest::proptest! {
         for (team, behavior, epoch) in ended {
             let id = FrameId { team: TeamId(team), behavior: BehaviorId(behavior), epoch };
             k.note_ended(id, None);
-            for e in &k.recent_ended {
-                proptest::prop_assert!(k.recent_ended_filter & heal::filter_bit(&e.id) != 0);
+            for e in k.recent_ended.iter() {
+                proptest::prop_assert!(k.recent_ended.contains(&e.id));
             }
-            proptest::prop_assert!(k.recent_ended_filter.count_ones() as usize <= 2 * position::RECENT + 1);
+            proptest::prop_assert!(k.recent_ended.filter().count_ones() as usize <= 2 * position::RECENT + 1);
         }
     }
 }
