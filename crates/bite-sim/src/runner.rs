@@ -692,7 +692,22 @@ impl Sim<'_, '_> {
             let mut out = Vec::with_capacity(mine.len());
             // The earliest timer its events so far may have scheduled.
             let mut due: Option<Time> = None;
+            // What its events carry, on their way into the cache: a
+            // leader hears a window's heartbeats of many members in a
+            // row, each position in allocations of its own.
+            let event = |k: usize| mine.get(k).map(|&(_, j)| &batch[j as usize].2);
+            for k in 0..2 {
+                if let Some(w) = event(k) {
+                    prefetch_heard(a, w);
+                }
+            }
             for (k, &(_, j)) in mine.iter().enumerate() {
+                if let Some(w) = event(k + 2) {
+                    prefetch_heard(a, w);
+                }
+                if let Some(What::Peer { pos, .. }) = event(k + 1) {
+                    pos.prefetch();
+                }
                 let (at, _, what) = &batch[j as usize];
                 let i = robot_of(what).index();
                 out.push((
@@ -1261,7 +1276,14 @@ impl Sim<'_, '_> {
                             }
                             prefetch_carried(&self.agents, w);
                         }
-                        let next = (self.queue.peek()).and_then(|(_, _, w)| robot_event(w));
+                        let next = (self.queue.peek()).and_then(|(_, _, w)| {
+                            // What its position points to (asked for two
+                            // events ahead, so read from the cache now).
+                            if let What::Peer { pos, .. } = w {
+                                pos.prefetch();
+                            }
+                            robot_event(w)
+                        });
                         if let Some(r) = next {
                             self.agents[r.index()].prefetch(Ahead::Agent);
                         }
@@ -1463,11 +1485,18 @@ fn robot_event(what: &What) -> Option<RobotId> {
 /// other robots' events, so cold by then), and what its hearer keeps of
 /// its sender (see `Kernel::prefetch_peer`).
 fn prefetch_carried(agents: &[Agent], what: &What) {
-    if let What::Peer { pos, to, from } = what {
+    if let What::Peer { to, .. } = what
+        && let Some(a) = agents.get(to.index())
+    {
+        prefetch_heard(a, what);
+    }
+}
+
+/// [`prefetch_carried`], for an event of robot `a`'s.
+fn prefetch_heard(a: &Agent, what: &What) {
+    if let What::Peer { pos, from, .. } = what {
         bite_core::hint::prefetch_lines(Arc::as_ptr(pos), 2);
-        if let Some(a) = agents.get(to.index()) {
-            a.kernel().prefetch_peer(*from);
-        }
+        a.kernel().prefetch_peer(*from);
     }
 }
 

@@ -223,6 +223,18 @@ pub struct Position {
 }
 
 impl Position {
+    /// Ask for what a heartbeat's hearer reads of this position beyond its
+    /// own fields (its frames, the executions ended and burned) to be
+    /// brought into the cache: a large team's leader hears every member's
+    /// position, each in allocations of its own (a hint only; see
+    /// [`crate::hint`]).
+    pub fn prefetch(&self) {
+        use crate::hint::prefetch_slice;
+        prefetch_slice(&self.frames, 2);
+        prefetch_slice(&self.ended, 2);
+        prefetch_slice(&self.burned, 1);
+    }
+
     /// True when the sender went through the allocation `key`'s execution:
     /// it ran a child of it (an execution it ended recently ran under that
     /// execution) or runs it with an allocation applied.
