@@ -688,8 +688,10 @@ impl Sim<'_, '_> {
             .zip(groups)
             .collect();
         let (clocks, crashed) = (&self.resolved.clocks, &self.crashed);
-        let work = |(a, mine): &mut (&mut Agent, &[(u32, u32)])| -> Vec<(u32, Done)> {
-            let mut out = Vec::with_capacity(mine.len());
+        // Each robot's results go on its run's list (one list per run of
+        // robots, not one per robot: a window holds thousands, and each
+        // list made on a pool thread was freed on the run's).
+        let work = |(a, mine): &mut (&mut Agent, &[(u32, u32)]), out: &mut Vec<(u32, Done)>| {
             // The earliest timer its events so far may have scheduled.
             let mut due: Option<Time> = None;
             // What its events carry, on their way into the cache: a
@@ -728,7 +730,6 @@ impl Sim<'_, '_> {
                     }
                 }
             }
-            out
         };
         // A few robots are handled here (handing work to the pool and
         // waiting for it costs more).
@@ -736,21 +737,14 @@ impl Sim<'_, '_> {
         self.batched.pooled += u64::from(!few);
         // In runs of robots, with the next robots' minds on their way into
         // the cache (`look_ahead`).
-        let run = |tasks: &mut [(&mut Agent, &[(u32, u32)])]| -> Vec<Vec<(u32, Done)>> {
-            let mut out = Vec::with_capacity(tasks.len());
-            look_ahead(tasks, |(a, _)| &**a, |_, task| out.push(work(task)));
+        let run = |tasks: &mut [(&mut Agent, &[(u32, u32)])]| -> Vec<(u32, Done)> {
+            let mut out = Vec::with_capacity(tasks.iter().map(|(_, mine)| mine.len()).sum());
+            look_ahead(tasks, |(a, _)| &**a, |_, task| work(task, &mut out));
             out
         };
-        let mut side_by_side = || {
-            (tasks.par_chunks_mut(RUN))
-                .map(run)
-                .collect::<Vec<_>>()
-                .into_iter()
-                .flatten()
-                .collect()
-        };
+        let mut side_by_side = || (tasks.par_chunks_mut(RUN)).map(run).collect();
         let results: Vec<Vec<(u32, Done)>> = match &self.pool {
-            _ if few => run(&mut tasks),
+            _ if few => vec![run(&mut tasks)],
             Some(pool) => pool.install(side_by_side),
             None => side_by_side(),
         };
