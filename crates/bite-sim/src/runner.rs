@@ -259,6 +259,43 @@ enum What {
     Inject,
     /// The `k`th new version of the mission is handed to the team.
     Change(usize),
+    /// A message or heartbeat robot `to` has heard, its content dropped
+    /// where it was handled (see [`spend`]); never scheduled.
+    Spent(RobotId),
+}
+
+/// An event as the queue gives it: its time, its place among the events
+/// at that time, the event.
+type Queued = (Time, u64, What);
+
+/// A robot's events of a window ([`Sim::handle_batch`]): its mind, each
+/// event's (robot, place in the window), the events.
+type Task<'a, 'b> = (&'a mut Agent, &'a [(u32, u32)], &'a mut [&'b mut Queued]);
+
+/// The most robots that may hold what a message carries for it to be let
+/// go where it was heard ([`spend`]).
+const SPEND_MAX: usize = 4;
+
+/// What a handled message or heartbeat carries, let go on the thread that
+/// handled it (which has just read it) instead of the run's (which would
+/// fetch it again from that thread's cache only to count it down): a
+/// member's heartbeat to its leaders, a protocol message to one robot. One
+/// held by many robots (a leader's heartbeat to its team) is left to the
+/// run's thread, which holds it already, rather than counted down from
+/// both threads at once. Nothing the run does depends on where this
+/// happens.
+fn spend(what: &mut What) {
+    let held = match what {
+        What::Peer { pos, .. } => Arc::strong_count(pos),
+        What::Deliver { env, .. } => Arc::strong_count(env),
+        What::Inform { msg, .. } => Arc::strong_count(msg),
+        _ => return,
+    };
+    if held <= SPEND_MAX
+        && let Some(to) = robot_event(what)
+    {
+        *what = What::Spent(to);
+    }
 }
 
 struct Sim<'a, 'w> {
@@ -643,7 +680,7 @@ impl Sim<'_, '_> {
             }
             batch.extend(self.queue.pop_keyed());
         }
-        let done = self.handle_batch(&batch);
+        let done = self.handle_batch(&mut batch);
         self.batched.windows += 1;
         self.batched.events += batch.len() as u64;
         self.batched.later += done.iter().filter(|d| matches!(d, Done::Later)).count() as u64;
@@ -674,58 +711,64 @@ impl Sim<'_, '_> {
 
     /// The minds' part of a batch of robots' events ([`Sim::batch`]),
     /// side by side by robot, each robot's events in order.
-    fn handle_batch(&mut self, batch: &[(Time, u64, What)]) -> Vec<Done> {
+    fn handle_batch(&mut self, batch: &mut [(Time, u64, What)]) -> Vec<Done> {
         use rayon::prelude::*;
         // (robot, place in the batch): by robot, each robot's in order.
         let mut order: Vec<(u32, u32)> = (batch.iter().enumerate())
             .map(|(j, (_, _, what))| (robot_of(what).0, j as u32))
             .collect();
         order.sort_unstable();
+        // The events themselves in the same order, each task's its own
+        // (the handling thread spends what they carry, below).
+        let mut places: Vec<Option<&mut Queued>> = batch.iter_mut().map(Some).collect();
+        let mut events: Vec<&mut Queued> = (order.iter())
+            .filter_map(|&(_, j)| places[j as usize].take())
+            .collect();
+        debug_assert_eq!(events.len(), order.len());
         let groups: Vec<&[(u32, u32)]> = order.chunk_by(|a, b| a.0 == b.0).collect();
         let robots: Vec<usize> = groups.iter().map(|g| g[0].0 as usize).collect();
-        let mut tasks: Vec<(&mut Agent, &[(u32, u32)])> = pick_mut(&mut self.agents, &robots)
+        let mut tasks: Vec<Task<'_, '_>> = pick_mut(&mut self.agents, &robots)
             .into_iter()
             .zip(groups)
+            .zip(events.chunk_by_mut(|a, b| robot_of(&a.2) == robot_of(&b.2)))
+            .map(|((a, mine), evs)| (a, mine, evs))
             .collect();
         let (clocks, crashed) = (&self.resolved.clocks, &self.crashed);
         // Each robot's results go on its run's list (one list per run of
         // robots, not one per robot: a window holds thousands, and each
         // list made on a pool thread was freed on the run's).
-        let work = |(a, mine): &mut (&mut Agent, &[(u32, u32)]), out: &mut Vec<(u32, Done)>| {
+        let work = |(a, mine, evs): &mut Task<'_, '_>, out: &mut Vec<(u32, Done)>| {
             // The earliest timer its events so far may have scheduled.
             let mut due: Option<Time> = None;
             // What its events carry, on their way into the cache: a
             // leader hears a window's heartbeats of many members in a
             // row, each position in allocations of its own.
-            let event = |k: usize| mine.get(k).map(|&(_, j)| &batch[j as usize].2);
-            for k in 0..2 {
-                if let Some(w) = event(k) {
-                    prefetch_heard(a, w);
-                }
+            for w in evs.iter().take(2) {
+                prefetch_heard(a, &w.2);
             }
-            for (k, &(_, j)) in mine.iter().enumerate() {
-                if let Some(w) = event(k + 2) {
-                    prefetch_heard(a, w);
+            for k in 0..evs.len() {
+                if let Some(w) = evs.get(k + 2) {
+                    prefetch_heard(a, &w.2);
                 }
-                if let Some(What::Peer { pos, .. }) = event(k + 1) {
+                if let Some((_, _, What::Peer { pos, .. })) = evs.get(k + 1).map(|w| &**w) {
                     pos.prefetch();
                 }
-                let (at, _, what) = &batch[j as usize];
+                let (at, _, what) = &mut *evs[k];
+                let at = *at;
                 let i = robot_of(what).index();
                 out.push((
-                    j,
-                    handle_one(a, local_clock(clocks, i, *at), crashed[i], what),
+                    mine[k].1,
+                    handle_one(a, local_clock(clocks, i, at), crashed[i], what),
                 ));
+                spend(what);
                 // A timer may fall due before its next event here (this
                 // event's, or an earlier one's that is still scheduled and
                 // would find the robot as it was then): that event and the
                 // rest are handled in order later.
-                if let Some(&(_, next)) = mine.get(k + 1) {
-                    let now_due = a
-                        .poll_timeout()
-                        .map(|t| global_clock(clocks, i, t).max(*at));
+                if let Some(next) = evs.get(k + 1) {
+                    let now_due = a.poll_timeout().map(|t| global_clock(clocks, i, t).max(at));
                     due = due.into_iter().chain(now_due).min();
-                    if due.is_some_and(|t| t < batch[next as usize].0) {
+                    if due.is_some_and(|t| t < next.0) {
                         break;
                     }
                 }
@@ -737,9 +780,9 @@ impl Sim<'_, '_> {
         self.batched.pooled += u64::from(!few);
         // In runs of robots, with the next robots' minds on their way into
         // the cache (`look_ahead`).
-        let run = |tasks: &mut [(&mut Agent, &[(u32, u32)])]| -> Vec<(u32, Done)> {
-            let mut out = Vec::with_capacity(tasks.iter().map(|(_, mine)| mine.len()).sum());
-            look_ahead(tasks, |(a, _)| &**a, |_, task| work(task, &mut out));
+        let run = |tasks: &mut [Task<'_, '_>]| -> Vec<(u32, Done)> {
+            let mut out = Vec::with_capacity(tasks.iter().map(|(_, mine, _)| mine.len()).sum());
+            look_ahead(tasks, |(a, _, _)| &**a, |_, task| work(task, &mut out));
             out
         };
         let mut side_by_side = || (tasks.par_chunks_mut(RUN)).map(run).collect();
@@ -1312,6 +1355,8 @@ impl Sim<'_, '_> {
                         self.schedule(next, What::Inject);
                     }
                 }
+                // Made of a handled event only, never scheduled.
+                What::Spent(_) => {}
                 What::Change(k) => {
                     self.handed = self.handed.max(k + 1);
                     let (c, _) = &self.changes[k];
@@ -1468,7 +1513,10 @@ fn look_ahead<T>(items: &mut [T], agent: impl Fn(&T) -> &Agent, mut f: impl FnMu
 /// heartbeat heard or sent, a timer).
 fn robot_event(what: &What) -> Option<RobotId> {
     match what {
-        What::Deliver { to, .. } | What::Inform { to, .. } | What::Peer { to, .. } => Some(*to),
+        What::Deliver { to, .. }
+        | What::Inform { to, .. }
+        | What::Peer { to, .. }
+        | What::Spent(to) => Some(*to),
         What::Timer(r) | What::Beacon(r) => Some(*r),
         _ => None,
     }
