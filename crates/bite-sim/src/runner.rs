@@ -727,11 +727,16 @@ impl Sim<'_, '_> {
         debug_assert_eq!(events.len(), order.len());
         let groups: Vec<&[(u32, u32)]> = order.chunk_by(|a, b| a.0 == b.0).collect();
         let robots: Vec<usize> = groups.iter().map(|g| g[0].0 as usize).collect();
+        // Each robot's events: as many as its group, in the same order.
+        let mut rest: &mut [&mut Queued] = &mut events;
         let mut tasks: Vec<Task<'_, '_>> = pick_mut(&mut self.agents, &robots)
             .into_iter()
             .zip(groups)
-            .zip(events.chunk_by_mut(|a, b| robot_of(&a.2) == robot_of(&b.2)))
-            .map(|((a, mine), evs)| (a, mine, evs))
+            .map(|(a, mine)| {
+                let (evs, tail) = std::mem::take(&mut rest).split_at_mut(mine.len());
+                rest = tail;
+                (a, mine, evs)
+            })
             .collect();
         let (clocks, crashed) = (&self.resolved.clocks, &self.crashed);
         // Each robot's results go on its run's list (one list per run of
