@@ -42,6 +42,69 @@ const PARALLEL_FROM: usize = 64;
 pub(crate) fn parallel(n: usize) -> bool {
     n >= PARALLEL_FROM && rayon::current_thread_index().is_none()
 }
+
+/// How long a pool thread kept awake waits for the run's next turn at
+/// most, in pauses of the processor (a few milliseconds to a few tens:
+/// longer than the run's own thread takes between turns in a large team,
+/// short enough not to hold a core long after the last).
+const AWAKE_SPINS: u32 = 1 << 20;
+
+/// One of the pool's threads kept awake while the run's own thread carries
+/// out what the pool handled, until the pool's next turn. A thread that
+/// fell asleep was woken at the next turn only once the other had
+/// started and handed it work, and on a virtual machine whose idle
+/// processor the host had put to sleep, that took 1.4 ms a turn at
+/// 100,000 robots (a fifth of the turn; docs/performance.md, "2026-11-30:
+/// the second thread woken late"). What OpenMP calls an active wait
+/// policy, bounded. It changes nothing of the run.
+#[derive(Default)]
+struct Awake {
+    /// The waiting thread's signal to stop, if one waits.
+    stop: Option<Arc<std::sync::atomic::AtomicBool>>,
+}
+
+impl Awake {
+    /// Keep one of `pool`'s threads (or the global pool's) awake from now
+    /// until [`Awake::release`] or [`AWAKE_SPINS`].
+    fn keep(&mut self, pool: Option<&rayon::ThreadPool>) {
+        use std::sync::atomic::{AtomicBool, Ordering};
+        self.release();
+        let stop = Arc::new(AtomicBool::new(false));
+        self.stop = Some(stop.clone());
+        let wait = move || {
+            for k in 0..AWAKE_SPINS {
+                if stop.load(Ordering::Relaxed) {
+                    return;
+                }
+                // Now and then the core is offered to whatever else waits
+                // for it (nothing, on a machine the run has to itself).
+                if k % 256 == 255 {
+                    std::thread::yield_now();
+                } else {
+                    std::hint::spin_loop();
+                }
+            }
+        };
+        match pool {
+            Some(p) => p.spawn(wait),
+            None => rayon::spawn(wait),
+        }
+    }
+
+    /// The pool's turn: the thread kept awake goes back to the pool.
+    fn release(&mut self) {
+        if let Some(stop) = self.stop.take() {
+            stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+}
+
+impl Drop for Awake {
+    fn drop(&mut self) {
+        self.release();
+    }
+}
+
 use std::time::Duration;
 
 pub use bite_agent::agent::derive_seed;
@@ -334,6 +397,8 @@ struct Sim<'a, 'w> {
     crash_times: Vec<Time>,
     /// The threads of a large team's control tick (see `RunOptions::pool`).
     pool: Option<Arc<rayon::ThreadPool>>,
+    /// One of the pool's threads kept awake between its turns (see [`Awake`]).
+    awake: Awake,
     /// See `RunOptions::batch_from`.
     batch_from: usize,
     /// See `RunReport::batched`.
@@ -443,6 +508,7 @@ impl Sim<'_, '_> {
             // The run waits for it at the next tick (or has panicked).
             let _ = tx.send(stepped);
         };
+        self.awake.release();
         match &self.pool {
             Some(p) => p.spawn(job),
             None => rayon::spawn(job),
@@ -511,6 +577,9 @@ impl Sim<'_, '_> {
             Some(p) if par => p.install(f),
             _ => f(),
         };
+        if par {
+            self.awake.release();
+        }
         let mut sensed: Vec<Option<Sensed>> = Vec::new();
         if let Some(w) = self.physics.as_mut() {
             let crashed = &self.crashed;
@@ -551,6 +620,11 @@ impl Sim<'_, '_> {
                     .enumerate()
                     .for_each(run)
             });
+            // Until the window of events after the tick (a physical world
+            // steps ahead on a pool thread instead).
+            if self.physics.is_none() {
+                self.awake.keep(self.pool.as_deref());
+            }
         } else {
             (agents.chunks_mut(RUN))
                 .zip(drives.chunks_mut(RUN))
@@ -738,6 +812,17 @@ impl Sim<'_, '_> {
                 (a, mine, evs)
             })
             .collect();
+        // The robot with the most events first: one robot's events stay on
+        // one thread, and a large team's leader hears a heartbeat from
+        // every member it has; handled last, the other thread would wait
+        // for it with nothing left to take. (The order of the tasks changes
+        // nothing else: each result goes back to its event's place.)
+        if let Some(heavy) = (tasks.iter().enumerate())
+            .max_by_key(|(k, (_, mine, _))| (mine.len(), std::cmp::Reverse(*k)))
+            .map(|(k, _)| k)
+        {
+            tasks.swap(0, heavy);
+        }
         let (clocks, crashed) = (&self.resolved.clocks, &self.crashed);
         // Each robot's results go on its run's list (one list per run of
         // robots, not one per robot: a window holds thousands, and each
@@ -791,11 +876,18 @@ impl Sim<'_, '_> {
             out
         };
         let mut side_by_side = || (tasks.par_chunks_mut(RUN)).map(run).collect();
+        if !few {
+            self.awake.release();
+        }
         let results: Vec<Vec<(u32, Done)>> = match &self.pool {
             _ if few => vec![run(&mut tasks)],
             Some(pool) => pool.install(side_by_side),
             None => side_by_side(),
         };
+        if !few {
+            // Kept awake while this thread carries out what they handled.
+            self.awake.keep(self.pool.as_deref());
+        }
         let mut done: Vec<Done> = std::iter::repeat_with(|| Done::Later)
             .take(batch.len())
             .collect();
@@ -1702,6 +1794,7 @@ pub fn run(
         drives: Vec::new(),
         eventful: Vec::new(),
         pool: opts.pool.clone(),
+        awake: Awake::default(),
         batch_from: opts.batch_from.unwrap_or(BATCH_FROM),
         batched: Batched::default(),
         stepping: None,
