@@ -49,14 +49,15 @@ pub(crate) fn parallel(n: usize) -> bool {
 /// short enough not to hold a core long after the last).
 const AWAKE_SPINS: u32 = 1 << 20;
 
-/// One of the pool's threads kept awake while the run's own thread carries
-/// out what the pool handled, until the pool's next turn. A thread that
-/// fell asleep was woken at the next turn only once the other had
-/// started and handed it work, and on a virtual machine whose idle
-/// processor the host had put to sleep, that took 1.4 ms a turn at
-/// 100,000 robots (a fifth of the turn; docs/performance.md, "2026-11-30:
-/// the second thread woken late"). What OpenMP calls an active wait
-/// policy, bounded. It changes nothing of the run.
+/// One of the pool's threads kept awake until the pool's next turn, from
+/// late in the run's own thread's carrying out of a window of events the
+/// pool handled ([`Sim::batch`]). A thread that fell asleep was
+/// woken at the next turn only once the other had started and handed it
+/// work, and on a virtual machine whose idle processor the host had put
+/// to sleep, that took 1.4 ms a turn at 100,000 robots (a fifth of the
+/// turn; docs/performance.md, "2026-11-29, night: the second thread woken
+/// late"). What OpenMP calls an active wait policy, bounded. It changes
+/// nothing of the run.
 #[derive(Default)]
 struct Awake {
     /// The waiting thread's signal to stop, if one waits.
@@ -620,11 +621,6 @@ impl Sim<'_, '_> {
                     .enumerate()
                     .for_each(run)
             });
-            // Until the window of events after the tick (a physical world
-            // steps ahead on a pool thread instead).
-            if self.physics.is_none() {
-                self.awake.keep(self.pool.as_deref());
-            }
         } else {
             (agents.chunks_mut(RUN))
                 .zip(drives.chunks_mut(RUN))
@@ -754,11 +750,20 @@ impl Sim<'_, '_> {
             }
             batch.extend(self.queue.pop_keyed());
         }
+        let pooled = self.batched.pooled;
         let done = self.handle_batch(&mut batch);
+        // The pool's next turn comes once this window is carried out: one
+        // of its threads is woken for it while the last two fifths are
+        // (`Awake`; woken at the start, it spun on a core the run's thread
+        // then shared, no faster at 100,000 robots).
+        let wake_at = (self.batched.pooled > pooled).then(|| batch.len() * 3 / 5);
         self.batched.windows += 1;
         self.batched.events += batch.len() as u64;
         self.batched.later += done.iter().filter(|d| matches!(d, Done::Later)).count() as u64;
-        for ((at, seq, what), done) in batch.into_iter().zip(done) {
+        for (k, ((at, seq, what), done)) in batch.into_iter().zip(done).enumerate() {
+            if wake_at == Some(k) {
+                self.awake.keep(self.pool.as_deref());
+            }
             // What fell due since the last event and before this one (a
             // robot's timer: anything else is at least a window away).
             while let Some((t, s, w)) = self.queue.peek()
@@ -884,10 +889,6 @@ impl Sim<'_, '_> {
             Some(pool) => pool.install(side_by_side),
             None => side_by_side(),
         };
-        if !few {
-            // Kept awake while this thread carries out what they handled.
-            self.awake.keep(self.pool.as_deref());
-        }
         let mut done: Vec<Done> = std::iter::repeat_with(|| Done::Later)
             .take(batch.len())
             .collect();
