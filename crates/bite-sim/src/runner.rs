@@ -806,7 +806,7 @@ impl Sim<'_, '_> {
             .collect();
         // A stable radix sort by robot (the places are in order already):
         // a window holds thousands of events, and comparison sorting them
-        // was a tenth of the run's own thread at 100,000 robots.
+        // took 1.5 % of a 100,000-robot run on two threads (perf), this 0.6 %.
         radsort::sort_by_key(&mut order, |&(robot, _)| robot);
         // The events themselves in the same order, each task's its own
         // (the handling thread spends what they carry, below).
@@ -1927,4 +1927,37 @@ pub fn run(
         violations,
         batched: sim.batched,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Awake;
+    use std::sync::atomic::Ordering;
+
+    #[test]
+    fn a_thread_kept_awake_goes_back_to_the_pool_when_released_or_dropped() {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("a thread pool");
+        let mut awake = Awake::default();
+        awake.keep(Some(&pool));
+        let stop = awake.stop.clone().expect("a thread is kept awake");
+        assert!(!stop.load(Ordering::Relaxed));
+        awake.release();
+        assert!(awake.stop.is_none() && stop.load(Ordering::Relaxed));
+        // The pool's only thread takes the next job once it has stopped
+        // waiting.
+        assert_eq!(pool.install(|| 6 * 7), 42);
+        // Kept again: keeping anew stops the previous wait first, and a
+        // dropped `Awake` stops its own.
+        awake.keep(Some(&pool));
+        let first = awake.stop.clone().expect("kept");
+        awake.keep(Some(&pool));
+        assert!(first.load(Ordering::Relaxed), "the earlier wait is stopped");
+        let second = awake.stop.clone().expect("kept");
+        drop(awake);
+        assert!(second.load(Ordering::Relaxed));
+        assert_eq!(pool.install(|| 1), 1);
+    }
 }
