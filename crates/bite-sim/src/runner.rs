@@ -398,7 +398,9 @@ struct Sim<'a, 'w> {
     crash_times: Vec<Time>,
     /// The threads of a large team's control tick (see `RunOptions::pool`).
     pool: Option<Arc<rayon::ThreadPool>>,
-    /// One of the pool's threads kept awake between its turns (see [`Awake`]).
+    /// One of the pool's threads kept awake for its next turn (see [`Awake`]:
+    /// only a timed world's windows keep one, released by whatever uses
+    /// the pool next).
     awake: Awake,
     /// See `RunOptions::batch_from`.
     batch_from: usize,
@@ -514,7 +516,6 @@ impl Sim<'_, '_> {
             // The run waits for it at the next tick (or has panicked).
             let _ = tx.send(stepped);
         };
-        self.awake.release();
         match &self.pool {
             Some(p) => p.spawn(job),
             None => rayon::spawn(job),
