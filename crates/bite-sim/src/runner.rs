@@ -86,10 +86,7 @@ impl Awake {
                 }
             }
         };
-        match pool {
-            Some(p) => p.spawn(wait),
-            None => rayon::spawn(wait),
-        }
+        spawn_on(pool, wait);
     }
 
     /// The pool's turn: the thread kept awake goes back to the pool.
@@ -97,6 +94,14 @@ impl Awake {
         if let Some(stop) = self.stop.take() {
             stop.store(true, std::sync::atomic::Ordering::Relaxed);
         }
+    }
+}
+
+/// Run `job` on `pool`'s threads (or the global pool's), not waiting for it.
+fn spawn_on(pool: Option<&rayon::ThreadPool>, job: impl FnOnce() + Send + 'static) {
+    match pool {
+        Some(p) => p.spawn(job),
+        None => rayon::spawn(job),
     }
 }
 
@@ -516,10 +521,7 @@ impl Sim<'_, '_> {
             // The run waits for it at the next tick (or has panicked).
             let _ = tx.send(stepped);
         };
-        match &self.pool {
-            Some(p) => p.spawn(job),
-            None => rayon::spawn(job),
-        }
+        spawn_on(self.pool.as_deref(), job);
         self.stepping = Some(Stepping {
             world: rx,
             radio,
@@ -757,13 +759,12 @@ impl Sim<'_, '_> {
             }
             batch.extend(self.queue.pop_keyed());
         }
-        let pooled = self.batched.pooled;
-        self.handle_batch(&mut batch, &mut done);
+        let pooled = self.handle_batch(&mut batch, &mut done);
         // The pool's next turn comes once this window is carried out: one
         // of its threads is woken for it while the last two fifths are
         // (`Awake`; woken at the start, it spun on a core the run's thread
         // then shared, no faster at 100,000 robots).
-        let wake_at = (self.batched.pooled > pooled).then(|| batch.len() * 3 / 5);
+        let wake_at = pooled.then(|| batch.len() * 3 / 5);
         self.batched.windows += 1;
         self.batched.events += batch.len() as u64;
         self.batched.later += done.iter().filter(|d| matches!(d, Done::Later)).count() as u64;
@@ -798,8 +799,9 @@ impl Sim<'_, '_> {
 
     /// The minds' part of a batch of robots' events ([`Sim::batch`]),
     /// side by side by robot, each robot's events in order: `done` gets
-    /// one result per event, in the batch's order.
-    fn handle_batch(&mut self, batch: &mut [(Time, u64, What)], done: &mut Vec<Done>) {
+    /// one result per event, in the batch's order. True if they were
+    /// handed to the pool (not a few robots handled here).
+    fn handle_batch(&mut self, batch: &mut [(Time, u64, What)], done: &mut Vec<Done>) -> bool {
         use rayon::prelude::*;
         // (robot, place in the batch): by robot, each robot's in order.
         let mut order: Vec<(u32, u32)> = (batch.iter().enumerate())
@@ -906,6 +908,7 @@ impl Sim<'_, '_> {
         for (j, d) in results.into_iter().flatten() {
             done[j as usize] = d;
         }
+        !few
     }
 
     /// Hand robot `r` one input at its own clock, then carry out what
