@@ -143,6 +143,30 @@ fn histories_that_diverged_in_a_partition_number_alike_after_it() {
     assert_eq!(v["timeouts"], 0, "{v:#}");
 }
 
+/// Found by the sweep on seeds 61 to 180: cut off alone, r0 ran `walk`
+/// again after `walk` while r1 and r2 ran `search` and then `walk`; the
+/// partition healed with both sides in `walk` #2, but r0 had run `search`
+/// once and the others twice. At the next `search` r0 counted #2, took the
+/// others' old decisions for `search` #2 as its own, and the team parted
+/// for 12 s (splits not healed). A robot that meets a teammate in the same
+/// execution after another predecessor it ran fewer times now counts past
+/// the teammate's runs of it.
+#[test]
+fn histories_that_met_by_different_ways_number_alike_after_it() {
+    let v = run_one(
+        "different-ways",
+        &[
+            "--config",
+            &config(5),
+            "--fault",
+            "partition=r0|r1,r2@12.492s+6.853s",
+            "--seed",
+            "99",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
 /// Found by the sweep: r1, cut off alone, chose `search` after `walk`;
 /// r0 and r2 were voting (`sync.ranked-vote`, r0 calling). When the
 /// partition healed, r2 reached the point with r0's call and r1's notice
@@ -165,6 +189,32 @@ fn a_notice_from_across_a_healed_partition_does_not_part_a_voting_side() {
         ],
     );
     assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
+/// Found by the sweep on seeds it had never run (61 to 180): r2, cut off
+/// alone, decided `search` after `linewalk` by itself (an elected leader of
+/// one) and told r0 and r1 so (`Missed`) as the partition healed. r1, on
+/// r0's side, applied the notice and chose `search`; r0, the leader that
+/// side had elected, had not heard it yet and chose `linewalk`: two robots
+/// that decided together chose apart (agreement broken). A robot no longer
+/// applies a synchronization's notice from a teammate presumed lost that
+/// its instance decides without while it decides with teammates of its
+/// own: its side follows its own protocol, and positions heal the split
+/// with the lone robot. The second run is the same with r0 alone, in the
+/// physical world.
+#[test]
+fn a_notice_from_a_lone_robot_does_not_part_the_side_it_was_cut_from() {
+    for (world, fault, seed) in [
+        (Some("--timed"), "partition=r2|r0,r1@24.498s+21.413s", "115"),
+        (None, "partition=r0|r1,r2@22.074s+20.613s", "155"),
+    ] {
+        let c = config(7);
+        let mut args = vec!["--config", c.as_str()];
+        args.extend(world);
+        args.extend(["--fault", fault, "--seed", seed]);
+        let v = run_one("lone-notice", &args);
+        assert_eq!(v["completed"], true, "{v:#}");
+    }
 }
 
 /// Found by the sweep at 30 % loss: r0, coordinating `linewalk`'s

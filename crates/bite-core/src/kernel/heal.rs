@@ -135,7 +135,8 @@ impl Kernel {
     /// Histories that diverged and met again: a teammate runs the same
     /// execution as this robot, but after a later execution of the same
     /// predecessor (cut off from the team, it ran that predecessor more
-    /// times). The executions between are ones this robot will never join:
+    /// times), or after another predecessor this robot ran fewer times. The
+    /// executions between are ones this robot will never join:
     /// burn them, so that the team numbers the predecessor's next execution
     /// alike and nothing sent for the teammate's extra executions (a
     /// termination it tells this robot it missed) ends this robot's next
@@ -146,19 +147,31 @@ impl Kernel {
             if a.first {
                 continue;
             }
+            // The same predecessor run more times, or another one this
+            // robot ran fewer times than the teammate's count (cut off,
+            // the two took different ways to the same execution: the
+            // teammate's predecessor, and any run of it before, are
+            // behind it for good).
             let Some(b) = pos
                 .frames
                 .iter()
                 .find(|g| g.id == id)
                 .and_then(|g| g.anchor)
-                .filter(|b| !b.first && b.behavior == a.behavior && b.epoch > a.epoch)
+                .filter(|b| {
+                    !b.first
+                        && if b.behavior == a.behavior {
+                            b.epoch > a.epoch
+                        } else {
+                            self.org.runs(id.team, b.behavior) < b.epoch
+                        }
+                })
             else {
                 continue;
             };
-            let done = self.org.runs(id.team, a.behavior);
+            let done = self.org.runs(id.team, b.behavior);
             skip.extend((done + 1..=b.epoch).map(|epoch| FrameId {
                 team: id.team,
-                behavior: a.behavior,
+                behavior: b.behavior,
                 epoch,
             }));
         }

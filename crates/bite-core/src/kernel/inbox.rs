@@ -259,6 +259,27 @@ impl Kernel {
             members,
         } = body
         {
+            // A synchronization that a robot presumed lost (not one that
+            // left the behavior) decided without this robot, while this
+            // robot decides it with teammates of its own: the two sides of
+            // a partition decided apart. This side follows its own
+            // protocol: applied by one of its robots while another, not
+            // told yet, decided by the protocol, the notice parted them
+            // (docs/reliability.md, "Seeds 61 to 180"). Positions heal the
+            // split with the other side (`Kernel::peer`).
+            if key.kind == Kind::Sync
+                && self.ever_lost.contains(from)
+                && !self
+                    .stack
+                    .iter()
+                    .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(from)))
+                && self
+                    .instances
+                    .get(&key)
+                    .is_some_and(|i| i.decides_apart_from(from, self.me))
+            {
+                return;
+            }
             // The team decided without this robot while it was presumed
             // lost: apply the team's decision, whatever this robot's own
             // protocol instance (it may believe itself the coordinator).

@@ -322,6 +322,15 @@ struct Instance {
 }
 
 impl Instance {
+    /// True when this instance decides without `from` and with at least
+    /// one teammate besides `me`: `from` and this side of the team decide
+    /// apart.
+    fn decides_apart_from(&self, from: RobotId, me: RobotId) -> bool {
+        self.excluded.as_ref().is_some_and(|ex| {
+            ex.contains(from) && self.team.members.iter().any(|r| r != me && !ex.contains(r))
+        })
+    }
+
     /// The team's members it decides without, in id order.
     fn excluded_members(&self) -> Vec<RobotId> {
         self.excluded
