@@ -183,11 +183,7 @@ impl Kernel {
             .map(|t| {
                 t.iter()
                     .filter(|r| {
-                        *r != self.me
-                            && !self.lost.contains(*r)
-                            && !above
-                                .iter()
-                                .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(*r)))
+                        *r != self.me && !self.lost.contains(*r) && !Frame::any_left_by(above, *r)
                     })
                     .collect()
             })

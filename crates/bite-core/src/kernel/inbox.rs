@@ -2,7 +2,7 @@
 //! protocol instance, answered for instances already over, or buffered
 //! for instances this robot has not reached yet.
 
-use super::{DEDUP_PER_SENDER, Kernel, Outgoing, Output};
+use super::{DEDUP_PER_SENDER, Frame, Kernel, Outgoing, Output};
 use crate::event::{DropReason, Event};
 use crate::ids::{BehaviorId, RobotId, TeamId};
 use crate::ids::{InstanceKey, Kind};
@@ -269,10 +269,7 @@ impl Kernel {
             // split with the other side (`Kernel::peer`).
             if key.kind == Kind::Sync
                 && self.ever_lost.contains(from)
-                && !self
-                    .stack
-                    .iter()
-                    .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(from)))
+                && !Frame::any_left_by(&self.stack, from)
                 && self
                     .instances
                     .get(&key)

@@ -59,10 +59,7 @@ impl Kernel {
             // Barriers armed but not started take part it again (a member
             // lost once is not left out of its ancestors' terminations for
             // the rest of the mission).
-            let departed = self
-                .stack
-                .iter()
-                .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(r)));
+            let departed = Frame::any_left_by(&self.stack, r);
             for inst in self.instances.values_mut() {
                 if inst.state == State::Armed
                     && !departed

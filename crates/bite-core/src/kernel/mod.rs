@@ -190,6 +190,14 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// True when robot `r` left one of `frames` (it is done with that
+    /// behavior: see `departed`).
+    fn any_left_by(frames: &[Frame], r: RobotId) -> bool {
+        frames
+            .iter()
+            .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(r)))
+    }
+
     fn term_key(&self) -> InstanceKey {
         InstanceKey {
             team: self.team,
