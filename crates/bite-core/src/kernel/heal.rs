@@ -159,11 +159,8 @@ impl Kernel {
                 .and_then(|g| g.anchor)
                 .filter(|b| {
                     !b.first
-                        && if b.behavior == a.behavior {
-                            b.epoch > a.epoch
-                        } else {
-                            self.org.runs(id.team, b.behavior) < b.epoch
-                        }
+                        && (b.behavior != a.behavior || b.epoch > a.epoch)
+                        && self.org.runs(id.team, b.behavior) < b.epoch
                 })
             else {
                 continue;
