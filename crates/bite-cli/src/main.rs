@@ -542,7 +542,7 @@ fn with_config(graph: BehaviorGraph, config: Option<&Path>) -> Result<BehaviorGr
 
 /// `scenarios/<stem>-physics.yaml` (or `<stem>.yaml` for the timed world)
 /// next to a graph or mission file.
-fn sibling_scenario(p: &Path, physical: bool) -> PathBuf {
+pub(crate) fn sibling_scenario(p: &Path, physical: bool) -> PathBuf {
     let stem = p
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())

@@ -60,7 +60,8 @@ pub struct SweepArgs {
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Worlds: `timed`, `physics` (a graph without a physical scenario
-    /// runs in the timed world only).
+    /// runs in the timed world only; a mission, `.rtcl`, and a graph with
+    /// only a physical scenario beside it, in the physical world only).
     #[arg(long, value_delimiter = ',', default_values_t = ["timed".to_string(), "physics".to_string()])]
     worlds: Vec<String>,
     /// Fault classes (default: all): none, loss, heavy-loss, duplication,
@@ -131,6 +132,7 @@ fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
         } else {
             vec![(None, String::new())]
         };
+        let physics_too = a.worlds.iter().any(|w| w == "physics");
         for (cfg, cfg_args) in configs {
             for w in &a.worlds {
                 let timed = match w.as_str() {
@@ -138,13 +140,30 @@ fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
                     "physics" => false,
                     other => anyhow::bail!("unknown world `{other}`: timed or physics"),
                 };
+                // A graph that has only a physical scenario beside it (the
+                // box push, a coverage) would run in an empty timed world
+                // where nothing it waits for ever happens: every run a
+                // stall that says nothing about the team. Its timed world
+                // is skipped (the physical one runs it).
+                if let Some(p) = g.filter(|_| timed && physics_too && a.scenario.is_none())
+                    && !crate::sibling_scenario(p, false).exists()
+                    && crate::sibling_scenario(p, true).exists()
+                {
+                    eprintln!(
+                        "note: {} has a physical scenario only: the timed world is skipped",
+                        p.display()
+                    );
+                    continue;
+                }
                 let (graph, scenario) =
                     load_team(g, None, cfg.as_deref(), a.scenario.as_deref(), None, timed)?;
                 if !timed && scenario.physics.is_none() {
                     continue;
                 }
-                // A given scenario runs in its own world only.
-                if a.scenario.is_some() && timed && scenario.physics.is_some() {
+                // A physical scenario runs in its own world only: a given
+                // one, or the one a mission (`.rtcl`) always runs in (its
+                // "timed" runs would be the physical ones again).
+                if timed && scenario.physics.is_some() {
                     continue;
                 }
                 let mission =
@@ -191,6 +210,13 @@ pub fn cmd_sweep(a: SweepArgs) -> Result<ExitCode> {
             .collect::<Result<_>>()?
     };
     let cases = build_cases(&a)?;
+    if cases.is_empty() {
+        anyhow::bail!(
+            "nothing to run: no graph has a scenario of the worlds asked for ({}); \
+             a mission (`.rtcl`) and a physical scenario run in the `physics` world",
+            a.worlds.join(", ")
+        );
+    }
     let runs = plan(cases.len(), &classes, &seeds);
     let jobs = a.jobs.unwrap_or_else(|| {
         std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
