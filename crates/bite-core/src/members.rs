@@ -935,20 +935,29 @@ pub struct ChildSlot {
     pub min: u32,
     /// Most members it can use.
     pub max: u32,
+    /// Given its minimum before the children that are not critical, when
+    /// the members are too few for every minimum (`critical: true`).
+    pub critical: bool,
 }
 
 /// How many members each child gets when `n` members are dealt to
-/// `children` (graph order): every child first gets its minimum, in child
-/// order, while members last; the rest are shared as evenly as the
-/// children's maximums allow, earlier children taking the remainder.
+/// `children` (graph order): every child first gets its minimum while
+/// members last, the critical children first and then the others, each in
+/// child order; the rest are shared as evenly as the children's maximums
+/// allow, earlier children taking the remainder.
 pub fn member_counts(n: usize, children: &[ChildSlot]) -> Vec<u32> {
     let mut counts = vec![0u32; children.len()];
     let mut left = n as u64;
-    for (i, c) in children.iter().enumerate() {
-        let want = u64::from(c.min.max(1).min(c.max));
-        let take = want.min(left);
-        counts[i] = take as u32;
-        left -= take;
+    for critical in [true, false] {
+        for (i, c) in children.iter().enumerate() {
+            if c.critical != critical {
+                continue;
+            }
+            let want = u64::from(c.min.max(1).min(c.max));
+            let take = want.min(left);
+            counts[i] = take as u32;
+            left -= take;
+        }
     }
     while left > 0 {
         let open = children

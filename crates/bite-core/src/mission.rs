@@ -196,11 +196,12 @@ impl Mission {
                 b.children
                     .iter()
                     .map(|c| {
-                        let (min, max) = graph.behavior(*c).members;
+                        let b = graph.behavior(*c);
                         ChildSlot {
                             behavior: *c,
-                            min,
-                            max,
+                            min: b.members.0,
+                            max: b.members.1,
+                            critical: b.critical,
                         }
                     })
                     .collect()

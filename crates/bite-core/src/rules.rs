@@ -134,6 +134,13 @@ mod tests {
             behavior: BehaviorId(b),
             min,
             max,
+            critical: false,
+        }
+    }
+    fn critical(b: u32, min: u32, max: u32) -> ChildSlot {
+        ChildSlot {
+            critical: true,
+            ..slot(b, min, max)
         }
     }
     fn ids(a: &Assignment) -> Vec<Vec<u32>> {
@@ -162,13 +169,16 @@ mod tests {
     fn by_id_fast_path_matches_the_general_rule() {
         use proptest::prelude::*;
         proptest!(|(bits in proptest::collection::vec(any::<bool>(), 0..300),
-                    slots in proptest::collection::vec((1u32..4, 0u32..6), 1..5))| {
+                    slots in proptest::collection::vec((1u32..4, 0u32..6, any::<bool>()), 1..5))| {
             let n = bits.len();
             let members = MemberSet::from_iter(n, bits.iter().enumerate().filter(|(_, b)| **b).map(|(i, _)| RobotId(i as u32)));
             let children: Vec<ChildSlot> = slots
                 .iter()
                 .enumerate()
-                .map(|(i, (min, extra))| slot(i as u32, *min, if *extra == 5 { u32::MAX } else { min + extra }))
+                .map(|(i, (min, extra, c))| ChildSlot {
+                    critical: *c,
+                    ..slot(i as u32, *min, if *extra == 5 { u32::MAX } else { min + extra })
+                })
                 .collect();
             let fast = assign_by_id(&members, &children);
             let slow = assign_in_order(n, members.iter(), &children);
@@ -184,6 +194,29 @@ mod tests {
             &[slot(1, 1, 1), slot(2, 1, 1), slot(3, 1, 1)],
         );
         assert_eq!(ids(&a), vec![vec![0], vec![1], vec![]]);
+    }
+
+    #[test]
+    fn critical_children_take_their_minimums_first_when_members_are_few() {
+        // The relay's last leg: step aside, then finish the push. Two
+        // robots: one each, dealt in graph order. One robot: the push.
+        let leg = [slot(1, 1, u32::MAX), critical(2, 1, 1)];
+        let a = assign_in_order(2, (0..2).map(RobotId), &leg);
+        assert_eq!(ids(&a), vec![vec![0], vec![1]]);
+        let a = assign_in_order(1, (0..1).map(RobotId), &leg);
+        assert_eq!(ids(&a), vec![vec![], vec![0]]);
+        // Several critical children: in graph order among themselves; the
+        // rest is shared as before.
+        let c = [
+            slot(1, 1, 9),
+            critical(2, 2, 9),
+            slot(3, 1, 9),
+            critical(4, 1, 9),
+        ];
+        assert_eq!(member_counts(2, &c), [0, 2, 0, 0]);
+        assert_eq!(member_counts(3, &c), [0, 2, 0, 1]);
+        assert_eq!(member_counts(4, &c), [1, 2, 0, 1]);
+        assert_eq!(member_counts(9, &c), [2, 3, 2, 2]);
     }
 
     #[test]

@@ -576,6 +576,7 @@ mod tests {
                 behavior: BehaviorId(0),
                 min: SIZES[*s].1,
                 max: SIZES[*s].2,
+                critical: false,
             })
             .collect();
         let mut places = member_counts(u.len(), &slots);

@@ -40,6 +40,7 @@ struct Beh {
     until: Option<String>,
     skill: Option<String>,
     members: Option<MembersSpec>,
+    critical: bool,
     terminate: Option<String>,
     /// A later step of a child's chain (not a child itself).
     chained: bool,
@@ -660,6 +661,7 @@ impl Gen<'_, '_> {
                     for mut kid in kids {
                         if !split {
                             kid.members = None;
+                            kid.critical = false;
                         }
                         out.behs.push(kid);
                     }
@@ -779,6 +781,7 @@ impl Gen<'_, '_> {
                     until,
                     skill: Some(name),
                     members: ch.members,
+                    critical: ch.critical,
                     next: ch
                         .then
                         .first()
@@ -848,6 +851,7 @@ fn entry(b: Beh) -> BehaviorEntry {
             }))
         }),
         members: b.members.map(at),
+        critical: b.critical.then(|| at(true)),
         terminate: b.terminate.map(|p| {
             Box::new(at(BindingSpec {
                 protocol: Some(p),
@@ -951,6 +955,9 @@ impl GeneratedGraph {
             }
             if let Some(m) = &b.members {
                 let _ = writeln!(y, "    members: {}", members_text(m.value));
+            }
+            if b.critical.as_ref().is_some_and(|c| c.value) {
+                y.push_str("    critical: true\n");
             }
             if let Some(u) = &b.until {
                 let _ = writeln!(y, "    until: {}", scalar(&u.value));

@@ -158,6 +158,9 @@ pub struct ChildDef {
     pub description: Option<Template>,
     /// How many robots it takes.
     pub members: Option<MembersSpec>,
+    /// Given its robots before the other children when the team is too
+    /// small for all (`critical` in the graph).
+    pub critical: bool,
     /// One copy per value of `i` = 1..=repeat.
     pub repeat: Option<Template>,
     /// Its own termination condition.
@@ -352,6 +355,7 @@ struct ChildSpec {
     guard: Option<Spanned<String>>,
     description: Option<Spanned<String>>,
     members: Option<Spanned<MembersSpec>>,
+    critical: Option<Spanned<bool>>,
     repeat: Option<Spanned<serde_json::Value>>,
     until: Option<Spanned<String>>,
     skill: Option<Vec<Spanned<serde_json::Value>>>,
@@ -1166,6 +1170,7 @@ fn phase(
                     guard,
                     description,
                     members: ch.members.as_ref().map(|m| m.value),
+                    critical: ch.critical.as_ref().is_some_and(|c| c.value),
                     repeat,
                     until,
                     skill,

@@ -98,6 +98,7 @@ fn brute_force(s: &ProbeSpec) -> f64 {
         behavior: bite_core::ids::BehaviorId(0),
         min: 1,
         max: if s.one_each { 1 } else { u32::MAX },
+        critical: false,
     };
     let counts = member_counts(robots.len(), &vec![slots; items.len()]);
     let places: Vec<usize> = counts

@@ -172,6 +172,7 @@ impl BehaviorGraph {
                 || src(&a.utility) != src(&b.utility)
                 || a.skill != b.skill
                 || a.members != b.members
+                || a.critical != b.critical
                 || !a
                     .bindings
                     .iter()

@@ -138,6 +138,7 @@ struct Cx<'a> {
 #[derive(Default)]
 struct Made {
     member_loc: Option<Loc>,
+    critical_loc: Option<Loc>,
     /// Its messages, in the order they were found.
     diags: Vec<Diagnostic>,
     /// The belief names its conditions read, in order of first appearance:
@@ -265,6 +266,7 @@ impl Made {
             .as_ref()
             .map_or((1, u32::MAX), |m| (m.value.min, m.value.max));
         made.member_loc = spec.members.as_ref().map(|m| Loc::from(m.referenced));
+        made.critical_loc = spec.critical.as_ref().map(|c| Loc::from(c.referenced));
         let skill = spec.skill.as_ref().map(|s| Skill {
             name: s.value.name.clone(),
             params: s.value.params.clone(),
@@ -283,6 +285,7 @@ impl Made {
             utility,
             skill,
             members,
+            critical: spec.critical.as_ref().is_some_and(|c| c.value),
             bindings,
             labels: None,
             loc,
@@ -495,7 +498,7 @@ impl Builder<'_> {
             made.iter().map(|m| m.beliefs.len()).sum()
         };
         let mut symbols = Symbols::with_capacity(reads);
-        let mut member_locs: Vec<Option<Loc>> = Vec::with_capacity(n);
+        let mut member_locs: Vec<[Option<Loc>; 2]> = Vec::with_capacity(n);
         // Behavior i's belief ids in the graph's table, `ids[remap[i]..
         // remap[i + 1]]`, left empty where they are its own numbering.
         let mut ids: Vec<BeliefId> = Vec::with_capacity(reads);
@@ -528,7 +531,7 @@ impl Builder<'_> {
                     .into_iter()
                     .map(|(x, field, loc)| (id, x, field, loc)),
             );
-            member_locs.push(m.member_loc);
+            member_locs.push([m.member_loc, m.critical_loc]);
         }
         // The conditions' belief ids renumbered, side by side.
         let renumber = |(i, b): (usize, &mut Behavior)| {
@@ -1064,7 +1067,9 @@ impl Builder<'_> {
         }
     }
 
-    fn check_members(&mut self, bs: &[Behavior], g: &Edges, locs: &[Option<Loc>]) {
+    /// `members` and `critical` (`locs[i]`: where behavior `i` sets them)
+    /// on a behavior that no allocation point ever deals members to.
+    fn check_members(&mut self, bs: &[Behavior], g: &Edges, locs: &[[Option<Loc>; 2]]) {
         let mut allocated = vec![false; bs.len()];
         for p in 0..bs.len() {
             let children = g.children(p);
@@ -1074,14 +1079,17 @@ impl Builder<'_> {
                 }
             }
         }
-        for (i, loc) in locs.iter().enumerate() {
-            let Some(loc) = loc else { continue };
-            if !allocated[i] {
+        for (i, pair) in locs.iter().enumerate() {
+            if allocated[i] {
+                continue;
+            }
+            for (loc, key) in pair.iter().zip(["members", "critical"]) {
+                let Some(loc) = loc else { continue };
                 self.warn(
                     *loc,
                     "members-unused",
                     format!(
-                        "`{}` sets `members` but is never a child of an allocation point",
+                        "`{}` sets `{key}` but is never a child of an allocation point",
                         bs[i].name
                     ),
                 );

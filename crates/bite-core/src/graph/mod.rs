@@ -110,6 +110,9 @@ pub struct Behavior {
     pub skill: Option<Skill>,
     /// Members it takes when allocated: at least `members.0`, at most `members.1`.
     pub members: (u32, u32),
+    /// A child of an allocation point whose minimum comes first when the
+    /// team is too small for every child's ([`crate::rules::member_counts`]).
+    pub critical: bool,
     /// Bindings of its points, indexed by [`Kind::index`].
     pub bindings: [Option<Box<Binding>>; 3],
     /// Labels of its points (`A`), indexed by [`Kind::index`]; `None` when

@@ -144,6 +144,10 @@ pub struct BehaviorSpec {
     pub skill: Option<Box<Spanned<SkillSpec>>>,
     /// How many members it takes when allocated (`1`, `2..4`, `2..`).
     pub members: Option<Spanned<MembersSpec>>,
+    /// A child of an allocation point that is given its minimum before
+    /// the children that are not, when the team is too small for every
+    /// minimum (`critical: true`).
+    pub critical: Option<Spanned<bool>>,
     /// Binding of its synchronization point (boxed, as the other two: a
     /// binding with its locations is ~400 bytes, and most behaviors have
     /// none; a graph of 100,000 behaviors holds all their specs at once).
@@ -460,6 +464,15 @@ pub(crate) mod fast {
                         MembersSpec::parse(&n.to_string()).ok()?
                     };
                     b.members = Some(at(m, v.loc()));
+                }
+                "critical" => {
+                    let s = scalar(v)?;
+                    let c = match (s.quoted, s.text.as_ref()) {
+                        (false, "true") => true,
+                        (false, "false") => false,
+                        _ => return None,
+                    };
+                    b.critical = Some(at(c, v.loc()));
                 }
                 "sync" => b.sync = Some(Box::new(binding(v)?)),
                 "allocate" => b.allocate = Some(Box::new(binding(v)?)),
