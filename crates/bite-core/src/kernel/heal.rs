@@ -27,6 +27,16 @@ impl Kernel {
         for i in 0..self.stack.len() {
             let f = &self.stack[i];
             let Some(mine) = f.alloc_print() else {
+                // Rejoined under it after a restart, and the team has
+                // allocated it since: take part.
+                if idle_top == Some(i)
+                    && let Some((round, _)) = (pos.frames.iter())
+                        .find(|g| g.id == f.id() && g.state == FrameState::Running)
+                        .and_then(|g| g.alloc)
+                    && self.join_allocation(i, round)
+                {
+                    return;
+                }
                 continue;
             };
             let id = f.id();

@@ -694,8 +694,25 @@ impl Kernel {
             self.phase = Phase::NotStarted;
             return;
         }
-        // Idle under the deepest frame joined: tell its termination that
-        // this robot has no part to wait for.
+        // The team has allocated the deepest frame joined: take part in it
+        // again, as a teammate back from a loss does (the part its previous
+        // incarnation was given is gone with it, and the team may be
+        // waiting on that part).
+        let Some(top) = self.stack.last() else {
+            return;
+        };
+        let allocated = pos
+            .frames
+            .iter()
+            .find(|g| g.id == top.id() && g.state == FrameState::Running)
+            .and_then(|g| g.alloc);
+        if let Some((round, _)) = allocated
+            && self.join_allocation(self.stack.len() - 1, round)
+        {
+            return;
+        }
+        // Else idle under it: tell its termination that this robot has no
+        // part to wait for.
         let Some(top) = self.stack.last() else {
             return;
         };
@@ -711,6 +728,32 @@ impl Kernel {
         if communicates {
             self.term_local_done(key, crate::interaction::LocalEnd::Idle);
         }
+    }
+
+    /// A robot that rejoined under frame `i` (an allocation point it took
+    /// no part in: no subteams of its own) and hears that its team
+    /// allocated it, in round `round`, allocates it again in the next
+    /// round, with itself among the members. The teammates heal to that
+    /// round ([`Kernel::reconcile_allocation`]), as for a member back from
+    /// a loss. False (nothing done) when frame `i` is not such a point or
+    /// none of its children is enabled.
+    pub(super) fn join_allocation(&mut self, i: usize, round: u32) -> bool {
+        let Some(f) = self.stack.get(i) else {
+            return false;
+        };
+        if f.subteams.is_some()
+            || !self.graph().is_alloc_point(f.behavior)
+            || i + 1 != self.stack.len()
+        {
+            return false;
+        }
+        let enabled = self.enabled_children();
+        if enabled.is_empty() {
+            return false;
+        }
+        self.stack[i].allotted = enabled;
+        self.reallocate(i, round.saturating_add(1), &[]);
+        true
     }
 
     /// True when instance `key` (a termination or a synchronization) waits
