@@ -168,6 +168,21 @@ impl Schema {
             Schema::Stop => "stop",
         }
     }
+
+    /// The object it drives to, faces or pushes, if it names one.
+    pub fn object(&self) -> Option<&str> {
+        match self {
+            Schema::MoveToGoal {
+                goal: Target::Object(o),
+                ..
+            }
+            | Schema::Face {
+                target: Target::Object(o),
+            } => Some(o),
+            Schema::Push { object, .. } => Some(object),
+            _ => None,
+        }
+    }
 }
 
 /// A schema in a skill: gain and priority layer.
@@ -902,6 +917,19 @@ pub fn command(
             v: o.v + (want - n * into),
             face: o.face,
         });
+    }
+    // Nothing to do because the object the skill works on was never seen
+    // (a restarted robot has forgotten it; a teammate found it): look
+    // round for it, as `look-around` does, rather than stand still.
+    if outputs.iter().all(|(_, _, o)| o.is_none())
+        && let Some(w) = skill.iter().find(|w| {
+            w.schema
+                .object()
+                .is_some_and(|o| !view.objects.contains_key(o))
+        })
+    {
+        let look = evaluate(&Schema::LookAround, view, &mut State::default(), rng);
+        return fuse(&[(w.layer, 1.0, look)]);
     }
     fuse(&outputs)
 }
