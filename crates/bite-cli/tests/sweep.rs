@@ -287,3 +287,112 @@ fn results_do_not_depend_on_the_number_of_threads() {
     assert_eq!(a.lines().count(), 7 * 3 * 2);
     assert_eq!(a, b);
 }
+
+/// A shipped example, by path (`examples/<name>`).
+fn example(name: &str) -> String {
+    format!("{}/../../examples/{name}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Found by sweeping the box push: with its teammate crashed, the robot
+/// left alone was dealt the first child of the relay's last leg (step
+/// aside) and the push stayed empty, for ever. The push is `critical`: a
+/// team too small for every child fills it first. The same in the
+/// compiled mission (`move`'s pushes are critical in the command library).
+#[test]
+fn a_robot_left_alone_finishes_the_push() {
+    let v = run_one(
+        "alone-box-push",
+        &[
+            &example("box-push.yaml"),
+            "--fault",
+            "crash=r1@29.364s",
+            "--seed",
+            "2",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+    let v = run_one(
+        "alone-red-cube",
+        &[
+            &example("red-cube.rtcl"),
+            "--fault",
+            "crash=r1@29.364s",
+            "--seed",
+            "2",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
+/// Found by sweeping the box push: after a pause the watcher lost sight of
+/// the box behind the pusher, never believed it half way and the wait-all
+/// barrier waited for it for ever. The graph shares what a robot's own
+/// termination condition read (`world_model: sharing: focused`).
+#[test]
+fn a_watcher_that_cannot_see_the_box_is_told() {
+    let v = run_one(
+        "told",
+        &[
+            &example("box-push.yaml"),
+            "--fault",
+            "pause=r0@4.269s+5.274s",
+            "--seed",
+            "3",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
+/// Found by sweeping the compiled box push: the pusher's process
+/// restarted and rejoined its team under the relay's first leg, idling
+/// there as one that had no part in its allocation, while its teammate
+/// watched for a push that no one made. A robot that rejoins under an
+/// allocation its team has made now allocates it again with itself in
+/// it, and the team heals to that round.
+#[test]
+fn a_restarted_pusher_takes_part_in_the_allocation_again() {
+    for (graph, fault, seed) in [
+        ("search-rescue.rtcl", "restart=r0@3.216s+1.245s", "14"),
+        ("box-push.yaml", "restart=r0@12.233s+739ms", "16"),
+    ] {
+        let v = run_one(
+            "restarted",
+            &[&example(graph), "--fault", fault, "--seed", seed],
+        );
+        assert_eq!(v["outcome"], "completed", "{graph} {fault}: {v:#}");
+    }
+}
+
+/// The shipped physical missions under the faults that take a robot away:
+/// no invariant broken, every fault-free run completes, and a mission with
+/// only a physical scenario is not also run in an empty timed world.
+#[test]
+fn the_shipped_physical_missions_break_no_invariant() {
+    let d = scratch("missions");
+    let out = d.join("sweep.jsonl");
+    let v = sweep(
+        &[
+            "--graph",
+            &example("box-push.yaml"),
+            "--graph",
+            &example("search-rescue.rtcl"),
+            "--classes",
+            "none,crash,restart",
+            "--seeds",
+            "1..2",
+        ],
+        &out,
+    );
+    assert_eq!(v["runs"], 2 * 3 * 2, "{v:#}");
+    assert_eq!(v["violations"], 0, "{v:#}");
+    assert_eq!(v["panics"], 0, "{v:#}");
+    let lines = std::fs::read_to_string(&out).expect("the run log");
+    for l in lines.lines() {
+        let r: serde_json::Value = serde_json::from_str(l).expect("a JSON line");
+        let case = r["case"].as_str().expect("a case");
+        assert!(!case.contains("--timed"), "{r}");
+        if r["class"] == "none" {
+            assert_eq!(r["outcome"], "completed", "{r}");
+        }
+    }
+}

@@ -53,6 +53,10 @@ pub const FUSE_WINDOW: Duration = Duration::from_secs(1);
 /// Messages a world model holds back for want of budget, at most.
 pub const MAX_QUEUED: usize = 1024;
 
+/// How often a robot waiting at a behavior's termination point tells its
+/// subteam again what its termination condition read (focused policies).
+pub const RESEND: Duration = Duration::from_secs(1);
+
 /// Confidence a robot gives its own percepts.
 pub const OWN_CONFIDENCE: f32 = 1.0;
 
@@ -179,6 +183,9 @@ pub struct WorldModel {
     given: Vec<Option<(Value, Source)>>,
     /// Conditions already reported while they hold (cleared when they stop).
     informed: BTreeSet<(Reason, Edge)>,
+    /// Termination conditions this robot waits at the point of, and when
+    /// they were last reported ([`RESEND`]).
+    waiting: BTreeMap<Edge, Time>,
     /// Broadcast: beliefs changed since the last share.
     changed: BTreeSet<BeliefId>,
     queue: VecDeque<(Time, Outgoing)>,
@@ -219,6 +226,7 @@ impl WorldModel {
             told: vec![None; beliefs],
             given: vec![None; beliefs],
             informed: BTreeSet::new(),
+            waiting: BTreeMap::new(),
             changed: BTreeSet::new(),
             queue: VecDeque::new(),
             tokens: sharing.budget.unwrap_or(0.0),
@@ -440,6 +448,49 @@ impl WorldModel {
                     found.push((Reason::Obligatory, t, f.behavior, edge, reports));
                 }
             }
+            // Waiting at the termination point of a behavior whose
+            // condition holds here: the report that condition made may
+            // have been lost (a teammate that never believes it never
+            // reaches the point, and the team waits for ever). Told again
+            // every `RESEND` while waiting; a teammate that heard it
+            // already holds a report as new, and ignores it.
+            let mut still = BTreeMap::new();
+            if let Some(f) = kernel.ending()
+                && let Some(t) = org.team(f.team)
+            {
+                let held = self.conditions(
+                    graph,
+                    beliefs,
+                    (now, f.started),
+                    f.behavior,
+                    f.team,
+                    f.epoch,
+                );
+                for (edge, reports) in held.into_iter().filter(|(e, _)| e.3.is_none()) {
+                    let last = self.waiting.get(&edge).copied().unwrap_or(now);
+                    if now - last >= RESEND {
+                        still.insert(edge, now);
+                        let to: Vec<RobotId> = t
+                            .members
+                            .iter()
+                            .filter(|r| *r != self.me && !kernel.lost().contains(*r))
+                            .collect();
+                        if !to.is_empty() {
+                            out.push(Outgoing {
+                                to,
+                                msg: Inform {
+                                    reason: Reason::Obligatory,
+                                    about: Some(f.behavior),
+                                    beliefs: reports,
+                                },
+                            });
+                        }
+                    } else {
+                        still.insert(edge, last);
+                    }
+                }
+            }
+            self.waiting = still;
         }
         if self.sharing.policy.helpful() {
             // Algorithm 3: every subteam, its behaviors not on this stack.

@@ -674,6 +674,17 @@ impl Kernel {
             _ => false,
         }
     }
+    /// The frame whose termination protocol this robot waits on (it ended
+    /// here; the team has not decided yet).
+    pub fn ending(&self) -> Option<&Frame> {
+        match &self.phase {
+            Phase::Terminating {
+                frame,
+                key: Some(_),
+            } => Some(frame),
+            _ => None,
+        }
+    }
     /// A short name of what the kernel is doing.
     pub fn phase_name(&self) -> &'static str {
         match self.phase {
