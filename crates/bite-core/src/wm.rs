@@ -431,6 +431,21 @@ impl WorldModel {
         } else {
             self.changed.clear();
         }
+        // Inform(b, t): to the live members of t other than this robot.
+        let (me, lost) = (self.me, kernel.lost());
+        let inform = |t: &crate::org::Team, reason, about, beliefs| {
+            let to: Vec<RobotId> = (t.members.iter())
+                .filter(|r| *r != me && !lost.contains(*r))
+                .collect();
+            (!to.is_empty()).then_some(Outgoing {
+                to,
+                msg: Inform {
+                    reason,
+                    about: Some(about),
+                    beliefs,
+                },
+            })
+        };
         // (reason, the subteam, the behavior, the edge, the reports).
         let mut found = Vec::new();
         if self.sharing.policy.focused() {
@@ -470,21 +485,7 @@ impl WorldModel {
                     let last = self.waiting.get(&edge).copied().unwrap_or(now);
                     if now - last >= RESEND {
                         still.insert(edge, now);
-                        let to: Vec<RobotId> = t
-                            .members
-                            .iter()
-                            .filter(|r| *r != self.me && !kernel.lost().contains(*r))
-                            .collect();
-                        if !to.is_empty() {
-                            out.push(Outgoing {
-                                to,
-                                msg: Inform {
-                                    reason: Reason::Obligatory,
-                                    about: Some(f.behavior),
-                                    beliefs: reports,
-                                },
-                            });
-                        }
+                        out.extend(inform(t, Reason::Obligatory, f.behavior, reports));
                     } else {
                         still.insert(edge, last);
                     }
@@ -507,27 +508,11 @@ impl WorldModel {
                 }
             }
         }
-        // Inform(b, t): once per condition while it holds, to the live
-        // members of t other than this robot.
+        // Once per condition while it holds.
         for (reason, t, about, edge, reports) in found {
             keep.insert((reason, edge));
-            if !self.informed.insert((reason, edge)) {
-                continue;
-            }
-            let to: Vec<RobotId> = t
-                .members
-                .iter()
-                .filter(|r| *r != self.me && !kernel.lost().contains(*r))
-                .collect();
-            if !to.is_empty() {
-                out.push(Outgoing {
-                    to,
-                    msg: Inform {
-                        reason,
-                        about: Some(about),
-                        beliefs: reports,
-                    },
-                });
+            if self.informed.insert((reason, edge)) {
+                out.extend(inform(t, reason, about, reports));
             }
         }
         // A condition that stopped holding may be reported again when it
