@@ -449,17 +449,14 @@ impl WorldModel {
         // (reason, the subteam, the behavior, the edge, the reports).
         let mut found = Vec::new();
         if self.sharing.policy.focused() {
+            let held = |f: &crate::kernel::Frame| {
+                let at = (now, f.started);
+                self.conditions(graph, beliefs, at, f.behavior, f.team, f.epoch)
+            };
             // Algorithm 2: behaviors on the stack, their own subteams.
             for f in kernel.stack() {
                 let Some(t) = org.team(f.team) else { continue };
-                for (edge, reports) in self.conditions(
-                    graph,
-                    beliefs,
-                    (now, f.started),
-                    f.behavior,
-                    f.team,
-                    f.epoch,
-                ) {
+                for (edge, reports) in held(f) {
                     found.push((Reason::Obligatory, t, f.behavior, edge, reports));
                 }
             }
@@ -473,15 +470,7 @@ impl WorldModel {
             if let Some(f) = kernel.ending()
                 && let Some(t) = org.team(f.team)
             {
-                let held = self.conditions(
-                    graph,
-                    beliefs,
-                    (now, f.started),
-                    f.behavior,
-                    f.team,
-                    f.epoch,
-                );
-                for (edge, reports) in held.into_iter().filter(|(e, _)| e.3.is_none()) {
+                for (edge, reports) in held(f).into_iter().filter(|(e, _)| e.3.is_none()) {
                     let last = self.waiting.get(&edge).copied().unwrap_or(now);
                     if now - last >= RESEND {
                         still.insert(edge, now);
