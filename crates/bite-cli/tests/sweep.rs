@@ -293,6 +293,18 @@ fn example(name: &str) -> String {
     format!("{}/../../examples/{name}", env!("CARGO_MANIFEST_DIR"))
 }
 
+/// `bite run examples/<graph> --fault FAULT --seed SEED` completes without
+/// a deadline and breaks no invariant.
+fn example_completes(graph: &str, fault: &str, seed: &str) {
+    // Its own scratch directory: tests run side by side.
+    let name = format!("{graph}-{}-{seed}", fault.split('=').next().unwrap_or(""));
+    let v = run_one(&name, &[&example(graph), "--fault", fault, "--seed", seed]);
+    assert_eq!(
+        v["outcome"], "completed",
+        "{graph} {fault} seed {seed}: {v:#}"
+    );
+}
+
 /// Found by sweeping the box push: with its teammate crashed, the robot
 /// left alone was dealt the first child of the relay's last leg (step
 /// aside) and the push stayed empty, for ever. The push is `critical`: a
@@ -300,28 +312,8 @@ fn example(name: &str) -> String {
 /// compiled mission (`move`'s pushes are critical in the command library).
 #[test]
 fn a_robot_left_alone_finishes_the_push() {
-    let v = run_one(
-        "alone-box-push",
-        &[
-            &example("box-push.yaml"),
-            "--fault",
-            "crash=r1@29.364s",
-            "--seed",
-            "2",
-        ],
-    );
-    assert_eq!(v["outcome"], "completed", "{v:#}");
-    let v = run_one(
-        "alone-red-cube",
-        &[
-            &example("red-cube.rtcl"),
-            "--fault",
-            "crash=r1@29.364s",
-            "--seed",
-            "2",
-        ],
-    );
-    assert_eq!(v["outcome"], "completed", "{v:#}");
+    example_completes("box-push.yaml", "crash=r1@29.364s", "2");
+    example_completes("red-cube.rtcl", "crash=r1@29.364s", "2");
 }
 
 /// Found by sweeping the box push: after a pause the watcher lost sight of
@@ -330,17 +322,7 @@ fn a_robot_left_alone_finishes_the_push() {
 /// termination condition read (`world_model: sharing: focused`).
 #[test]
 fn a_watcher_that_cannot_see_the_box_is_told() {
-    let v = run_one(
-        "told",
-        &[
-            &example("box-push.yaml"),
-            "--fault",
-            "pause=r0@4.269s+5.274s",
-            "--seed",
-            "3",
-        ],
-    );
-    assert_eq!(v["outcome"], "completed", "{v:#}");
+    example_completes("box-push.yaml", "pause=r0@4.269s+5.274s", "3");
 }
 
 /// Found by sweeping the compiled box push: the pusher's process
@@ -351,16 +333,8 @@ fn a_watcher_that_cannot_see_the_box_is_told() {
 /// it, and the team heals to that round.
 #[test]
 fn a_restarted_pusher_takes_part_in_the_allocation_again() {
-    for (graph, fault, seed) in [
-        ("search-rescue.rtcl", "restart=r0@3.216s+1.245s", "14"),
-        ("box-push.yaml", "restart=r0@12.233s+739ms", "16"),
-    ] {
-        let v = run_one(
-            "restarted",
-            &[&example(graph), "--fault", fault, "--seed", seed],
-        );
-        assert_eq!(v["outcome"], "completed", "{graph} {fault}: {v:#}");
-    }
+    example_completes("search-rescue.rtcl", "restart=r0@3.216s+1.245s", "14");
+    example_completes("box-push.yaml", "restart=r0@12.233s+739ms", "16");
 }
 
 /// The shipped physical missions under the faults that take a robot away:
