@@ -183,6 +183,14 @@ impl Schema {
             _ => None,
         }
     }
+
+    /// True for the schemas that only keep the robot clear of things.
+    pub fn avoids(&self) -> bool {
+        matches!(
+            self,
+            Schema::AvoidObstacle { .. } | Schema::AvoidTeammate { .. }
+        )
+    }
 }
 
 /// A schema in a skill: gain and priority layer.
@@ -510,8 +518,13 @@ pub struct State {
     /// Push: when it started looking round for an object that was not
     /// where it was last seen.
     search: Option<f64>,
+    /// Push: that turn ended without seeing it (lost until seen again).
+    gone: bool,
     /// A detour around a lost teammate's body it is following.
     route: Option<crate::plan::Route>,
+    /// The skill's object was never seen: when this robot started
+    /// searching for it (see [`command`]).
+    lost: Option<f64>,
 }
 
 /// One schema's output, before fusion.
@@ -586,6 +599,11 @@ pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
 /// Seconds a pushing robot turns in place looking for an object that was
 /// not where it was last seen (about a full turn).
 pub const SEARCH_TURN: f64 = 6.0;
+
+/// Seconds a robot searching for an object it never saw wanders between
+/// two turns in place (see [`command`]), and how fast.
+pub const SEARCH_MOVE: f64 = 5.0;
+const SEARCH_SPEED: f64 = 0.15;
 
 /// Cell `rank` of `n` when `region` is split into `n` cells of equal area,
 /// about square: `rows ≈ √(n·h/w)` rows holding `n / rows` or one more
@@ -778,10 +796,19 @@ pub fn evaluate(
             let facing = wrap(to.y.atan2(to.x) - pose.heading).abs() < 0.6;
             if view.in_view.contains(object) {
                 state.search = None;
-            } else if state.search.is_none() && facing && to.length() < offset * 2.0 {
-                state.search = Some(view.skill_time);
+                state.gone = false;
+            } else {
+                // Not where it was last seen, nor anywhere in a full turn
+                // from there: as good as never seen, until it is seen
+                // again (`command` has it search).
+                if state.gone {
+                    return None;
+                }
+                if state.search.is_none() && facing && to.length() < offset * 2.0 {
+                    state.search = Some(view.skill_time);
+                }
             }
-            // A full turn at most, then back to the last known place.
+            // A full turn at most; then it is lost.
             match state.search {
                 Some(t0) if view.skill_time - t0 < SEARCH_TURN => {
                     return Some(Output {
@@ -789,7 +816,11 @@ pub fn evaluate(
                         face: Some(pose.heading + std::f64::consts::FRAC_PI_2),
                     });
                 }
-                Some(_) => state.search = None,
+                Some(_) => {
+                    state.search = None;
+                    state.gone = true;
+                    return None;
+                }
                 None => {}
             }
             let dir = (*goal - o).normalize_or_zero();
@@ -877,6 +908,45 @@ pub fn command(
         .zip(states.iter_mut())
         .map(|(w, s)| (w.layer, w.gain, evaluate(&w.schema, view, s, rng)))
         .collect();
+    // Nothing to do but keep clear, because the object the skill works on
+    // was never seen (a restarted robot has forgotten it; a teammate found
+    // it), or was not found where it was last seen: search for it rather
+    // than stand still or turn on the spot for ever. A turn in place to look
+    // all round, as `look-around` does; then, if it is still unseen (out of
+    // range, or hidden behind a teammate), wander a while and look again.
+    let idle = skill
+        .iter()
+        .zip(&outputs)
+        .all(|(w, (_, _, o))| o.is_none() || w.schema.avoids());
+    let unseen = skill.iter().zip(states.iter()).position(|(w, st)| {
+        st.gone
+            || w.schema
+                .object()
+                .is_some_and(|o| !view.objects.contains_key(o))
+    });
+    match unseen {
+        Some(i) if idle => {
+            let st = &mut states[i];
+            let since = *st.lost.get_or_insert(view.skill_time);
+            let phase = (view.skill_time - since).max(0.0) % (SEARCH_TURN + SEARCH_MOVE);
+            let schema = if phase < SEARCH_TURN {
+                st.wander = None;
+                Schema::LookAround
+            } else {
+                Schema::Wander {
+                    speed: SEARCH_SPEED,
+                    period: 2.0,
+                }
+            };
+            let search = evaluate(&schema, view, st, rng);
+            outputs.push((skill[i].layer, 1.0, search));
+        }
+        _ => {
+            for st in states.iter_mut() {
+                st.lost = None;
+            }
+        }
+    }
     // A schema following a planned detour round a lost teammate's body
     // keeps its clearance by the plan: obstacle avoidance is superposed on
     // it in its layer instead of overriding it (a reading at the edge of
@@ -917,19 +987,6 @@ pub fn command(
             v: o.v + (want - n * into),
             face: o.face,
         });
-    }
-    // Nothing to do because the object the skill works on was never seen
-    // (a restarted robot has forgotten it; a teammate found it): look
-    // round for it, as `look-around` does, rather than stand still.
-    if outputs.iter().all(|(_, _, o)| o.is_none())
-        && let Some(w) = skill.iter().find(|w| {
-            w.schema
-                .object()
-                .is_some_and(|o| !view.objects.contains_key(o))
-        })
-    {
-        let look = evaluate(&Schema::LookAround, view, &mut State::default(), rng);
-        return fuse(&[(w.layer, 1.0, look)]);
     }
     fuse(&outputs)
 }
@@ -1334,5 +1391,107 @@ mod tests {
         view.pose.pos = DVec2::new(4.0, 0.0);
         let out = evaluate(&push, &view, &mut st, &mut || 0.5).expect("active");
         assert!(out.v.length() > 0.0, "{out:?}");
+    }
+
+    /// A pusher that does not find the object where it last saw it, nor
+    /// in a full turn from there, searches for it as for one never seen:
+    /// it looks round, wanders a while, looks again, and pushes once it
+    /// sees it. (It turned on the spot for ever: found by sweeping the
+    /// compiled box push, the box hidden behind the teammate that stepped
+    /// aside.)
+    #[test]
+    fn a_pusher_that_loses_the_object_searches_for_it() {
+        let skill = vec![
+            Weighted {
+                schema: Schema::Push {
+                    object: "box".into(),
+                    goal: DVec2::new(-3.0, 0.0),
+                    offset: 0.4,
+                    speed: 0.2,
+                },
+                gain: 1.0,
+                layer: 2,
+            },
+            Weighted {
+                schema: Schema::AvoidObstacle { range: 0.15 },
+                gain: 1.0,
+                layer: 1,
+            },
+        ];
+        let mut view = View::default();
+        view.pose.pos = DVec2::new(0.6, 0.0);
+        view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
+        let mut states = Vec::new();
+        let mut rng = || 0.5;
+        let mut at = |view: &mut View, t: f64, states: &mut Vec<State>| {
+            view.skill_time = t;
+            command(&skill, view, states, &mut rng)
+        };
+        // Facing the spot, the box not there: a turn in place.
+        let c = at(&mut view, 0.0, &mut states);
+        assert_eq!(c.v, DVec2::ZERO);
+        assert!(c.face.is_some());
+        // The turn ends without it: lost. It looks round ...
+        let c = at(&mut view, SEARCH_TURN + 0.1, &mut states);
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+        assert!(c.face.is_some());
+        // ... then wanders, ...
+        let c = at(&mut view, 2.0 * SEARCH_TURN + 0.2, &mut states);
+        assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
+        // ... and looks round again.
+        let c = at(
+            &mut view,
+            2.0 * SEARCH_TURN + SEARCH_MOVE + 0.3,
+            &mut states,
+        );
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+        // Seen again (somewhere else): it goes to push it.
+        view.objects.insert("box".into(), DVec2::new(3.0, 2.0));
+        view.in_view.insert("box".into());
+        let c = at(
+            &mut view,
+            2.0 * SEARCH_TURN + SEARCH_MOVE + 0.4,
+            &mut states,
+        );
+        assert!(c.v.length() > 0.0, "{c:?}");
+        assert!(states.iter().all(|s| !s.gone && s.lost.is_none()));
+    }
+
+    /// A skill whose object was never seen looks round for it, then
+    /// wanders and looks again, its avoidance still on (a restarted robot
+    /// with its teammate standing between it and the box never saw it
+    /// turning on the spot).
+    #[test]
+    fn a_robot_that_never_saw_the_object_looks_round_then_wanders() {
+        let skill = vec![
+            Weighted {
+                schema: Schema::Face {
+                    target: Target::Object("box".into()),
+                },
+                gain: 1.0,
+                layer: 1,
+            },
+            Weighted {
+                schema: Schema::AvoidTeammate { range: 0.7 },
+                gain: 1.0,
+                layer: 2,
+            },
+        ];
+        let view = |t: f64| View {
+            skill_time: t,
+            ..View::default()
+        };
+        let mut states = Vec::new();
+        let mut rng = || 0.5;
+        let c = command(&skill, &view(10.0), &mut states, &mut rng);
+        assert_eq!(c.v, DVec2::ZERO);
+        assert!(c.face.is_some(), "{c:?}");
+        let c = command(
+            &skill,
+            &view(10.0 + SEARCH_TURN + 1.0),
+            &mut states,
+            &mut rng,
+        );
+        assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
     }
 }
