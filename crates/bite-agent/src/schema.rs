@@ -929,9 +929,24 @@ pub fn command(
             let st = &mut states[i];
             let since = *st.lost.get_or_insert(view.skill_time);
             let phase = (view.skill_time - since).max(0.0) % (SEARCH_TURN + SEARCH_MOVE);
+            // Between turns, toward the nearest teammate farther than a
+            // metre (the team is at work on the object, most likely near
+            // it), else anywhere.
+            let pos = view.pose.pos;
+            let mate = view
+                .mates
+                .values()
+                .map(|m| m.pos)
+                .filter(|p| !view.bodies.iter().any(|b| b.distance(*p) < 0.05))
+                .min_by(|a, b| a.distance(pos).total_cmp(&b.distance(pos)));
             let schema = if phase < SEARCH_TURN {
                 st.wander = None;
                 Schema::LookAround
+            } else if let Some(p) = mate.filter(|p| p.distance(pos) > 1.0) {
+                Schema::MoveToGoal {
+                    goal: Target::Point(p),
+                    speed: SEARCH_SPEED,
+                }
             } else {
                 Schema::Wander {
                     speed: SEARCH_SPEED,
@@ -1455,6 +1470,44 @@ mod tests {
         );
         assert!(c.v.length() > 0.0, "{c:?}");
         assert!(states.iter().all(|s| !s.gone && s.lost.is_none()));
+    }
+
+    /// Between its turns, a robot searching for an object heads for the
+    /// nearest teammate it knows of (the team works on the object, most
+    /// likely near it) while farther than a metre from it; a lost
+    /// teammate's body does not count.
+    #[test]
+    fn a_search_heads_for_the_nearest_teammate() {
+        let skill = vec![Weighted {
+            schema: Schema::Face {
+                target: Target::Object("box".into()),
+            },
+            gain: 1.0,
+            layer: 1,
+        }];
+        let mut view = View::default();
+        // Its first turn, then the search's next leg.
+        let search = |view: &mut View| {
+            let mut states = Vec::new();
+            view.skill_time = 0.0;
+            command(&skill, view, &mut states, &mut || 0.5);
+            view.skill_time = SEARCH_TURN + 1.0;
+            command(&skill, view, &mut states, &mut || 0.5)
+        };
+        let mate = |x: f64, y: f64| Mate {
+            pos: DVec2::new(x, y),
+            heading: None,
+        };
+        view.mates.insert(1, mate(0.0, 3.0));
+        view.mates.insert(2, mate(-2.0, 0.0));
+        // Robot 2, the nearer, is a lost teammate's body.
+        view.bodies.push(DVec2::new(-2.0, 0.0));
+        let c = search(&mut view);
+        assert!(c.v.y > 0.0 && c.v.x.abs() < 1e-9, "{c:?}");
+        // Within a metre of it: it wanders instead.
+        view.pose.pos = DVec2::new(0.0, 2.5);
+        let c = search(&mut view);
+        assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
     }
 
     /// A skill whose object was never seen looks round for it, then

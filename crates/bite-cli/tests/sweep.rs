@@ -374,11 +374,14 @@ fn the_shipped_physical_missions_break_no_invariant() {
 /// Found by sweeping the compiled box push: a pusher that did not find
 /// the box where it last saw it (moved out of its sight, or hidden behind
 /// the teammate that stepped aside) turned on that spot for ever. Now it
-/// searches the hall: a turn, a wander, a turn again. Restarted, jittered
-/// and crashed-teammate runs that stalled so.
+/// searches the hall: a turn, a way toward its nearest teammate (or a
+/// wander), a turn again. Restarted, jittered and crashed-teammate runs
+/// that stalled so; in the last, the restarted robot that never saw the
+/// box wandered away from it until it headed for its teammate instead.
 #[test]
 fn a_pusher_that_loses_the_box_searches_for_it() {
     example_completes("search-rescue.rtcl", "restart=r1@32.996s+3.051s", "5");
+    example_completes("search-rescue.rtcl", "restart=r1@47.977s+2.33s", "45");
     example_completes("red-cube.rtcl", "jitter=200ms", "23");
     example_completes("red-cube.rtcl", "restart=r1@2.03s+1.516s", "48");
     example_completes("box-push.yaml", "crash=r0@18.763s", "4");
