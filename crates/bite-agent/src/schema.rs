@@ -525,6 +525,8 @@ pub struct State {
     /// The skill's object was never seen: when this robot started
     /// searching for it (see [`command`]).
     lost: Option<f64>,
+    /// That search's detour round a lost teammate's body.
+    search_route: Option<crate::plan::Route>,
 }
 
 /// One schema's output, before fusion.
@@ -933,16 +935,17 @@ pub fn command(
             // metre (the team is at work on the object, most likely near
             // it), else anywhere.
             let pos = view.pose.pos;
-            let mate = view
-                .mates
-                .values()
-                .map(|m| m.pos)
-                .filter(|p| !view.bodies.iter().any(|b| b.distance(*p) < 0.05))
-                .min_by(|a, b| a.distance(pos).total_cmp(&b.distance(pos)));
+            let mate = || {
+                view.mates
+                    .values()
+                    .map(|m| m.pos)
+                    .filter(|p| !view.bodies.iter().any(|b| b.distance(*p) < 0.05))
+                    .min_by(|a, b| a.distance(pos).total_cmp(&b.distance(pos)))
+            };
             let schema = if phase < SEARCH_TURN {
                 st.wander = None;
                 Schema::LookAround
-            } else if let Some(p) = mate.filter(|p| p.distance(pos) > 1.0) {
+            } else if let Some(p) = mate().filter(|p| p.distance(pos) > 1.0) {
                 Schema::MoveToGoal {
                     goal: Target::Point(p),
                     speed: SEARCH_SPEED,
@@ -953,7 +956,11 @@ pub fn command(
                     period: 2.0,
                 }
             };
+            // The search's own detour round a lost teammate's body is kept
+            // apart from the schema's (see the detours below).
+            std::mem::swap(&mut st.route, &mut st.search_route);
             let search = evaluate(&schema, view, st, rng);
+            std::mem::swap(&mut st.route, &mut st.search_route);
             outputs.push((skill[i].layer, 1.0, search));
         }
         _ => {
