@@ -602,8 +602,8 @@ pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
 /// not where it was last seen (about a full turn).
 pub const SEARCH_TURN: f64 = 6.0;
 
-/// Seconds a robot searching for an object it never saw wanders between
-/// two turns in place (see [`command`]), and how fast.
+/// Seconds a robot searching for an object it does not know where to find
+/// moves between two turns in place (see [`command`]), and how fast.
 pub const SEARCH_MOVE: f64 = 5.0;
 const SEARCH_SPEED: f64 = 0.15;
 
@@ -813,10 +813,7 @@ pub fn evaluate(
             // A full turn at most; then it is lost.
             match state.search {
                 Some(t0) if view.skill_time - t0 < SEARCH_TURN => {
-                    return Some(Output {
-                        v: DVec2::ZERO,
-                        face: Some(pose.heading + std::f64::consts::FRAC_PI_2),
-                    });
+                    return evaluate(&Schema::LookAround, view, state, rng);
                 }
                 Some(_) => {
                     state.search = None;
@@ -915,7 +912,7 @@ pub fn command(
     // it), or was not found where it was last seen: search for it rather
     // than stand still or turn on the spot for ever. A turn in place to look
     // all round, as `look-around` does; then, if it is still unseen (out of
-    // range, or hidden behind a teammate), wander a while and look again.
+    // range, or hidden behind a teammate), move a while and look again.
     let idle = skill
         .iter()
         .zip(&outputs)
