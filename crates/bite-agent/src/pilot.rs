@@ -650,6 +650,11 @@ impl Pilot {
         self.view.roles = self.roles.clone();
         self.view.skill_time = t - self.skill_started;
         let mut cmd = schema::command(&self.skill, &self.view, &mut self.states, draw);
+        // A trapped robot plans its detour on the arena's map (made the
+        // first time one is needed: its next command follows the detour).
+        if self.map.is_none() && self.states.iter().any(|s| s.trapped.is_some()) {
+            self.map = Some(Arc::new(crate::plan::Map::new(&self.spec)));
+        }
         let reference = self.reference();
         self.link = reference.map(|(l, _)| l);
         cmd.label = schema::Label {

@@ -1,7 +1,9 @@
 //! Routing around what motor schemas alone cannot: a robot's own small
 //! path planner (A* on an occupancy grid of the arena it knows), used only
 //! when the body of a teammate presumed lost — crashed, out of power —
-//! blocks the straight way to where a schema steers.
+//! blocks the straight way to where a schema steers, or when a robot
+//! driving to a goal has been trapped (it made no headway for a while: a
+//! pocket between two obstacles where attraction and repulsion cancel).
 //!
 //! Motor schemas are reactive: attraction to the goal plus repulsion from
 //! what the rays see. A body parked in a doorway makes a local minimum (the
@@ -22,6 +24,13 @@ const MARGIN: f64 = 0.02;
 const NEAR: f64 = 1.0;
 /// Most cells a grid may have (the cell grows for large arenas).
 const MAX_CELLS: f64 = 60_000.0;
+/// A trapped robot's detour keeps its centre this far from walls and
+/// obstacles where it can (beyond the reach of obstacle avoidance, whose
+/// ranges are 0.15-0.55 m from the body's edge): a cell closer costs more
+/// to cross, up to [`CLOSE_COST`] times more at the edge of the inflated
+/// obstacle.
+const WIDE: f64 = 0.45;
+const CLOSE_COST: f64 = 4.0;
 
 /// The static map a pilot plans on: the arena's cells, with those its
 /// centre cannot enter (walls and obstacles, inflated by its radius).
@@ -31,6 +40,9 @@ pub struct Map {
     w: usize,
     h: usize,
     blocked: Vec<bool>,
+    /// Each cell centre's distance to the nearest wall or obstacle, m
+    /// (what a trapped robot's detour keeps clear of; see [`WIDE`]).
+    clearance: Vec<f32>,
     /// Robot radius plus margin: how close the centre may get to things.
     inflate: f64,
     /// Radius of a robot body.
@@ -46,6 +58,7 @@ impl Map {
         let h = ((spec.arena.y / cell).ceil() as usize).max(1);
         let inflate = spec.robot.radius + MARGIN;
         let mut blocked = vec![false; w * h];
+        let mut clearance = vec![0.0f32; w * h];
         for y in 0..h {
             for x in 0..w {
                 let p = DVec2::new((x as f64 + 0.5) * cell, (y as f64 + 0.5) * cell);
@@ -53,17 +66,25 @@ impl Map {
                     || p.y < inflate
                     || p.x > spec.arena.x - inflate
                     || p.y > spec.arena.y - inflate;
-                let hit = spec.obstacles.iter().any(|o| {
+                let mut near = p.x.min(p.y).min(spec.arena.x - p.x).min(spec.arena.y - p.y);
+                let mut hit = false;
+                for o in &spec.obstacles {
                     let local = DVec2::from_angle(-o.angle).rotate(p - o.at);
-                    match o.shape {
-                        Shape::Disc(r) => local.length() < r + inflate,
+                    let d = match o.shape {
+                        Shape::Disc(r) => {
+                            hit |= local.length() < r + inflate;
+                            local.length() - r
+                        }
                         Shape::Box(size) => {
                             let d = (local.abs() - size / 2.0).max(DVec2::ZERO);
-                            d.length() < inflate
+                            hit |= d.length() < inflate;
+                            d.length()
                         }
-                    }
-                });
+                    };
+                    near = near.min(d);
+                }
                 blocked[y * w + x] = wall || hit;
+                clearance[y * w + x] = near.max(0.0) as f32;
             }
         }
         Map {
@@ -71,6 +92,7 @@ impl Map {
             w,
             h,
             blocked,
+            clearance,
             inflate,
             body: spec.robot.radius,
         }
@@ -109,7 +131,18 @@ impl Map {
 
     /// A path from `from` to `to` around the map's obstacles and `bodies`
     /// (points to drive through, `to` last), or `None` if there is none.
-    pub fn route(&self, from: DVec2, to: DVec2, bodies: &[DVec2]) -> Option<Vec<DVec2>> {
+    /// `wide`: keep clear of walls and obstacles where it can (cells within
+    /// [`WIDE`] of one cost more to cross), for a robot trapped near them;
+    /// `sensed`: points where its range sensor hit something the map does
+    /// not hold (an object that can be pushed, a teammate), kept clear of
+    /// as obstacles are.
+    pub fn route(
+        &self,
+        from: DVec2,
+        to: DVec2,
+        bodies: &[DVec2],
+        (sensed, wide): (&[DVec2], bool),
+    ) -> Option<Vec<DVec2>> {
         let n = self.w * self.h;
         let clear = self.body + self.inflate;
         let mut blocked = self.blocked.clone();
@@ -124,6 +157,22 @@ impl Map {
                     }
                     let c = (x as usize, y as usize);
                     if self.centre(c).distance(*b) < clear {
+                        blocked[c.1 * self.w + c.0] = true;
+                    }
+                }
+            }
+        }
+        for p in sensed {
+            let (cx, cy) = self.cell_of(*p);
+            let r = (self.inflate / self.cell).ceil() as isize + 1;
+            for dy in -r..=r {
+                for dx in -r..=r {
+                    let (x, y) = (cx as isize + dx, cy as isize + dy);
+                    if x < 0 || y < 0 || x >= self.w as isize || y >= self.h as isize {
+                        continue;
+                    }
+                    let c = (x as usize, y as usize);
+                    if self.centre(c).distance(*p) < self.inflate {
                         blocked[c.1 * self.w + c.0] = true;
                     }
                 }
@@ -200,11 +249,18 @@ impl Map {
                 {
                     continue;
                 }
-                let step = if dx != 0 && dy != 0 {
+                let mut step = if dx != 0 && dy != 0 {
                     std::f64::consts::SQRT_2
                 } else {
                     1.0
                 };
+                if wide {
+                    let at = self.centre(next);
+                    let c = (sensed.iter())
+                        .map(|p| p.distance(at))
+                        .fold(f64::from(self.clearance[j]), f64::min);
+                    step *= 1.0 + CLOSE_COST * ((WIDE - c) / WIDE).max(0.0);
+                }
                 let c = cost + step;
                 if c < g[j] {
                     g[j] = c;
@@ -255,6 +311,8 @@ pub struct Route {
     goal: DVec2,
     /// The bodies it avoids.
     bodies: Vec<DVec2>,
+    /// Planned for a trapped robot (clear of walls and obstacles).
+    wide: bool,
     /// When it was planned (skill time).
     at: f64,
     /// Points still ahead.
@@ -262,39 +320,50 @@ pub struct Route {
 }
 
 /// Where to steer, from `from`, to get to `to`: `to` itself, unless a lost
-/// teammate's body is in the way — then the next point of a path around
-/// it (re-planned when the goal or the bodies move, and every 2 s). Once
-/// on a detour, the robot keeps to it while a body is within a metre: the
-/// straight way may look clear from inside a tight gap, where reactive
-/// avoidance would push it back out.
+/// teammate's body is in the way, or the robot is `trapped` — then the
+/// next point of a path around them (re-planned when the goal or the
+/// bodies move, and every 2 s; a trapped robot's path keeps clear of walls
+/// and obstacles where it can, and of what its range sensor hits now:
+/// `trapped` holds those points). Once on a detour, the robot keeps to it
+/// while a body is within a metre, or while it is trapped: the straight
+/// way may look clear from inside a tight gap, where reactive avoidance
+/// would push it back out.
 pub fn aim(
     map: Option<&Map>,
     bodies: &[DVec2],
     route: &mut Option<Route>,
     now: f64,
-    from: DVec2,
-    to: DVec2,
+    (from, to): (DVec2, DVec2),
+    trapped: Option<&[DVec2]>,
 ) -> DVec2 {
-    let Some(map) = map.filter(|_| !bodies.is_empty()) else {
+    let (sensed, trapped) = (trapped.unwrap_or_default(), trapped.is_some());
+    let Some(map) = map.filter(|_| trapped || !bodies.is_empty()) else {
         *route = None;
         return to;
     };
     let near = bodies.iter().any(|b| b.distance(from) < NEAR);
-    let keep = route.is_some() && near;
-    if !keep && !map.body_in_the_way(from, to, bodies) {
+    let keep = route.is_some() && (near || trapped);
+    if !keep && !trapped && !map.body_in_the_way(from, to, bodies) {
         *route = None;
         return to;
     }
     let stale = route.as_ref().is_none_or(|r| {
-        r.goal.distance(to) > 0.3 || r.bodies != bodies || now - r.at > 2.0 || now < r.at
+        r.goal.distance(to) > 0.3
+            || r.bodies != bodies
+            || r.wide != trapped
+            || now - r.at > 2.0
+            || now < r.at
     });
     if stale {
-        *route = map.route(from, to, bodies).map(|path| Route {
-            goal: to,
-            bodies: bodies.to_vec(),
-            at: now,
-            path,
-        });
+        *route = map
+            .route(from, to, bodies, (sensed, trapped))
+            .map(|path| Route {
+                goal: to,
+                bodies: bodies.to_vec(),
+                wide: trapped,
+                at: now,
+                path,
+            });
     }
     let Some(r) = route.as_mut() else {
         return to;
@@ -326,7 +395,9 @@ mod tests {
         let body = [DVec2::new(4.87, 1.56)];
         let (from, to) = (DVec2::new(4.76, 1.93), DVec2::new(7.8, 1.5));
         assert!(map.body_in_the_way(from, to, &body));
-        let path = map.route(from, to, &body).expect("a way round");
+        let path = map
+            .route(from, to, &body, (&[], false))
+            .expect("a way round");
         assert_eq!(path.last(), Some(&to));
         for p in &path {
             assert!(p.distance(body[0]) >= 0.2, "{p} too close to the body");
@@ -348,8 +419,8 @@ mod tests {
             &[DVec2::new(2.0, 2.5)],
             &mut route,
             0.0,
-            DVec2::new(1.0, 1.5),
-            to,
+            (DVec2::new(1.0, 1.5), to),
+            None,
         );
         assert_eq!(aim_at, to);
         assert!(route.is_none());
@@ -360,8 +431,58 @@ mod tests {
         let map = Map::new(&corridor());
         let bodies = [DVec2::new(5.5, 1.3), DVec2::new(5.5, 1.7)];
         assert!(
-            map.route(DVec2::new(2.0, 1.5), DVec2::new(7.5, 1.5), &bodies)
-                .is_none()
+            map.route(
+                DVec2::new(2.0, 1.5),
+                DVec2::new(7.5, 1.5),
+                &bodies,
+                (&[], false)
+            )
+            .is_none()
         );
+    }
+
+    /// The pocket of the search-and-rescue hall: a robot south of the
+    /// middle chair and west of the red crate, driving to a box in the
+    /// north-east (the gap between chair and crate is 0.32 m wide: its
+    /// body passes, its obstacle avoidance does not let it).
+    fn hall() -> PhysicsSpec {
+        let text = "scenario: t\nworld: physics\nphysics:\n  arena: [7, 4]\n  robot: { radius: 0.12 }\n  obstacles:\n    - { disc: 0.2, at: [3.2, 1.2] }\n    - { box: [0.3, 0.3], at: [3.8, 0.8] }\n";
+        let sc = crate::Scenario::load_str(&std::sync::Arc::from("t.yaml"), text)
+            .unwrap_or_else(|d| panic!("{d}"));
+        (*sc.physics.expect("physics")).clone()
+    }
+
+    #[test]
+    fn a_trapped_robot_is_routed_round_the_pocket_not_through_the_gap() {
+        let map = Map::new(&hall());
+        let (from, to) = (DVec2::new(3.27, 0.6), DVec2::new(6.3, 3.0));
+        // Through the gap when only the body must fit.
+        let tight = map.route(from, to, &[], (&[], false)).expect("a way");
+        let clear = |path: &[DVec2]| {
+            path.iter()
+                .map(|p| {
+                    let i = map.cell_of(*p);
+                    map.clearance[i.1 * map.w + i.0]
+                })
+                .fold(f32::INFINITY, f32::min)
+        };
+        assert!(clear(&tight) < 0.17, "{}", clear(&tight));
+        // Round the chair or the crate, clear of both, when trapped.
+        let wide = map.route(from, to, &[], (&[], true)).expect("a way");
+        assert_eq!(wide.last(), Some(&to));
+        assert!(clear(&wide) > 0.25, "{}", clear(&wide));
+        let gap = DVec2::new(3.51, 1.03);
+        assert!(wide.iter().all(|p| p.distance(gap) > 0.2), "{wide:?}");
+        // No detour without a body or a trap; one when trapped, which it
+        // keeps while it is.
+        let mut route = None;
+        assert_eq!(aim(Some(&map), &[], &mut route, 0.0, (from, to), None), to);
+        assert!(route.is_none());
+        let next = aim(Some(&map), &[], &mut route, 0.0, (from, to), Some(&[]));
+        assert_ne!(next, to);
+        assert!(next.distance(from) < 0.3);
+        assert!(route.is_some());
+        assert_eq!(aim(Some(&map), &[], &mut route, 1.0, (from, to), None), to);
+        assert!(route.is_none());
     }
 }

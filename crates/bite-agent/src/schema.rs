@@ -527,6 +527,46 @@ pub struct State {
     lost: Option<f64>,
     /// That search's detour round a lost teammate's body.
     search_route: Option<crate::plan::Route>,
+    /// Move-to-goal, push getting behind its object: the point it drives
+    /// to at this tick.
+    bound_for: Option<DVec2>,
+    /// The nearest it has come to that point while driving there, and
+    /// when it last came nearer.
+    headway: Option<(f64, f64)>,
+    /// When it found itself trapped on the way there (no headway for
+    /// [`TRAPPED_AFTER`]) and took a planned detour.
+    pub trapped: Option<f64>,
+}
+
+impl State {
+    /// Keep track of a schema's headway (move-to-goal, push getting behind
+    /// its object) while it `drives` the robot,
+    /// now `to` m from its goal at skill time `now`: trapped after
+    /// [`TRAPPED_AFTER`] without getting [`HEADWAY`] m nearer than it has
+    /// been, for [`DETOUR`].
+    fn watch_headway(&mut self, drives: bool, to: f64, now: f64) {
+        if !drives {
+            self.headway = None;
+            self.trapped = None;
+            return;
+        }
+        match self.trapped {
+            Some(t) if now - t >= DETOUR || now < t => {
+                self.trapped = None;
+                self.headway = Some((to, now));
+            }
+            Some(_) => return,
+            None => {}
+        }
+        match self.headway {
+            Some((best, since)) if to > best - HEADWAY && now >= since => {
+                if now - since >= TRAPPED_AFTER {
+                    self.trapped = Some(now);
+                }
+            }
+            _ => self.headway = Some((to, now)),
+        }
+    }
 }
 
 /// One schema's output, before fusion.
@@ -554,15 +594,35 @@ fn target_point(view: &View, t: &Target) -> Option<DVec2> {
 /// Where to steer to reach `to`: `to`, or the next point of a detour round
 /// a lost teammate's body in the way (see [`crate::plan`]).
 fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
+    // A trapped robot's detour also keeps clear of what its rays hit (an
+    // object or a teammate the map does not hold).
+    let sensed: Vec<DVec2> = match state.trapped {
+        Some(_) => (view.rays.iter())
+            .map(|(a, d)| {
+                view.pose.pos + DVec2::from_angle(view.pose.heading + a) * (d + view.radius)
+            })
+            .collect(),
+        None => Vec::new(),
+    };
     crate::plan::aim(
         view.map.as_deref(),
         &view.bodies,
         &mut state.route,
         view.skill_time,
-        view.pose.pos,
-        to,
+        (view.pose.pos, to),
+        state.trapped.map(|_| &sensed[..]),
     )
 }
+
+/// Seconds a robot driving to a goal more than [`TRAP_FAR`] m away may
+/// make no headway (come no more than [`HEADWAY`] m nearer to it than it
+/// has been) before it counts as trapped (see [`command`]).
+pub const TRAPPED_AFTER: f64 = 5.0;
+/// Seconds a trapped robot follows its planned detour before it drives
+/// straight to its goal again.
+pub const DETOUR: f64 = 8.0;
+const TRAP_FAR: f64 = 0.5;
+const HEADWAY: f64 = 0.15;
 
 /// Where a formation slot is, behind a reference at `pos` heading `heading`.
 pub fn slot_position(pos: DVec2, heading: f64, side: Side, distance: f64) -> DVec2 {
@@ -653,6 +713,7 @@ pub fn evaluate(
             Target::Direction(d) => out(d.normalize_or_zero() * *speed),
             _ => {
                 let p = target_point(view, goal)?;
+                state.bound_for = Some(p);
                 // Arrive: slow down over the last 0.3 m.
                 let s = speed * ((p - pose.pos).length() / 0.3).min(1.0);
                 let to = aim(view, state, p) - pose.pos;
@@ -839,9 +900,13 @@ pub fn evaluate(
                 let v = dir * *speed - dir.perp() * lateral * 2.0;
                 return out(clamp_len(v, *speed));
             }
-            // Get behind it, going round it rather than into it.
+            // Get behind it, going round it rather than into it (or, when
+            // trapped on the way, by a planned detour clear of it).
+            state.bound_for = Some(behind);
             let mut v = (behind - pose.pos).normalize_or_zero() * *speed;
-            if along > -offset * 0.6 && rel.length() < offset * 1.6 {
+            if state.trapped.is_some() {
+                v = (aim(view, state, behind) - pose.pos).normalize_or_zero() * *speed;
+            } else if along > -offset * 0.6 && rel.length() < offset * 1.6 {
                 let around = if lateral >= 0.0 {
                     dir.perp()
                 } else {
@@ -905,8 +970,30 @@ pub fn command(
     let mut outputs: Vec<(u8, f64, Option<Output>)> = skill
         .iter()
         .zip(states.iter_mut())
-        .map(|(w, s)| (w.layer, w.gain, evaluate(&w.schema, view, s, rng)))
+        .map(|(w, s)| {
+            s.bound_for = None;
+            (w.layer, w.gain, evaluate(&w.schema, view, s, rng))
+        })
         .collect();
+    // A robot that drives to a goal (its move-to-goal wants to move, or its
+    // push to get behind the object, and only avoidance overrides it) but
+    // makes no headway for a while is
+    // trapped: in a pocket between obstacles where attraction and
+    // repulsion cancel, or dithering between two ways out. It follows a
+    // planned detour clear of the obstacles for a while (`aim`), then
+    // drives straight again.
+    for (i, w) in skill.iter().enumerate() {
+        let st = &mut states[i];
+        let to = st.bound_for.map_or(0.0, |p| p.distance(view.pose.pos));
+        let drives = st.bound_for.is_some()
+            && to > TRAP_FAR
+            && outputs[i].2.is_some_and(|o| o.v.length() > 0.02)
+            && skill
+                .iter()
+                .zip(&outputs)
+                .all(|(v, (_, _, o))| o.is_none() || v.layer <= w.layer || v.schema.avoids());
+        st.watch_headway(drives, to, view.skill_time);
+    }
     // Nothing to do but keep clear, because the object the skill works on
     // was never seen (a restarted robot has forgotten it; a teammate found
     // it), or was not found where it was last seen: search for it rather
@@ -969,15 +1056,24 @@ pub fn command(
     // A schema following a planned detour round a lost teammate's body
     // keeps its clearance by the plan: obstacle avoidance is superposed on
     // it in its layer instead of overriding it (a reading at the edge of
-    // the avoidance range would otherwise stop the robot in the gap).
-    if let Some(layer) = skill
+    // the avoidance range would otherwise stop the robot in the gap). A
+    // trapped robot's detour, planned clear of what its rays hit,
+    // teammates included, superposes teammate avoidance too (a sighting
+    // at the edge of its range, or a stale one, would otherwise hold the
+    // robot in the trap).
+    if let Some((layer, trapped)) = skill
         .iter()
         .zip(states.iter())
         .find(|(_, s)| s.route.is_some())
-        .map(|(w, _)| w.layer)
+        .map(|(w, s)| (w.layer, s.trapped.is_some()))
     {
         for (w, o) in skill.iter().zip(outputs.iter_mut()) {
-            if matches!(w.schema, Schema::AvoidObstacle { .. }) {
+            let demote = match w.schema {
+                Schema::AvoidObstacle { .. } => true,
+                Schema::AvoidTeammate { .. } => trapped,
+                _ => false,
+            };
+            if demote {
                 o.0 = o.0.min(layer);
             }
         }
@@ -1474,6 +1570,74 @@ mod tests {
         );
         assert!(c.v.length() > 0.0, "{c:?}");
         assert!(states.iter().all(|s| !s.gone && s.lost.is_none()));
+    }
+
+    /// A robot driving to a goal that gets no nearer to it for
+    /// [`TRAPPED_AFTER`] (held in a pocket between a chair and a crate) is
+    /// trapped: it steers along a planned detour instead of straight at the
+    /// goal, for [`DETOUR`], then straight again. One that gets nearer is
+    /// not trapped.
+    #[test]
+    fn a_robot_that_makes_no_headway_takes_a_detour() {
+        let text = "scenario: t\nworld: physics\nphysics:\n  arena: [7, 4]\n  robot: { radius: 0.12 }\n  obstacles:\n    - { disc: 0.2, at: [3.2, 1.2] }\n    - { box: [0.3, 0.3], at: [3.8, 0.8] }\n";
+        let sc = crate::Scenario::load_str(&std::sync::Arc::from("t.yaml"), text)
+            .unwrap_or_else(|d| panic!("{d}"));
+        let map = crate::plan::Map::new(sc.physics.as_deref().expect("physics"));
+        let goal = DVec2::new(6.3, 3.0);
+        let skill = vec![
+            Weighted {
+                schema: Schema::MoveToGoal {
+                    goal: Target::Point(goal),
+                    speed: 0.25,
+                },
+                gain: 1.0,
+                layer: 1,
+            },
+            Weighted {
+                schema: Schema::AvoidObstacle { range: 0.3 },
+                gain: 1.0,
+                layer: 3,
+            },
+        ];
+        let mut view = View {
+            map: Some(std::sync::Arc::new(map)),
+            ..View::default()
+        };
+        let start = DVec2::new(3.27, 0.6);
+        view.pose.pos = start;
+        let straight = (goal - start).normalize();
+        let mut states = Vec::new();
+        let at = |view: &mut View, states: &mut Vec<State>, t: f64| {
+            view.skill_time = t;
+            command(&skill, view, states, &mut || 0.5)
+        };
+        // Standing still: straight at the goal until trapped.
+        for k in 0..50 {
+            let c = at(&mut view, &mut states, f64::from(k) * 0.1);
+            assert!(c.v.normalize().dot(straight) > 0.999, "{k}: {c:?}");
+            assert!(states[0].trapped.is_none());
+        }
+        at(&mut view, &mut states, TRAPPED_AFTER + 0.05);
+        assert!(states[0].trapped.is_some());
+        // From its next command, the detour leaves the pocket round the
+        // chair or the crate, not at the goal through the gap between them.
+        for t in [0.15, 0.25, 3.0] {
+            let c = at(&mut view, &mut states, TRAPPED_AFTER + t);
+            assert!(c.v.normalize().dot(straight) < 0.9, "{t}: {c:?}");
+        }
+        // Straight again after the detour.
+        let t = TRAPPED_AFTER + 0.05 + DETOUR;
+        at(&mut view, &mut states, t);
+        assert!(states[0].trapped.is_none());
+        let c = at(&mut view, &mut states, t + 0.1);
+        assert!(c.v.normalize().dot(straight) > 0.999, "{c:?}");
+        // Getting nearer, if slowly, is headway.
+        let mut states = Vec::new();
+        for k in 0..200 {
+            view.pose.pos = start + straight * (f64::from(k) * 0.005);
+            at(&mut view, &mut states, f64::from(k) * 0.1);
+            assert!(states[0].trapped.is_none(), "{k}");
+        }
     }
 
     /// Between its turns, a robot searching for an object heads for the

@@ -305,6 +305,35 @@ fn example_completes(graph: &str, fault: &str, seed: &str) {
     );
 }
 
+/// Found by sweeping the compiled search and rescue on its hidden-box
+/// scenario, fault-free: a robot driving to the box (`move-to-goal`,
+/// obstacle avoidance at 0.3 m) was caught south of the middle chair and
+/// west of the red crate, where attraction and repulsion cancel, and
+/// stood there (seed 6: its heading flipping between two ways out every
+/// tick), or shuttled back and forth in the pocket (seed 37), or was held
+/// south of the crate by a stale sighting of its teammate (seed 53); or a
+/// pusher getting behind a box near the north wall drove into the wall
+/// (seed 67). A robot that makes no headway toward its goal (or, pushing,
+/// toward the place behind the object) for 5 s is trapped and follows a
+/// planned detour clear of the obstacles and of what its rays hit for 8 s.
+#[test]
+fn a_robot_trapped_between_obstacles_takes_a_detour() {
+    for seed in ["6", "37", "53", "67"] {
+        let name = format!("hidden-trap-{seed}");
+        let v = run_one(
+            &name,
+            &[
+                &example("search-rescue.rtcl"),
+                "--scenario",
+                &example("scenarios/search-rescue-hidden-physics.yaml"),
+                "--seed",
+                seed,
+            ],
+        );
+        assert_eq!(v["outcome"], "completed", "seed {seed}: {v:#}");
+    }
+}
+
 /// Found by sweeping the box push: with its teammate crashed, the robot
 /// left alone was dealt the first child of the relay's last leg (step
 /// aside) and the push stayed empty, for ever. The push is `critical`: a
