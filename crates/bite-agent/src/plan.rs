@@ -304,6 +304,14 @@ fn segment_distance(a: DVec2, b: DVec2, p: DVec2) -> f64 {
     p.distance(a + ab * t)
 }
 
+impl Route {
+    /// True while it leads somewhere (a trapped robot that found no way
+    /// round keeps an empty one until it plans again).
+    pub fn leads(&self) -> bool {
+        !self.path.is_empty()
+    }
+}
+
 /// A planned detour a schema is following.
 #[derive(Clone, Debug, Default)]
 pub struct Route {
@@ -355,15 +363,17 @@ pub fn aim(
             || now < r.at
     });
     if stale {
-        *route = map
-            .route(from, to, bodies, (sensed, trapped))
-            .map(|path| Route {
-                goal: to,
-                bodies: bodies.to_vec(),
-                wide: trapped,
-                at: now,
-                path,
-            });
+        // No way round: a trapped robot keeps that answer (an empty path,
+        // straight on) until the next re-plan rather than searching the
+        // whole map again at every tick.
+        let path = map.route(from, to, bodies, (sensed, trapped));
+        *route = path.or_else(|| trapped.then(Vec::new)).map(|path| Route {
+            goal: to,
+            bodies: bodies.to_vec(),
+            wide: trapped,
+            at: now,
+            path,
+        });
     }
     let Some(r) = route.as_mut() else {
         return to;
@@ -484,5 +494,16 @@ mod tests {
         assert!(route.is_some());
         assert_eq!(aim(Some(&map), &[], &mut route, 1.0, (from, to), None), to);
         assert!(route.is_none());
+        // Walled in by what its rays hit: no way round, straight on, and
+        // no new search until the next re-plan.
+        let ring: Vec<DVec2> = (0..36)
+            .map(|k| from + DVec2::from_angle(f64::from(k) * 10f64.to_radians()) * 0.2)
+            .collect();
+        assert!(map.route(from, to, &[], (&ring, true)).is_none());
+        assert_eq!(
+            aim(Some(&map), &[], &mut route, 2.0, (from, to), Some(&ring)),
+            to
+        );
+        assert!(route.as_ref().is_some_and(|r| !r.leads()));
     }
 }

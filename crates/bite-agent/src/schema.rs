@@ -1064,7 +1064,7 @@ pub fn command(
     if let Some((layer, trapped)) = skill
         .iter()
         .zip(states.iter())
-        .find(|(_, s)| s.route.is_some())
+        .find(|(_, s)| s.route.as_ref().is_some_and(crate::plan::Route::leads))
         .map(|(w, s)| (w.layer, s.trapped.is_some()))
     {
         for (w, o) in skill.iter().zip(outputs.iter_mut()) {
