@@ -386,15 +386,26 @@ pub fn aim(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// The physical world of a scenario with `arena` and `obstacles` (YAML
+    /// lines), robots of radius 0.12 m.
+    fn physics(arena: &str, obstacles: &str) -> PhysicsSpec {
+        let text = format!(
+            "scenario: t\nworld: physics\nphysics:\n  arena: {arena}\n  robot: {{ radius: 0.12 }}\n  obstacles:\n{obstacles}"
+        );
+        let sc = crate::Scenario::load_str(&std::sync::Arc::from("t.yaml"), &text)
+            .unwrap_or_else(|d| panic!("{d}"));
+        (*sc.physics.expect("physics")).clone()
+    }
 
     fn corridor() -> PhysicsSpec {
         // The formation scenario: a hall narrowing into a 0.8 m corridor.
-        let text = "scenario: t\nworld: physics\nphysics:\n  arena: [8, 3]\n  robot: { radius: 0.12 }\n  obstacles:\n    - { box: [3, 1.1], at: [6.5, 0.55] }\n    - { box: [3, 1.1], at: [6.5, 2.45] }\n";
-        let sc = crate::Scenario::load_str(&std::sync::Arc::from("t.yaml"), text)
-            .unwrap_or_else(|d| panic!("{d}"));
-        (*sc.physics.expect("physics")).clone()
+        physics(
+            "[8, 3]",
+            "    - { box: [3, 1.1], at: [6.5, 0.55] }\n    - { box: [3, 1.1], at: [6.5, 2.45] }\n",
+        )
     }
 
     #[test]
@@ -455,11 +466,11 @@ mod tests {
     /// middle chair and west of the red crate, driving to a box in the
     /// north-east (the gap between chair and crate is 0.32 m wide: its
     /// body passes, its obstacle avoidance does not let it).
-    fn hall() -> PhysicsSpec {
-        let text = "scenario: t\nworld: physics\nphysics:\n  arena: [7, 4]\n  robot: { radius: 0.12 }\n  obstacles:\n    - { disc: 0.2, at: [3.2, 1.2] }\n    - { box: [0.3, 0.3], at: [3.8, 0.8] }\n";
-        let sc = crate::Scenario::load_str(&std::sync::Arc::from("t.yaml"), text)
-            .unwrap_or_else(|d| panic!("{d}"));
-        (*sc.physics.expect("physics")).clone()
+    pub(crate) fn hall() -> PhysicsSpec {
+        physics(
+            "[7, 4]",
+            "    - { disc: 0.2, at: [3.2, 1.2] }\n    - { box: [0.3, 0.3], at: [3.8, 0.8] }\n",
+        )
     }
 
     #[test]

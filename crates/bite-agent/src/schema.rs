@@ -1579,10 +1579,7 @@ mod tests {
     /// not trapped.
     #[test]
     fn a_robot_that_makes_no_headway_takes_a_detour() {
-        let text = "scenario: t\nworld: physics\nphysics:\n  arena: [7, 4]\n  robot: { radius: 0.12 }\n  obstacles:\n    - { disc: 0.2, at: [3.2, 1.2] }\n    - { box: [0.3, 0.3], at: [3.8, 0.8] }\n";
-        let sc = crate::Scenario::load_str(&std::sync::Arc::from("t.yaml"), text)
-            .unwrap_or_else(|d| panic!("{d}"));
-        let map = crate::plan::Map::new(sc.physics.as_deref().expect("physics"));
+        let map = crate::plan::Map::new(&crate::plan::tests::hall());
         let goal = DVec2::new(6.3, 3.0);
         let skill = vec![
             Weighted {
