@@ -146,9 +146,13 @@ impl Map {
         let n = self.w * self.h;
         let clear = self.body + self.inflate;
         let mut blocked = self.blocked.clone();
-        for b in bodies {
-            let (cx, cy) = self.cell_of(*b);
-            let r = (clear / self.cell).ceil() as isize + 1;
+        // Bodies keep a robot's centre two radii and the margin away; what
+        // the rays hit, one radius and the margin.
+        let discs =
+            (bodies.iter().map(|b| (*b, clear))).chain(sensed.iter().map(|p| (*p, self.inflate)));
+        for (at, within) in discs {
+            let (cx, cy) = self.cell_of(at);
+            let r = (within / self.cell).ceil() as isize + 1;
             for dy in -r..=r {
                 for dx in -r..=r {
                     let (x, y) = (cx as isize + dx, cy as isize + dy);
@@ -156,23 +160,7 @@ impl Map {
                         continue;
                     }
                     let c = (x as usize, y as usize);
-                    if self.centre(c).distance(*b) < clear {
-                        blocked[c.1 * self.w + c.0] = true;
-                    }
-                }
-            }
-        }
-        for p in sensed {
-            let (cx, cy) = self.cell_of(*p);
-            let r = (self.inflate / self.cell).ceil() as isize + 1;
-            for dy in -r..=r {
-                for dx in -r..=r {
-                    let (x, y) = (cx as isize + dx, cy as isize + dy);
-                    if x < 0 || y < 0 || x >= self.w as isize || y >= self.h as isize {
-                        continue;
-                    }
-                    let c = (x as usize, y as usize);
-                    if self.centre(c).distance(*p) < self.inflate {
+                    if self.centre(c).distance(at) < within {
                         blocked[c.1 * self.w + c.0] = true;
                     }
                 }
