@@ -3,7 +3,8 @@
 //! when the body of a teammate presumed lost — crashed, out of power —
 //! blocks the straight way to where a schema steers, or when a robot
 //! driving to a goal has been trapped (it made no headway for a while: a
-//! pocket between two obstacles where attraction and repulsion cancel).
+//! pocket between two obstacles where attraction and repulsion cancel), or
+//! a wandering one pinned in a corner heads for open floor.
 //!
 //! Motor schemas are reactive: attraction to the goal plus repulsion from
 //! what the rays see. A body parked in a doorway makes a local minimum (the
@@ -111,6 +112,20 @@ impl Map {
     fn is_blocked(&self, p: DVec2) -> bool {
         let (x, y) = self.cell_of(p);
         self.blocked[y * self.w + x]
+    }
+
+    /// True when `p` is inside the arena and a robot's centre there is at
+    /// least `clear` m from every wall and obstacle (open floor to head
+    /// for).
+    pub fn open(&self, p: DVec2, clear: f64) -> bool {
+        let inside = p.x >= 0.0
+            && p.y >= 0.0
+            && p.x < self.w as f64 * self.cell
+            && p.y < self.h as f64 * self.cell;
+        let (x, y) = self.cell_of(p);
+        inside
+            && !self.blocked[y * self.w + x]
+            && f64::from(self.clearance[y * self.w + x]) >= clear
     }
 
     /// True when the straight way from `a` to `b` is not clear: a robot's
@@ -312,7 +327,7 @@ pub struct Route {
     /// When it was planned (skill time).
     at: f64,
     /// Points still ahead.
-    path: Vec<DVec2>,
+    pub(crate) path: Vec<DVec2>,
 }
 
 /// Where to steer, from `from`, to get to `to`: `to` itself, unless a lost

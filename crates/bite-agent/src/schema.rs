@@ -536,6 +536,11 @@ pub struct State {
     /// When it found itself trapped on the way there (no headway for
     /// [`TRAPPED_AFTER`]) and took a planned detour.
     pub trapped: Option<f64>,
+    /// Wander: where it was, and when, last time it had moved
+    /// [`PIN_RADIUS`] away from where it was before.
+    roam: Option<(DVec2, f64)>,
+    /// Wander, pinned: the open floor it heads for.
+    escape: Option<DVec2>,
 }
 
 impl State {
@@ -566,6 +571,29 @@ impl State {
             }
             _ => self.headway = Some((to, now)),
         }
+    }
+
+    /// Keep track of a wandering robot's roaming, at `pos` at skill time
+    /// `now`: pinned when it has stayed within [`PIN_RADIUS`] of one spot
+    /// for [`PINNED_AFTER`] (between walls, obstacles and teammates where
+    /// avoidance overrides the wander whichever way it turns). A pinned
+    /// robot is trapped: it heads for open floor on a planned detour, as a
+    /// trapped robot driving to a goal does (see [`evaluate`]). True when
+    /// it has just found itself pinned.
+    fn watch_roaming(&mut self, pos: DVec2, now: f64) -> bool {
+        match self.roam {
+            _ if self.trapped.is_some() => self.roam = Some((pos, now)),
+            Some((at, since)) if at.distance(pos) <= PIN_RADIUS && now >= since => {
+                if now - since >= PINNED_AFTER {
+                    self.roam = Some((pos, now));
+                    self.trapped = Some(now);
+                    self.escape = None;
+                    return true;
+                }
+            }
+            _ => self.roam = Some((pos, now)),
+        }
+        false
     }
 }
 
@@ -623,6 +651,14 @@ pub const TRAPPED_AFTER: f64 = 5.0;
 pub const DETOUR: f64 = 8.0;
 const TRAP_FAR: f64 = 0.5;
 const HEADWAY: f64 = 0.15;
+/// Seconds a wandering robot may stay within [`PIN_RADIUS`] m of one spot
+/// before it counts as pinned there (see `State::watch_roaming`).
+pub const PINNED_AFTER: f64 = 10.0;
+const PIN_RADIUS: f64 = 0.5;
+/// How far off the open floor a pinned robot heads for is, m, and how
+/// many random points it tries.
+const ESCAPE: f64 = 2.0;
+const ESCAPE_DRAWS: usize = 16;
 
 /// Where a formation slot is, behind a reference at `pos` heading `heading`.
 pub fn slot_position(pos: DVec2, heading: f64, side: Side, distance: f64) -> DVec2 {
@@ -781,6 +817,28 @@ pub fn evaluate(
             out(v)
         }
         Schema::Wander { speed, period } => {
+            // Pinned (see `State::watch_roaming`): head for open floor a
+            // few metres off, drawn at random among the open points, on a
+            // planned detour.
+            match (state.trapped, view.map.as_deref()) {
+                (Some(_), Some(map)) => {
+                    if state.escape.is_none() {
+                        state.escape = (0..ESCAPE_DRAWS)
+                            .map(|_| {
+                                let a = rng() * std::f64::consts::TAU;
+                                pose.pos + DVec2::from_angle(a) * ESCAPE
+                            })
+                            .find(|p| map.open(*p, 2.0 * view.radius));
+                    }
+                    if let Some(p) = state.escape {
+                        state.bound_for = Some(p);
+                        let to = aim(view, state, p) - pose.pos;
+                        return out(to.normalize_or_zero() * *speed);
+                    }
+                }
+                (None, _) => state.escape = None,
+                (Some(_), None) => {}
+            }
             let fresh = state
                 .wander
                 .is_none_or(|(_, at)| view.skill_time - at >= *period || view.skill_time < at);
@@ -993,6 +1051,9 @@ pub fn command(
                 .zip(&outputs)
                 .all(|(v, (_, _, o))| o.is_none() || v.layer <= w.layer || v.schema.avoids());
         st.watch_headway(drives, to, view.skill_time);
+        if matches!(w.schema, Schema::Wander { .. }) {
+            st.watch_roaming(view.pose.pos, view.skill_time);
+        }
     }
     // Nothing to do but keep clear, because the object the skill works on
     // was never seen (a restarted robot has forgotten it; a teammate found
@@ -1634,6 +1695,101 @@ mod tests {
             view.pose.pos = start + straight * (f64::from(k) * 0.005);
             at(&mut view, &mut states, f64::from(k) * 0.1);
             assert!(states[0].trapped.is_none(), "{k}");
+        }
+    }
+
+    /// A wandering robot held west of the hall's south chair by the wall,
+    /// the chair and its teammate, where avoidance overrides the wander
+    /// whichever way it turns (the compiled search and rescue, seed 606):
+    /// after 10 s within half a metre of one spot it is pinned, heads for
+    /// open floor two metres off for 8 s, then wanders again; a robot that
+    /// roams is never pinned.
+    #[test]
+    fn a_pinned_wandering_robot_heads_for_open_floor() {
+        let hall = crate::plan::tests::hall();
+        let map = std::sync::Arc::new(crate::plan::Map::new(&hall));
+        let layer = |schema, layer| Weighted {
+            schema,
+            gain: 1.0,
+            layer,
+        };
+        let skill = vec![
+            layer(
+                Schema::Wander {
+                    speed: 0.25,
+                    period: 3.0,
+                },
+                1,
+            ),
+            layer(Schema::AvoidTeammate { range: 0.4 }, 2),
+            layer(Schema::AvoidObstacle { range: 0.35 }, 3),
+        ];
+        let start = DVec2::new(0.45, 0.8);
+        let mut view = View {
+            map: Some(map.clone()),
+            radius: 0.12,
+            max_speed: 0.3,
+            // The wall 0.33 m behind it.
+            rays: vec![(std::f64::consts::PI, 0.33)],
+            ..View::default()
+        };
+        view.pose.pos = start;
+        view.mates.insert(
+            1,
+            Mate {
+                pos: DVec2::new(0.51, 0.46),
+                heading: None,
+            },
+        );
+        let mut seed = 7u64;
+        let mut rng = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut states = Vec::new();
+        let mut at = |view: &mut View, states: &mut Vec<State>, t: f64| {
+            view.skill_time = t;
+            command(&skill, view, states, &mut rng)
+        };
+        // Shuffling round one spot: not pinned for 10 s.
+        for k in 0..100 {
+            view.pose.pos = start + DVec2::new(0.0, 0.1 * f64::from(k % 3));
+            at(&mut view, &mut states, f64::from(k) * 0.1);
+            assert!(states[0].trapped.is_none(), "{k}");
+        }
+        view.pose.pos = start;
+        at(&mut view, &mut states, PINNED_AFTER + 0.05);
+        assert!(states[0].trapped.is_some());
+        // It heads for open floor two metres off, on a planned detour.
+        let c = at(&mut view, &mut states, PINNED_AFTER + 0.15);
+        let escape = states[0].escape.expect("open floor to head for");
+        assert!((escape.distance(start) - ESCAPE).abs() < 1e-9, "{escape}");
+        assert!(map.open(escape, 0.24), "{escape}");
+        assert!(
+            states[0]
+                .route
+                .as_ref()
+                .is_some_and(crate::plan::Route::leads)
+        );
+        let route = (states[0].route.as_ref()).map_or(escape, |r| r.path[0]);
+        assert!(c.v.length() > 0.1, "{c:?}");
+        assert!(
+            c.v.normalize().dot((route - start).normalize()) > 0.5,
+            "{c:?}"
+        );
+        // Then it wanders again, and is not pinned while it roams.
+        let t = PINNED_AFTER + 0.05 + DETOUR;
+        at(&mut view, &mut states, t);
+        assert!(states[0].trapped.is_none());
+        for k in 1..300 {
+            view.pose.pos = start + DVec2::new(0.1 * f64::from(k % 60), 0.0);
+            at(&mut view, &mut states, t + f64::from(k) * 0.1);
+            assert!(
+                states[0].trapped.is_none() && states[0].escape.is_none(),
+                "{k}"
+            );
         }
     }
 

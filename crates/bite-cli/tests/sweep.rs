@@ -334,6 +334,34 @@ fn a_robot_trapped_between_obstacles_takes_a_detour() {
     }
 }
 
+/// Found by sweeping the compiled search and rescue on its hidden-box
+/// scenario, fault-free, seeds 1..1000: one robot found the box at once and
+/// waited at `find`'s `term.wait-all`; the other, wandering, was pinned by
+/// the walls, a chair and its waiting teammate, where obstacle or teammate
+/// avoidance overrode the wander whichever way it turned (seed 606 west of
+/// the south chair, for ever; seed 297 turning in place between its two
+/// avoidances; 389 and 420 until a deadline). A wandering robot that stays
+/// within half a metre of one spot for 10 s is pinned and heads for open
+/// floor two metres off on a planned detour. Each must now complete
+/// without a deadline (`completed`, not `completed-with-timeouts`).
+#[test]
+fn a_wandering_robot_pinned_in_a_corner_gets_out() {
+    for seed in ["606", "297", "389", "420"] {
+        let name = format!("hidden-pinned-{seed}");
+        let v = run_one(
+            &name,
+            &[
+                &example("search-rescue.rtcl"),
+                "--scenario",
+                &example("scenarios/search-rescue-hidden-physics.yaml"),
+                "--seed",
+                seed,
+            ],
+        );
+        assert_eq!(v["outcome"], "completed", "seed {seed}: {v:#}");
+    }
+}
+
 /// Found by sweeping the box push: with its teammate crashed, the robot
 /// left alone was dealt the first child of the relay's last leg (step
 /// aside) and the push stayed empty, for ever. The push is `critical`: a
