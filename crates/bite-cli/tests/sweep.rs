@@ -305,6 +305,26 @@ fn example_completes(graph: &str, fault: &str, seed: &str) {
     );
 }
 
+/// Version 2 of the changed formation, run on its own, has a world of its
+/// own (`scenarios/formation-change-v2.yaml`; it used to get an empty timed
+/// world, where it stalled at once): the team walks the 8 m course and
+/// switches to the column at the narrow passage, on several seeds.
+#[test]
+fn the_second_version_of_a_changed_mission_runs_on_its_own() {
+    for seed in ["1", "2", "3"] {
+        let name = format!("formation-change-v2-{seed}");
+        let log = scratch(&name).join("run.jsonl");
+        let v = run_one(&name, &[&example("formation-change-v2.yaml"), "--seed", seed]);
+        assert_eq!(v["outcome"], "completed", "seed {seed}: {v:#}");
+        assert_eq!(v["scenario"], "formation-change-v2", "seed {seed}: {v:#}");
+        let text = std::fs::read_to_string(&log).expect("run log");
+        assert!(
+            text.lines().any(|l| l.contains(r#""event":"selected","behavior":"column""#)),
+            "seed {seed}: no robot walked in the column"
+        );
+    }
+}
+
 /// Found by sweeping the compiled search and rescue on its hidden-box
 /// scenario, fault-free: a robot driving to the box (`move-to-goal`,
 /// obstacle avoidance at 0.3 m) was caught south of the middle chair and
