@@ -576,8 +576,21 @@ impl Pilot {
         v[P_POS] = Some(Value::Vec2([pose.pos.x, pose.pos.y]));
         v[P_HEADING] = Some(Value::Num(pose.heading.to_degrees()));
         v[P_ODOMETER] = Some(Value::Num(s.odometer));
-        v[P_SKILL_DISTANCE] = Some(Value::Num(s.odometer - self.skill_odometer));
-        v[P_SKILL_TIME] = Some(Value::Num(t - self.skill_started));
+        // A leaf without a skill (a team behavior waiting for its
+        // allocation, a barrier) is no skill running: its time and
+        // distance stay 0 (a leg counted in `skill_time` must not end
+        // while the team is still deciding who walks it).
+        let running = !self.skill.is_empty();
+        v[P_SKILL_DISTANCE] = Some(Value::Num(if running {
+            s.odometer - self.skill_odometer
+        } else {
+            0.0
+        }));
+        v[P_SKILL_TIME] = Some(Value::Num(if running {
+            t - self.skill_started
+        } else {
+            0.0
+        }));
         v[P_SKILL_DONE] = Some(Value::Bool(skill_done));
         v[P_RANGE_MIN] = Some(Value::Num(range_min));
         v[P_OBSTACLE_NEAR] = Some(Value::Bool(range_min < 0.3));

@@ -264,6 +264,34 @@ fn a_member_asks_a_coordinator_past_the_sync_point_at_once() {
     assert_eq!(v["timeouts"], 0, "{v:#}");
 }
 
+/// Found by the formation's sweep at 50 % loss, in the physical world: the
+/// team stood still for 120 s (configurations 5 and 6, which allocate the
+/// roles by value). A member whose allocation decision was lost resent its
+/// value further apart after each loss (up to 64 retries: longer than the
+/// team can wait), while its coordinator had applied the allocation and
+/// walked on; and a robot still waiting for its role counted the leg's
+/// time (`leg_walked` is `skill_time * 0.12`) and ended the leg before it
+/// was dealt a role, for ever. A member now asks a coordinator whose
+/// heartbeat shows it through the allocation (as at a sync point), and a
+/// leaf without a skill has `skill_time` 0.
+#[test]
+fn a_member_asks_a_coordinator_through_the_allocation_at_once() {
+    for (n, seed) in [(5, "12"), (6, "38"), (6, "2")] {
+        let v = run_one(
+            &format!("through-{n}-{seed}"),
+            &[
+                "--config",
+                &config(n),
+                "--fault",
+                "loss=0.5",
+                "--seed",
+                seed,
+            ],
+        );
+        assert_eq!(v["completed"], true, "config {n} seed {seed}: {v:#}");
+    }
+}
+
 /// One thread or two: the same runs, the same results, line for line.
 #[test]
 fn results_do_not_depend_on_the_number_of_threads() {
@@ -314,12 +342,16 @@ fn the_second_version_of_a_changed_mission_runs_on_its_own() {
     for seed in ["1", "2", "3"] {
         let name = format!("formation-change-v2-{seed}");
         let log = scratch(&name).join("run.jsonl");
-        let v = run_one(&name, &[&example("formation-change-v2.yaml"), "--seed", seed]);
+        let v = run_one(
+            &name,
+            &[&example("formation-change-v2.yaml"), "--seed", seed],
+        );
         assert_eq!(v["outcome"], "completed", "seed {seed}: {v:#}");
         assert_eq!(v["scenario"], "formation-change-v2", "seed {seed}: {v:#}");
         let text = std::fs::read_to_string(&log).expect("run log");
         assert!(
-            text.lines().any(|l| l.contains(r#""event":"selected","behavior":"column""#)),
+            text.lines()
+                .any(|l| l.contains(r#""event":"selected","behavior":"column""#)),
             "seed {seed}: no robot walked in the column"
         );
     }

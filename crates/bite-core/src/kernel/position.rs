@@ -603,20 +603,24 @@ impl Kernel {
         self.step();
     }
 
-    /// A coordinator whose heartbeat shows it past a sync point where this
-    /// robot has waited longer than a retry decided it, and its decision
-    /// did not arrive: ask it now rather than at the next resend (spaced
-    /// further apart after every loss).
+    /// A coordinator whose heartbeat shows it past a sync point, or
+    /// through an allocation, where this robot has waited longer than a
+    /// retry decided it, and its decision did not arrive: ask it now rather
+    /// than at the next resend (spaced further apart after every loss, up
+    /// to 64 retries: under heavy loss, longer than the team can wait).
     fn ask_past_point(&mut self, from: RobotId, pos: &Position) {
         let now = self.now;
         let waiting = self.instances.iter().filter(|(k, inst)| {
-            k.kind == Kind::Sync
+            matches!(k.kind, Kind::Sync | Kind::Allocate)
                 && inst.state == super::State::Active
                 && inst.waiting_since.is_some_and(|t| now - t >= inst.retry)
         });
         let ask: Vec<InstanceKey> = waiting
             .map(|(k, _)| k)
-            .filter(|k| pos.went_past(*k))
+            .filter(|k| match k.kind {
+                Kind::Allocate => pos.went_through(*k),
+                _ => pos.went_past(*k),
+            })
             .collect();
         for k in ask {
             if self.coordinator_of(k) == Some(from) {
