@@ -1221,6 +1221,15 @@ pub fn wrap(a: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// A schema of a test skill, gain 1, in `layer`.
+    fn weighted(schema: Schema, layer: u8) -> Weighted {
+        Weighted {
+            schema,
+            gain: 1.0,
+            layer,
+        }
+    }
+
     fn o(x: f64, y: f64) -> Option<Output> {
         Some(Output {
             v: DVec2::new(x, y),
@@ -1360,19 +1369,14 @@ mod tests {
         let view = view_with_wall_ahead();
         let mut rng = || 0.5;
         let find = [
-            Weighted {
-                schema: Schema::MoveToGoal {
+            weighted(
+                Schema::MoveToGoal {
                     goal: Target::Direction(DVec2::X),
                     speed: 0.3,
                 },
-                gain: 1.0,
-                layer: 1,
-            },
-            Weighted {
-                schema: Schema::AvoidObstacle { range: 0.4 },
-                gain: 1.0,
-                layer: 3,
-            },
+                1,
+            ),
+            weighted(Schema::AvoidObstacle { range: 0.4 }, 3),
         ];
         let c = command(&find, &view, &mut Vec::new(), &mut rng);
         assert!(c.v.x < 0.0, "finding: the wall pushes back, {c:?}");
@@ -1578,21 +1582,16 @@ mod tests {
     #[test]
     fn a_pusher_that_loses_the_object_searches_for_it() {
         let skill = vec![
-            Weighted {
-                schema: Schema::Push {
+            weighted(
+                Schema::Push {
                     object: "box".into(),
                     goal: DVec2::new(-3.0, 0.0),
                     offset: 0.4,
                     speed: 0.2,
                 },
-                gain: 1.0,
-                layer: 2,
-            },
-            Weighted {
-                schema: Schema::AvoidObstacle { range: 0.15 },
-                gain: 1.0,
-                layer: 1,
-            },
+                2,
+            ),
+            weighted(Schema::AvoidObstacle { range: 0.15 }, 1),
         ];
         let mut view = View::default();
         view.pose.pos = DVec2::new(0.6, 0.0);
@@ -1643,19 +1642,14 @@ mod tests {
         let map = crate::plan::Map::new(&crate::plan::tests::hall());
         let goal = DVec2::new(6.3, 3.0);
         let skill = vec![
-            Weighted {
-                schema: Schema::MoveToGoal {
+            weighted(
+                Schema::MoveToGoal {
                     goal: Target::Point(goal),
                     speed: 0.25,
                 },
-                gain: 1.0,
-                layer: 1,
-            },
-            Weighted {
-                schema: Schema::AvoidObstacle { range: 0.3 },
-                gain: 1.0,
-                layer: 3,
-            },
+                1,
+            ),
+            weighted(Schema::AvoidObstacle { range: 0.3 }, 3),
         ];
         let mut view = View {
             map: Some(std::sync::Arc::new(map)),
@@ -1708,21 +1702,16 @@ mod tests {
     fn a_pinned_wandering_robot_heads_for_open_floor() {
         let hall = crate::plan::tests::hall();
         let map = std::sync::Arc::new(crate::plan::Map::new(&hall));
-        let layer = |schema, layer| Weighted {
-            schema,
-            gain: 1.0,
-            layer,
-        };
         let skill = vec![
-            layer(
+            weighted(
                 Schema::Wander {
                     speed: 0.25,
                     period: 3.0,
                 },
                 1,
             ),
-            layer(Schema::AvoidTeammate { range: 0.4 }, 2),
-            layer(Schema::AvoidObstacle { range: 0.35 }, 3),
+            weighted(Schema::AvoidTeammate { range: 0.4 }, 2),
+            weighted(Schema::AvoidObstacle { range: 0.35 }, 3),
         ];
         let start = DVec2::new(0.45, 0.8);
         let mut view = View {
@@ -1799,13 +1788,12 @@ mod tests {
     /// teammate's body does not count.
     #[test]
     fn a_search_heads_for_the_nearest_teammate() {
-        let skill = vec![Weighted {
-            schema: Schema::Face {
+        let skill = vec![weighted(
+            Schema::Face {
                 target: Target::Object("box".into()),
             },
-            gain: 1.0,
-            layer: 1,
-        }];
+            1,
+        )];
         let mut view = View::default();
         // Its first turn, then the search's next leg.
         let search = |view: &mut View| {
@@ -1838,18 +1826,13 @@ mod tests {
     #[test]
     fn a_robot_that_never_saw_the_object_looks_round_then_wanders() {
         let skill = vec![
-            Weighted {
-                schema: Schema::Face {
+            weighted(
+                Schema::Face {
                     target: Target::Object("box".into()),
                 },
-                gain: 1.0,
-                layer: 1,
-            },
-            Weighted {
-                schema: Schema::AvoidTeammate { range: 0.7 },
-                gain: 1.0,
-                layer: 2,
-            },
+                1,
+            ),
+            weighted(Schema::AvoidTeammate { range: 0.7 }, 2),
         ];
         let view = |t: f64| View {
             skill_time: t,

@@ -370,10 +370,15 @@ fn the_second_version_of_a_changed_mission_runs_on_its_own() {
 /// planned detour clear of the obstacles and of what its rays hit for 8 s.
 #[test]
 fn a_robot_trapped_between_obstacles_takes_a_detour() {
-    for seed in ["6", "37", "53", "67"] {
-        let name = format!("hidden-trap-{seed}");
+    hidden_box_completes("trap", &["6", "37", "53", "67"]);
+}
+
+/// The compiled search and rescue on its hidden-box scenario completes,
+/// without a deadline, on each of `seeds`.
+fn hidden_box_completes(name: &str, seeds: &[&str]) {
+    for seed in seeds {
         let v = run_one(
-            &name,
+            &format!("hidden-{name}-{seed}"),
             &[
                 &example("search-rescue.rtcl"),
                 "--scenario",
@@ -398,20 +403,7 @@ fn a_robot_trapped_between_obstacles_takes_a_detour() {
 /// without a deadline (`completed`, not `completed-with-timeouts`).
 #[test]
 fn a_wandering_robot_pinned_in_a_corner_gets_out() {
-    for seed in ["606", "297", "389", "420"] {
-        let name = format!("hidden-pinned-{seed}");
-        let v = run_one(
-            &name,
-            &[
-                &example("search-rescue.rtcl"),
-                "--scenario",
-                &example("scenarios/search-rescue-hidden-physics.yaml"),
-                "--seed",
-                seed,
-            ],
-        );
-        assert_eq!(v["outcome"], "completed", "seed {seed}: {v:#}");
-    }
+    hidden_box_completes("pinned", &["606", "297", "389", "420"]);
 }
 
 /// Found by sweeping the box push: with its teammate crashed, the robot
