@@ -578,9 +578,8 @@ impl State {
     /// for [`PINNED_AFTER`] (between walls, obstacles and teammates where
     /// avoidance overrides the wander whichever way it turns). A pinned
     /// robot is trapped: it heads for open floor on a planned detour, as a
-    /// trapped robot driving to a goal does (see [`evaluate`]). True when
-    /// it has just found itself pinned.
-    fn watch_roaming(&mut self, pos: DVec2, now: f64) -> bool {
+    /// trapped robot driving to a goal does (see [`evaluate`]).
+    fn watch_roaming(&mut self, pos: DVec2, now: f64) {
         match self.roam {
             _ if self.trapped.is_some() => self.roam = Some((pos, now)),
             Some((at, since)) if at.distance(pos) <= PIN_RADIUS && now >= since => {
@@ -588,12 +587,10 @@ impl State {
                     self.roam = Some((pos, now));
                     self.trapped = Some(now);
                     self.escape = None;
-                    return true;
                 }
             }
             _ => self.roam = Some((pos, now)),
         }
-        false
     }
 }
 
@@ -831,9 +828,9 @@ pub fn evaluate(
                             .find(|p| map.open(*p, 2.0 * view.radius));
                     }
                     if let Some(p) = state.escape {
-                        state.bound_for = Some(p);
-                        let to = aim(view, state, p) - pose.pos;
-                        return out(to.normalize_or_zero() * *speed);
+                        let goal = Target::Point(p);
+                        let speed = *speed;
+                        return evaluate(&Schema::MoveToGoal { goal, speed }, view, state, rng);
                     }
                 }
                 (None, _) => state.escape = None,

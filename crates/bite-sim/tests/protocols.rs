@@ -289,40 +289,28 @@ fn a_member_that_missed_the_allocation_never_decides_it_anew() {
 /// deadlines, 34 of them the auction's).
 #[test]
 fn a_member_asks_a_leader_that_went_through_the_allocation_at_once() {
-    let registry = bite_protocols::registry();
-    let mut with_deadline = Vec::new();
-    let mut runs = 0;
+    let mut cases = Vec::new();
     for protocol in [
         "alloc.by-value",
         "alloc.by-attribute",
         "alloc.optimal",
         "alloc.auction",
     ] {
-        let (kind, _, params) = all()
-            .into_iter()
-            .find(|(_, p, _)| *p == protocol)
-            .expect("a library protocol");
         for n in [4usize, 7, 10, 13] {
-            for k in 1..=40u64 {
-                let mut s = spec(kind, protocol, params, n);
-                s.loss = 0.29;
-                s.jitter = Duration::from_millis(k % 20);
-                s.seed = k * 7919;
-                let r = probe(&s, &registry).unwrap_or_else(|d| panic!("{d}"));
-                let what = format!("{protocol} n={n} seed={} jitter={}ms", s.seed, k % 20);
-                assert!(r.completed, "{what}: incomplete");
-                assert!(r.violations.is_empty(), "{what}: {:?}", r.violations);
-                runs += 1;
-                if r.timeouts > 0 {
-                    with_deadline.push(what);
-                }
-            }
+            cases.extend((1..=40u64).map(|k| (protocol, n, k * 7919, k % 20)));
         }
     }
+    let mut with_deadline = Vec::new();
+    lossy_allocations(&cases, |what, r| {
+        if r.timeouts > 0 {
+            with_deadline.push(what.to_string());
+        }
+    });
     assert!(
-        with_deadline.len() * 10 <= runs,
-        "{} of {runs} runs needed a deadline: {with_deadline:#?}",
-        with_deadline.len()
+        with_deadline.len() * 10 <= cases.len(),
+        "{} of {} runs needed a deadline: {with_deadline:#?}",
+        with_deadline.len(),
+        cases.len()
     );
 }
 
@@ -331,7 +319,7 @@ fn a_member_asks_a_leader_that_went_through_the_allocation_at_once() {
 /// sees what it gave.
 fn lossy_allocations(
     cases: &[(&str, usize, u64, u64)],
-    check: impl Fn(&str, &bite_sim::probe::ProbeResult),
+    mut check: impl FnMut(&str, &bite_sim::probe::ProbeResult),
 ) {
     let registry = bite_protocols::registry();
     for &(protocol, n, seed, jitter_ms) in cases {
