@@ -20,7 +20,7 @@ use glam::DVec2;
 use std::collections::BinaryHeap;
 
 /// Clearance kept beyond the robot's radius, m.
-const MARGIN: f64 = 0.02;
+pub(crate) const MARGIN: f64 = 0.02;
 /// How near a lost body keeps a robot on its planned detour, m.
 const NEAR: f64 = 1.0;
 /// Most cells a grid may have (the cell grows for large arenas).
@@ -297,7 +297,7 @@ impl Ord for Open {
     }
 }
 
-fn segment_distance(a: DVec2, b: DVec2, p: DVec2) -> f64 {
+pub(crate) fn segment_distance(a: DVec2, b: DVec2, p: DVec2) -> f64 {
     let ab = b - a;
     let len2 = ab.length_squared();
     if len2 < 1e-12 {

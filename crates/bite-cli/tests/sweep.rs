@@ -417,6 +417,25 @@ fn a_robot_left_alone_finishes_the_push() {
     example_completes("red-cube.rtcl", "crash=r1@29.364s", "2");
 }
 
+/// Found by sweeping the three box-pushing missions, every fault class,
+/// seeds 1..180: 42 of the 1,080 crash and leader-crash runs stalled. The
+/// pusher crashed against the object, so its body stood where the robot
+/// taking over had to push from (red cube, seed 25), or hid the object
+/// from it, which then took it as gone and wandered off (search and
+/// rescue, seed 23). The pusher now pushes the object aside, away from
+/// the body, until the place behind it is clear; takes an object behind a
+/// body as hidden, not gone; and searches for an object lost near a body
+/// round the body. One run of each mission and kind.
+#[test]
+fn a_pusher_gets_round_its_crashed_teammate() {
+    example_completes("red-cube.rtcl", "crash=r0@44.656s", "25");
+    example_completes("search-rescue.rtcl", "crash=r0@36.162s", "23");
+    example_completes("search-rescue.rtcl", "crash=r0@36.222s", "90");
+    example_completes("red-cube.rtcl", "crash=r0@35.862s", "19");
+    example_completes("box-push.yaml", "crash=r1@50.394s", "51");
+    example_completes("box-push.yaml", "crash=r0@12.203s", "69");
+}
+
 /// Found by sweeping the box push: after a pause the watcher lost sight of
 /// the box behind the pusher, never believed it half way and the wait-all
 /// barrier waited for it for ever. The graph shares what a robot's own
