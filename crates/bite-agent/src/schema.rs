@@ -525,7 +525,8 @@ pub struct State {
     /// The skill's object was never seen: when this robot started
     /// searching for it (see [`command`]).
     lost: Option<f64>,
-    /// That search round the place the object was last seen.
+    /// That search round a lost teammate's body near where the object
+    /// was last seen.
     circle: Option<Circle>,
     /// That search's detour round a lost teammate's body.
     search_route: Option<crate::plan::Route>,
@@ -600,10 +601,11 @@ impl State {
     }
 }
 
-/// A search round the place an object was last seen (see [`vantage`]).
+/// A search for an object round a lost teammate's body near where it was
+/// last seen (see [`vantage`]).
 #[derive(Clone, Copy, Debug)]
 struct Circle {
-    /// The bearing (radians, from that place) the robot searched from when
+    /// The bearing (radians, from the body) the robot searched from when
     /// the search began.
     from: f64,
     /// The vantage point it heads for or looks from: the `k`-th.
@@ -1054,10 +1056,10 @@ pub fn evaluate(
 /// round the body (see [`vantage`]).
 const BODY_NEAR_OBJECT: f64 = 2.5;
 
-/// A robot searching round a place is at a vantage point this near it, m.
+/// A robot searching round a body is at a vantage point this near it, m.
 const ARRIVED: f64 = 0.25;
-/// Seconds a robot searching round a place heads for one vantage point at
-/// most (it may not get there: a body, the object itself in the way).
+/// Seconds a robot searching round a body heads for one vantage point at
+/// most (it may not get there: the body, the object itself in the way).
 const VANTAGE_TIME: f64 = 15.0;
 
 /// How far from the body it searches round a robot looks for its object
@@ -1066,11 +1068,12 @@ const VANTAGE: f64 = 1.0;
 
 /// The `k`-th vantage point of a robot searching round `centre`, a lost
 /// teammate's body, for an object that is not where it was last seen, near
-/// the body (each point followed by a look all round): [`VANTAGE`] m off, a sixth of a turn further each time, from
-/// the bearing `from` (where it stood when the search began). Seen from
-/// one side, a teammate's body, crashed where it pushed, can hide the
-/// object; from the next, it does not. Points off the open floor are
-/// passed over; `None` if the whole round is.
+/// the body (each point followed by a look all round): [`VANTAGE`] m off,
+/// a sixth of a turn further each time, from the bearing `from` (where it
+/// stood when the search began). Seen from one side, a teammate's body,
+/// crashed where it pushed, can hide the object; from the next, it does
+/// not. Points off the open floor are passed over; `None` if the whole
+/// round is.
 fn vantage(view: &View, centre: DVec2, from: f64, k: usize) -> Option<DVec2> {
     let step = std::f64::consts::FRAC_PI_3;
     (0..6)
