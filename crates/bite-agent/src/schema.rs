@@ -1726,12 +1726,7 @@ mod tests {
 
     #[test]
     fn a_pusher_looks_round_for_an_object_that_is_not_where_it_was_seen() {
-        let push = Schema::Push {
-            object: "box".into(),
-            goal: DVec2::new(-3.0, 0.0),
-            offset: 0.4,
-            speed: 0.2,
-        };
+        let push = push_box_west();
         let mut view = View::default();
         view.pose.pos = DVec2::new(0.6, 0.0);
         view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
@@ -1766,15 +1761,7 @@ mod tests {
     #[test]
     fn a_pusher_that_loses_the_object_searches_for_it() {
         let skill = vec![
-            weighted(
-                Schema::Push {
-                    object: "box".into(),
-                    goal: DVec2::new(-3.0, 0.0),
-                    offset: 0.4,
-                    speed: 0.2,
-                },
-                2,
-            ),
+            weighted(push_box_west(), 2),
             weighted(Schema::AvoidObstacle { range: 0.15 }, 1),
         ];
         let mut view = View::default();
@@ -1816,6 +1803,17 @@ mod tests {
         assert!(states.iter().all(|s| !s.gone && s.lost.is_none()));
     }
 
+    /// A push of the object `box` to (-3, 0), standing 0.4 m behind it, at
+    /// 0.2 m/s: the skill the pushing tests run.
+    fn push_box_west() -> Schema {
+        Schema::Push {
+            object: "box".into(),
+            goal: DVec2::new(-3.0, 0.0),
+            offset: 0.4,
+            speed: 0.2,
+        }
+    }
+
     /// A teammate crashed while pushing: its body stands right behind the
     /// object, where the pusher that takes over would push from. That one
     /// pushes the object aside (at a turn from the goal's direction whose
@@ -1824,12 +1822,7 @@ mod tests {
     /// 42 of 1,080 crash runs of the box-pushing missions stalled so.)
     #[test]
     fn a_pusher_pushes_aside_an_object_a_lost_body_stands_behind() {
-        let push = Schema::Push {
-            object: "box".into(),
-            goal: DVec2::new(-3.0, 0.0),
-            offset: 0.4,
-            speed: 0.2,
-        };
+        let push = push_box_west();
         let o = DVec2::new(1.0, 0.0);
         let mut view = View {
             radius: 0.12,
@@ -1876,12 +1869,7 @@ mod tests {
     /// it goes on, and does not turn round to look for it.
     #[test]
     fn an_object_behind_a_lost_body_is_hidden_not_gone() {
-        let push = Schema::Push {
-            object: "box".into(),
-            goal: DVec2::new(-3.0, 0.0),
-            offset: 0.4,
-            speed: 0.2,
-        };
+        let push = push_box_west();
         let mut view = View {
             radius: 0.12,
             ..View::default()
@@ -1909,15 +1897,7 @@ mod tests {
     /// as before.
     #[test]
     fn a_pusher_searches_round_a_lost_body_near_where_it_lost_the_object() {
-        let skill = vec![weighted(
-            Schema::Push {
-                object: "box".into(),
-                goal: DVec2::new(-3.0, 0.0),
-                offset: 0.4,
-                speed: 0.2,
-            },
-            2,
-        )];
+        let skill = vec![weighted(push_box_west(), 2)];
         let body = DVec2::new(1.5, 0.0);
         let mut view = View {
             radius: 0.12,
