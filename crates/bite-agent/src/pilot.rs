@@ -652,6 +652,10 @@ impl Pilot {
                 .filter_map(|k| self.mates.get(k).map(|(m, _)| m.pos))
                 .collect(),
             map: self.map.clone(),
+            last_mate: (self.mates.iter())
+                .filter(|(k, _)| !self.lost.contains(k))
+                .max_by(|(_, (_, a)), (_, (_, b))| a.total_cmp(b))
+                .map(|(_, (m, at))| (m.pos, t - at)),
         };
     }
 

@@ -243,6 +243,10 @@ pub struct View {
     pub bodies: Vec<DVec2>,
     /// The arena as it knows it, to route around those bodies.
     pub map: Option<std::sync::Arc<crate::plan::Map>>,
+    /// Where it last saw a live teammate (the latest sighting it still
+    /// remembers, however old), and how long ago, s: where to look for
+    /// the team when turning in place shows no one (see [`command`]).
+    pub last_mate: Option<(DVec2, f64)>,
 }
 
 /// A fused command: a desired velocity in the world frame, and a heading
@@ -548,6 +552,9 @@ pub struct State {
     /// object in while a lost teammate's body stands where it would push
     /// from (see [`push_direction`]).
     push_turn: Option<f64>,
+    /// Look-around: since when it has looked round without seeing a live
+    /// teammate (see [`command`]).
+    in_vain: Option<f64>,
 }
 
 impl State {
@@ -764,6 +771,15 @@ pub const SEARCH_TURN: f64 = 6.0;
 /// moves between two turns in place (see [`command`]), and how fast.
 pub const SEARCH_MOVE: f64 = 5.0;
 const SEARCH_SPEED: f64 = 0.15;
+
+/// Seconds a robot turns in place (`look-around`) seeing no live teammate
+/// before it goes to look for them (several whole turns at the top turn
+/// rate of any robot in the shipped scenarios, 2.5 to 3 rad/s).
+pub const LOOK_IN_VAIN: f64 = 10.0;
+
+/// A robot going back to where it last saw a teammate is there this near
+/// it, m.
+const BACK_WHERE_SEEN: f64 = 0.5;
 
 /// Cell `rank` of `n` when `region` is split into `n` cells of equal area,
 /// about square: `rows ≈ √(n·h/w)` rows holding `n / rows` or one more
@@ -1298,6 +1314,50 @@ pub fn command(
             }
         }
     }
+    // Looking round for teammates in vain: a robot that has nothing to do
+    // but turn in place (`look-around`) and has seen no live teammate for
+    // [`LOOK_IN_VAIN`] is out of their sight (round a corner, behind a
+    // wall or a teammate's body), and turning on the spot will never show
+    // them. It goes back to where it last saw one; there, or if it
+    // remembers none, it moves a while and looks round again, by turns.
+    // As soon as it sees a teammate it turns in place again.
+    if let Some(i) = (skill.iter()).position(|w| matches!(w.schema, Schema::LookAround)) {
+        let only_looks = unseen.is_none()
+            && (skill.iter().zip(&outputs)).all(|(w, (_, _, o))| {
+                o.is_none() || w.schema.avoids() || matches!(w.schema, Schema::LookAround)
+            });
+        let no_one = view
+            .last_mate
+            .is_none_or(|(_, age)| age > crate::pilot::MATE_MEMORY);
+        let st = &mut states[i];
+        if only_looks && no_one {
+            let since = *st.in_vain.get_or_insert(view.skill_time);
+            let looked = view.skill_time - since;
+            if looked >= LOOK_IN_VAIN {
+                let back = (view.last_mate)
+                    .map(|(p, _)| p)
+                    .filter(|p| p.distance(view.pose.pos) > BACK_WHERE_SEEN);
+                let phase = (looked - LOOK_IN_VAIN) % (SEARCH_MOVE + SEARCH_TURN);
+                let schema = match back {
+                    Some(p) => Schema::MoveToGoal {
+                        goal: Target::Point(p),
+                        speed: SEARCH_SPEED,
+                    },
+                    None if phase < SEARCH_MOVE => Schema::Wander {
+                        speed: SEARCH_SPEED,
+                        period: 2.0,
+                    },
+                    None => Schema::LookAround,
+                };
+                if matches!(schema, Schema::LookAround) {
+                    st.wander = None;
+                }
+                outputs[i].2 = evaluate(&schema, view, st, rng);
+            }
+        } else {
+            st.in_vain = None;
+        }
+    }
     // A schema following a planned detour round a lost teammate's body
     // keeps its clearance by the plan: obstacle avoidance is superposed on
     // it in its layer instead of overriding it (a reading at the edge of
@@ -1758,6 +1818,69 @@ mod tests {
     /// sees it. (It turned on the spot for ever: found by sweeping the
     /// compiled box push, the box hidden behind the teammate that stepped
     /// aside.)
+    /// A robot looking round for its teammates (`look-around`) that sees
+    /// none for [`LOOK_IN_VAIN`] goes back to where it last saw one, then,
+    /// there, moves and looks round by turns; it turns in place again as
+    /// soon as it sees one.
+    #[test]
+    fn a_robot_that_looks_round_in_vain_goes_back_for_its_teammates() {
+        let skill = vec![
+            weighted(Schema::LookAround, 0),
+            weighted(Schema::AvoidObstacle { range: 0.12 }, 3),
+        ];
+        let mut view = View {
+            max_speed: 0.25,
+            ..View::default()
+        };
+        view.pose.pos = DVec2::new(5.5, 1.6);
+        let seen_at = DVec2::new(3.5, 2.2);
+        let mut states = Vec::new();
+        let mut rng = || 0.5;
+        let mut at = |view: &mut View, t: f64, age: f64, states: &mut Vec<State>| {
+            view.skill_time = t;
+            view.last_mate = Some((seen_at, age));
+            command(&skill, view, states, &mut rng)
+        };
+        // Seen lately: a turn in place, however long it has looked.
+        let c = at(&mut view, 30.0, 1.0, &mut states);
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+        assert!(c.face.is_some());
+        // Unseen: it keeps turning for LOOK_IN_VAIN ...
+        let c = at(&mut view, 31.0, 4.0, &mut states);
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+        let c = at(&mut view, 31.0 + LOOK_IN_VAIN - 0.1, 5.0, &mut states);
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+        // ... then heads back to where it last saw a teammate.
+        let c = at(&mut view, 31.0 + LOOK_IN_VAIN + 0.1, 5.0, &mut states);
+        let back = (seen_at - view.pose.pos).normalize();
+        assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
+        assert!(c.v.normalize().dot(back) > 0.999, "{c:?}");
+        // There, with no one in sight: it moves, then looks round again.
+        view.pose.pos = seen_at + DVec2::new(0.2, 0.0);
+        let t = 31.0 + LOOK_IN_VAIN + 20.0;
+        let phase = (t - 31.0 - LOOK_IN_VAIN) % (SEARCH_MOVE + SEARCH_TURN);
+        let c = at(&mut view, t, 25.0, &mut states);
+        assert_eq!(c.v == DVec2::ZERO, phase >= SEARCH_MOVE, "{c:?}");
+        // A teammate seen again: a turn in place, and the wait starts anew.
+        let c = at(&mut view, t + 1.0, 0.5, &mut states);
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+        let c = at(&mut view, t + 5.0, 4.0, &mut states);
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+        // Never having seen one, it moves and looks round by turns.
+        view.last_mate = None;
+        let mut states = Vec::new();
+        let mut rng = || 0.5;
+        let mut at = |t: f64, states: &mut Vec<State>| {
+            view.skill_time = t;
+            command(&skill, &view, states, &mut rng)
+        };
+        assert_eq!(at(0.0, &mut states).v, DVec2::ZERO);
+        let c = at(LOOK_IN_VAIN + 0.1, &mut states);
+        assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
+        let c = at(LOOK_IN_VAIN + SEARCH_MOVE + 0.1, &mut states);
+        assert_eq!(c.v, DVec2::ZERO, "{c:?}");
+    }
+
     #[test]
     fn a_pusher_that_loses_the_object_searches_for_it() {
         let skill = vec![

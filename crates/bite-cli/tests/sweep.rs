@@ -167,6 +167,33 @@ fn histories_that_met_by_different_ways_number_alike_after_it() {
     assert_eq!(v["outcome"], "completed", "{v:#}");
 }
 
+/// Found by sweeping the formation (seeds 1 to 180): a robot searching
+/// for its teammates (`look-around`, turning in place) stood in the
+/// corridor, with the one it had to see round the corner, out of sight for
+/// ever. The wait-all barrier after `search` waited for it until no robot
+/// had moved for 120 s (STALLED): after a crash (configuration 1 seed 2,
+/// configuration 2 seed 145), a pause (configuration 4 seed 70) and a
+/// one-way cut (configuration 1 seed 70). A robot that has turned for
+/// `LOOK_IN_VAIN` seeing no live teammate now goes back to where it last
+/// saw one.
+#[test]
+fn a_robot_that_cannot_see_its_teammates_goes_back_for_them() {
+    for (n, fault, seed) in [
+        (1, "crash=r0@4.514s", "2"),
+        (2, "crash=r0@3.677s", "145"),
+        (4, "pause=r0@32.777s+9.688s", "70"),
+        (1, "oneway=r0>r1,r2@6.493s+29.34s", "70"),
+    ] {
+        let name = format!("look-{n}-{seed}");
+        let c = config(n);
+        let v = run_one(&name, &["--config", &c, "--fault", fault, "--seed", seed]);
+        assert!(
+            v["outcome"] == "completed" || v["outcome"] == "completed-with-timeouts",
+            "configuration {n} {fault} seed {seed}: {v:#}"
+        );
+    }
+}
+
 /// Found by the sweep: r1, cut off alone, chose `search` after `walk`;
 /// r0 and r2 were voting (`sync.ranked-vote`, r0 calling). When the
 /// partition healed, r2 reached the point with r0's call and r1's notice
