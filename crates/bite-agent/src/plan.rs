@@ -13,7 +13,9 @@
 //! its map) and where it last saw each lost teammate; it plans over that
 //! map, inflated by its own radius, and steers to the next point of the
 //! path. Healthy teammates are not obstacles here: they move, and
-//! `avoid-teammate` handles them.
+//! `avoid-teammate` handles them. A body that leaves no way round it (a
+//! corridor too narrow beside it) is pushed out of the way instead
+//! (`schema::command`).
 
 use crate::spec::{PhysicsSpec, Shape};
 use glam::DVec2;
@@ -403,7 +405,7 @@ pub(crate) mod tests {
         (*sc.physics.expect("physics")).clone()
     }
 
-    fn corridor() -> PhysicsSpec {
+    pub(crate) fn corridor() -> PhysicsSpec {
         // The formation scenario: a hall narrowing into a 0.8 m corridor.
         physics(
             "[8, 3]",

@@ -555,6 +555,9 @@ pub struct State {
     /// Look-around: since when it has looked round without seeing a live
     /// teammate (see [`command`]).
     in_vain: Option<f64>,
+    /// Move-to-goal: it pushes a lost teammate's body that blocks its only
+    /// way (see [`command`]).
+    shoving: bool,
 }
 
 impl State {
@@ -690,6 +693,30 @@ fn target_point(view: &View, t: &Target) -> Option<DVec2> {
 
 /// Where to steer to reach `to`: `to`, or the next point of a detour round
 /// a lost teammate's body in the way (see [`crate::plan`]).
+/// `avoid-obstacle`: away from every range reading closer than `range`,
+/// but a ray that ends on a teammate in sight (avoid-teammate answers for
+/// it) and, when `shoving`, one that ends on a lost teammate's body (the
+/// robot pushes it out of its way: see [`command`]).
+fn avoid_obstacle(view: &View, range: f64, shoving: bool) -> Option<Output> {
+    let pose = view.pose;
+    let on = |hit: DVec2, p: DVec2| p.distance(hit) < view.radius + 0.06;
+    let mut v = DVec2::ZERO;
+    for (angle, d) in &view.rays {
+        if *d < range {
+            let dir = DVec2::from_angle(pose.heading + angle);
+            let hit = pose.pos + dir * (d + view.radius);
+            if view.mates.values().any(|m| on(hit, m.pos))
+                || (shoving && view.bodies.iter().any(|b| on(hit, *b)))
+            {
+                continue;
+            }
+            let away = -dir;
+            v += away * ((range - d) / range) * view.max_speed;
+        }
+    }
+    (v != DVec2::ZERO).then_some(Output { v, face: None })
+}
+
 fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
     // A trapped robot's detour also keeps clear of what its rays hit (an
     // object or a teammate the map does not hold).
@@ -720,6 +747,9 @@ pub const TRAPPED_AFTER: f64 = 5.0;
 pub const DETOUR: f64 = 8.0;
 const TRAP_FAR: f64 = 0.5;
 const HEADWAY: f64 = 0.15;
+/// A trapped robot pushes a lost teammate's body that blocks its only way
+/// when the body is ahead of it and this near its own (m between them).
+const SHOVE_NEAR: f64 = 0.2;
 /// Seconds a wandering robot may stay within [`PIN_RADIUS`] m of one spot
 /// before it counts as pinned there (see `State::watch_roaming`).
 pub const PINNED_AFTER: f64 = 10.0;
@@ -834,27 +864,7 @@ pub fn evaluate(
                 out(to.normalize_or_zero() * s)
             }
         },
-        Schema::AvoidObstacle { range } => {
-            let mut v = DVec2::ZERO;
-            for (angle, d) in &view.rays {
-                if *d < *range {
-                    let dir = DVec2::from_angle(pose.heading + angle);
-                    // A ray that ends on a teammate in sight hit that
-                    // teammate: avoid-teammate answers for it.
-                    let hit = pose.pos + dir * (d + view.radius);
-                    if view
-                        .mates
-                        .values()
-                        .any(|m| m.pos.distance(hit) < view.radius + 0.06)
-                    {
-                        continue;
-                    }
-                    let away = -dir;
-                    v += away * ((range - d) / range) * view.max_speed;
-                }
-            }
-            (v != DVec2::ZERO).then_some(Output { v, face: None })
-        }
+        Schema::AvoidObstacle { range } => avoid_obstacle(view, *range, false),
         Schema::AvoidTeammate { range } => {
             let mut v = DVec2::ZERO;
             for m in view.mates.values() {
@@ -1233,6 +1243,36 @@ pub fn command(
         st.watch_headway(drives, to, view.skill_time);
         if matches!(w.schema, Schema::Wander { .. }) {
             st.watch_roaming(view.pose.pos, view.skill_time);
+        }
+    }
+    // A lost teammate's body blocking the only way to a goal (a robot
+    // crashed in a corridor, with no way round it: the trapped robot's
+    // planner found none) is pushed out of the way, as an object is: the
+    // robot drives on to its goal and its obstacle avoidance no longer
+    // answers for what its rays see of the body. It keeps pushing while
+    // the body is ahead of it, near, and short of the goal.
+    let mut shove = false;
+    for (w, st) in skill.iter().zip(states.iter_mut()) {
+        if !matches!(w.schema, Schema::MoveToGoal { .. }) {
+            continue;
+        }
+        let pos = view.pose.pos;
+        let blocks = st.bound_for.is_some_and(|goal| {
+            (view.bodies.iter()).any(|b| {
+                b.distance(pos) < 2.0 * view.radius + SHOVE_NEAR
+                    && (*b - pos).dot(goal - pos) > 0.0
+                    && b.distance(pos) < goal.distance(pos)
+            })
+        });
+        let no_way = st.trapped.is_some() && st.route.as_ref().is_some_and(|r| !r.leads());
+        st.shoving = blocks && (st.shoving || no_way);
+        shove |= st.shoving;
+    }
+    if shove {
+        for (w, o) in skill.iter().zip(outputs.iter_mut()) {
+            if let Schema::AvoidObstacle { range } = w.schema {
+                o.2 = avoid_obstacle(view, range, true);
+            }
         }
     }
     // Nothing to do but keep clear, because the object the skill works on
@@ -1818,6 +1858,66 @@ mod tests {
     /// sees it. (It turned on the spot for ever: found by sweeping the
     /// compiled box push, the box hidden behind the teammate that stepped
     /// aside.)
+    /// A robot driving to a goal beyond a lost teammate's body that blocks
+    /// the corridor (no way round it) is trapped in front of it, then
+    /// pushes it: its obstacle avoidance stops answering for the body.
+    #[test]
+    fn a_robot_pushes_a_body_that_blocks_its_only_way() {
+        let skill = vec![
+            weighted(
+                Schema::MoveToGoal {
+                    goal: Target::Point(DVec2::new(6.8, 1.5)),
+                    speed: 0.12,
+                },
+                1,
+            ),
+            weighted(Schema::AvoidObstacle { range: 0.12 }, 3),
+        ];
+        let map = std::sync::Arc::new(crate::plan::Map::new(&crate::plan::tests::corridor()));
+        // In the corridor, a body 0.3 m ahead: the ray straight ahead ends
+        // on it, 6 cm from the robot's edge.
+        let mut view = View {
+            max_speed: 0.25,
+            radius: 0.12,
+            rays: vec![(0.0, 0.06)],
+            bodies: vec![DVec2::new(5.6, 1.5)],
+            map: Some(map),
+            ..View::default()
+        };
+        view.pose.pos = DVec2::new(5.3, 1.5);
+        let mut states = Vec::new();
+        let mut rng = || 0.5;
+        let mut at = |view: &mut View, t: f64, states: &mut Vec<State>| {
+            view.skill_time = t;
+            command(&skill, view, states, &mut rng)
+        };
+        // Held back by its avoidance while it is not trapped ...
+        let c = at(&mut view, 0.0, &mut states);
+        assert!(c.v.x < 0.0, "{c:?}");
+        let mut t = 0.0;
+        while states[0].trapped.is_none() {
+            t += 0.1;
+            assert!(t < TRAPPED_AFTER + 1.0, "never trapped");
+            at(&mut view, t, &mut states);
+        }
+        // ... trapped, with no way round: it drives on into the body.
+        let c = at(&mut view, t + 0.1, &mut states);
+        assert!(c.v.x > 0.1 && c.v.y.abs() < 1e-9, "{c:?}");
+        // A body behind it is not pushed: trapped all the same, its
+        // avoidance still answers for it (and adds to the drive ahead).
+        view.bodies = vec![DVec2::new(5.0, 1.5)];
+        view.rays = vec![(std::f64::consts::PI, 0.06)];
+        let mut states = Vec::new();
+        let mut t = 0.0;
+        while states.first().is_none_or(|s: &State| s.trapped.is_none()) {
+            at(&mut view, t, &mut states);
+            t += 0.1;
+            assert!(t < TRAPPED_AFTER + 1.0, "never trapped");
+        }
+        let c = at(&mut view, t, &mut states);
+        assert!(c.v.x > 0.2, "{c:?}");
+    }
+
     /// A robot looking round for its teammates (`look-around`) that sees
     /// none for [`LOOK_IN_VAIN`] goes back to where it last saw one, then,
     /// there, moves and looks round by turns; it turns in place again as

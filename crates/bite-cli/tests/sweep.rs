@@ -167,6 +167,35 @@ fn histories_that_met_by_different_ways_number_alike_after_it() {
     assert_eq!(v["outcome"], "completed", "{v:#}");
 }
 
+/// Found by sweeping the shipped missions: the lead of the compiled
+/// column walk (`formation-walk.rtcl`) crashed in the corridor, and its
+/// body left gaps to the walls (0.28 m) that a robot (0.24 m) cannot get
+/// through by its schemas: its planner found no way round, its obstacle
+/// avoidance held it in front of the body, and nothing moved for 120 s
+/// (STALLED; 20 of 120 crash and leader-crash runs at seeds 21 to 80). So
+/// did the formation's configurations 2 and 3 at seed 20, the body at the
+/// corridor's mouth. A trapped robot with no way round a body ahead now
+/// pushes it out of its way.
+#[test]
+fn a_robot_pushes_a_crashed_teammate_out_of_the_corridor() {
+    example_completes("formation-walk.rtcl", "crash=r0@41.709s", "30");
+    example_completes("formation-walk.rtcl", "crash=r0@49.183s", "65");
+    example_completes("formation-walk.rtcl", "crash=r0@34.965s", "75");
+    let c = config(2);
+    let v = run_one(
+        "shove-20",
+        &[
+            "--config",
+            &c,
+            "--fault",
+            "crash=r0@39.723s",
+            "--seed",
+            "20",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
 /// Found by sweeping the formation (seeds 1 to 180): a robot searching
 /// for its teammates (`look-around`, turning in place) stood in the
 /// corridor, with the one it had to see round the corner, out of sight for
