@@ -691,8 +691,6 @@ fn target_point(view: &View, t: &Target) -> Option<DVec2> {
     }
 }
 
-/// Where to steer to reach `to`: `to`, or the next point of a detour round
-/// a lost teammate's body in the way (see [`crate::plan`]).
 /// `avoid-obstacle`: away from every range reading closer than `range`,
 /// but a ray that ends on a teammate in sight (avoid-teammate answers for
 /// it) and, when `shoving`, one that ends on a lost teammate's body (the
@@ -717,6 +715,8 @@ fn avoid_obstacle(view: &View, range: f64, shoving: bool) -> Option<Output> {
     (v != DVec2::ZERO).then_some(Output { v, face: None })
 }
 
+/// Where to steer to reach `to`: `to`, or the next point of a detour round
+/// a lost teammate's body in the way (see [`crate::plan`]).
 fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
     // A trapped robot's detour also keeps clear of what its rays hit (an
     // object or a teammate the map does not hold).
@@ -1852,12 +1852,6 @@ mod tests {
         assert!(out.v.length() > 0.0, "{out:?}");
     }
 
-    /// A pusher that does not find the object where it last saw it, nor
-    /// in a full turn from there, searches for it as for one never seen:
-    /// it looks round, wanders a while, looks again, and pushes once it
-    /// sees it. (It turned on the spot for ever: found by sweeping the
-    /// compiled box push, the box hidden behind the teammate that stepped
-    /// aside.)
     /// A robot driving to a goal beyond a lost teammate's body that blocks
     /// the corridor (no way round it) is trapped in front of it, then
     /// pushes it: its obstacle avoidance stops answering for the body.
@@ -1981,6 +1975,12 @@ mod tests {
         assert_eq!(c.v, DVec2::ZERO, "{c:?}");
     }
 
+    /// A pusher that does not find the object where it last saw it, nor
+    /// in a full turn from there, searches for it as for one never seen:
+    /// it looks round, wanders a while, looks again, and pushes once it
+    /// sees it. (It turned on the spot for ever: found by sweeping the
+    /// compiled box push, the box hidden behind the teammate that stepped
+    /// aside.)
     #[test]
     fn a_pusher_that_loses_the_object_searches_for_it() {
         let skill = vec![
