@@ -181,18 +181,7 @@ fn a_robot_pushes_a_crashed_teammate_out_of_the_corridor() {
     example_completes("formation-walk.rtcl", "crash=r0@41.709s", "30");
     example_completes("formation-walk.rtcl", "crash=r0@49.183s", "65");
     example_completes("formation-walk.rtcl", "crash=r0@34.965s", "75");
-    let c = config(2);
-    let v = run_one(
-        "shove-20",
-        &[
-            "--config",
-            &c,
-            "--fault",
-            "crash=r0@39.723s",
-            "--seed",
-            "20",
-        ],
-    );
+    let v = formation_run(2, "crash=r0@39.723s", "20");
     assert_eq!(v["outcome"], "completed", "{v:#}");
 }
 
@@ -213,9 +202,7 @@ fn a_robot_that_cannot_see_its_teammates_goes_back_for_them() {
         (4, "pause=r0@32.777s+9.688s", "70"),
         (1, "oneway=r0>r1,r2@6.493s+29.34s", "70"),
     ] {
-        let name = format!("look-{n}-{seed}");
-        let c = config(n);
-        let v = run_one(&name, &["--config", &c, "--fault", fault, "--seed", seed]);
+        let v = formation_run(n, fault, seed);
         assert!(
             v["outcome"] == "completed" || v["outcome"] == "completed-with-timeouts",
             "configuration {n} {fault} seed {seed}: {v:#}"
@@ -387,6 +374,18 @@ fn example_completes(graph: &str, fault: &str, seed: &str) {
         v["outcome"], "completed",
         "{graph} {fault} seed {seed}: {v:#}"
     );
+}
+
+/// `bite run` of the formation under Table II's configuration `n` in the
+/// physical world, with `fault`, on `seed`: the summary of a run that broke
+/// no invariant.
+fn formation_run(n: u32, fault: &str, seed: &str) -> serde_json::Value {
+    let kind = fault.split('=').next().unwrap_or("");
+    let c = config(n);
+    run_one(
+        &format!("formation-{n}-{kind}-{seed}"),
+        &["--config", &c, "--fault", fault, "--seed", seed],
+    )
 }
 
 /// Version 2 of the changed formation, run on its own, has a world of its
