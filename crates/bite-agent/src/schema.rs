@@ -1506,6 +1506,12 @@ mod tests {
     use super::*;
 
     /// A schema of a test skill, gain 1, in `layer`.
+    /// [`command`] at skill time `t`, every random draw 0.5.
+    fn command_at(skill: &[Weighted], view: &mut View, states: &mut Vec<State>, t: f64) -> Command {
+        view.skill_time = t;
+        command(skill, view, states, &mut || 0.5)
+    }
+
     fn weighted(schema: Schema, layer: u8) -> Weighted {
         Weighted {
             schema,
@@ -1880,11 +1886,8 @@ mod tests {
         };
         view.pose.pos = DVec2::new(5.3, 1.5);
         let mut states = Vec::new();
-        let mut rng = || 0.5;
-        let mut at = |view: &mut View, t: f64, states: &mut Vec<State>| {
-            view.skill_time = t;
-            command(&skill, view, states, &mut rng)
-        };
+        let at =
+            |view: &mut View, t: f64, states: &mut Vec<State>| command_at(&skill, view, states, t);
         // Held back by its avoidance while it is not trapped ...
         let c = at(&mut view, 0.0, &mut states);
         assert!(c.v.x < 0.0, "{c:?}");
@@ -1929,11 +1932,9 @@ mod tests {
         view.pose.pos = DVec2::new(5.5, 1.6);
         let seen_at = DVec2::new(3.5, 2.2);
         let mut states = Vec::new();
-        let mut rng = || 0.5;
-        let mut at = |view: &mut View, t: f64, age: f64, states: &mut Vec<State>| {
-            view.skill_time = t;
+        let at = |view: &mut View, t: f64, age: f64, states: &mut Vec<State>| {
             view.last_mate = Some((seen_at, age));
-            command(&skill, view, states, &mut rng)
+            command_at(&skill, view, states, t)
         };
         // Seen lately: a turn in place, however long it has looked.
         let c = at(&mut view, 30.0, 1.0, &mut states);
@@ -1963,11 +1964,7 @@ mod tests {
         // Never having seen one, it moves and looks round by turns.
         view.last_mate = None;
         let mut states = Vec::new();
-        let mut rng = || 0.5;
-        let mut at = |t: f64, states: &mut Vec<State>| {
-            view.skill_time = t;
-            command(&skill, &view, states, &mut rng)
-        };
+        let mut at = |t: f64, states: &mut Vec<State>| command_at(&skill, &mut view, states, t);
         assert_eq!(at(0.0, &mut states).v, DVec2::ZERO);
         let c = at(LOOK_IN_VAIN + 0.1, &mut states);
         assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
@@ -1991,11 +1988,8 @@ mod tests {
         view.pose.pos = DVec2::new(0.6, 0.0);
         view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
         let mut states = Vec::new();
-        let mut rng = || 0.5;
-        let mut at = |view: &mut View, t: f64, states: &mut Vec<State>| {
-            view.skill_time = t;
-            command(&skill, view, states, &mut rng)
-        };
+        let at =
+            |view: &mut View, t: f64, states: &mut Vec<State>| command_at(&skill, view, states, t);
         // Facing the spot, the box not there: a turn in place.
         let c = at(&mut view, 0.0, &mut states);
         assert_eq!(c.v, DVec2::ZERO);
@@ -2131,11 +2125,8 @@ mod tests {
         view.pose.pos = DVec2::new(0.6, 0.0);
         view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
         let mut states = Vec::new();
-        let mut rng = || 0.5;
-        let mut at = |view: &mut View, t: f64, states: &mut Vec<State>| {
-            view.skill_time = t;
-            command(&skill, view, states, &mut rng)
-        };
+        let at =
+            |view: &mut View, t: f64, states: &mut Vec<State>| command_at(&skill, view, states, t);
         // Facing the spot, the box not there: a turn in place; lost.
         at(&mut view, 0.0, &mut states);
         let c = at(&mut view, SEARCH_TURN + 0.1, &mut states);
@@ -2200,10 +2191,8 @@ mod tests {
         view.pose.pos = start;
         let straight = (goal - start).normalize();
         let mut states = Vec::new();
-        let at = |view: &mut View, states: &mut Vec<State>, t: f64| {
-            view.skill_time = t;
-            command(&skill, view, states, &mut || 0.5)
-        };
+        let at =
+            |view: &mut View, states: &mut Vec<State>, t: f64| command_at(&skill, view, states, t);
         // Standing still: straight at the goal until trapped.
         for k in 0..50 {
             let c = at(&mut view, &mut states, f64::from(k) * 0.1);
