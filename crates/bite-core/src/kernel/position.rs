@@ -823,24 +823,40 @@ impl Kernel {
         // silent, it is on its way to the point.
         // So is one running an execution this robot has already ended
         // (under a `term.local` behavior a robot may run ahead).
-        let behind: Vec<FrameId> = self
+        // Each is kept with the execution it runs under: two executions
+        // under different parents may share an id (a behavior both
+        // `triangle` and `line` expand to, at the same team count), and a
+        // teammate ahead, in the later one, is not behind.
+        let behind: Vec<Ended> = self
             .stack
             .iter()
-            .chain(self.popped().map(|(f, _)| f))
-            .filter_map(|f| {
-                f.anchor.filter(|a| !a.first).map(|a| FrameId {
-                    team: f.team,
-                    behavior: a.behavior,
-                    epoch: a.epoch,
+            .enumerate()
+            .chain(self.popped().map(|(f, _)| (self.stack.len(), f)))
+            .filter_map(|(i, f)| {
+                f.anchor.filter(|a| !a.first).map(|a| Ended {
+                    id: FrameId {
+                        team: f.team,
+                        behavior: a.behavior,
+                        epoch: a.epoch,
+                    },
+                    parent: i.checked_sub(1).map(|p| self.stack[p].id()),
                 })
             })
-            .chain(self.recent_ended.iter().map(|e| e.id))
-            .filter(|b| *b != id)
+            .chain(self.recent_ended.iter().copied())
+            .filter(|b| b.id != id)
             .collect();
+        // Whether a teammate's frame `k` (its frames are a chain, root
+        // first: frame `k` runs under frame `k - 1`) is one of those.
+        let is_behind = |frames: &[(FrameId, FrameState)], k: usize| {
+            behind.contains(&Ended {
+                id: frames[k].0,
+                parent: k.checked_sub(1).map(|p| frames[p].0),
+            })
+        };
         if leader != Some(self.me) {
             return leader.and_then(heard).is_some_and(|frames| {
-                frames.iter().any(|(f, _)| {
-                    *f == id || (behind.contains(f) && leader.is_some_and(progressing))
+                frames.iter().enumerate().any(|(k, (f, _))| {
+                    *f == id || (is_behind(frames, k) && leader.is_some_and(progressing))
                 })
             });
         }
@@ -853,9 +869,9 @@ impl Kernel {
         {
             match heard(r) {
                 Some(frames) => {
-                    running |= frames.iter().any(|(f, st)| {
+                    running |= frames.iter().enumerate().any(|(k, (f, st))| {
                         ((at_point_counts && *f == id && *st == FrameState::Running)
-                            || behind.contains(f))
+                            || is_behind(frames, k))
                             && progressing(r)
                     });
                 }

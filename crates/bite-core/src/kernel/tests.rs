@@ -82,10 +82,44 @@ impl Protocol for Silent {
     }
 }
 
+/// A communicating termination that only its deadline ends: a barrier
+/// whose teammates' answers are all lost.
+struct Barrier;
+struct BarrierInst;
+impl Interaction for BarrierInst {
+    fn start(&mut self, _cx: &mut Cx<'_>) {}
+    fn on_message(&mut self, _cx: &mut Cx<'_>, _f: RobotId, _b: &Body) {}
+    fn on_deadline(&mut self, cx: &mut Cx<'_>) {
+        cx.decide(Outcome::Terminate(None));
+    }
+}
+impl Protocol for Barrier {
+    fn name(&self) -> &'static str {
+        "term.test-barrier"
+    }
+    fn kind(&self) -> Kind {
+        Kind::Terminate
+    }
+    fn communicates(&self) -> bool {
+        true
+    }
+    fn summary(&self) -> &'static str {
+        "test"
+    }
+    fn configure(
+        &self,
+        _p: &Params,
+        _: &mut crate::interaction::Setup<'_>,
+    ) -> Result<Factory, crate::interaction::ConfigError> {
+        Ok(Arc::new(|| Box::new(BarrierInst) as Box<dyn Interaction>))
+    }
+}
+
 fn registry() -> Registry {
     let mut r = Registry::core();
     r.register(Arc::new(FirstWins));
     r.register(Arc::new(Silent));
+    r.register(Arc::new(Barrier));
     r
 }
 
@@ -1091,6 +1125,99 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     assert_eq!(
         h.kernels[0].peers.get(&r1).expect("heard").moved,
         Some(Time::from_millis(10_100))
+    );
+}
+
+/// Two executions of one behavior under different parents share an id
+/// when the team's count of it is the same in both (a robot that ran it
+/// once more than its teammates under the first parent, alone, counts the
+/// same as they do under the second). A robot waiting at the barrier that
+/// ends the first parent, having ended the behavior there, must not take a
+/// teammate running it under the second parent for one behind it: that
+/// teammate is ahead, and re-arming the deadline for it left the
+/// formation (configuration 5, heavy loss, seed 71) waiting until the
+/// stall detector ended the run.
+#[test]
+fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() {
+    const TWICE: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [first] }
+  first: { team: true, children: [s], until: first_done, next: [second], terminate: term.test-barrier }
+  second: { team: true, children: [s], until: never }
+  s: { team: true, until: never }";
+    let mut h = Harness::new(TWICE, 2);
+    h.tick(0, &[]);
+    assert_eq!(h.stack(1), ["root", "first", "s"]);
+    let g = h.kernels[0].mission().graph();
+    let id = |name: &str, epoch: u32| FrameId {
+        team: TeamId::ROOT,
+        behavior: g.find(name).expect("behavior"),
+        epoch,
+    };
+    let (root, first, second, s) = (id("root", 1), id("first", 1), id("second", 1), id("s", 1));
+    // The member ends `first` (and `s` under it) and waits at its barrier.
+    h.tick_one(1, 100, &[("first_done", T)]);
+    assert!(h.kernels[1].recent_ended.contains(&s));
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: first.behavior,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert!(
+        h.kernels[1].instances.get(&key).is_some(),
+        "waits at the barrier"
+    );
+    assert_eq!(h.stack(1), ["root"]);
+    assert!(matches!(
+        h.kernels[1].popped(),
+        Some((_, FrameState::Ending))
+    ));
+    let frame = |id: FrameId, anchor: Option<Anchor>| PosFrame {
+        id,
+        anchor,
+        state: FrameState::Running,
+        alloc: None,
+        departed: None,
+    };
+    let under = |parent: FrameId| Anchor {
+        behavior: parent.behavior,
+        epoch: parent.epoch,
+        first: true,
+    };
+    let position = |frames: Vec<PosFrame>| Position {
+        frames,
+        ..Position::default()
+    };
+    // Its leader, heard running `s` under `second`: ahead, not awaited.
+    let ahead = position(vec![
+        frame(root, None),
+        frame(
+            second,
+            Some(Anchor {
+                first: false,
+                ..under(first)
+            }),
+        ),
+        frame(s, Some(under(second))),
+    ]);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(0), &ahead);
+    assert!(
+        !h.kernels[1].awaited_at_work(key),
+        "a leader ahead is not waited for"
+    );
+    // Heard running `s` under `first` instead: behind, on its way.
+    let behind = position(vec![
+        frame(root, None),
+        frame(first, Some(under(root))),
+        frame(s, Some(under(first))),
+    ]);
+    h.kernels[1].peer(Time::from_millis(300), RobotId(0), &behind);
+    assert!(
+        h.kernels[1].awaited_at_work(key),
+        "a leader behind is waited for"
     );
 }
 
