@@ -795,7 +795,16 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         if report.summary.outcome != bite_sim::summary::Outcome::Completed
             || !report.violations.is_empty()
         {
+            // Everything that chose this run: the replay line runs it
+            // again (a timed run replayed without `--timed` ran in the
+            // physical world).
             let mut extra = String::new();
+            if let Some(l) = &a.library {
+                extra.push_str(&format!(" --library {}", l.display()));
+            }
+            if a.timed {
+                extra.push_str(" --timed");
+            }
             if let Some(c) = &a.config {
                 extra.push_str(&format!(" --config {}", c.display()));
             }
