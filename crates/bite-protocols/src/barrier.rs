@@ -24,7 +24,10 @@
 //! leader multicasts `Release`. A member resends `Done` every retry
 //! interval until acknowledged, then every 4, 8, 16… intervals until
 //! released (a lost `Release` is recovered because the leader answers a
-//! late `Done` with `Release`). Members released while still working
+//! late `Done` with `Release`; so it answers the `Query` a member's kernel
+//! sends as soon as a heartbeat shows the leader past the barrier, which
+//! under heavy loss comes long before the next backed-off `Done`). Members
+//! released while still working
 //! (majority, first-wins, or the leader's deadline) are told until they
 //! acknowledge, every 1, 2, 4, 4, 4… retry intervals, at most 40 times (a
 //! member at work waits for nothing, so nothing else would tell it; a
@@ -141,7 +144,9 @@ fn late_reply(closed: &Closed, body: &Body) -> Option<Body> {
         // this robot left before it decided says nothing: the member learns
         // from the heartbeats that this robot left, and reports to the next
         // leader.
-        (Closed::Terminated(_), Body::Done) => Some(Body::Release { next: None }),
+        // So does one that asks (its kernel heard this robot's heartbeat
+        // past the barrier while it still waits).
+        (Closed::Terminated(_), Body::Done | Body::Query) => Some(Body::Release { next: None }),
         // A release repeated to a robot that already ended the behavior:
         // confirm, so that its sender stops.
         (Closed::Terminated(_), Body::Release { .. }) => Some(Body::Ack),
@@ -292,18 +297,18 @@ impl Interaction for Barrier {
     fn on_message(&mut self, cx: &mut Cx<'_>, from: RobotId, body: &Body) {
         let leader = cx.leader();
         match body {
-            Body::Done if cx.is_leader() => {
-                if cx.is_decided() || cx.is_aborted() {
-                    // A member missed the release: it may go on (and, done,
-                    // it needs no more telling). A leader that left before
-                    // everyone arrived stays silent: the member will report
-                    // to the next leader.
-                    self.stragglers.retain(|r| *r != from);
-                    if cx.is_decided() || self.released_on_leave {
-                        cx.send(from, Body::Release { next: None });
-                    }
-                    return;
+            // A member missed the release (it resends `Done`, or its kernel
+            // asks, having heard this robot's heartbeat past the barrier):
+            // it may go on (and, done, it needs no more telling). A leader
+            // that left before everyone arrived stays silent: the member
+            // will report to the next leader.
+            Body::Done | Body::Query if cx.is_leader() && (cx.is_decided() || cx.is_aborted()) => {
+                self.stragglers.retain(|r| *r != from);
+                if cx.is_decided() || self.released_on_leave {
+                    cx.send(from, Body::Release { next: None });
                 }
+            }
+            Body::Done if cx.is_leader() => {
                 self.arrive(cx, from);
                 // It is done here: whatever this robot still runs below
                 // this behavior will not wait for it.
@@ -337,7 +342,9 @@ impl Interaction for Barrier {
             }
             _ if cx.is_aborted() || cx.is_decided() => {}
             // Leadership changing under a lost leader: see `crate::gather`.
-            Body::Done | Body::Ack | Body::Release { .. } => {}
+            // So is a query from a member whose kernel heard the previous
+            // leader past the barrier.
+            Body::Done | Body::Ack | Body::Release { .. } | Body::Query => {}
             other => cx.violation(format!(
                 "term barrier: unexpected `{}` from {from}",
                 other.name()
@@ -438,5 +445,23 @@ impl Interaction for Barrier {
             self.me_done = true;
             cx.send(cx.leader(), Body::Done);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A barrier that is over answers a late arrival, and a member's
+    /// kernel asking because it heard the leader past it, with its
+    /// release; one this robot left says nothing.
+    #[test]
+    fn a_closed_barrier_releases_whoever_arrives_or_asks() {
+        let over = Closed::Terminated(None);
+        let release = Some(Body::Release { next: None });
+        assert_eq!(late_reply(&over, &Body::Done), release);
+        assert_eq!(late_reply(&over, &Body::Query), release);
+        assert_eq!(late_reply(&Closed::Left, &Body::Query), None);
+        assert_eq!(late_reply(&Closed::Left, &Body::Done), None);
     }
 }

@@ -138,6 +138,7 @@ impl Kernel {
             deadline_len: bound.deadline,
             state: if armed { State::Armed } else { State::Active },
             waiting_since: if armed { None } else { Some(self.now) },
+            past_seen: None,
             deadline: if armed {
                 Time::MAX
             } else {

@@ -320,6 +320,9 @@ struct Instance {
     deadline_len: Duration,
     state: State,
     waiting_since: Option<Time>,
+    /// When a heartbeat first showed the coordinator past the barrier, or
+    /// out of the allocation (see `Kernel::ask_past_point`).
+    past_seen: Option<Time>,
     deadline: Time,
     wake: Option<Time>,
     outcome: Option<Outcome>,

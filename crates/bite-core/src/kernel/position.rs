@@ -262,6 +262,19 @@ impl Position {
         })
     }
 
+    /// Where the sender is in the execution of `key`'s point: `None` when
+    /// it is not engaged in it. `Ended` at a termination point: its
+    /// barrier is over; not `Running` at an allocation point: it left the
+    /// allocation (a coordinator that leaves decides from what it has).
+    pub fn state_at(&self, key: InstanceKey) -> Option<FrameState> {
+        self.frames
+            .iter()
+            .find(|f| {
+                f.id.team == key.team && f.id.behavior == key.behavior && f.id.epoch == key.epoch
+            })
+            .map(|f| f.state)
+    }
+
     /// Its size on the wire, bytes.
     pub fn encoded_len(&self) -> usize {
         postcard::experimental::serialized_size(self).unwrap_or(0)
@@ -603,29 +616,54 @@ impl Kernel {
         self.step();
     }
 
-    /// A coordinator whose heartbeat shows it past a sync point, or
-    /// through an allocation, where this robot has waited longer than a
+    /// A coordinator whose heartbeat shows it past a sync point, through
+    /// an allocation, or past a termination (it ended the execution, or
+    /// runs what follows it), where this robot has waited longer than a
     /// retry decided it, and its decision did not arrive: ask it now rather
     /// than at the next resend (spaced further apart after every loss, up
-    /// to 64 retries: under heavy loss, longer than the team can wait).
+    /// to 64 retries: under heavy loss, longer than the team can wait; a
+    /// barrier's member, acknowledged, resends every 4, 8, 16… retries,
+    /// and under heavy loss waited out the deadline). So is one that left
+    /// an allocation it coordinated (its own behavior ended as it decided:
+    /// the decision stands, and only asking brings it back).
+    ///
+    /// The heartbeat that shows a barrier's leader past it, or a leader
+    /// out of its allocation, may arrive before the decision does: then
+    /// the member asks only once the coordinator has been seen so for a
+    /// retry (a run without faults sends nothing more).
     fn ask_past_point(&mut self, from: RobotId, pos: &Position) {
         let now = self.now;
-        let waiting = self.instances.iter().filter(|(k, inst)| {
-            matches!(k.kind, Kind::Sync | Kind::Allocate)
-                && inst.state == super::State::Active
+        let waiting = self.instances.iter().filter(|(_, inst)| {
+            inst.state == super::State::Active
                 && inst.waiting_since.is_some_and(|t| now - t >= inst.retry)
         });
-        let ask: Vec<InstanceKey> = waiting
-            .map(|(k, _)| k)
-            .filter(|k| match k.kind {
-                Kind::Allocate => pos.went_through(*k),
-                _ => pos.went_past(*k),
+        // Each with whether to wait a retry first.
+        let ask: Vec<(InstanceKey, bool)> = waiting
+            .filter_map(|(k, _)| match k.kind {
+                Kind::Allocate if pos.went_through(k) => Some((k, false)),
+                Kind::Allocate => pos
+                    .state_at(k)
+                    .is_some_and(|s| s != FrameState::Running)
+                    .then_some((k, true)),
+                Kind::Sync => pos.went_past(k).then_some((k, false)),
+                Kind::Terminate => (pos.state_at(k) == Some(FrameState::Ended) || pos.went_past(k))
+                    .then_some((k, true)),
             })
             .collect();
-        for k in ask {
-            if self.coordinator_of(k) == Some(from) {
-                self.reply(k, from, crate::msg::Body::Query);
+        for (k, after_a_retry) in ask {
+            if self.coordinator_of(k) != Some(from) {
+                continue;
             }
+            if after_a_retry {
+                let Some(inst) = self.instances.get_mut(&k) else {
+                    continue;
+                };
+                let seen = *inst.past_seen.get_or_insert(now);
+                if now - seen < inst.retry {
+                    continue;
+                }
+            }
+            self.reply(k, from, crate::msg::Body::Query);
         }
     }
 

@@ -1128,37 +1128,58 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     );
 }
 
-/// Two executions of one behavior under different parents share an id
-/// when the team's count of it is the same in both (a robot that ran it
-/// once more than its teammates under the first parent, alone, counts the
-/// same as they do under the second). A robot waiting at the barrier that
-/// ends the first parent, having ended the behavior there, must not take a
-/// teammate running it under the second parent for one behind it: that
-/// teammate is ahead, and re-arming the deadline for it left the
-/// formation (configuration 5, heavy loss, seed 71) waiting until the
-/// stall detector ended the run.
-#[test]
-fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() {
-    const TWICE: &str = "start: root
+/// `first` then `second`, both running `s`; `first` ends at a barrier
+/// that only its deadline decides (its release lost).
+const TWICE: &str = "start: root
 defaults: { terminate: term.local }
 behaviors:
   root: { team: true, children: [first] }
   first: { team: true, children: [s], until: first_done, next: [second], terminate: term.test-barrier }
   second: { team: true, children: [s], until: never }
   s: { team: true, until: never }";
-    let mut h = Harness::new(TWICE, 2);
-    h.tick(0, &[]);
-    assert_eq!(h.stack(1), ["root", "first", "s"]);
+
+/// The executions of [`TWICE`]: root, first, second and s, each the
+/// team's first.
+fn twice_ids(h: &Harness) -> [FrameId; 4] {
     let g = h.kernels[0].mission().graph();
-    let id = |name: &str, epoch: u32| FrameId {
+    ["root", "first", "second", "s"].map(|name| FrameId {
         team: TeamId::ROOT,
         behavior: g.find(name).expect("behavior"),
-        epoch,
-    };
-    let (root, first, second, s) = (id("root", 1), id("first", 1), id("second", 1), id("s", 1));
-    // The member ends `first` (and `s` under it) and waits at its barrier.
+        epoch: 1,
+    })
+}
+
+/// A teammate's position running these executions, root first, each
+/// with what it follows: the execution before it in its chain (`false`),
+/// or the parent it is the first under (`true`).
+fn running(chain: &[(FrameId, Option<(FrameId, bool)>)]) -> Position {
+    let frames = chain
+        .iter()
+        .map(|(id, after)| PosFrame {
+            id: *id,
+            anchor: after.map(|(a, first)| Anchor {
+                behavior: a.behavior,
+                epoch: a.epoch,
+                first,
+            }),
+            state: FrameState::Running,
+            alloc: None,
+            departed: None,
+        })
+        .collect();
+    Position {
+        frames,
+        ..Position::default()
+    }
+}
+
+/// [`TWICE`] with two robots: the member ends `first` (and `s` under it)
+/// and waits at its barrier. The barrier's key.
+fn member_at_the_barrier(h: &mut Harness) -> InstanceKey {
+    h.tick(0, &[]);
+    assert_eq!(h.stack(1), ["root", "first", "s"]);
     h.tick_one(1, 100, &[("first_done", T)]);
-    assert!(h.kernels[1].recent_ended.contains(&s));
+    let [_, first, ..] = twice_ids(h);
     let key = InstanceKey {
         team: TeamId::ROOT,
         behavior: first.behavior,
@@ -1175,50 +1196,90 @@ behaviors:
         h.kernels[1].popped(),
         Some((_, FrameState::Ending))
     ));
-    let frame = |id: FrameId, anchor: Option<Anchor>| PosFrame {
-        id,
-        anchor,
-        state: FrameState::Running,
-        alloc: None,
-        departed: None,
-    };
-    let under = |parent: FrameId| Anchor {
-        behavior: parent.behavior,
-        epoch: parent.epoch,
-        first: true,
-    };
-    let position = |frames: Vec<PosFrame>| Position {
-        frames,
-        ..Position::default()
-    };
+    key
+}
+
+/// Two executions of one behavior under different parents share an id
+/// when the team's count of it is the same in both (a robot that ran it
+/// once more than its teammates under the first parent, alone, counts the
+/// same as they do under the second). A robot waiting at the barrier that
+/// ends the first parent, having ended the behavior there, must not take a
+/// teammate running it under the second parent for one behind it: that
+/// teammate is ahead, and re-arming the deadline for it left the
+/// formation (configuration 5, heavy loss, seed 71) waiting until the
+/// stall detector ended the run.
+#[test]
+fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() {
+    let mut h = Harness::new(TWICE, 2);
+    let key = member_at_the_barrier(&mut h);
+    let [root, first, second, s] = twice_ids(&h);
+    assert!(h.kernels[1].recent_ended.contains(&s));
     // Its leader, heard running `s` under `second`: ahead, not awaited.
-    let ahead = position(vec![
-        frame(root, None),
-        frame(
-            second,
-            Some(Anchor {
-                first: false,
-                ..under(first)
-            }),
-        ),
-        frame(s, Some(under(second))),
+    let ahead = running(&[
+        (root, None),
+        (second, Some((first, false))),
+        (s, Some((second, true))),
     ]);
     h.kernels[1].peer(Time::from_millis(200), RobotId(0), &ahead);
     assert!(
         !h.kernels[1].awaited_at_work(key),
         "a leader ahead is not waited for"
     );
-    // Heard running `s` under `first` instead: behind, on its way.
-    let behind = position(vec![
-        frame(root, None),
-        frame(first, Some(under(root))),
-        frame(s, Some(under(first))),
+    // Heard running `s` under `first` instead: still in the execution.
+    let behind = running(&[
+        (root, None),
+        (first, Some((root, true))),
+        (s, Some((first, true))),
     ]);
     h.kernels[1].peer(Time::from_millis(300), RobotId(0), &behind);
     assert!(
         h.kernels[1].awaited_at_work(key),
         "a leader behind is waited for"
     );
+}
+
+/// A member at a barrier whose leader's heartbeat shows the leader past
+/// it (the release lost) asks the leader, which answers with the release;
+/// but only once the leader has been seen past it for a retry, since the
+/// heartbeat may arrive before the release does. A leader not past it is
+/// not asked.
+#[test]
+fn a_member_asks_a_leader_seen_past_its_barrier_after_a_retry() {
+    let mut h = Harness::new(TWICE, 2);
+    let key = member_at_the_barrier(&mut h);
+    let [root, first, second, s] = twice_ids(&h);
+    let retry = h.kernels[1].instances.get(&key).expect("waits").retry;
+    let retry_ms = u64::try_from(retry.as_millis()).expect("a short retry");
+    let queries = |k: &mut Kernel| {
+        let mut n = 0;
+        while let Some(o) = k.poll_output() {
+            if let Output::Send(out) = o
+                && out.envelope.instance == key
+                && out.envelope.body == Body::Query
+            {
+                assert_eq!(out.to, Recipients::One(RobotId(0)));
+                n += 1;
+            }
+        }
+        n
+    };
+    let at = |n: u64| Time::from_millis(100 + n * retry_ms);
+    let in_first = running(&[
+        (root, None),
+        (first, Some((root, true))),
+        (s, Some((first, true))),
+    ]);
+    h.kernels[1].peer(at(1), RobotId(0), &in_first);
+    assert_eq!(queries(&mut h.kernels[1]), 0, "not past: nothing to ask");
+    let past = running(&[
+        (root, None),
+        (second, Some((first, false))),
+        (s, Some((second, true))),
+    ]);
+    h.kernels[1].peer(at(2), RobotId(0), &past);
+    assert_eq!(queries(&mut h.kernels[1]), 0, "first seen past: not yet");
+    h.kernels[1].peer(at(3), RobotId(0), &past);
+    assert_eq!(queries(&mut h.kernels[1]), 1, "past for a retry: ask");
 }
 
 proptest::proptest! {
