@@ -275,6 +275,60 @@ fn the_formation_and_coverage_missions_complete_in_their_worlds() {
     assert!(covered >= 0.9, "covered {covered}");
 }
 
+/// A run that did not complete prints the command that replays it, and
+/// that command runs the same run: the same world (a timed run replayed
+/// without `--timed` ran in the physical world), faults, limit and seed.
+#[test]
+fn the_replay_line_of_a_run_replays_that_run() {
+    let d = scratch("replay-line");
+    let run = |args: &[String], log: &str| {
+        let out = bite()
+            .current_dir(root())
+            .args(args)
+            .arg("--log")
+            .arg(d.join(log))
+            .output()
+            .expect("bite runs");
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        (out.status.code(), text)
+    };
+    let first: Vec<String> = [
+        "run",
+        "--timed",
+        "--config",
+        "examples/configs/6.yaml",
+        "--fault",
+        "loss=0.2",
+        "--time-limit",
+        "20s",
+        "--seed",
+        "5",
+    ]
+    .map(String::from)
+    .to_vec();
+    let (code, text) = run(&first, "first.jsonl");
+    assert_ne!(code, Some(0), "cut short by its time limit: {text}");
+    let line = text
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("replay"))
+        .unwrap_or_else(|| panic!("no replay line in {text}"));
+    let again: Vec<String> = line
+        .split_whitespace()
+        .skip_while(|w| *w != "run")
+        .map(|w| w.trim_matches('\'').to_string())
+        .collect();
+    assert!(again.iter().any(|w| w == "--timed"), "{line}");
+    let (code2, text2) = run(&again, "again.jsonl");
+    assert_eq!(code, code2);
+    let summary = |t: &str| -> Vec<String> {
+        t.lines()
+            .filter(|l| !l.contains("run log"))
+            .map(String::from)
+            .collect()
+    };
+    assert_eq!(summary(&text), summary(&text2));
+}
+
 /// Run `bite` with these arguments: exit code and standard error.
 fn bite_err(args: &[&std::ffi::OsStr]) -> (Option<i32>, String) {
     let out = bite().args(args).output().expect("bite runs");
