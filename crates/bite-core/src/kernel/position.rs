@@ -275,6 +275,26 @@ impl Position {
             .map(|f| f.state)
     }
 
+    /// True when the sender is past the termination point `key`: it ended
+    /// the execution and chooses what follows, runs what follows, or is
+    /// out of the execution and lists it among those it ended (a robot
+    /// that finished the mission; one still waiting at the barrier lists
+    /// it too, from the moment its own part ended). Its barrier is over,
+    /// or it left it.
+    pub fn past_barrier(&self, key: InstanceKey) -> bool {
+        match self.state_at(key) {
+            Some(state) => state == FrameState::Ended || self.went_past(key),
+            None => {
+                self.went_past(key)
+                    || self.ended.iter().any(|e| {
+                        e.id.team == key.team
+                            && e.id.behavior == key.behavior
+                            && e.id.epoch == key.epoch
+                    })
+            }
+        }
+    }
+
     /// Its size on the wire, bytes.
     pub fn encoded_len(&self) -> usize {
         postcard::experimental::serialized_size(self).unwrap_or(0)
@@ -646,8 +666,7 @@ impl Kernel {
                     .is_some_and(|s| s != FrameState::Running)
                     .then_some((k, true)),
                 Kind::Sync => pos.went_past(k).then_some((k, false)),
-                Kind::Terminate => (pos.state_at(k) == Some(FrameState::Ended) || pos.went_past(k))
-                    .then_some((k, true)),
+                Kind::Terminate => pos.past_barrier(k).then_some((k, true)),
             })
             .collect();
         for (k, after_a_retry) in ask {

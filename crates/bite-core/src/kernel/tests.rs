@@ -1245,41 +1245,57 @@ fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() 
 /// not asked.
 #[test]
 fn a_member_asks_a_leader_seen_past_its_barrier_after_a_retry() {
-    let mut h = Harness::new(TWICE, 2);
-    let key = member_at_the_barrier(&mut h);
-    let [root, first, second, s] = twice_ids(&h);
-    let retry = h.kernels[1].instances.get(&key).expect("waits").retry;
-    let retry_ms = u64::try_from(retry.as_millis()).expect("a short retry");
-    let queries = |k: &mut Kernel| {
-        let mut n = 0;
-        while let Some(o) = k.poll_output() {
-            if let Output::Send(out) = o
-                && out.envelope.instance == key
-                && out.envelope.body == Body::Query
-            {
-                assert_eq!(out.to, Recipients::One(RobotId(0)));
-                n += 1;
-            }
-        }
-        n
-    };
-    let at = |n: u64| Time::from_millis(100 + n * retry_ms);
-    let in_first = running(&[
-        (root, None),
-        (first, Some((root, true))),
-        (s, Some((first, true))),
-    ]);
-    h.kernels[1].peer(at(1), RobotId(0), &in_first);
-    assert_eq!(queries(&mut h.kernels[1]), 0, "not past: nothing to ask");
-    let past = running(&[
+    let probe = Harness::new(TWICE, 2);
+    let [root, first, second, s] = twice_ids(&probe);
+    // Past it: running what follows, or done with the mission (nothing
+    // running, `first` among the executions it ended).
+    let following = running(&[
         (root, None),
         (second, Some((first, false))),
         (s, Some((second, true))),
     ]);
-    h.kernels[1].peer(at(2), RobotId(0), &past);
-    assert_eq!(queries(&mut h.kernels[1]), 0, "first seen past: not yet");
-    h.kernels[1].peer(at(3), RobotId(0), &past);
-    assert_eq!(queries(&mut h.kernels[1]), 1, "past for a retry: ask");
+    let finished = Position {
+        ended: vec![Ended {
+            id: first,
+            parent: Some(root),
+        }],
+        ..Position::default()
+    };
+    for past in [following, finished] {
+        let mut h = Harness::new(TWICE, 2);
+        let key = member_at_the_barrier(&mut h);
+        let retry = h.kernels[1].instances.get(&key).expect("waits").retry;
+        let retry_ms = u64::try_from(retry.as_millis()).expect("a short retry");
+        let queries = |k: &mut Kernel| {
+            let mut n = 0;
+            while let Some(o) = k.poll_output() {
+                if let Output::Send(out) = o
+                    && out.envelope.instance == key
+                    && out.envelope.body == Body::Query
+                {
+                    assert_eq!(out.to, Recipients::One(RobotId(0)));
+                    n += 1;
+                }
+            }
+            n
+        };
+        let at = |n: u64| Time::from_millis(100 + n * retry_ms);
+        let in_first = running(&[
+            (root, None),
+            (first, Some((root, true))),
+            (s, Some((first, true))),
+        ]);
+        h.kernels[1].peer(at(1), RobotId(0), &in_first);
+        assert_eq!(queries(&mut h.kernels[1]), 0, "not past: nothing to ask");
+        h.kernels[1].peer(at(2), RobotId(0), &past);
+        assert_eq!(queries(&mut h.kernels[1]), 0, "first seen past: not yet");
+        h.kernels[1].peer(at(3), RobotId(0), &past);
+        assert_eq!(
+            queries(&mut h.kernels[1]),
+            1,
+            "past for a retry: ask ({past:?})"
+        );
+    }
 }
 
 proptest::proptest! {
