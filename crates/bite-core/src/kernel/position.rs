@@ -95,6 +95,17 @@ pub struct FrameId {
     pub epoch: u32,
 }
 
+impl FrameId {
+    /// The execution whose point instance `key` is.
+    pub fn of(key: InstanceKey) -> FrameId {
+        FrameId {
+            team: key.team,
+            behavior: key.behavior,
+            epoch: key.epoch,
+        }
+    }
+}
+
 /// What a robot knows of a teammate from its heartbeats.
 #[derive(Clone, Debug, Default)]
 pub(super) struct Peer {
@@ -239,11 +250,7 @@ impl Position {
     /// it ran a child of it (an execution it ended recently ran under that
     /// execution) or runs it with an allocation applied.
     pub fn went_through(&self, key: InstanceKey) -> bool {
-        let point = FrameId {
-            team: key.team,
-            behavior: key.behavior,
-            epoch: key.epoch,
-        };
+        let point = FrameId::of(key);
         self.ended.iter().any(|e| e.parent == Some(point))
             || self
                 .frames
@@ -267,12 +274,8 @@ impl Position {
     /// barrier is over; not `Running` at an allocation point: it left the
     /// allocation (a coordinator that leaves decides from what it has).
     pub fn state_at(&self, key: InstanceKey) -> Option<FrameState> {
-        self.frames
-            .iter()
-            .find(|f| {
-                f.id.team == key.team && f.id.behavior == key.behavior && f.id.epoch == key.epoch
-            })
-            .map(|f| f.state)
+        let id = FrameId::of(key);
+        self.frames.iter().find(|f| f.id == id).map(|f| f.state)
     }
 
     /// True when the sender is past the termination point `key`: it ended
@@ -284,14 +287,7 @@ impl Position {
     pub fn past_barrier(&self, key: InstanceKey) -> bool {
         match self.state_at(key) {
             Some(state) => state == FrameState::Ended || self.went_past(key),
-            None => {
-                self.went_past(key)
-                    || self.ended.iter().any(|e| {
-                        e.id.team == key.team
-                            && e.id.behavior == key.behavior
-                            && e.id.epoch == key.epoch
-                    })
-            }
+            None => self.went_past(key) || self.ended.iter().any(|e| e.id == FrameId::of(key)),
         }
     }
 
@@ -637,8 +633,7 @@ impl Kernel {
     }
 
     /// A coordinator whose heartbeat shows it past a sync point, through
-    /// an allocation, or past a termination (it ended the execution, or
-    /// runs what follows it), where this robot has waited longer than a
+    /// an allocation, or past a barrier ([`Position::past_barrier`]), where this robot has waited longer than a
     /// retry decided it, and its decision did not arrive: ask it now rather
     /// than at the next resend (spaced further apart after every loss, up
     /// to 64 retries: under heavy loss, longer than the team can wait; a
@@ -856,11 +851,7 @@ impl Kernel {
                 .and_then(|p| p.moved)
                 .is_some_and(|t| self.now - t < limit)
         };
-        let id = FrameId {
-            team: key.team,
-            behavior: key.behavior,
-            epoch: key.epoch,
-        };
+        let id = FrameId::of(key);
         let counted = |r: RobotId| {
             !self.lost.contains(r) && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
         };

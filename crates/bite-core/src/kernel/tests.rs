@@ -10,7 +10,6 @@ use std::collections::VecDeque;
 /// A communicating test protocol: the first member to finish ends the
 /// behavior for everyone (so that "the team ended it" can be tested here,
 /// without the protocol library).
-struct FirstWins;
 struct FirstWinsInst;
 impl Interaction for FirstWinsInst {
     fn start(&mut self, _cx: &mut Cx<'_>) {}
@@ -30,61 +29,17 @@ impl Interaction for FirstWinsInst {
         cx.decide(Outcome::Terminate(None));
     }
 }
-impl Protocol for FirstWins {
-    fn name(&self) -> &'static str {
-        "term.test-first"
-    }
-    fn kind(&self) -> Kind {
-        Kind::Terminate
-    }
-    fn communicates(&self) -> bool {
-        true
-    }
-    fn summary(&self) -> &'static str {
-        "test"
-    }
-    fn configure(
-        &self,
-        _p: &Params,
-        _: &mut crate::interaction::Setup<'_>,
-    ) -> Result<Factory, crate::interaction::ConfigError> {
-        Ok(Arc::new(|| Box::new(FirstWinsInst) as Box<dyn Interaction>))
-    }
-}
 
 /// A synchronization protocol that never decides by itself.
-struct Silent;
 struct SilentInst;
 impl Interaction for SilentInst {
     fn start(&mut self, _cx: &mut Cx<'_>) {}
     fn on_message(&mut self, _cx: &mut Cx<'_>, _f: RobotId, _b: &Body) {}
     fn on_deadline(&mut self, _cx: &mut Cx<'_>) {}
 }
-impl Protocol for Silent {
-    fn name(&self) -> &'static str {
-        "sync.test-never"
-    }
-    fn kind(&self) -> Kind {
-        Kind::Sync
-    }
-    fn communicates(&self) -> bool {
-        false
-    }
-    fn summary(&self) -> &'static str {
-        "test"
-    }
-    fn configure(
-        &self,
-        _p: &Params,
-        _: &mut crate::interaction::Setup<'_>,
-    ) -> Result<Factory, crate::interaction::ConfigError> {
-        Ok(Arc::new(|| Box::new(SilentInst) as Box<dyn Interaction>))
-    }
-}
 
 /// A communicating termination that only its deadline ends: a barrier
 /// whose teammates' answers are all lost.
-struct Barrier;
 struct BarrierInst;
 impl Interaction for BarrierInst {
     fn start(&mut self, _cx: &mut Cx<'_>) {}
@@ -93,15 +48,24 @@ impl Interaction for BarrierInst {
         cx.decide(Outcome::Terminate(None));
     }
 }
-impl Protocol for Barrier {
+
+/// A test protocol: its name, kind, whether it communicates, and its
+/// instances.
+struct TestProtocol {
+    name: &'static str,
+    kind: Kind,
+    communicates: bool,
+    make: fn() -> Box<dyn Interaction>,
+}
+impl Protocol for TestProtocol {
     fn name(&self) -> &'static str {
-        "term.test-barrier"
+        self.name
     }
     fn kind(&self) -> Kind {
-        Kind::Terminate
+        self.kind
     }
     fn communicates(&self) -> bool {
-        true
+        self.communicates
     }
     fn summary(&self) -> &'static str {
         "test"
@@ -111,15 +75,34 @@ impl Protocol for Barrier {
         _p: &Params,
         _: &mut crate::interaction::Setup<'_>,
     ) -> Result<Factory, crate::interaction::ConfigError> {
-        Ok(Arc::new(|| Box::new(BarrierInst) as Box<dyn Interaction>))
+        let make = self.make;
+        Ok(Arc::new(make))
     }
 }
 
 fn registry() -> Registry {
     let mut r = Registry::core();
-    r.register(Arc::new(FirstWins));
-    r.register(Arc::new(Silent));
-    r.register(Arc::new(Barrier));
+    for (name, kind, communicates, make) in [
+        (
+            "term.test-first",
+            Kind::Terminate,
+            true,
+            (|| Box::new(FirstWinsInst)) as fn() -> Box<dyn Interaction>,
+        ),
+        ("sync.test-never", Kind::Sync, false, || {
+            Box::new(SilentInst)
+        }),
+        ("term.test-barrier", Kind::Terminate, true, || {
+            Box::new(BarrierInst)
+        }),
+    ] {
+        r.register(Arc::new(TestProtocol {
+            name,
+            kind,
+            communicates,
+            make,
+        }));
+    }
     r
 }
 
