@@ -1156,6 +1156,25 @@ fn running(chain: &[(FrameId, Option<(FrameId, bool)>)]) -> Position {
     }
 }
 
+/// A teammate's position in [`TWICE`], running `s` under `first`, or
+/// under `second` (after `first`).
+fn in_s_under(h: &Harness, parent: &str) -> Position {
+    let [root, first, second, s] = twice_ids(h);
+    if parent == "first" {
+        running(&[
+            (root, None),
+            (first, Some((root, true))),
+            (s, Some((first, true))),
+        ])
+    } else {
+        running(&[
+            (root, None),
+            (second, Some((first, false))),
+            (s, Some((second, true))),
+        ])
+    }
+}
+
 /// [`TWICE`] with two robots: the member ends `first` (and `s` under it)
 /// and waits at its barrier. The barrier's key.
 fn member_at_the_barrier(h: &mut Harness) -> InstanceKey {
@@ -1195,25 +1214,17 @@ fn member_at_the_barrier(h: &mut Harness) -> InstanceKey {
 fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() {
     let mut h = Harness::new(TWICE, 2);
     let key = member_at_the_barrier(&mut h);
-    let [root, first, second, s] = twice_ids(&h);
+    let [.., s] = twice_ids(&h);
     assert!(h.kernels[1].recent_ended.contains(&s));
     // Its leader, heard running `s` under `second`: ahead, not awaited.
-    let ahead = running(&[
-        (root, None),
-        (second, Some((first, false))),
-        (s, Some((second, true))),
-    ]);
+    let ahead = in_s_under(&h, "second");
     h.kernels[1].peer(Time::from_millis(200), RobotId(0), &ahead);
     assert!(
         !h.kernels[1].awaited_at_work(key),
         "a leader ahead is not waited for"
     );
     // Heard running `s` under `first` instead: still in the execution.
-    let behind = running(&[
-        (root, None),
-        (first, Some((root, true))),
-        (s, Some((first, true))),
-    ]);
+    let behind = in_s_under(&h, "first");
     h.kernels[1].peer(Time::from_millis(300), RobotId(0), &behind);
     assert!(
         h.kernels[1].awaited_at_work(key),
@@ -1229,14 +1240,10 @@ fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() 
 #[test]
 fn a_member_asks_a_leader_seen_past_its_barrier_after_a_retry() {
     let probe = Harness::new(TWICE, 2);
-    let [root, first, second, s] = twice_ids(&probe);
+    let [root, first, ..] = twice_ids(&probe);
     // Past it: running what follows, or done with the mission (nothing
     // running, `first` among the executions it ended).
-    let following = running(&[
-        (root, None),
-        (second, Some((first, false))),
-        (s, Some((second, true))),
-    ]);
+    let following = in_s_under(&probe, "second");
     let finished = Position {
         ended: vec![Ended {
             id: first,
@@ -1263,11 +1270,7 @@ fn a_member_asks_a_leader_seen_past_its_barrier_after_a_retry() {
             n
         };
         let at = |n: u64| Time::from_millis(100 + n * retry_ms);
-        let in_first = running(&[
-            (root, None),
-            (first, Some((root, true))),
-            (s, Some((first, true))),
-        ]);
+        let in_first = in_s_under(&h, "first");
         h.kernels[1].peer(at(1), RobotId(0), &in_first);
         assert_eq!(queries(&mut h.kernels[1]), 0, "not past: nothing to ask");
         h.kernels[1].peer(at(2), RobotId(0), &past);
