@@ -816,7 +816,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
             }
             outln!(
                 "  replay           bite run {}{extra} --seed {seed}",
-                describe_inputs(&mission, &scenario)
+                describe_inputs(a.graph.as_deref(), &mission, &scenario)
             );
         }
         for v in &report.violations {
@@ -928,13 +928,15 @@ fn draw_pictures(
     Ok(written)
 }
 
-/// The arguments that reproduce a run, for the replay hint.
-fn describe_inputs(mission: &Mission, scenario: &Scenario) -> String {
+/// The arguments that reproduce a run, for the replay hint: the graph or
+/// mission file as the user named it (a compiled mission's graph is named
+/// `<file> (compiled)`, which is not a path), then the scenario.
+fn describe_inputs(graph: Option<&Path>, mission: &Mission, scenario: &Scenario) -> String {
     let built_in = |f: &str| f.ends_with("(built in)") || f.starts_with('<');
     let mut parts = Vec::new();
     let g = mission.graph();
-    if !built_in(g.file()) {
-        parts.push(g.file().to_string());
+    if let Some(path) = graph {
+        parts.push(path.display().to_string());
     }
     if !built_in(&scenario.file) {
         parts.push(format!("--scenario {}", scenario.file));

@@ -292,41 +292,61 @@ fn the_replay_line_of_a_run_replays_that_run() {
         let text = String::from_utf8_lossy(&out.stdout).into_owned();
         (out.status.code(), text)
     };
-    let first: Vec<String> = [
-        "run",
-        "--timed",
-        "--config",
-        "examples/configs/6.yaml",
-        "--fault",
-        "loss=0.2",
-        "--time-limit",
-        "20s",
-        "--seed",
-        "5",
-    ]
-    .map(String::from)
-    .to_vec();
-    let (code, text) = run(&first, "first.jsonl");
-    assert_ne!(code, Some(0), "cut short by its time limit: {text}");
-    let line = text
-        .lines()
-        .find_map(|l| l.trim().strip_prefix("replay"))
-        .unwrap_or_else(|| panic!("no replay line in {text}"));
-    let again: Vec<String> = line
-        .split_whitespace()
-        .skip_while(|w| *w != "run")
-        .map(|w| w.trim_matches('\'').to_string())
-        .collect();
-    assert!(again.iter().any(|w| w == "--timed"), "{line}");
-    let (code2, text2) = run(&again, "again.jsonl");
-    assert_eq!(code, code2);
-    let summary = |t: &str| -> Vec<String> {
-        t.lines()
-            .filter(|l| !l.contains("run log"))
-            .map(String::from)
-            .collect()
-    };
-    assert_eq!(summary(&text), summary(&text2));
+    // A timed run under a configuration (its replay must say `--timed`),
+    // and a compiled mission (its replay must name the `.rtcl` file, not
+    // the compiled graph's display name).
+    let cases: [(&[&str], &str); 2] = [
+        (
+            &[
+                "run",
+                "--timed",
+                "--config",
+                "examples/configs/6.yaml",
+                "--fault",
+                "loss=0.2",
+                "--time-limit",
+                "20s",
+                "--seed",
+                "5",
+            ],
+            "--timed",
+        ),
+        (
+            &[
+                "run",
+                "examples/search-rescue.rtcl",
+                "--time-limit",
+                "8s",
+                "--seed",
+                "3",
+            ],
+            "examples/search-rescue.rtcl",
+        ),
+    ];
+    for (i, (first, must_name)) in cases.iter().enumerate() {
+        let first: Vec<String> = first.iter().map(|w| w.to_string()).collect();
+        let (code, text) = run(&first, &format!("first{i}.jsonl"));
+        assert_ne!(code, Some(0), "cut short by its time limit: {text}");
+        let line = text
+            .lines()
+            .find_map(|l| l.trim().strip_prefix("replay"))
+            .unwrap_or_else(|| panic!("no replay line in {text}"));
+        let again: Vec<String> = line
+            .split_whitespace()
+            .skip_while(|w| *w != "run")
+            .map(|w| w.trim_matches('\'').to_string())
+            .collect();
+        assert!(again.iter().any(|w| w == must_name), "{line}");
+        let (code2, text2) = run(&again, &format!("again{i}.jsonl"));
+        assert_eq!(code, code2, "{line}: {text2}");
+        let summary = |t: &str| -> Vec<String> {
+            t.lines()
+                .filter(|l| !l.contains("run log"))
+                .map(String::from)
+                .collect()
+        };
+        assert_eq!(summary(&text), summary(&text2));
+    }
 }
 
 /// Run `bite` with these arguments: exit code and standard error.
