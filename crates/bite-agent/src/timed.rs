@@ -3,7 +3,10 @@
 //! When a robot's leaf behavior starts a skill, the world draws, for that
 //! robot and that execution, how long the skill takes and how fast the
 //! numeric beliefs it drives grow; it sets the skill's `start` beliefs at
-//! once and its `done` beliefs when the duration has passed. This is enough
+//! once and its `done` beliefs when the duration has passed. When the skill
+//! stops, the numbers it drove from a start value go back to that value (a
+//! leg counted from 0 is 0 again until the next leg's skill starts, as the
+//! physical world's `skill_time` is 0 between skills). This is enough
 //! to make robots finish at different times, which is what coordination is
 //! about, and it is cheap enough for teams of thousands.
 
@@ -27,6 +30,16 @@ struct Compiled {
     dists: Vec<Option<crate::scenario::Dist>>,
     on_start: Vec<(BeliefId, Value)>,
     on_done: Vec<(BeliefId, Value)>,
+}
+
+impl Compiled {
+    /// The numbers this skill drives from a start value: each with it.
+    fn counted_from(&self) -> impl Iterator<Item = (BeliefId, f64)> + '_ {
+        self.on_start.iter().filter_map(|(id, v)| match v {
+            Value::Num(x) if self.rates.contains(id) => Some((*id, *x)),
+            _ => None,
+        })
+    }
 }
 
 /// The skills of a scenario, resolved against a graph, shared by all robots.
@@ -129,6 +142,8 @@ pub struct RobotWorld {
     levels: Vec<f64>,
     /// Belief changes to hand to the kernel at the next tick.
     pending: Vec<(BeliefId, Value)>,
+    /// What the last change of leaf set (see [`RobotWorld::leaf_changed`]).
+    changed: Vec<(BeliefId, Value)>,
     last_tick: Option<Time>,
 }
 
@@ -140,35 +155,43 @@ impl RobotWorld {
             active: None,
             levels: Vec::new(),
             pending: Vec::new(),
+            changed: Vec::new(),
             last_tick: None,
         }
     }
 
     /// The leaf behavior changed: stop the old skill, start the new one.
-    /// Returns the beliefs the new skill sets as it starts; the runtime
-    /// gives them to the kernel at once (before any other input can make it
-    /// evaluate a condition on stale values).
+    /// Returns the beliefs that changed: the numbers the old skill drove
+    /// from a start value, back at it (a new execution of the behavior that
+    /// counted them, its skill not started yet, reads its own progress as
+    /// none, not the last execution's), then the new skill's start beliefs.
+    /// The runtime gives them to the kernel at once (before any other input
+    /// can make it evaluate a condition on stale values).
     pub fn leaf_changed(
         &mut self,
         book: &SkillBook,
         leaf: Option<LeafId>,
         now: Time,
     ) -> &[(BeliefId, Value)] {
+        self.changed.clear();
         if self.active.as_ref().map(|a| a.leaf) == leaf {
             return &[];
         }
-        self.active = None;
-        let Some(leaf) = leaf else { return &[] };
+        if let Some(old) = self.active.take() {
+            for (id, v) in old.skill.counted_from() {
+                *self.level(id) = v;
+                self.changed.push((id, Value::Num(v)));
+            }
+        }
+        let Some(leaf) = leaf else {
+            return &self.changed;
+        };
         let b = leaf.0;
         let Some(skill) = book.by_behavior.get(b.index()).cloned().flatten() else {
-            return &[];
+            return &self.changed;
         };
-        for (id, v) in &skill.on_start {
-            if let Value::Num(x) = v
-                && skill.rates.contains(id)
-            {
-                *self.level(*id) = *x;
-            }
+        for (id, v) in skill.counted_from() {
+            *self.level(id) = v;
         }
         let done_at = skill
             .model
@@ -183,15 +206,17 @@ impl RobotWorld {
                 None => speed.unwrap_or(0.0),
             })
             .collect();
+        // The new skill's start values override the old one's resets.
+        self.changed
+            .retain(|(id, _)| skill.on_start.iter().all(|(s, _)| s != id));
+        self.changed.extend(skill.on_start.iter().cloned());
         self.active = Some(Active {
             leaf,
             skill,
             done_at,
             rates,
         });
-        self.active
-            .as_ref()
-            .map_or(&[], |a| a.skill.on_start.as_slice())
+        &self.changed
     }
 
     fn level(&mut self, id: BeliefId) -> &mut f64 {
@@ -232,5 +257,70 @@ impl RobotWorld {
     /// When the active skill completes, if it has a duration.
     pub fn next_completion(&self) -> Option<Time> {
         self.active.as_ref().and_then(|a| a.done_at)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A leg counted from 0 by the leaf's skill: `leg` reaches 1.5, ends,
+    /// and the next `leg` (its subteam's allocation not decided yet, so no
+    /// skill runs) reads its own progress as none.
+    #[test]
+    fn a_skill_that_stops_leaves_the_numbers_it_counted_from_a_start_at_the_start() {
+        let file: Arc<str> = Arc::from("t.yaml");
+        let graph = bite_core::graph::load_str(
+            &file,
+            "graph: t\nteam: { robots: 1 }\nstart: leg\nbehaviors:\n  \
+             leg:\n    team: true\n    children: [step]\n    until: walked >= 1.5 && total < 100 && busy\n    \
+             next: [leg]\n  step:\n    skill: stride\n",
+        )
+        .expect("graph");
+        let scenario = Scenario::load_str(
+            &file,
+            "scenario: t\nskills:\n  stride:\n    speed: 1\n    drives: [walked, total]\n    \
+             start: { walked: 0, busy: true }\n",
+        )
+        .expect("scenario");
+        let book = SkillBook::new(&scenario, &graph);
+        let id = |n: &str| graph.symbols().get(n).expect("belief");
+        let (leg, step) = (
+            graph.find("leg").expect("leg"),
+            graph.find("step").expect("step"),
+        );
+        let team = bite_core::ids::TeamId::ROOT;
+        let mut w = RobotWorld::new(1);
+        let at = |s: f64| Time::ZERO + std::time::Duration::from_secs_f64(s);
+        let num = |out: &[(BeliefId, Value)], b: BeliefId| {
+            out.iter()
+                .rev()
+                .find(|(i, _)| *i == b)
+                .map(|(_, v)| v.clone())
+        };
+        let started = w
+            .leaf_changed(&book, Some((step, team, 1)), at(0.0))
+            .to_vec();
+        assert_eq!(num(&started, id("walked")), Some(Value::Num(0.0)));
+        assert_eq!(num(&started, id("busy")), Some(Value::Bool(true)));
+        let mut out = Vec::new();
+        w.tick(at(0.0), &mut out);
+        w.tick(at(2.0), &mut out);
+        assert_eq!(num(&out, id("walked")), Some(Value::Num(2.0)));
+        // The leg ends; the next one waits for its roles (the leaf is the
+        // team behavior itself): `walked` is 0 again, `total` keeps
+        // counting from where it was, and `busy` (not a number the skill
+        // drives) is left as it is.
+        let stopped = w
+            .leaf_changed(&book, Some((leg, team, 2)), at(2.0))
+            .to_vec();
+        assert_eq!(stopped, vec![(id("walked"), Value::Num(0.0))]);
+        w.tick(at(3.0), &mut out);
+        assert!(out.is_empty(), "{out:?}");
+        // Its skill starts: `total` goes on from 2.
+        w.leaf_changed(&book, Some((step, team, 2)), at(3.0));
+        w.tick(at(4.0), &mut out);
+        assert_eq!(num(&out, id("walked")), Some(Value::Num(1.0)));
+        assert_eq!(num(&out, id("total")), Some(Value::Num(3.0)));
     }
 }
