@@ -564,9 +564,9 @@ impl State {
     /// Keep track of a schema's headway (move-to-goal, push getting behind
     /// its object) while it `drives` the robot,
     /// now `to` m from its goal at skill time `now`: trapped after
-    /// [`TRAPPED_AFTER`] without getting [`HEADWAY`] m nearer than it has
+    /// `patience` s without getting [`HEADWAY`] m nearer than it has
     /// been, for [`DETOUR`].
-    fn watch_headway(&mut self, drives: bool, to: f64, now: f64) {
+    fn watch_headway(&mut self, drives: bool, to: f64, now: f64, patience: f64) {
         if !drives {
             self.headway = None;
             self.trapped = None;
@@ -582,7 +582,7 @@ impl State {
         }
         match self.headway {
             Some((best, since)) if to > best - HEADWAY && now >= since => {
-                if now - since >= TRAPPED_AFTER {
+                if now - since >= patience {
                     self.trapped = Some(now);
                 }
             }
@@ -746,6 +746,16 @@ pub const TRAPPED_AFTER: f64 = 5.0;
 /// straight to its goal again.
 pub const DETOUR: f64 = 8.0;
 const TRAP_FAR: f64 = 0.5;
+/// A pusher getting behind its object is not done until it stands there (a
+/// move-to-goal's `reached` ends it near its goal): one held off the place
+/// behind the object nearer than [`TRAP_FAR`] (between the object and a
+/// wall, say, its way round the object into the wall) is trapped too, once
+/// it has made no headway for this many times [`TRAPPED_AFTER`] (a pusher
+/// lining up behind its object, or shoving it about, is slow there, not
+/// trapped).
+const PUSH_NEAR_PATIENCE: f64 = 3.0;
+/// How near the place behind its object that holds, m.
+const PUSH_TRAP_FAR: f64 = 0.2;
 const HEADWAY: f64 = 0.15;
 /// A trapped robot pushes a lost teammate's body that blocks its only way
 /// when the body is ahead of it and this near its own (m between them).
@@ -1233,14 +1243,19 @@ pub fn command(
     for (i, w) in skill.iter().enumerate() {
         let st = &mut states[i];
         let to = st.bound_for.map_or(0.0, |p| p.distance(view.pose.pos));
+        let push = matches!(w.schema, Schema::Push { .. });
+        let (far, patience) = match push {
+            true if to <= TRAP_FAR => (PUSH_TRAP_FAR, TRAPPED_AFTER * PUSH_NEAR_PATIENCE),
+            _ => (TRAP_FAR, TRAPPED_AFTER),
+        };
         let drives = st.bound_for.is_some()
-            && to > TRAP_FAR
+            && to > far
             && outputs[i].2.is_some_and(|o| o.v.length() > 0.02)
             && skill
                 .iter()
                 .zip(&outputs)
                 .all(|(v, (_, _, o))| o.is_none() || v.layer <= w.layer || v.schema.avoids());
-        st.watch_headway(drives, to, view.skill_time);
+        st.watch_headway(drives, to, view.skill_time, patience);
         if matches!(w.schema, Schema::Wander { .. }) {
             st.watch_roaming(view.pose.pos, view.skill_time);
         }

@@ -2,9 +2,9 @@
 //! rules): departures, splits, allocation splits, burns and catching up.
 
 use super::position::{
-    ALLOC_HEALS, Anchor, FrameId, FrameState, Position, RECENT, Slot, push_recent,
+    ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, Position, RECENT, Slot, push_recent,
 };
-use super::{Kernel, Phase};
+use super::{Frame, Kernel, Phase};
 use crate::event::{EndReason, Event, FrameRef, Via};
 use crate::ids::RobotId;
 use crate::ids::{InstanceKey, Kind};
@@ -121,24 +121,53 @@ impl Kernel {
     /// Count past them, as past an epoch seen on a clock, so that the team
     /// numbers its next executions alike instead of splitting over ids.
     pub(super) fn count_past(&mut self, pos: &Position) {
-        let popped = self.popped().map(|(f, _)| f.id());
+        // This robot's ended executions, each with its parent: two
+        // executions under different parents may share an id (a behavior
+        // that both `triangle` and `line` expand to, at the same team
+        // count), and a teammate's frame is the one this robot ended only
+        // if its parent is too (as in `awaited_at_work`).
+        let popped = self.popped().map(|(f, _)| Ended {
+            id: f.id(),
+            parent: self.stack.last().map(Frame::id),
+        });
         if self.recent_ended.is_empty() && popped.is_none() {
             return;
         }
-        let gone = |id: &FrameId| popped == Some(*id) || self.recent_ended.contains(id);
-        let mut never: SmallVec<[FrameId; RECENT]> = SmallVec::new();
-        for w in pos.frames.windows(2) {
-            if gone(&w[0].id) || never.contains(&w[0].id) {
-                never.push(w[1].id);
+        let gone = |e: &Ended| popped.as_ref() == Some(e) || self.recent_ended.contains_ended(e);
+        // The teammate's frames are a chain, root first: frame `k` runs
+        // under frame `k - 1`.
+        let at = |k: usize| Ended {
+            id: pos.frames[k].id,
+            parent: k.checked_sub(1).map(|p| pos.frames[p].id),
+        };
+        let mut never: SmallVec<[Ended; RECENT]> = SmallVec::new();
+        for k in 1..pos.frames.len() {
+            let up = at(k - 1);
+            if gone(&up) || never.contains(&up) {
+                never.push(at(k));
             }
         }
         for e in &pos.ended {
-            if e.parent.is_some_and(|p| gone(&p) || never.contains(&p)) {
-                never.push(e.id);
+            let Some(parent) = e.parent else { continue };
+            // The parent as the teammate ran it: in its chain, or among
+            // the executions it ended.
+            let up = (pos.frames.iter().position(|f| f.id == parent).map(at))
+                .or_else(|| pos.ended.iter().find(|x| x.id == parent).copied());
+            let past = match up {
+                Some(up) => gone(&up) || never.contains(&up),
+                // Its parent's place unknown: by the id alone.
+                None => {
+                    popped.is_some_and(|p| p.id == parent)
+                        || self.recent_ended.contains(&parent)
+                        || never.iter().any(|n| n.id == parent)
+                }
+            };
+            if past {
+                never.push(*e);
             }
         }
-        for id in never {
-            self.org.runs_at_least(id.team, id.behavior, id.epoch);
+        for e in never {
+            self.org.runs_at_least(e.id.team, e.id.behavior, e.id.epoch);
         }
     }
 

@@ -392,6 +392,11 @@ impl RecentEnded {
     pub(super) fn contains(&self, id: &FrameId) -> bool {
         self.filter & filter_bit(id) != 0 && self.list.iter().any(|e| e.id == *id)
     }
+    /// Whether execution `e.id`, under parent `e.parent`, is in the list.
+    #[inline]
+    pub(super) fn contains_ended(&self, e: &Ended) -> bool {
+        self.filter & filter_bit(&e.id) != 0 && self.list.iter().any(|x| x == e)
+    }
     pub(super) fn is_empty(&self) -> bool {
         self.list.is_empty()
     }

@@ -1232,6 +1232,45 @@ fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() 
     );
 }
 
+/// A teammate's frame running under an execution this robot ended is one
+/// this robot will never join: its team's count of that behavior goes past
+/// it (`count_past`). Not when the teammate's execution only shares the
+/// ended one's id, under another parent (`s` under `second`, where this
+/// robot ended `s` under `first`).
+#[test]
+fn a_frame_under_a_same_numbered_execution_under_another_parent_is_not_counted_past() {
+    let mut h = Harness::new(TWICE, 2);
+    member_at_the_barrier(&mut h);
+    let [root, first, second, s] = twice_ids(&h);
+    // Something the teammate runs under `s` (an execution of `second`,
+    // numbered 3, stands for it: only the ids are compared).
+    let below = FrameId { epoch: 3, ..second };
+    let counted = |k: &Kernel| k.org.runs(TeamId::ROOT, second.behavior);
+    let under_second = running(&[
+        (root, None),
+        (second, Some((first, false))),
+        (s, Some((second, true))),
+        (below, Some((s, true))),
+    ]);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(0), &under_second);
+    assert!(
+        counted(&h.kernels[1]) < 3,
+        "counted past an execution under another `s`"
+    );
+    let under_first = running(&[
+        (root, None),
+        (first, Some((root, true))),
+        (s, Some((first, true))),
+        (below, Some((s, true))),
+    ]);
+    h.kernels[1].peer(Time::from_millis(300), RobotId(0), &under_first);
+    assert_eq!(
+        counted(&h.kernels[1]),
+        3,
+        "an execution under the `s` it ended"
+    );
+}
+
 /// A member at a barrier whose leader's heartbeat shows the leader past
 /// it (the release lost) asks the leader, which answers with the release;
 /// but only once the leader has been seen past it for a retry, since the
