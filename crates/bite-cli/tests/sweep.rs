@@ -427,7 +427,7 @@ fn a_leg_whose_roles_are_not_dealt_yet_starts_from_nothing_walked() {
         let dir =
             std::env::temp_dir().join(format!("bite-sweep-test-{}-{name}", std::process::id()));
         let log = std::fs::read_to_string(dir.join("run.jsonl")).expect("the log");
-        let mut selected = std::collections::HashMap::new();
+        let mut selected = std::collections::BTreeMap::new();
         let mut legs = 0;
         for line in log.lines() {
             let e: serde_json::Value = serde_json::from_str(line).expect("a JSON line");
