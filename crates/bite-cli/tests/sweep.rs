@@ -304,12 +304,17 @@ fn a_notice_from_across_a_healed_partition_does_not_part_a_voting_side() {
 /// its instance decides without while it decides with teammates of its
 /// own: its side follows its own protocol, and positions heal the split
 /// with the lone robot. The second run is the same with r0 alone, in the
-/// physical world.
+/// physical world. The third (seeds 181 to 240): r1 alone; r2 reached the
+/// point after it had heard r1 back, so its instance left no one out, and
+/// it applied r1's notice while r0, its side's leader, which had not heard
+/// r1 yet, decided `linewalk`. A member whose coordinator is a robot of its
+/// own side now leaves the notice to it.
 #[test]
 fn a_notice_from_a_lone_robot_does_not_part_the_side_it_was_cut_from() {
     for (world, fault, seed) in [
         (Some("--timed"), "partition=r2|r0,r1@24.498s+21.413s", "115"),
         (None, "partition=r0|r1,r2@22.074s+20.613s", "155"),
+        (None, "partition=r0,r2|r1@25.853s+23.705s", "239"),
     ] {
         let c = config(7);
         let mut args = vec!["--config", c.as_str()];

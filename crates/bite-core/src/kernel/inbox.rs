@@ -265,15 +265,20 @@ impl Kernel {
             // a partition decided apart. This side follows its own
             // protocol: applied by one of its robots while another, not
             // told yet, decided by the protocol, the notice parted them
-            // (docs/reliability.md, "Seeds 61 to 180"). Positions heal the
+            // (docs/reliability.md, "Seeds 61 to 180"). So does a member
+            // whose coordinator is a robot of its own side, which may
+            // decide apart from the sender (it started the instance before
+            // it heard the sender back) while this member, starting it
+            // after, would follow the notice (docs/reliability.md, "A
+            // member that followed the other side"). Positions heal the
             // split with the other side (`Kernel::peer`).
             if key.kind == Kind::Sync
                 && self.ever_lost.contains(from)
                 && !Frame::any_left_by(&self.stack, from)
-                && self
-                    .instances
-                    .get(&key)
-                    .is_some_and(|i| i.decides_apart_from(from, self.me))
+                && self.instances.get(&key).is_some_and(|i| {
+                    i.decides_apart_from(from, self.me)
+                        || i.led_by_a_side_mate(from, self.me, &self.ever_lost)
+                })
             {
                 return;
             }
