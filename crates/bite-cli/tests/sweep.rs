@@ -8,8 +8,14 @@ fn bite() -> Command {
     Command::new(env!("CARGO_BIN_EXE_bite"))
 }
 
+/// Where a test's scratch directory `name` is (see [`scratch`]).
+fn scratch_path(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!("bite-sweep-test-{}-{name}", std::process::id()))
+}
+
+/// A fresh scratch directory `name` for a test.
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bite-sweep-test-{}-{name}", std::process::id()));
+    let d = scratch_path(name);
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("scratch dir");
     d
@@ -428,10 +434,8 @@ fn a_leg_whose_roles_are_not_dealt_yet_starts_from_nothing_walked() {
             ],
         );
         assert_eq!(v["completed"], true, "{v:#}");
-        // `run_one` logs into its scratch directory (made afresh by `scratch`).
-        let dir =
-            std::env::temp_dir().join(format!("bite-sweep-test-{}-{name}", std::process::id()));
-        let log = std::fs::read_to_string(dir.join("run.jsonl")).expect("the log");
+        // `run_one` logs into its scratch directory.
+        let log = std::fs::read_to_string(scratch_path(&name).join("run.jsonl")).expect("the log");
         let mut selected = std::collections::BTreeMap::new();
         let mut legs = 0;
         for line in log.lines() {

@@ -275,10 +275,13 @@ impl Kernel {
             if key.kind == Kind::Sync
                 && self.ever_lost.contains(from)
                 && !Frame::any_left_by(&self.stack, from)
-                && self.instances.get(&key).is_some_and(|i| {
-                    i.decides_apart_from(from, self.me)
-                        || i.led_by_a_side_mate(from, self.me, &self.ever_lost)
-                })
+                && (self
+                    .instances
+                    .get(&key)
+                    .is_some_and(|i| i.decides_apart_from(from, self.me))
+                    || self
+                        .coordinator_of(key)
+                        .is_some_and(|c| c != self.me && c != from && !self.ever_lost.contains(c)))
             {
                 return;
             }

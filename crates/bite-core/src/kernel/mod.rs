@@ -342,17 +342,6 @@ impl Instance {
         })
     }
 
-    /// True when this instance's coordinator (its first member not left
-    /// out) is a teammate other than `me` and `from` that this robot never
-    /// presumed lost (`ever_lost`): a robot of this robot's side of a
-    /// partition, which decides for it, apart from `from` if `from` was on
-    /// the other side.
-    fn led_by_a_side_mate(&self, from: RobotId, me: RobotId, ever_lost: &MemberSet) -> bool {
-        let leader = (self.team.members.iter())
-            .find(|r| self.excluded.as_ref().is_none_or(|ex| !ex.contains(*r)));
-        leader.is_some_and(|l| l != me && l != from && !ever_lost.contains(l))
-    }
-
     /// The team's members it decides without, in id order.
     fn excluded_members(&self) -> Vec<RobotId> {
         self.excluded
