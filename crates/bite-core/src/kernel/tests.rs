@@ -1241,28 +1241,23 @@ fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() 
 fn a_frame_under_a_same_numbered_execution_under_another_parent_is_not_counted_past() {
     let mut h = Harness::new(TWICE, 2);
     member_at_the_barrier(&mut h);
-    let [root, first, second, s] = twice_ids(&h);
+    let [_, _, second, s] = twice_ids(&h);
     // Something the teammate runs under `s` (an execution of `second`,
     // numbered 3, stands for it: only the ids are compared).
     let below = FrameId { epoch: 3, ..second };
     let counted = |k: &Kernel| k.org.runs(TeamId::ROOT, second.behavior);
-    let under_second = running(&[
-        (root, None),
-        (second, Some((first, false))),
-        (s, Some((second, true))),
-        (below, Some((s, true))),
-    ]);
+    // The teammate in `s` under `parent`, running `below` under it.
+    let under = |parent: &str| {
+        let mut p = in_s_under(&h, parent);
+        p.frames.extend(running(&[(below, Some((s, true)))]).frames);
+        p
+    };
+    let (under_second, under_first) = (under("second"), under("first"));
     h.kernels[1].peer(Time::from_millis(200), RobotId(0), &under_second);
     assert!(
         counted(&h.kernels[1]) < 3,
         "counted past an execution under another `s`"
     );
-    let under_first = running(&[
-        (root, None),
-        (first, Some((root, true))),
-        (s, Some((first, true))),
-        (below, Some((s, true))),
-    ]);
     h.kernels[1].peer(Time::from_millis(300), RobotId(0), &under_first);
     assert_eq!(
         counted(&h.kernels[1]),
