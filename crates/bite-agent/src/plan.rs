@@ -10,9 +10,11 @@
 //! what the rays see. A body parked in a doorway makes a local minimum (the
 //! two cancel, the robot pushes against it for ever). The pilot knows the
 //! arena's walls and static obstacles (from the scenario, as a robot knows
-//! its map) and where it last saw each lost teammate; it plans over that
-//! map, inflated by its own radius, and steers to the next point of the
-//! path. Healthy teammates are not obstacles here: they move, and
+//! its map), where it last saw each lost teammate and each object it has
+//! seen (objects can be pushed, so they are not on the map: the route keeps
+//! clear of them where it last saw them, but of the one its schema drives
+//! to or pushes); it plans over that map, inflated by its own radius, and
+//! steers to the next point of the path. Healthy teammates are not obstacles here: they move, and
 //! `avoid-teammate` handles them. A body that leaves no way round it (a
 //! corridor too narrow beside it) is pushed out of the way instead
 //! (`schema::command`).
@@ -34,6 +36,11 @@ const MAX_CELLS: f64 = 60_000.0;
 /// obstacle.
 const WIDE: f64 = 0.45;
 const CLOSE_COST: f64 = 4.0;
+/// How much farther than its body needs a trapped robot's detour keeps from
+/// bodies, objects and what its rays hit, where it can, m: a gap its body
+/// fits through with less than this on either side is one its obstacle
+/// avoidance (0.15-0.55 m) holds it out of.
+const WIDE_GAP: f64 = 0.1;
 
 /// The static map a pilot plans on: the arena's cells, with those its
 /// centre cannot enter (walls and obstacles, inflated by its radius).
@@ -50,6 +57,10 @@ pub struct Map {
     inflate: f64,
     /// Radius of a robot body.
     body: f64,
+    /// The scenario's named objects and the radius of the disc round each
+    /// (what can be pushed, so not in `blocked`: a robot routes round
+    /// those it has seen where it last saw them; see [`Map::objects_seen`]).
+    objects: Vec<(String, f64)>,
 }
 
 impl Map {
@@ -98,6 +109,9 @@ impl Map {
             clearance,
             inflate,
             body: spec.robot.radius,
+            objects: (spec.objects.iter())
+                .filter_map(|o| Some((o.name.clone()?, o.shape.reach())))
+                .collect(),
         }
     }
 
@@ -130,6 +144,23 @@ impl Map {
             && f64::from(self.clearance[y * self.w + x]) >= clear
     }
 
+    /// The objects of the scenario a robot has seen (`seen`: last seen
+    /// positions by name), as discs its route keeps clear of, but the one
+    /// at `own` (the object its skill drives to or pushes, within 5 cm of
+    /// it): a crate beside a lost teammate's body narrows the way round the
+    /// body as a wall would, and its rays alone (12 of them) show the planner
+    /// little of it.
+    pub fn objects_seen(
+        &self,
+        seen: &std::collections::BTreeMap<String, DVec2>,
+        own: Option<DVec2>,
+    ) -> Vec<(DVec2, f64)> {
+        (self.objects.iter())
+            .filter_map(|(name, reach)| Some((*seen.get(name)?, *reach)))
+            .filter(|(at, _)| own.is_none_or(|o| o.distance(*at) > 0.05))
+            .collect()
+    }
+
     /// True when the straight way from `a` to `b` is not clear: a robot's
     /// centre on it would come closer to one of `bodies` than two radii and
     /// the margin, or into a wall or obstacle (the robot may have been
@@ -150,23 +181,43 @@ impl Map {
     /// (points to drive through, `to` last), or `None` if there is none.
     /// `wide`: keep clear of walls and obstacles where it can (cells within
     /// [`WIDE`] of one cost more to cross), for a robot trapped near them;
-    /// `sensed`: points where its range sensor hit something the map does
-    /// not hold (an object that can be pushed, a teammate), kept clear of
-    /// as obstacles are.
+    /// `sensed`: what the map does not hold, as discs (centre, radius):
+    /// points where its range sensor hit something (radius 0: an object, a
+    /// teammate) and the objects it has seen; kept clear of as obstacles
+    /// are.
+    /// A trapped robot's way keeps [`WIDE_GAP`] more from bodies, objects
+    /// and what its rays hit where there is such a way, and only its body's
+    /// room where there is not.
     pub fn route(
         &self,
         from: DVec2,
         to: DVec2,
         bodies: &[DVec2],
-        (sensed, wide): (&[DVec2], bool),
+        (sensed, wide): (&[(DVec2, f64)], bool),
+    ) -> Option<Vec<DVec2>> {
+        let roomy = wide && !(bodies.is_empty() && sensed.is_empty());
+        (roomy.then(|| self.route_clear_by(from, to, bodies, (sensed, wide), WIDE_GAP)))
+            .flatten()
+            .or_else(|| self.route_clear_by(from, to, bodies, (sensed, wide), 0.0))
+    }
+
+    /// [`Map::route`], keeping `extra` m more from bodies and `sensed`.
+    fn route_clear_by(
+        &self,
+        from: DVec2,
+        to: DVec2,
+        bodies: &[DVec2],
+        (sensed, wide): (&[(DVec2, f64)], bool),
+        extra: f64,
     ) -> Option<Vec<DVec2>> {
         let n = self.w * self.h;
-        let clear = self.body + self.inflate;
+        let clear = self.body + self.inflate + extra;
         let mut blocked = self.blocked.clone();
         // Bodies keep a robot's centre two radii and the margin away; what
-        // the rays hit, one radius and the margin.
-        let discs =
-            (bodies.iter().map(|b| (*b, clear))).chain(sensed.iter().map(|p| (*p, self.inflate)));
+        // the rays hit, one radius and the margin; an object, its own
+        // radius more.
+        let discs = (bodies.iter().map(|b| (*b, clear)))
+            .chain(sensed.iter().map(|(p, r)| (*p, self.inflate + r + extra)));
         for (at, within) in discs {
             let (cx, cy) = self.cell_of(at);
             let r = (within / self.cell).ceil() as isize + 1;
@@ -260,9 +311,12 @@ impl Map {
                     1.0
                 };
                 if wide {
+                    // Clearance from the edge of what is near: walls and
+                    // obstacles, what the rays hit, objects and bodies.
                     let at = self.centre(next);
                     let c = (sensed.iter())
-                        .map(|p| p.distance(at))
+                        .map(|(p, r)| p.distance(at) - r)
+                        .chain(bodies.iter().map(|b| b.distance(at) - self.body))
                         .fold(f64::from(self.clearance[j]), f64::min);
                     step *= 1.0 + CLOSE_COST * ((WIDE - c) / WIDE).max(0.0);
                 }
@@ -334,22 +388,23 @@ pub struct Route {
 
 /// Where to steer, from `from`, to get to `to`: `to` itself, unless a lost
 /// teammate's body is in the way, or the robot is `trapped` — then the
-/// next point of a path around them (re-planned when the goal or the
-/// bodies move, and every 2 s; a trapped robot's path keeps clear of walls
-/// and obstacles where it can, and of what its range sensor hits now:
+/// next point of a path around them and the `objects` it has seen (discs:
+/// centre, radius; re-planned when the goal or the bodies move, and every
+/// 2 s; a trapped robot's path keeps clear of walls, obstacles, objects
+/// and bodies where it can, and of what its range sensor hits now:
 /// `trapped` holds those points). Once on a detour, the robot keeps to it
 /// while a body is within a metre, or while it is trapped: the straight
 /// way may look clear from inside a tight gap, where reactive avoidance
 /// would push it back out.
 pub fn aim(
     map: Option<&Map>,
-    bodies: &[DVec2],
+    (bodies, objects): (&[DVec2], &[(DVec2, f64)]),
     route: &mut Option<Route>,
     now: f64,
     (from, to): (DVec2, DVec2),
     trapped: Option<&[DVec2]>,
 ) -> DVec2 {
-    let (sensed, trapped) = (trapped.unwrap_or_default(), trapped.is_some());
+    let (hits, trapped) = (trapped.unwrap_or_default(), trapped.is_some());
     let Some(map) = map.filter(|_| trapped || !bodies.is_empty()) else {
         *route = None;
         return to;
@@ -371,7 +426,10 @@ pub fn aim(
         // No way round: a trapped robot keeps that answer (an empty path,
         // straight on) until the next re-plan rather than searching the
         // whole map again at every tick.
-        let path = map.route(from, to, bodies, (sensed, trapped));
+        let sensed: Vec<(DVec2, f64)> = (objects.iter().copied())
+            .chain(hits.iter().map(|p| (*p, 0.0)))
+            .collect();
+        let path = map.route(from, to, bodies, (&sensed, trapped));
         *route = path.or_else(|| trapped.then(Vec::new)).map(|path| Route {
             goal: to,
             bodies: bodies.to_vec(),
@@ -405,6 +463,15 @@ pub(crate) mod tests {
         (*sc.physics.expect("physics")).clone()
     }
 
+    /// The hall of `search-rescue-hidden-physics.yaml`: its three chairs
+    /// (obstacles) and the red crate (an object, so not on the map).
+    fn hidden_hall() -> PhysicsSpec {
+        physics(
+            "[7, 4]",
+            "    - { disc: 0.2, at: [0.8, 1.35] }\n    - { disc: 0.2, at: [0.8, 2.65] }\n    - { disc: 0.2, at: [3.2, 1.2] }\n  objects:\n    - { name: red_crate, box: [0.3, 0.3], at: [3.8, 0.8], colour: red }\n    - { name: yellow_box, box: [0.3, 0.3], at: [6.32, 3.04], colour: yellow }\n",
+        )
+    }
+
     pub(crate) fn corridor() -> PhysicsSpec {
         // The formation scenario: a hall narrowing into a 0.8 m corridor.
         physics(
@@ -435,6 +502,71 @@ pub(crate) mod tests {
         );
     }
 
+    /// Search and rescue with the box hidden, crash seed 6: the pusher's
+    /// teammate crashed 0.35 m east of the red crate, and the robot, south
+    /// of both, heads for the box in the north-east. The way between body
+    /// and crate is wide enough for its body, not for its obstacle
+    /// avoidance (it stood there for 100 s). Knowing the crate, it goes
+    /// round.
+    #[test]
+    fn a_crate_beside_a_body_closes_the_gap_between_them() {
+        let map = Map::new(&hidden_hall());
+        let body = [DVec2::new(4.419, 0.692)];
+        let (from, to) = (DVec2::new(4.13, 0.49), DVec2::new(6.34, 3.08));
+        let seen: std::collections::BTreeMap<String, DVec2> = [
+            ("red_crate", DVec2::new(3.8, 0.8)),
+            ("red", DVec2::new(3.8, 0.8)),
+            ("yellow_box", DVec2::new(6.32, 3.04)),
+            ("box", DVec2::new(6.32, 3.04)),
+        ]
+        .into_iter()
+        .map(|(k, p)| (k.to_string(), p))
+        .collect();
+        // The box the robot drives to is not in its way; the crate is, once.
+        let objects = map.objects_seen(&seen, Some(DVec2::new(6.32, 3.04)));
+        assert_eq!(objects.len(), 1, "{objects:?}");
+        assert!((objects[0].1 - 0.3f64.hypot(0.3) / 2.0).abs() < 1e-9);
+        let through_gap = |path: &[DVec2]| {
+            path.iter()
+                .any(|p| (3.95..4.3).contains(&p.x) && (0.7..0.95).contains(&p.y))
+        };
+        // Blind to the crate: through the gap.
+        let blind = map.route(from, to, &body, (&[], false)).expect("a way");
+        assert!(through_gap(&blind), "{blind:?}");
+        // Seeing it, a robot merely detouring round the body keeps only its
+        // body clear of the crate; a trapped one keeps clear of the gap.
+        let seeing = map
+            .route(from, to, &body, (&objects, false))
+            .expect("a way");
+        let crate_at = DVec2::new(3.8, 0.8);
+        assert!(
+            seeing.iter().all(|p| p.distance(crate_at) > 0.35),
+            "{seeing:?}"
+        );
+        let trapped = map.route(from, to, &body, (&objects, true)).expect("a way");
+        assert!(!through_gap(&trapped), "{trapped:?}");
+        assert_eq!(trapped.last(), Some(&to));
+        assert!(
+            trapped.iter().all(|p| p.distance(crate_at) > 0.45),
+            "{trapped:?}"
+        );
+        // It goes under the body instead (a 0.57 m way to the wall). With
+        // that way and the one under the crate closed by two more bodies,
+        // the gap is all that is left: room for its body is enough then.
+        assert!(
+            trapped
+                .iter()
+                .any(|p| p.y < 0.35 && (4.3..4.55).contains(&p.x)),
+            "{trapped:?}"
+        );
+        let hemmed = [DVec2::new(4.42, 0.2), DVec2::new(3.75, 0.35)];
+        let bodies = [body[0], hemmed[0], hemmed[1]];
+        let tight = map
+            .route(from, to, &bodies, (&objects, true))
+            .expect("a way");
+        assert!(through_gap(&tight), "{tight:?}");
+    }
+
     #[test]
     fn nothing_in_the_way_means_straight_on() {
         let map = Map::new(&corridor());
@@ -442,7 +574,7 @@ pub(crate) mod tests {
         let to = DVec2::new(7.0, 1.5);
         let aim_at = aim(
             Some(&map),
-            &[DVec2::new(2.0, 2.5)],
+            (&[DVec2::new(2.0, 2.5)], &[]),
             &mut route,
             0.0,
             (DVec2::new(1.0, 1.5), to),
@@ -502,22 +634,43 @@ pub(crate) mod tests {
         // No detour without a body or a trap; one when trapped, which it
         // keeps while it is.
         let mut route = None;
-        assert_eq!(aim(Some(&map), &[], &mut route, 0.0, (from, to), None), to);
+        assert_eq!(
+            aim(Some(&map), (&[], &[]), &mut route, 0.0, (from, to), None),
+            to
+        );
         assert!(route.is_none());
-        let next = aim(Some(&map), &[], &mut route, 0.0, (from, to), Some(&[]));
+        let next = aim(
+            Some(&map),
+            (&[], &[]),
+            &mut route,
+            0.0,
+            (from, to),
+            Some(&[]),
+        );
         assert_ne!(next, to);
         assert!(next.distance(from) < 0.3);
         assert!(route.is_some());
-        assert_eq!(aim(Some(&map), &[], &mut route, 1.0, (from, to), None), to);
+        assert_eq!(
+            aim(Some(&map), (&[], &[]), &mut route, 1.0, (from, to), None),
+            to
+        );
         assert!(route.is_none());
         // Walled in by what its rays hit: no way round, straight on, and
         // no new search until the next re-plan.
         let ring: Vec<DVec2> = (0..36)
             .map(|k| from + DVec2::from_angle(f64::from(k) * 10f64.to_radians()) * 0.2)
             .collect();
-        assert!(map.route(from, to, &[], (&ring, true)).is_none());
+        let ring_discs: Vec<(DVec2, f64)> = ring.iter().map(|p| (*p, 0.0)).collect();
+        assert!(map.route(from, to, &[], (&ring_discs, true)).is_none());
         assert_eq!(
-            aim(Some(&map), &[], &mut route, 2.0, (from, to), Some(&ring)),
+            aim(
+                Some(&map),
+                (&[], &[]),
+                &mut route,
+                2.0,
+                (from, to),
+                Some(&ring)
+            ),
             to
         );
         assert!(route.as_ref().is_some_and(|r| !r.leads()));

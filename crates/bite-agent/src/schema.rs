@@ -716,8 +716,10 @@ fn avoid_obstacle(view: &View, range: f64, shoving: bool) -> Option<Output> {
 }
 
 /// Where to steer to reach `to`: `to`, or the next point of a detour round
-/// a lost teammate's body in the way (see [`crate::plan`]).
-fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
+/// a lost teammate's body in the way (see [`crate::plan`]), and round the
+/// objects it has seen but `own` (where the object its schema drives to or
+/// pushes is).
+fn aim(view: &View, state: &mut State, to: DVec2, own: Option<DVec2>) -> DVec2 {
     // A trapped robot's detour also keeps clear of what its rays hit (an
     // object or a teammate the map does not hold).
     let sensed: Vec<DVec2> = match state.trapped {
@@ -728,9 +730,15 @@ fn aim(view: &View, state: &mut State, to: DVec2) -> DVec2 {
             .collect(),
         None => Vec::new(),
     };
+    let objects = match view.map.as_deref() {
+        Some(map) if state.trapped.is_some() || !view.bodies.is_empty() => {
+            map.objects_seen(&view.objects, own)
+        }
+        _ => Vec::new(),
+    };
     crate::plan::aim(
         view.map.as_deref(),
-        &view.bodies,
+        (&view.bodies, &objects),
         &mut state.route,
         view.skill_time,
         (view.pose.pos, to),
@@ -870,7 +878,8 @@ pub fn evaluate(
                 state.bound_for = Some(p);
                 // Arrive: slow down over the last 0.3 m.
                 let s = speed * ((p - pose.pos).length() / 0.3).min(1.0);
-                let to = aim(view, state, p) - pose.pos;
+                let own = matches!(goal, Target::Object(_)).then_some(p);
+                let to = aim(view, state, p, own) - pose.pos;
                 out(to.normalize_or_zero() * s)
             }
         },
@@ -897,7 +906,7 @@ pub fn evaluate(
             let h = m.heading.unwrap_or(pose.heading);
             let fwd = DVec2::from_angle(h);
             let slot = slot_position(m.pos, h, *side, *distance);
-            let slot = aim(view, state, slot);
+            let slot = aim(view, state, slot, None);
             // Proportional to the slot error, plus the reference's pace.
             let v = (slot - pose.pos) * 1.5 + fwd * speed * 0.8;
             out(clamp_len(v, speed * 1.5))
@@ -910,7 +919,7 @@ pub fn evaluate(
             let r = view.roles.get(of)?;
             let m = view.mates.get(r)?;
             let gap = (m.pos - pose.pos).length() - distance;
-            let to = aim(view, state, m.pos) - pose.pos;
+            let to = aim(view, state, m.pos, None) - pose.pos;
             let v = to.normalize_or_zero() * (gap * 1.5).clamp(-*speed, *speed * 1.5);
             out(v)
         }
@@ -1068,7 +1077,7 @@ pub fn evaluate(
             state.bound_for = Some(behind);
             let mut v = (behind - pose.pos).normalize_or_zero() * *speed;
             if state.trapped.is_some() {
-                v = (aim(view, state, behind) - pose.pos).normalize_or_zero() * *speed;
+                v = (aim(view, state, behind, Some(o)) - pose.pos).normalize_or_zero() * *speed;
             } else if along > -offset * 0.6 && rel.length() < offset * 1.6 {
                 let around = if lateral >= 0.0 {
                     dir.perp()
