@@ -1357,6 +1357,9 @@ impl Sim<'_, '_> {
                         }
                     }
                     let over = self.live_all_finished() || {
+                        if let Some(w) = &self.physics {
+                            self.stall.goal(self.now, w.goal_distance());
+                        }
                         self.stall.idle_check(self.now);
                         if let Some(w) = &self.physics {
                             let mut at = std::mem::take(&mut self.positions);

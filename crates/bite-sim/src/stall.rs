@@ -7,7 +7,12 @@
 //!
 //! - **no progress**: no robot selected, ended or decided anything for
 //!   `after` (default 120 s) while the mission is not over — every live
-//!   robot is stuck in a skill that never ends, or waits;
+//!   robot is stuck in a skill that never ends, or waits. In the physical
+//!   world, the scenario's goal object brought [`STEP`] nearer its zone
+//!   than it has ever been is progress too: a lone robot shoving a box and
+//!   a crashed teammate's body together home decides nothing for minutes;
+//!   it cannot go round in circles that way (the nearest it has been only
+//!   shrinks), and it still ends by the time limit;
 //! - **repetition**: a robot started the same behavior more than `repeats`
 //!   times (default 100) within one execution of its parent — a livelock
 //!   such as `search → linewalk → search …` that never reaches the
@@ -45,6 +50,9 @@ pub struct StallWatch {
     /// Physical world: where the robots were when one last moved away (by
     /// more than [`STEP`] from there), and when.
     moved: Option<(Vec<glam::DVec2>, Time)>,
+    /// Physical world: the nearest the scenario's goal object has been to
+    /// its zone, m.
+    goal_nearest: Option<f64>,
 }
 
 impl StallWatch {
@@ -56,6 +64,7 @@ impl StallWatch {
             stacks: BTreeMap::new(),
             stalled: None,
             moved: None,
+            goal_nearest: None,
         }
     }
 
@@ -111,7 +120,11 @@ impl StallWatch {
             self.stalled = Some((
                 now,
                 format!(
-                    "no robot selected, ended or decided anything for {:.0} s (since {})",
+                    "no robot selected, ended or decided anything{} for {:.0} s (since {})",
+                    match self.goal_nearest {
+                        Some(_) => " nor brought the goal object nearer its zone",
+                        None => "",
+                    },
                     after.as_secs_f64(),
                     self.last_progress
                 ),
@@ -152,8 +165,71 @@ impl StallWatch {
         }
     }
 
+    /// Physical world: how far the scenario's goal object is from its zone
+    /// at `now` (`None`: no goal). Coming [`STEP`] nearer than it has ever
+    /// been is progress.
+    pub fn goal(&mut self, now: Time, distance: Option<f64>) {
+        let Some(d) = distance else { return };
+        match self.goal_nearest {
+            Some(best) if d > best - STEP => {}
+            Some(_) => {
+                self.goal_nearest = Some(d);
+                self.last_progress = self.last_progress.max(now);
+            }
+            None => self.goal_nearest = Some(d),
+        }
+    }
+
     /// When and why the run stalled, if it did.
     pub fn stalled(&self) -> Option<&(Time, String)> {
         self.stalled.as_ref()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    fn at(s: u64) -> Time {
+        Time::ZERO + Duration::from_secs(s)
+    }
+
+    /// A goal object brought a step nearer its zone than ever is progress;
+    /// dithering about its nearest, or back and forth, is not.
+    #[test]
+    fn a_goal_object_brought_nearer_its_zone_is_progress() {
+        let limits = StallLimits {
+            after: Some(Duration::from_secs(120)),
+            ..StallLimits::default()
+        };
+        let mut w = StallWatch::new(limits);
+        w.goal(at(0), Some(3.0));
+        // Shoved home slowly: 0.3 m a minute, nothing decided.
+        for k in 1..=8 {
+            w.goal(at(60 * k), Some(3.0 - 0.3 * k as f64));
+            w.idle_check(at(60 * k));
+        }
+        assert!(w.stalled().is_none(), "{:?}", w.stalled());
+        // Back and forth by less than a step, then away and back: no
+        // nearer than it has been, so 120 s later the run is stalled.
+        for k in 9..=11 {
+            let d = if k % 2 == 0 { 0.6 + 0.2 } else { 0.6 - 0.2 };
+            w.goal(at(60 * k), Some(d));
+            w.idle_check(at(60 * k));
+        }
+        let (when, why) = w.stalled().expect("stalled");
+        assert_eq!(*when, at(60 * 11));
+        assert!(
+            why.contains("nor brought the goal object nearer its zone"),
+            "{why}"
+        );
+        // Without a goal, the message is as it was.
+        let mut w = StallWatch::new(limits);
+        w.goal(at(0), None);
+        w.idle_check(at(121));
+        assert!(w.stalled().is_some_and(|(_, why)| {
+            why.starts_with("no robot selected, ended or decided anything for")
+        }));
     }
 }

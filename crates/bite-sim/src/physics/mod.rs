@@ -495,6 +495,18 @@ impl World {
         self.goal_met
     }
 
+    /// How far the scenario's goal object is from its zone now, m (0 in
+    /// it; `None`: the scenario has no goal).
+    pub fn goal_distance(&self) -> Option<f64> {
+        let (obj, zone) = self.spec.goal.as_ref()?;
+        let i = (self.spec.objects.iter()).position(|o| o.name.as_ref() == Some(obj))?;
+        let z = self.spec.zones.get(zone)?;
+        let p = self.object_pos(i);
+        let dx = (z[0] - p.x).max(p.x - z[2]).max(0.0);
+        let dy = (z[1] - p.y).max(p.y - z[3]).max(0.0);
+        Some(dx.hypot(dy))
+    }
+
     /// Distance each robot travelled.
     pub fn odometers(&self) -> Vec<f64> {
         self.robots.iter().map(|r| r.odometer).collect()
