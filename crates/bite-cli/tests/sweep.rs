@@ -563,6 +563,43 @@ fn a_robot_trapped_between_obstacles_takes_a_detour() {
     hidden_box_completes("trap", &["6", "37", "53", "67"]);
 }
 
+/// Found by sweeping the hidden box, crash class: r0 crashed 0.35 m east of
+/// the red crate, and the lone robot, south of both, was routed to the box
+/// through the gap between body and crate (the planner's map holds bodies,
+/// walls and obstacles; the crate can be pushed, so it was not on it). Its
+/// body fits there, its obstacle avoidance does not let it in: it stood
+/// there for 120 s. A robot now routes round the objects it has seen, and
+/// a trapped one keeps 0.1 m more from them, bodies and what its rays hit
+/// where it can.
+#[test]
+fn a_robot_routes_round_a_crate_beside_a_crashed_teammate() {
+    let v = run_one(
+        "hidden-crate-6",
+        &[
+            &example("search-rescue.rtcl"),
+            "--scenario",
+            &example("scenarios/search-rescue-hidden-physics.yaml"),
+            "--fault",
+            "crash=r0@42.805s",
+            "--seed",
+            "6",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
+/// Found by sweeping the compiled box push on seeds 181 to 420: the pusher
+/// crashed right in front of the red cube, and its teammate shoved cube and
+/// body together home, for minutes, deciding nothing: the stall watch ended
+/// the runs as stalled while the cube still came nearer its zone. The goal
+/// object brought 0.25 m nearer its zone than ever is progress now.
+#[test]
+fn a_lone_robot_shoving_the_cube_and_a_body_home_is_not_stalled() {
+    example_completes("red-cube.rtcl", "crash=r0@53.414s", "211");
+    example_completes("red-cube.rtcl", "crash=r0@39.244s", "267");
+    example_completes("red-cube.rtcl", "crash=r0@37.122s", "377");
+}
+
 /// The compiled search and rescue on its hidden-box scenario completes,
 /// without a deadline, on each of `seeds`.
 fn hidden_box_completes(name: &str, seeds: &[&str]) {
