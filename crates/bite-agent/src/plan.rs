@@ -14,8 +14,8 @@
 //! seen (objects can be pushed, so they are not on the map: the route keeps
 //! clear of them where it last saw them, but of the one its schema drives
 //! to or pushes); it plans over that map, inflated by its own radius, and
-//! steers to the next point of the path. Healthy teammates are not obstacles here: they move, and
-//! `avoid-teammate` handles them. A body that leaves no way round it (a
+//! steers to the next point of the path. Healthy teammates are not
+//! obstacles here: they move, and `avoid-teammate` handles them. A body that leaves no way round it (a
 //! corridor too narrow beside it) is pushed out of the way instead
 //! (`schema::command`).
 
@@ -388,23 +388,22 @@ pub struct Route {
 
 /// Where to steer, from `from`, to get to `to`: `to` itself, unless a lost
 /// teammate's body is in the way, or the robot is `trapped` — then the
-/// next point of a path around them and the `objects` it has seen (discs:
-/// centre, radius; re-planned when the goal or the bodies move, and every
-/// 2 s; a trapped robot's path keeps clear of walls, obstacles, objects
-/// and bodies where it can, and of what its range sensor hits now:
-/// `trapped` holds those points). Once on a detour, the robot keeps to it
+/// next point of a path around them and what `sensed` gives when it plans
+/// (discs, centre and radius: the objects it has seen and, trapped, what
+/// its range sensor hits now; re-planned when the goal or the bodies move,
+/// and every 2 s; a trapped robot's path keeps clear of walls, obstacles,
+/// objects and bodies where it can). Once on a detour, the robot keeps to it
 /// while a body is within a metre, or while it is trapped: the straight
 /// way may look clear from inside a tight gap, where reactive avoidance
 /// would push it back out.
 pub fn aim(
     map: Option<&Map>,
-    (bodies, objects): (&[DVec2], &[(DVec2, f64)]),
+    bodies: &[DVec2],
     route: &mut Option<Route>,
     now: f64,
     (from, to): (DVec2, DVec2),
-    trapped: Option<&[DVec2]>,
+    (trapped, sensed): (bool, impl FnOnce(&Map) -> Vec<(DVec2, f64)>),
 ) -> DVec2 {
-    let (hits, trapped) = (trapped.unwrap_or_default(), trapped.is_some());
     let Some(map) = map.filter(|_| trapped || !bodies.is_empty()) else {
         *route = None;
         return to;
@@ -426,10 +425,7 @@ pub fn aim(
         // No way round: a trapped robot keeps that answer (an empty path,
         // straight on) until the next re-plan rather than searching the
         // whole map again at every tick.
-        let sensed: Vec<(DVec2, f64)> = (objects.iter().copied())
-            .chain(hits.iter().map(|p| (*p, 0.0)))
-            .collect();
-        let path = map.route(from, to, bodies, (&sensed, trapped));
+        let path = map.route(from, to, bodies, (&sensed(map), trapped));
         *route = path.or_else(|| trapped.then(Vec::new)).map(|path| Route {
             goal: to,
             bodies: bodies.to_vec(),
@@ -574,11 +570,11 @@ pub(crate) mod tests {
         let to = DVec2::new(7.0, 1.5);
         let aim_at = aim(
             Some(&map),
-            (&[DVec2::new(2.0, 2.5)], &[]),
+            &[DVec2::new(2.0, 2.5)],
             &mut route,
             0.0,
             (DVec2::new(1.0, 1.5), to),
-            None,
+            (false, |_: &Map| Vec::new()),
         );
         assert_eq!(aim_at, to);
         assert!(route.is_none());
@@ -634,43 +630,52 @@ pub(crate) mod tests {
         // No detour without a body or a trap; one when trapped, which it
         // keeps while it is.
         let mut route = None;
+        let nothing = |_: &Map| Vec::new();
         assert_eq!(
-            aim(Some(&map), (&[], &[]), &mut route, 0.0, (from, to), None),
+            aim(
+                Some(&map),
+                &[],
+                &mut route,
+                0.0,
+                (from, to),
+                (false, nothing)
+            ),
             to
         );
         assert!(route.is_none());
         let next = aim(
             Some(&map),
-            (&[], &[]),
+            &[],
             &mut route,
             0.0,
             (from, to),
-            Some(&[]),
+            (true, nothing),
         );
         assert_ne!(next, to);
         assert!(next.distance(from) < 0.3);
         assert!(route.is_some());
         assert_eq!(
-            aim(Some(&map), (&[], &[]), &mut route, 1.0, (from, to), None),
+            aim(
+                Some(&map),
+                &[],
+                &mut route,
+                1.0,
+                (from, to),
+                (false, nothing)
+            ),
             to
         );
         assert!(route.is_none());
         // Walled in by what its rays hit: no way round, straight on, and
         // no new search until the next re-plan.
-        let ring: Vec<DVec2> = (0..36)
+        let ring: Vec<(DVec2, f64)> = (0..36)
             .map(|k| from + DVec2::from_angle(f64::from(k) * 10f64.to_radians()) * 0.2)
+            .map(|p| (p, 0.0))
             .collect();
-        let ring_discs: Vec<(DVec2, f64)> = ring.iter().map(|p| (*p, 0.0)).collect();
-        assert!(map.route(from, to, &[], (&ring_discs, true)).is_none());
+        assert!(map.route(from, to, &[], (&ring, true)).is_none());
+        let walls = |_: &Map| ring.clone();
         assert_eq!(
-            aim(
-                Some(&map),
-                (&[], &[]),
-                &mut route,
-                2.0,
-                (from, to),
-                Some(&ring)
-            ),
+            aim(Some(&map), &[], &mut route, 2.0, (from, to), (true, walls)),
             to
         );
         assert!(route.as_ref().is_some_and(|r| !r.leads()));

@@ -720,29 +720,26 @@ fn avoid_obstacle(view: &View, range: f64, shoving: bool) -> Option<Output> {
 /// objects it has seen but `own` (where the object its schema drives to or
 /// pushes is).
 fn aim(view: &View, state: &mut State, to: DVec2, own: Option<DVec2>) -> DVec2 {
-    // A trapped robot's detour also keeps clear of what its rays hit (an
-    // object or a teammate the map does not hold).
-    let sensed: Vec<DVec2> = match state.trapped {
-        Some(_) => (view.rays.iter())
-            .map(|(a, d)| {
-                view.pose.pos + DVec2::from_angle(view.pose.heading + a) * (d + view.radius)
-            })
-            .collect(),
-        None => Vec::new(),
-    };
-    let objects = match view.map.as_deref() {
-        Some(map) if state.trapped.is_some() || !view.bodies.is_empty() => {
-            map.objects_seen(&view.objects, own)
+    let trapped = state.trapped.is_some();
+    // Gathered only when it plans: the objects it has seen and, trapped,
+    // what its rays hit (an object or a teammate the map does not hold).
+    let sensed = |map: &crate::plan::Map| {
+        let mut discs = map.objects_seen(&view.objects, own);
+        if trapped {
+            discs.extend(view.rays.iter().map(|(a, d)| {
+                let dir = DVec2::from_angle(view.pose.heading + a);
+                (view.pose.pos + dir * (d + view.radius), 0.0)
+            }));
         }
-        _ => Vec::new(),
+        discs
     };
     crate::plan::aim(
         view.map.as_deref(),
-        (&view.bodies, &objects),
+        &view.bodies,
         &mut state.route,
         view.skill_time,
         (view.pose.pos, to),
-        state.trapped.map(|_| &sensed[..]),
+        (trapped, sensed),
     )
 }
 
