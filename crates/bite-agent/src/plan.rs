@@ -37,9 +37,13 @@ const MAX_CELLS: f64 = 60_000.0;
 const WIDE: f64 = 0.45;
 const CLOSE_COST: f64 = 4.0;
 /// How much farther than its body needs a trapped robot's detour keeps from
-/// bodies, objects and what its rays hit, where it can, m: a gap its body
-/// fits through with less than this on either side is one its obstacle
-/// avoidance (0.15-0.55 m) holds it out of.
+/// bodies and objects, where it can, m: a gap its body fits through with
+/// less than this on either side is one its obstacle avoidance (0.15-0.55
+/// m) holds it out of. Not from the points its rays hit: those lie on the
+/// surface of something, often a wall the map already holds, and the spare
+/// room round each would narrow every corridor (a formation's lead, trapped
+/// at the mouth of its 0.8 m corridor, was routed round and round in front
+/// of it).
 const WIDE_GAP: f64 = 0.1;
 
 /// The static map a pilot plans on: the arena's cells, with those its
@@ -185,9 +189,9 @@ impl Map {
     /// points where its range sensor hit something (radius 0: an object, a
     /// teammate) and the objects it has seen; kept clear of as obstacles
     /// are.
-    /// A trapped robot's way keeps [`WIDE_GAP`] more from bodies, objects
-    /// and what its rays hit where there is such a way, and only its body's
-    /// room where there is not.
+    /// A trapped robot's way keeps [`WIDE_GAP`] more from bodies and objects
+    /// (discs of a radius above 0) where there is such a way, and only its
+    /// body's room where there is not.
     pub fn route(
         &self,
         from: DVec2,
@@ -195,13 +199,14 @@ impl Map {
         bodies: &[DVec2],
         (sensed, wide): (&[(DVec2, f64)], bool),
     ) -> Option<Vec<DVec2>> {
-        let roomy = wide && !(bodies.is_empty() && sensed.is_empty());
+        let roomy = wide && (!bodies.is_empty() || sensed.iter().any(|(_, r)| *r > 0.0));
         (roomy.then(|| self.route_clear_by(from, to, bodies, (sensed, wide), WIDE_GAP)))
             .flatten()
             .or_else(|| self.route_clear_by(from, to, bodies, (sensed, wide), 0.0))
     }
 
-    /// [`Map::route`], keeping `extra` m more from bodies and `sensed`.
+    /// [`Map::route`], keeping `extra` m more from bodies and from the
+    /// discs of `sensed` that have a radius (objects; not ray hits).
     fn route_clear_by(
         &self,
         from: DVec2,
@@ -216,8 +221,10 @@ impl Map {
         // Bodies keep a robot's centre two radii and the margin away; what
         // the rays hit, one radius and the margin; an object, its own
         // radius more.
-        let discs = (bodies.iter().map(|b| (*b, clear)))
-            .chain(sensed.iter().map(|(p, r)| (*p, self.inflate + r + extra)));
+        let discs = (bodies.iter().map(|b| (*b, clear))).chain(sensed.iter().map(|(p, r)| {
+            let spare = if *r > 0.0 { extra } else { 0.0 };
+            (*p, self.inflate + r + spare)
+        }));
         for (at, within) in discs {
             let (cx, cy) = self.cell_of(at);
             let r = (within / self.cell).ceil() as isize + 1;

@@ -569,8 +569,7 @@ fn a_robot_trapped_between_obstacles_takes_a_detour() {
 /// walls and obstacles; the crate can be pushed, so it was not on it). Its
 /// body fits there, its obstacle avoidance does not let it in: it stood
 /// there for 120 s. A robot now routes round the objects it has seen, and
-/// a trapped one keeps 0.1 m more from them, bodies and what its rays hit
-/// where it can.
+/// a trapped one keeps 0.1 m more from them and from bodies where it can.
 #[test]
 fn a_robot_routes_round_a_crate_beside_a_crashed_teammate() {
     let v = run_one(
