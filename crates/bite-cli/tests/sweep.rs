@@ -572,19 +572,7 @@ fn a_robot_trapped_between_obstacles_takes_a_detour() {
 /// a trapped one keeps 0.1 m more from them and from bodies where it can.
 #[test]
 fn a_robot_routes_round_a_crate_beside_a_crashed_teammate() {
-    let v = run_one(
-        "hidden-crate-6",
-        &[
-            &example("search-rescue.rtcl"),
-            "--scenario",
-            &example("scenarios/search-rescue-hidden-physics.yaml"),
-            "--fault",
-            "crash=r0@42.805s",
-            "--seed",
-            "6",
-        ],
-    );
-    assert_eq!(v["outcome"], "completed", "{v:#}");
+    hidden_box_completes_with("crate", &["--fault", "crash=r0@42.805s"], &["6"]);
 }
 
 /// Found by sweeping the compiled box push on seeds 181 to 420: the pusher
@@ -602,17 +590,18 @@ fn a_lone_robot_shoving_the_cube_and_a_body_home_is_not_stalled() {
 /// The compiled search and rescue on its hidden-box scenario completes,
 /// without a deadline, on each of `seeds`.
 fn hidden_box_completes(name: &str, seeds: &[&str]) {
+    hidden_box_completes_with(name, &[], seeds);
+}
+
+/// [`hidden_box_completes`], with more `bite run` arguments (a fault).
+fn hidden_box_completes_with(name: &str, more: &[&str], seeds: &[&str]) {
     for seed in seeds {
-        let v = run_one(
-            &format!("hidden-{name}-{seed}"),
-            &[
-                &example("search-rescue.rtcl"),
-                "--scenario",
-                &example("scenarios/search-rescue-hidden-physics.yaml"),
-                "--seed",
-                seed,
-            ],
-        );
+        let scenario = example("scenarios/search-rescue-hidden-physics.yaml");
+        let mission = example("search-rescue.rtcl");
+        let mut args = vec![mission.as_str(), "--scenario", scenario.as_str()];
+        args.extend_from_slice(more);
+        args.extend(["--seed", seed]);
+        let v = run_one(&format!("hidden-{name}-{seed}"), &args);
         assert_eq!(v["outcome"], "completed", "seed {seed}: {v:#}");
     }
 }
