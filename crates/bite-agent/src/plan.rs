@@ -4,7 +4,9 @@
 //! blocks the straight way to where a schema steers, or when a robot
 //! driving to a goal has been trapped (it made no headway for a while: a
 //! pocket between two obstacles where attraction and repulsion cancel), or
-//! a wandering one pinned in a corner heads for open floor.
+//! a wandering one pinned in a corner heads for open floor. It also plans
+//! the way of an object a robot pushes, when a wall or obstacle stands in
+//! its straight way to the goal ([`Map::object_route`]).
 //!
 //! Motor schemas are reactive: attraction to the goal plus repulsion from
 //! what the rays see. A body parked in a doorway makes a local minimum (the
@@ -45,6 +47,11 @@ const CLOSE_COST: f64 = 4.0;
 /// at the mouth of its 0.8 m corridor, was routed round and round in front
 /// of it).
 const WIDE_GAP: f64 = 0.1;
+/// How much room beyond its reach a pushed object's planned way keeps
+/// from walls and obstacles, m (see [`Map::object_route`]).
+const OBJECT_GAP: f64 = 0.05;
+/// How far ahead along its planned way a pusher steers its object, m.
+pub(crate) const OBJECT_LOOKAHEAD: f64 = 0.4;
 
 /// The static map a pilot plans on: the arena's cells, with those its
 /// centre cannot enter (walls and obstacles, inflated by its radius).
@@ -165,6 +172,87 @@ impl Map {
             .collect()
     }
 
+    /// The reach of the scenario's object last seen at `at` (`seen`: last
+    /// seen positions by name; within 5 cm), if one was.
+    pub fn reach_at(
+        &self,
+        seen: &std::collections::BTreeMap<String, DVec2>,
+        at: DVec2,
+    ) -> Option<f64> {
+        (self.objects.iter())
+            .find(|(name, _)| seen.get(name).is_some_and(|p| p.distance(at) <= 0.05))
+            .map(|(_, reach)| *reach)
+    }
+
+    /// The distance from `p` to the nearest wall or obstacle, as the map's
+    /// cells know it (0 outside the arena).
+    fn clearance_at(&self, p: DVec2) -> f64 {
+        let inside = p.x >= 0.0
+            && p.y >= 0.0
+            && p.x < self.w as f64 * self.cell
+            && p.y < self.h as f64 * self.cell;
+        let (x, y) = self.cell_of(p);
+        if inside {
+            f64::from(self.clearance[y * self.w + x])
+        } else {
+            0.0
+        }
+    }
+
+    /// True when an object of `reach` pushed straight from `from` to `to`
+    /// cannot touch a wall or obstacle on the way (its centre at least its
+    /// reach from every one, all the way), or when `to` itself has no such
+    /// room (the goal is tight against something: the object goes straight
+    /// for it, as before there was a way to plan).
+    pub fn object_way_clear(&self, from: DVec2, to: DVec2, reach: f64) -> bool {
+        self.clearance_at(to) < reach || self.keeps_clear(from, to, reach)
+    }
+
+    /// True when every point of the segment from `a` to `b` (sampled every
+    /// half cell) is at least `clear` from every wall and obstacle.
+    fn keeps_clear(&self, a: DVec2, b: DVec2, clear: f64) -> bool {
+        let steps = (a.distance(b) / (self.cell / 2.0)).ceil().min(10_000.0) as usize;
+        (0..=steps).all(|k| self.clearance_at(a.lerp(b, k as f64 / steps.max(1) as f64)) >= clear)
+    }
+
+    /// Where to steer an object of `reach` at `at` on its planned way
+    /// `path` ([`Map::object_route`]): the farthest point up to `ahead` m on
+    /// from the point nearest it ([`pursue`]) that it reaches in a straight
+    /// line without coming nearer a wall or obstacle than the way keeps
+    /// (nor nearer than it is); the next point of the way if none is.
+    pub(crate) fn object_aim(
+        &self,
+        path: &[DVec2],
+        at: DVec2,
+        reach: f64,
+        ahead: f64,
+    ) -> Option<DVec2> {
+        let floor = (reach + OBJECT_GAP).min(self.clearance_at(at));
+        let (nearest, far) = pursue(path, at, ahead)?;
+        (nearest..=far)
+            .rev()
+            .map(|k| path[k])
+            .find(|p| self.keeps_clear(at, *p, floor - 1e-6))
+            .or_else(|| path.get(nearest + 1).or(path.last()).copied())
+    }
+
+    /// The way to push an object of `reach` from `from` to `to` round the
+    /// walls and obstacles (points, `to` last): its centre keeps
+    /// [`OBJECT_GAP`] beyond its reach from them, or, where it is already
+    /// nearer (pushed against one), no nearer than it is; a way closer
+    /// than that gap costs more, the more the closer. `None` if there is
+    /// none.
+    pub fn object_route(&self, from: DVec2, to: DVec2, reach: f64) -> Option<Vec<DVec2>> {
+        let need = reach + OBJECT_GAP;
+        let floor = need.min(self.clearance_at(from)) as f32;
+        let blocked: Vec<bool> = self.clearance.iter().map(|c| *c < floor).collect();
+        let step = |j: usize| {
+            let c = f64::from(self.clearance[j]);
+            1.0 + CLOSE_COST * ((need - c) / need).max(0.0)
+        };
+        self.search(&blocked, from, to, step)
+    }
+
     /// True when the straight way from `a` to `b` is not clear: a robot's
     /// centre on it would come closer to one of `bodies` than two radii and
     /// the margin, or into a wall or obstacle (the robot may have been
@@ -215,7 +303,6 @@ impl Map {
         (sensed, wide): (&[(DVec2, f64)], bool),
         extra: f64,
     ) -> Option<Vec<DVec2>> {
-        let n = self.w * self.h;
         let clear = self.body + self.inflate + extra;
         let mut blocked = self.blocked.clone();
         // Bodies keep a robot's centre two radii and the margin away; what
@@ -241,6 +328,35 @@ impl Map {
                 }
             }
         }
+        let step = |j: usize| {
+            if !wide {
+                return 1.0;
+            }
+            // Clearance from the edge of what is near: walls and
+            // obstacles, what the rays hit, objects and bodies.
+            let at = self.centre((j % self.w, j / self.w));
+            let c = (sensed.iter())
+                .map(|(p, r)| p.distance(at) - r)
+                .chain(bodies.iter().map(|b| b.distance(at) - self.body))
+                .fold(f64::from(self.clearance[j]), f64::min);
+            1.0 + CLOSE_COST * ((WIDE - c) / WIDE).max(0.0)
+        };
+        self.search(&blocked, from, to, step)
+    }
+
+    /// A* over the cells from `from` to `to`, not entering `blocked` ones
+    /// (but the goal's; a goal in a blocked cell is swapped for the nearest
+    /// open one) nor cutting corners between two; crossing cell `j` costs
+    /// its length times `step(j)`. The path's points to drive through,
+    /// `to` last.
+    fn search(
+        &self,
+        blocked: &[bool],
+        from: DVec2,
+        to: DVec2,
+        step: impl Fn(usize) -> f64,
+    ) -> Option<Vec<DVec2>> {
+        let n = self.w * self.h;
         let start = self.cell_of(from);
         // A goal inside an inflated obstacle: aim at the nearest free cell.
         let goal = {
@@ -312,22 +428,12 @@ impl Map {
                 {
                     continue;
                 }
-                let mut step = if dx != 0 && dy != 0 {
+                let length = if dx != 0 && dy != 0 {
                     std::f64::consts::SQRT_2
                 } else {
                     1.0
                 };
-                if wide {
-                    // Clearance from the edge of what is near: walls and
-                    // obstacles, what the rays hit, objects and bodies.
-                    let at = self.centre(next);
-                    let c = (sensed.iter())
-                        .map(|(p, r)| p.distance(at) - r)
-                        .chain(bodies.iter().map(|b| b.distance(at) - self.body))
-                        .fold(f64::from(self.clearance[j]), f64::min);
-                    step *= 1.0 + CLOSE_COST * ((WIDE - c) / WIDE).max(0.0);
-                }
-                let c = cost + step;
+                let c = cost + length * step(j);
                 if c < g[j] {
                     g[j] = c;
                     came[j] = i;
@@ -358,6 +464,21 @@ impl Ord for Open {
     fn cmp(&self, o: &Self) -> std::cmp::Ordering {
         o.0.total_cmp(&self.0).then(o.2.cmp(&self.2))
     }
+}
+
+/// The points of `path` from the one nearest `at` to the one `ahead` m on
+/// (the distance counted from `at`; the path's last if it ends sooner), as
+/// their indices; `None` for an empty path.
+pub(crate) fn pursue(path: &[DVec2], at: DVec2, ahead: f64) -> Option<(usize, usize)> {
+    let nearest = (0..path.len())
+        .min_by(|a, b| (path[*a].distance_squared(at)).total_cmp(&path[*b].distance_squared(at)))?;
+    let mut k = nearest;
+    let mut travel = at.distance(path[k]);
+    while travel < ahead && k + 1 < path.len() {
+        travel += path[k].distance(path[k + 1]);
+        k += 1;
+    }
+    Some((nearest, k))
 }
 
 pub(crate) fn segment_distance(a: DVec2, b: DVec2, p: DVec2) -> f64 {
@@ -468,7 +589,7 @@ pub(crate) mod tests {
 
     /// The hall of `search-rescue-hidden-physics.yaml`: its three chairs
     /// (obstacles) and the red crate (an object, so not on the map).
-    fn hidden_hall() -> PhysicsSpec {
+    pub(crate) fn hidden_hall() -> PhysicsSpec {
         physics(
             "[7, 4]",
             "    - { disc: 0.2, at: [0.8, 1.35] }\n    - { disc: 0.2, at: [0.8, 2.65] }\n    - { disc: 0.2, at: [3.2, 1.2] }\n  objects:\n    - { name: red_crate, box: [0.3, 0.3], at: [3.8, 0.8], colour: red }\n    - { name: yellow_box, box: [0.3, 0.3], at: [6.32, 3.04], colour: yellow }\n",
@@ -568,6 +689,57 @@ pub(crate) mod tests {
             .route(from, to, &bodies, (&objects, true))
             .expect("a way");
         assert!(through_gap(&tight), "{tight:?}");
+    }
+
+    /// Hidden box, crash seed 168: the box pushed against the north chair
+    /// beside the goal. Its straight way is not clear; its planned way
+    /// leaves the chair (no point nearer it than the box is) and ends at
+    /// the goal; the point pursued lies away from the chair. Between the
+    /// chairs, the straight way is clear; a goal against a chair is gone
+    /// for straight.
+    #[test]
+    fn an_object_pushed_against_a_chair_is_routed_off_it() {
+        let map = Map::new(&hidden_hall());
+        let chair = DVec2::new(0.8, 2.65);
+        let seen: std::collections::BTreeMap<String, DVec2> = [
+            ("yellow_box", DVec2::new(1.17, 2.6)),
+            ("box", DVec2::new(1.17, 2.6)),
+        ]
+        .into_iter()
+        .map(|(k, p)| (k.to_string(), p))
+        .collect();
+        let (o, goal) = (DVec2::new(1.17, 2.6), DVec2::new(0.8, 2.0));
+        let reach = map.reach_at(&seen, o).expect("the box's size");
+        assert!((reach - 0.3f64.hypot(0.3) / 2.0).abs() < 1e-9);
+        assert_eq!(map.reach_at(&seen, DVec2::new(2.0, 2.0)), None);
+        assert!(!map.object_way_clear(o, goal, reach));
+        let path = map.object_route(o, goal, reach).expect("a way");
+        assert_eq!(path.last(), Some(&goal));
+        let start = o.distance(chair);
+        for p in &path {
+            assert!(
+                p.distance(chair) >= start - map.cell,
+                "{p} nearer the chair: {path:?}"
+            );
+        }
+        let ahead = (map.object_aim(&path, o, reach, OBJECT_LOOKAHEAD)).expect("a point");
+        assert!(ahead.distance(chair) > start + 0.05, "{ahead} {path:?}");
+        // Straight there, the box comes no nearer the chair.
+        assert!((ahead - o).dot(o - chair) > 0.0, "{ahead}");
+        // Between the chairs, from the east: straight on.
+        assert!(map.object_way_clear(DVec2::new(3.0, 2.0), goal, reach));
+        // A goal with no room for the box: straight on.
+        assert!(map.object_way_clear(o, DVec2::new(0.8, 2.3), reach));
+    }
+
+    #[test]
+    fn pursuit_walks_the_path_ahead_of_the_nearest_point() {
+        let path = [0.0, 0.2, 0.4, 0.6, 1.0].map(|x| DVec2::new(x, 0.0));
+        let at = DVec2::new(0.21, 0.05);
+        assert_eq!(pursue(&path, at, 0.3), Some((1, 3)));
+        assert_eq!(pursue(&path, at, 5.0), Some((1, 4)));
+        assert_eq!(pursue(&path, at, 0.0), Some((1, 1)));
+        assert_eq!(pursue(&[], at, 0.3), None);
     }
 
     #[test]

@@ -552,6 +552,10 @@ pub struct State {
     /// object in while a lost teammate's body stands where it would push
     /// from (see [`push_direction`]).
     push_turn: Option<f64>,
+    /// Push: the planned way of its object round walls and obstacles that
+    /// stand in its straight way to the goal (see [`push_way`]): when it
+    /// was planned (skill time), for which goal, its points.
+    object_way: Option<(f64, DVec2, Vec<DVec2>)>,
     /// Look-around: since when it has looked round without seeing a live
     /// teammate (see [`command`]).
     in_vain: Option<f64>,
@@ -1058,6 +1062,7 @@ pub fn evaluate(
                     face: None,
                 });
             }
+            let dir = push_way(view, state, (o, *goal), *offset).unwrap_or(dir);
             let dir = push_direction(view, state, o, dir, *offset);
             let behind = o - dir * *offset;
             let rel = pose.pos - o;
@@ -1097,6 +1102,10 @@ pub fn evaluate(
 /// most likely at work on it (m): a robot searching for the object looks
 /// round the body (see [`vantage`]).
 const BODY_NEAR_OBJECT: f64 = 2.5;
+/// A lost teammate's body this near the way from the place a pushed object
+/// was last seen to its goal was pushing it (m): the object is most likely
+/// beside it, hidden by it, however far along (see [`command`]).
+const BODY_ON_THE_WAY: f64 = 0.5;
 
 /// A robot searching round a body is at a vantage point this near it, m.
 const ARRIVED: f64 = 0.25;
@@ -1121,6 +1130,51 @@ fn vantage(view: &View, centre: DVec2, from: f64, k: usize) -> Option<DVec2> {
     (0..6)
         .map(|j| centre + DVec2::from_angle(from + step * ((k + j) % 6 + 1) as f64) * VANTAGE)
         .find(|p| view.map.as_ref().is_none_or(|m| m.open(*p, view.radius)))
+}
+
+/// How often a pusher plans its object's way again while the straight way
+/// to the goal is not clear, s.
+const OBJECT_REPLAN: f64 = 1.0;
+
+/// The direction a pusher drives its object `o` in on the way to `goal`
+/// when a wall or obstacle stands in the straight way (the object would
+/// come within a few centimetres of it, or is pushed against it): toward a
+/// point up to [`OBJECT_LOOKAHEAD`](crate::plan::OBJECT_LOOKAHEAD) m ahead on
+/// the object's planned way round it, one it gets to in a straight line
+/// without coming nearer the obstacle (`Map::object_aim`; the way planned
+/// again every [`OBJECT_REPLAN`] s). `None`
+/// (straight for the goal) where the way is clear, the map or the
+/// object's size unknown, there is no way round, or the place to push
+/// from, `offset` behind the object, is not open floor.
+fn push_way(
+    view: &View,
+    state: &mut State,
+    (o, goal): (DVec2, DVec2),
+    offset: f64,
+) -> Option<DVec2> {
+    let map = view.map.as_deref()?;
+    let Some(reach) = map.reach_at(&view.objects, o) else {
+        state.object_way = None;
+        return None;
+    };
+    if map.object_way_clear(o, goal, reach) {
+        state.object_way = None;
+        return None;
+    }
+    let now = view.skill_time;
+    let stale = state.object_way.as_ref().is_none_or(|(at, to, _)| {
+        now - at >= OBJECT_REPLAN || now < *at || to.distance(goal) > 0.05
+    });
+    if stale {
+        let path = map.object_route(o, goal, reach).unwrap_or_default();
+        state.object_way = Some((now, goal, path));
+    }
+    let (_, _, path) = state.object_way.as_ref()?;
+    let ahead = map.object_aim(path, o, reach, crate::plan::OBJECT_LOOKAHEAD)?;
+    // Only where the robot can stand to push that way (not in the obstacle
+    // the object is pushed off).
+    Some((ahead - o).normalize_or_zero())
+        .filter(|d| *d != DVec2::ZERO && map.open(o - *d * offset, 0.0))
 }
 
 /// Turns from the goal's direction, in order of preference, a pusher may
@@ -1332,11 +1386,22 @@ pub fn command(
             // teammate's body near that place: the teammate was at work on
             // it when lost (pushing it, most likely, further than this robot
             // saw), and its body may hide it. Round the body.
+            // A pushed object goes from there toward its goal: a body on
+            // that way, however far along, was pushing it too.
+            let pushed_to = match &skill[i].schema {
+                Schema::Push { goal, .. } => Some(*goal),
+                _ => None,
+            };
             let centre = (skill[i].schema.object())
                 .and_then(|o| view.objects.get(o).copied())
                 .and_then(|last| {
                     (view.bodies.iter().copied())
-                        .filter(|b| b.distance(last) < BODY_NEAR_OBJECT)
+                        .filter(|b| {
+                            b.distance(last) < BODY_NEAR_OBJECT
+                                || pushed_to.is_some_and(|g| {
+                                    crate::plan::segment_distance(last, g, *b) < BODY_ON_THE_WAY
+                                })
+                        })
                         .min_by(|a, b| a.distance(last).total_cmp(&b.distance(last)))
                 });
             let to_mate = mate().filter(|p| p.distance(pos) > 1.0);
@@ -2183,6 +2248,83 @@ mod tests {
                 .iter()
                 .all(|s| s.circle.is_none() && s.lost.is_none())
         );
+    }
+
+    /// A pusher whose box lies against a chair beside the goal (hidden box,
+    /// crash seed 168) pushes it off the chair, along its planned way, not
+    /// straight at the goal into the chair; with a clear way, straight.
+    #[test]
+    fn a_pusher_steers_its_object_round_a_chair() {
+        let map = crate::plan::Map::new(&crate::plan::tests::hidden_hall());
+        let (chair, goal) = (DVec2::new(0.8, 2.65), DVec2::new(0.8, 2.0));
+        let push = Schema::Push {
+            object: "box".into(),
+            goal,
+            offset: 0.4,
+            speed: 0.2,
+        };
+        let mut view = View {
+            radius: 0.12,
+            max_speed: 0.3,
+            map: Some(std::sync::Arc::new(map)),
+            ..View::default()
+        };
+        view.pose.pos = DVec2::new(2.0, 3.2);
+        for (o, planned) in [(DVec2::new(1.17, 2.6), true), (DVec2::new(3.0, 2.0), false)] {
+            for key in ["box", "yellow_box"] {
+                view.objects.insert(key.into(), o);
+                view.in_view.insert(key.into());
+            }
+            let mut st = State::default();
+            evaluate(&push, &view, &mut st, &mut || 0.5).expect("active");
+            assert_eq!(st.object_way.is_some(), planned, "{o}");
+            let behind = st.bound_for.expect("getting behind it");
+            let dir = (o - behind).normalize();
+            let straight = (goal - o).normalize();
+            if planned {
+                // Away from the chair, where straight on heads toward it.
+                assert!(dir.dot((o - chair).normalize()) > 0.0, "{dir}");
+                assert!(straight.dot((o - chair).normalize()) < 0.0);
+            } else {
+                assert!(dir.distance(straight) < 1e-9, "{dir} {straight}");
+            }
+        }
+    }
+
+    /// A body far from where the object was last seen, but on its way from
+    /// there to the push's goal, was pushing it (its teammate watched from
+    /// behind and lost sight of it there, hidden by the pusher): the search
+    /// goes round that body. A body as far off the way is not searched round.
+    #[test]
+    fn a_pusher_searches_round_a_lost_body_far_along_the_way_to_the_goal() {
+        let skill = vec![weighted(push_box_west(), 2)];
+        for (body, round) in [
+            (DVec2::new(-1.8, 0.1), true),
+            (DVec2::new(-1.8, 1.5), false),
+        ] {
+            assert!(body.distance(DVec2::new(1.0, 0.0)) > BODY_NEAR_OBJECT);
+            let mut view = View {
+                radius: 0.12,
+                max_speed: 0.3,
+                bodies: vec![body],
+                ..View::default()
+            };
+            view.pose.pos = DVec2::new(0.6, 0.0);
+            view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
+            let mut states = Vec::new();
+            command_at(&skill, &mut view, &mut states, 0.0);
+            command_at(&skill, &mut view, &mut states, SEARCH_TURN + 0.1);
+            let c = command_at(&skill, &mut view, &mut states, 2.0 * SEARCH_TURN + 0.2);
+            assert_eq!(states[0].circle.is_some(), round, "{body}: {c:?}");
+            if round {
+                let to = c.v.normalize();
+                let first = (states[0].circle)
+                    .and_then(|k| vantage(&view, body, k.from, k.k))
+                    .expect("a vantage point");
+                assert!((first.distance(body) - VANTAGE).abs() < 1e-9);
+                assert!(to.dot((first - view.pose.pos).normalize()) > 0.99, "{c:?}");
+            }
+        }
     }
 
     /// A robot driving to a goal that gets no nearer to it for

@@ -587,6 +587,45 @@ fn a_lone_robot_shoving_the_cube_and_a_body_home_is_not_stalled() {
     example_completes("red-cube.rtcl", "crash=r0@37.122s", "377");
 }
 
+/// Found by sweeping the hidden box on seeds 61 to 200: the lone robot left
+/// after a crash pushed the box straight at its goal and into the north
+/// chair beside it, and stood there pushing (crash seed 168; leader-crash
+/// seed 189, the box already in the goal zone). A pusher whose object could
+/// touch a wall or obstacle on its straight way to the goal, or is pushed
+/// against one, steers it round on a planned way. A first version did so
+/// with less than 5 cm to spare as well, and stalled a run that completes
+/// (the hidden `box-push.yaml`, crash seed 134): its box, near the north
+/// chair but clear of it, was to be pushed from where the chair stands.
+#[test]
+fn a_box_pushed_into_a_chair_is_steered_round_it() {
+    hidden_box_completes_with("chair", &["--fault", "crash=r0@21.074s"], &["168"]);
+    hidden_box_completes_with("chair", &["--fault", "crash=r0@10.705s"], &["189"]);
+    let v = run_one(
+        "hidden-box-push-134",
+        &[
+            &example("box-push.yaml"),
+            "--scenario",
+            &example("scenarios/box-push-hidden-physics.yaml"),
+            "--fault",
+            "crash=r1@26.574s",
+            "--seed",
+            "134",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
+/// Found on the same sweep (leader-crash seed 85): the watcher trailed the
+/// pusher, whose body, when it crashed, hid the box from it; its last
+/// sighting was 2 m back along the way to the goal, so the body was too far
+/// from it to search round, and it wandered east of the body for 120 s. A
+/// body on the way from the last sighting to the push's goal was pushing
+/// the object: the robot searches round it.
+#[test]
+fn a_box_hidden_by_its_crashed_pusher_far_along_is_found() {
+    hidden_box_completes_with("far-along", &["--fault", "crash=r0@48.845s"], &["85"]);
+}
+
 /// The compiled search and rescue on its hidden-box scenario completes,
 /// without a deadline, on each of `seeds`.
 fn hidden_box_completes(name: &str, seeds: &[&str]) {
