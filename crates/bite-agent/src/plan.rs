@@ -68,10 +68,11 @@ pub struct Map {
     inflate: f64,
     /// Radius of a robot body.
     body: f64,
-    /// The scenario's named objects and the radius of the disc round each
-    /// (what can be pushed, so not in `blocked`: a robot routes round
-    /// those it has seen where it last saw them; see [`Map::objects_seen`]).
-    objects: Vec<(String, f64)>,
+    /// The scenario's named objects, the radius of the disc round each and
+    /// of the disc inside it (what can be pushed, so not in `blocked`: a
+    /// robot routes round those it has seen where it last saw them; see
+    /// [`Map::objects_seen`]).
+    objects: Vec<(String, f64, f64)>,
 }
 
 impl Map {
@@ -121,7 +122,7 @@ impl Map {
             inflate,
             body: spec.robot.radius,
             objects: (spec.objects.iter())
-                .filter_map(|o| Some((o.name.clone()?, o.shape.reach())))
+                .filter_map(|o| Some((o.name.clone()?, o.shape.reach(), o.shape.inner())))
                 .collect(),
         }
     }
@@ -167,21 +168,22 @@ impl Map {
         own: Option<DVec2>,
     ) -> Vec<(DVec2, f64)> {
         (self.objects.iter())
-            .filter_map(|(name, reach)| Some((*seen.get(name)?, *reach)))
+            .filter_map(|(name, reach, _)| Some((*seen.get(name)?, *reach)))
             .filter(|(at, _)| own.is_none_or(|o| o.distance(*at) > 0.05))
             .collect()
     }
 
-    /// The reach of the scenario's object last seen at `at` (`seen`: last
-    /// seen positions by name; within 5 cm), if one was.
-    pub fn reach_at(
+    /// The size of the scenario's object last seen at `at` (`seen`: last
+    /// seen positions by name; within 5 cm), if one was: the radii of the
+    /// discs round it and inside it ([`Shape::reach`], [`Shape::inner`]).
+    pub fn size_at(
         &self,
         seen: &std::collections::BTreeMap<String, DVec2>,
         at: DVec2,
-    ) -> Option<f64> {
+    ) -> Option<(f64, f64)> {
         (self.objects.iter())
-            .find(|(name, _)| seen.get(name).is_some_and(|p| p.distance(at) <= 0.05))
-            .map(|(_, reach)| *reach)
+            .find(|(name, ..)| seen.get(name).is_some_and(|p| p.distance(at) <= 0.05))
+            .map(|(_, reach, inner)| (*reach, *inner))
     }
 
     /// The distance from `p` to the nearest wall or obstacle, as the map's
@@ -199,13 +201,19 @@ impl Map {
         }
     }
 
-    /// True when an object of `reach` pushed straight from `from` to `to`
-    /// cannot touch a wall or obstacle on the way (its centre at least its
-    /// reach from every one, all the way), or when `to` itself has no such
-    /// room (the goal is tight against something: the object goes straight
-    /// for it, as before there was a way to plan).
-    pub fn object_way_clear(&self, from: DVec2, to: DVec2, reach: f64) -> bool {
-        self.clearance_at(to) < reach || self.keeps_clear(from, to, reach)
+    /// True when an object of `size` (the radii of the discs round it and
+    /// inside it) pushed straight from `from` to `to` does not run into a
+    /// wall or obstacle on the way, however it is turned (its centre at
+    /// least the inner radius from every one, all the way), nor stands
+    /// against one at the start (its centre nearer one than its reach: it
+    /// may be caught on it, as a box's corner on a chair); or when `to`
+    /// itself has no such room (the goal is tight against something: the
+    /// object goes straight for it, as before there was a way to plan).
+    /// Between the two radii, on the way, an object grazes at worst and
+    /// slides by.
+    pub fn object_way_clear(&self, from: DVec2, to: DVec2, (reach, inner): (f64, f64)) -> bool {
+        self.clearance_at(to) < inner
+            || (self.clearance_at(from) >= reach && self.keeps_clear(from, to, inner))
     }
 
     /// True when every point of the segment from `a` to `b` (sampled every
@@ -709,10 +717,12 @@ pub(crate) mod tests {
         .map(|(k, p)| (k.to_string(), p))
         .collect();
         let (o, goal) = (DVec2::new(1.17, 2.6), DVec2::new(0.8, 2.0));
-        let reach = map.reach_at(&seen, o).expect("the box's size");
+        let size = map.size_at(&seen, o).expect("the box's size");
+        let (reach, inner) = size;
         assert!((reach - 0.3f64.hypot(0.3) / 2.0).abs() < 1e-9);
-        assert_eq!(map.reach_at(&seen, DVec2::new(2.0, 2.0)), None);
-        assert!(!map.object_way_clear(o, goal, reach));
+        assert!((inner - 0.15).abs() < 1e-9);
+        assert_eq!(map.size_at(&seen, DVec2::new(2.0, 2.0)), None);
+        assert!(!map.object_way_clear(o, goal, size));
         let path = map.object_route(o, goal, reach).expect("a way");
         assert_eq!(path.last(), Some(&goal));
         let start = o.distance(chair);
@@ -727,9 +737,17 @@ pub(crate) mod tests {
         // Straight there, the box comes no nearer the chair.
         assert!((ahead - o).dot(o - chair) > 0.0, "{ahead}");
         // Between the chairs, from the east: straight on.
-        assert!(map.object_way_clear(DVec2::new(3.0, 2.0), goal, reach));
+        assert!(map.object_way_clear(DVec2::new(3.0, 2.0), goal, size));
+        // Grazing the chair (its centre 0.17 m from it, between the box's
+        // inner radius and its reach): straight on; starting there, caught
+        // on it, not.
+        let graze = DVec2::new(1.5, 3.0);
+        assert!(crate::plan::segment_distance(graze, goal, chair) - 0.2 > inner);
+        assert!(crate::plan::segment_distance(graze, goal, chair) - 0.2 < reach);
+        assert!(map.object_way_clear(graze, goal, size));
+        assert!(!map.object_way_clear(DVec2::new(1.13, 2.5), goal, size));
         // A goal with no room for the box: straight on.
-        assert!(map.object_way_clear(o, DVec2::new(0.8, 2.3), reach));
+        assert!(map.object_way_clear(o, DVec2::new(0.8, 2.36), size));
     }
 
     #[test]

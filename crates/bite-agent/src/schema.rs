@@ -1138,7 +1138,7 @@ const OBJECT_REPLAN: f64 = 1.0;
 
 /// The direction a pusher drives its object `o` in on the way to `goal`
 /// when a wall or obstacle stands in the straight way (the object would
-/// come within a few centimetres of it, or is pushed against it): toward a
+/// run into it, however it is turned, or stands against it): toward a
 /// point up to [`OBJECT_LOOKAHEAD`](crate::plan::OBJECT_LOOKAHEAD) m ahead on
 /// the object's planned way round it, one it gets to in a straight line
 /// without coming nearer the obstacle (`Map::object_aim`; the way planned
@@ -1153,11 +1153,12 @@ fn push_way(
     offset: f64,
 ) -> Option<DVec2> {
     let map = view.map.as_deref()?;
-    let Some(reach) = map.reach_at(&view.objects, o) else {
+    let Some(size) = map.size_at(&view.objects, o) else {
         state.object_way = None;
         return None;
     };
-    if map.object_way_clear(o, goal, reach) {
+    let reach = size.0;
+    if map.object_way_clear(o, goal, size) {
         state.object_way = None;
         return None;
     }

@@ -203,6 +203,16 @@ impl Shape {
             Shape::Disc(r) => *r,
         }
     }
+
+    /// Radius of the largest disc inside it, about its centre (half the
+    /// shorter side of a box): nothing nearer its centre than this misses
+    /// it, however it is turned.
+    pub fn inner(&self) -> f64 {
+        match self {
+            Shape::Box(s) => s.min_element() / 2.0,
+            Shape::Disc(r) => *r,
+        }
+    }
 }
 
 /// Where a drawn position comes from.
