@@ -1142,10 +1142,10 @@ const OBJECT_REPLAN: f64 = 1.0;
 /// point up to [`OBJECT_LOOKAHEAD`](crate::plan::OBJECT_LOOKAHEAD) m ahead on
 /// the object's planned way round it, one it gets to in a straight line
 /// without coming nearer the obstacle (`Map::object_aim`; the way planned
-/// again every [`OBJECT_REPLAN`] s). `None`
-/// (straight for the goal) where the way is clear, the map or the
-/// object's size unknown, there is no way round, or the place to push
-/// from, `offset` behind the object, is not open floor.
+/// again every [`OBJECT_REPLAN`] s). `None` (straight for the goal) where
+/// the way is clear, the map or the object's size unknown, there is no way
+/// round, or the place to push from, `offset` behind the object, is not
+/// open floor.
 fn push_way(
     view: &View,
     state: &mut State,

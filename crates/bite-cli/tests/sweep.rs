@@ -590,12 +590,13 @@ fn a_lone_robot_shoving_the_cube_and_a_body_home_is_not_stalled() {
 /// Found by sweeping the hidden box on seeds 61 to 200: the lone robot left
 /// after a crash pushed the box straight at its goal and into the north
 /// chair beside it, and stood there pushing (crash seed 168; leader-crash
-/// seed 189, the box already in the goal zone). A pusher whose object could
-/// touch a wall or obstacle on its straight way to the goal, or is pushed
-/// against one, steers it round on a planned way. A first version did so
-/// with less than 5 cm to spare as well, and stalled a run that completes
-/// (the hidden `box-push.yaml`, crash seed 134): its box, near the north
-/// chair but clear of it, was to be pushed from where the chair stands.
+/// seed 189, the box already in the goal zone). A pusher whose object would
+/// run into a wall or obstacle on its straight way to the goal however it is
+/// turned, or stands against one, steers it round on a planned way. A draft
+/// that did so wherever the object would pass within 5 cm of one stalled a
+/// run that completes (the hidden `box-push.yaml`, crash seed 134): its box,
+/// near the north chair but clear of it, was to be pushed from where the
+/// chair stands.
 #[test]
 fn a_box_pushed_into_a_chair_is_steered_round_it() {
     hidden_box_completes_with("chair", &["--fault", "crash=r0@21.074s"], &["168"]);
