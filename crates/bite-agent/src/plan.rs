@@ -50,6 +50,9 @@ const WIDE_GAP: f64 = 0.1;
 /// How much room beyond its reach a pushed object's planned way keeps
 /// from walls and obstacles, m (see [`Map::object_route`]).
 const OBJECT_GAP: f64 = 0.05;
+/// The spacing of the points a searching robot chooses where to look
+/// round from (see [`Map::lookout`]), m.
+const LOOKOUT_STEP: f64 = 0.25;
 /// How far ahead along its planned way a pusher steers its object, m.
 pub(crate) const OBJECT_LOOKAHEAD: f64 = 0.4;
 
@@ -154,6 +157,45 @@ impl Map {
         inside
             && !self.blocked[y * self.w + x]
             && f64::from(self.clearance[y * self.w + x]) >= clear
+    }
+
+    /// Where a robot searching for an object it has not found looks round
+    /// next (see `schema::command`): of the open floor (points on a grid of
+    /// [`LOOKOUT_STEP`] m, at least `clear` m from walls and obstacles),
+    /// the point farthest from every place in `looked` (where it has looked
+    /// round already), any `apart` m or more from all of them counting as
+    /// far enough, and of those the nearest to `from`. With the point, how
+    /// far it is from the nearest place looked from (at most `apart`).
+    /// `None` if no point is open. A pure function of its inputs: the grid
+    /// is walked in one order and the first best point is kept.
+    pub fn lookout(
+        &self,
+        looked: &[DVec2],
+        from: DVec2,
+        apart: f64,
+        clear: f64,
+    ) -> Option<(DVec2, f64)> {
+        let (w, h) = (self.w as f64 * self.cell, self.h as f64 * self.cell);
+        let (nx, ny) = ((w / LOOKOUT_STEP) as usize, (h / LOOKOUT_STEP) as usize);
+        let mut best: Option<(DVec2, f64, f64)> = None;
+        for j in 0..ny {
+            for i in 0..nx {
+                let p = DVec2::new(
+                    (i as f64 + 0.5) * LOOKOUT_STEP,
+                    (j as f64 + 0.5) * LOOKOUT_STEP,
+                );
+                if !self.open(p, clear) {
+                    continue;
+                }
+                let far = (looked.iter()).map(|l| l.distance(p)).fold(apart, f64::min);
+                let near = p.distance(from);
+                let better = best.is_none_or(|(_, f, n)| far > f || (far == f && near < n));
+                if better {
+                    best = Some((p, far, near));
+                }
+            }
+        }
+        best.map(|(p, far, _)| (p, far))
     }
 
     /// The objects of the scenario a robot has seen (`seen`: last seen
@@ -801,6 +843,47 @@ pub(crate) mod tests {
             "[7, 4]",
             "    - { disc: 0.2, at: [3.2, 1.2] }\n    - { box: [0.3, 0.3], at: [3.8, 0.8] }\n",
         )
+    }
+
+    /// A searching robot's next lookout is open floor the farthest from
+    /// where it has looked (any `apart` off being far enough), the nearest
+    /// of those to it; off the chair; and when every point is near a place
+    /// looked from, the farthest of all.
+    #[test]
+    fn the_next_lookout_is_the_nearest_open_floor_far_from_where_it_looked() {
+        let map = Map::new(&hall());
+        let from = DVec2::new(0.5, 0.7);
+        let (p, far) = map.lookout(&[from], from, 2.5, 0.24).expect("open floor");
+        assert_eq!(far, 2.5);
+        assert!((p.distance(from) - 2.5).abs() < 0.2, "{p}");
+        // A second place looked from, 2.5 m east: the next is beyond it,
+        // at least 2.5 m from both.
+        let second = p;
+        let (q, far) = map
+            .lookout(&[from, second], second, 2.5, 0.24)
+            .expect("open floor");
+        assert_eq!(far, 2.5);
+        assert!(q.distance(from) >= 2.5 && q.distance(second) >= 2.5, "{q}");
+        assert!(q.x > second.x, "{q}");
+        // Open floor only: never on the chair or within `clear` of a wall.
+        let chair = DVec2::new(3.2, 1.2);
+        let (r, _) = map
+            .lookout(&[DVec2::new(3.2, 3.7)], chair, 2.5, 0.24)
+            .expect("open floor");
+        assert!(r.distance(chair) >= 0.2 + 0.24 && map.open(r, 0.24), "{r}");
+        // Looked from everywhere 1.5 m apart: the farthest point left.
+        let grid: Vec<DVec2> = (0..5)
+            .flat_map(|i| {
+                (0..3).map(move |j| DVec2::new(0.5 + 1.5 * i as f64, 0.5 + 1.5 * j as f64))
+            })
+            .collect();
+        let (_, far) = map.lookout(&grid, from, 2.5, 0.24).expect("open floor");
+        assert!(far > 0.5 && far < 1.5, "{far}");
+        // Determined by its inputs.
+        assert_eq!(
+            map.lookout(&grid, from, 2.5, 0.24),
+            map.lookout(&grid, from, 2.5, 0.24)
+        );
     }
 
     #[test]

@@ -534,6 +534,14 @@ pub struct State {
     circle: Option<Circle>,
     /// That search's detour round a lost teammate's body.
     search_route: Option<crate::plan::Route>,
+    /// That search, exploring (after [`EXPLORE_AFTER`]): the places it has
+    /// looked round from in vain, and the lookout it heads for or looks
+    /// round from.
+    looked: Vec<DVec2>,
+    lookout: Option<Lookout>,
+    /// That search: how many of its turns it has looked round with a
+    /// teammate within [`MATE_NEAR`], and the last such turn.
+    looks_near_mate: (u32, Option<u32>),
     /// Move-to-goal, push getting behind its object: the point it drives
     /// to at this tick.
     bound_for: Option<DVec2>,
@@ -630,7 +638,97 @@ struct Circle {
     looking: bool,
 }
 
+/// A search for an object exploring the open floor (see [`State::explore`]).
+#[derive(Clone, Copy, Debug)]
+struct Lookout {
+    /// The point it heads for, or looks round from.
+    at: DVec2,
+    /// When it started heading there, or looking round.
+    since: f64,
+    /// It is looking round.
+    looking: bool,
+}
+
 impl State {
+    /// The next step of a search for an object that has gone on for
+    /// [`EXPLORE_AFTER`] without finding it (neither where teammates are
+    /// nor near where it wandered): first, a teammate within
+    /// [`MATE_NEAR`] that may have hidden the object all along, to its far
+    /// side; then to the open floor farthest from every
+    /// place it has looked round from, any [`LOOK_APART`] m off being far
+    /// enough and the nearest of those first (`Map::lookout`); there (within
+    /// [`ARRIVED`], or after [`LOOKOUT_TIME`] on the way) a look all round,
+    /// and on to the next. Once every point of the floor is within
+    /// [`LOOKED_NEAR`] of a place looked from, it starts over.
+    fn explore(&mut self, view: &View, map: &crate::plan::Map, mate: Option<DVec2>) -> Schema {
+        let (pos, now) = (view.pose.pos, view.skill_time);
+        let clear = 2.0 * view.radius;
+        if self.looked.is_empty() {
+            // Where it searched until now.
+            self.looked.push(pos);
+            // A teammate near may have hidden the object from it all
+            // along (one standing aside in front of the box): first the
+            // far side of it, [`VANTAGE`] m beyond.
+            let beyond = mate
+                .filter(|m| m.distance(pos) < MATE_NEAR && m.distance(pos) > 1e-6)
+                .map(|m| m + (m - pos).normalize() * VANTAGE)
+                .filter(|p| map.open(*p, clear));
+            if let Some(at) = beyond {
+                self.lookout = Some(Lookout {
+                    at,
+                    since: now,
+                    looking: false,
+                });
+            }
+        }
+        match self.lookout {
+            Some(l) if l.looking => {
+                if now - l.since < SEARCH_TURN && now >= l.since {
+                    return Schema::LookAround;
+                }
+                self.looked.push(pos);
+                self.lookout = None;
+            }
+            Some(l) => {
+                if l.at.distance(pos) > ARRIVED && now - l.since < LOOKOUT_TIME && now >= l.since {
+                    return Schema::MoveToGoal {
+                        goal: Target::Point(l.at),
+                        speed: SEARCH_SPEED,
+                    };
+                }
+                self.lookout = Some(Lookout {
+                    at: pos,
+                    since: now,
+                    looking: true,
+                });
+                return Schema::LookAround;
+            }
+            None => {}
+        }
+        let mut next = map.lookout(&self.looked, pos, LOOK_APART, clear);
+        if next.is_some_and(|(_, far)| far < LOOKED_NEAR) {
+            self.looked = vec![pos];
+            next = map.lookout(&self.looked, pos, LOOK_APART, clear);
+        }
+        match next {
+            Some((at, _)) => {
+                self.lookout = Some(Lookout {
+                    at,
+                    since: now,
+                    looking: false,
+                });
+                Schema::MoveToGoal {
+                    goal: Target::Point(at),
+                    speed: SEARCH_SPEED,
+                }
+            }
+            None => Schema::Wander {
+                speed: SEARCH_SPEED,
+                period: 2.0,
+            },
+        }
+    }
+
     /// The next step of a search round `centre` (see [`vantage`]): to the
     /// next vantage point (until within [`ARRIVED`] of it, or after
     /// [`VANTAGE_TIME`] on the way), a look all round there, and on.
@@ -1113,6 +1211,29 @@ const ARRIVED: f64 = 0.25;
 /// most (it may not get there: the body, the object itself in the way).
 const VANTAGE_TIME: f64 = 15.0;
 
+/// Seconds a robot searches for an object it has not found by heading for
+/// teammates (at work on it, most likely near it) and wandering, before it
+/// explores the open floor instead (see [`State::explore`]; once it does,
+/// it keeps exploring until it finds the object): a teammate that follows
+/// it (a watcher trailing its pusher) keeps it where it is, and wandering
+/// covers a hall slowly ...
+const EXPLORE_AFTER: f64 = 40.0;
+/// ... and once it has looked round this many times with a teammate within
+/// [`MATE_NEAR`] m (or knows of none): the team is not near the object,
+/// or a teammate follows it. A teammate near the object may hide it from
+/// one side and not from the next, which moving round it shows.
+const LOOKS_NEAR_MATE: u32 = 3;
+const MATE_NEAR: f64 = 1.5;
+/// An exploring robot looks round from places this far apart where it can,
+/// m (half a camera's usual range: the hall between two of them is seen
+/// from one or the other).
+const LOOK_APART: f64 = 2.5;
+/// Once every point of the open floor is this near a place an exploring
+/// robot has looked round from, m, it starts over.
+const LOOKED_NEAR: f64 = 1.0;
+/// Seconds an exploring robot heads for one lookout at most.
+const LOOKOUT_TIME: f64 = 30.0;
+
 /// How far from the body it searches round a robot looks for its object
 /// from, m (see [`vantage`]).
 const VANTAGE: f64 = 1.0;
@@ -1376,13 +1497,10 @@ pub fn command(
             // metre (the team is at work on the object, most likely near
             // it), else anywhere.
             let pos = view.pose.pos;
-            let mate = || {
-                view.mates
-                    .values()
-                    .map(|m| m.pos)
-                    .filter(|p| !view.bodies.iter().any(|b| b.distance(*p) < 0.05))
-                    .min_by(|a, b| a.distance(pos).total_cmp(&b.distance(pos)))
-            };
+            let nearest = (view.mates.values())
+                .map(|m| m.pos)
+                .filter(|p| !view.bodies.iter().any(|b| b.distance(*p) < 0.05))
+                .min_by(|a, b| a.distance(pos).total_cmp(&b.distance(pos)));
             // The object seen before, where it is not now, and a lost
             // teammate's body near that place: the teammate was at work on
             // it when lost (pushing it, most likely, further than this robot
@@ -1405,13 +1523,29 @@ pub fn command(
                         })
                         .min_by(|a, b| a.distance(last).total_cmp(&b.distance(last)))
                 });
-            let to_mate = mate().filter(|p| p.distance(pos) > 1.0);
-            let schema = match centre {
+            let to_mate = nearest.filter(|p| p.distance(pos) > 1.0);
+            // Looks round with a teammate near, counted once a turn: the
+            // team is not where the object is (or a follower keeps near).
+            let turn = ((view.skill_time - since).max(0.0) / (SEARCH_TURN + SEARCH_MOVE)) as u32;
+            if phase < SEARCH_TURN
+                && nearest.is_some_and(|p| p.distance(pos) < MATE_NEAR)
+                && st.looks_near_mate.1 != Some(turn)
+            {
+                st.looks_near_mate = (st.looks_near_mate.0 + 1, Some(turn));
+            }
+            let explore = (view.map.as_deref()).filter(|_| {
+                let long = view.skill_time - since >= EXPLORE_AFTER;
+                let in_vain = st.looks_near_mate.0 >= LOOKS_NEAR_MATE || nearest.is_none();
+                st.lookout.is_some() || (long && in_vain)
+            });
+            let schema = match (centre, explore) {
                 // After the first look round, with no teammate at work to
                 // head for: from one vantage point round it to the next.
-                Some(c) if to_mate.is_none() && view.skill_time - since >= SEARCH_TURN => {
+                (Some(c), _) if to_mate.is_none() && view.skill_time - since >= SEARCH_TURN => {
                     st.circle_round(view, c)
                 }
+                // Long in vain: explore.
+                (_, Some(map)) => st.explore(view, map, nearest),
                 _ if phase < SEARCH_TURN => Schema::LookAround,
                 _ => match to_mate {
                     Some(p) => Schema::MoveToGoal {
@@ -1438,6 +1572,9 @@ pub fn command(
             for st in states.iter_mut() {
                 st.lost = None;
                 st.circle = None;
+                st.lookout = None;
+                st.looked.clear();
+                st.looks_near_mate = (0, None);
             }
         }
     }
@@ -2511,6 +2648,124 @@ mod tests {
         view.pose.pos = DVec2::new(0.0, 2.5);
         let c = search(&mut view);
         assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
+    }
+
+    /// A search that has not found its object for [`EXPLORE_AFTER`] s,
+    /// having looked round near its teammate [`LOOKS_NEAR_MATE`] times,
+    /// explores: the far side of the teammate first (it may hide the
+    /// object), then open floor [`LOOK_APART`] m from where it has looked,
+    /// looking round at each; the teammate (a watcher trailing its pusher,
+    /// so heading for it kept both where they were) no longer leads it.
+    /// Seeing the object ends the search, and the next one starts where
+    /// teammates are again. A teammate never near is headed for as before.
+    #[test]
+    fn a_long_search_explores_the_hall_instead_of_following_its_follower() {
+        let hall = crate::plan::tests::hall();
+        let map = std::sync::Arc::new(crate::plan::Map::new(&hall));
+        let skill = vec![weighted(
+            Schema::Face {
+                target: Target::Object("box".into()),
+            },
+            1,
+        )];
+        let start = DVec2::new(0.5, 0.7);
+        let mut view = View {
+            map: Some(map.clone()),
+            radius: 0.12,
+            max_speed: 0.3,
+            ..View::default()
+        };
+        view.pose.pos = start;
+        // The teammate 1.2 m east: the search heads for it ...
+        let mate = DVec2::new(1.7, 0.7);
+        view.mates.insert(
+            1,
+            Mate {
+                pos: mate,
+                heading: None,
+            },
+        );
+        let mut states = Vec::new();
+        let mut rng = || 0.5;
+        let mut at = |view: &mut View, states: &mut Vec<State>, t: f64| {
+            view.skill_time = t;
+            command(&skill, view, states, &mut rng)
+        };
+        let cycle = SEARCH_TURN + SEARCH_MOVE;
+        for k in 0..LOOKS_NEAR_MATE {
+            // Looks round, the teammate near ...
+            let c = at(&mut view, &mut states, cycle * f64::from(k) + 1.0);
+            assert!(c.face.is_some() && c.v == DVec2::ZERO, "{c:?}");
+            // ... and heads for it between turns.
+            let c = at(
+                &mut view,
+                &mut states,
+                cycle * f64::from(k) + SEARCH_TURN + 1.0,
+            );
+            assert!(c.v.x > 0.0 && c.v.y.abs() < 1e-9, "{c:?}");
+        }
+        assert_eq!(states[0].looks_near_mate.0, LOOKS_NEAR_MATE);
+        // After EXPLORE_AFTER, with LOOKS_NEAR_MATE looks round near the
+        // teammate in vain, it explores: first the far side of the
+        // teammate (which may have hidden the object all along) ...
+        let c = at(&mut view, &mut states, EXPLORE_AFTER + 1.1);
+        let lookout = states[0].lookout.expect("a lookout").at;
+        assert!(
+            lookout.distance(DVec2::new(1.7 + VANTAGE, 0.7)) < 1e-9,
+            "{lookout}"
+        );
+        assert!(c.v.normalize().dot(DVec2::X) > 0.99, "{c:?} for {lookout}");
+        // Still on its way after 20 s: it keeps going.
+        view.pose.pos = start.lerp(lookout, 0.5);
+        at(&mut view, &mut states, EXPLORE_AFTER + 20.0);
+        assert_eq!(states[0].lookout.map(|l| l.at), Some(lookout));
+        // There: it looks round ...
+        view.pose.pos = lookout;
+        let c = at(&mut view, &mut states, EXPLORE_AFTER + 30.0);
+        assert!(c.face.is_some() && c.v == DVec2::ZERO, "{c:?}");
+        let c = at(
+            &mut view,
+            &mut states,
+            EXPLORE_AFTER + 30.0 + SEARCH_TURN - 0.5,
+        );
+        assert!(c.face.is_some(), "{c:?}");
+        // ... then heads for the next: the nearest open floor LOOK_APART
+        // from both places it looked from, whatever its teammate does.
+        let c = at(&mut view, &mut states, EXPLORE_AFTER + 31.0 + SEARCH_TURN);
+        let next = states[0].lookout.expect("the next lookout").at;
+        assert_eq!(states[0].looked, vec![start, lookout]);
+        assert!(
+            next.distance(start) >= LOOK_APART && next.distance(lookout) >= LOOK_APART,
+            "{next}"
+        );
+        assert!(next.distance(lookout) < LOOK_APART + 0.2, "{next}");
+        let way = (next - lookout).normalize();
+        assert!(c.v.normalize().dot(way) > 0.99, "{c:?} for {next}");
+        // The object seen: the search is over, and forgotten.
+        view.objects.insert("box".into(), DVec2::new(6.0, 3.0));
+        at(&mut view, &mut states, EXPLORE_AFTER + 40.0);
+        assert!(states[0].lookout.is_none() && states[0].looked.is_empty());
+        assert!(states[0].lost.is_none());
+        assert_eq!(states[0].looks_near_mate, (0, None));
+        // A teammate never near: after EXPLORE_AFTER the search still heads
+        // for it (the team is at work on the object, most likely near it).
+        let mut view = view.clone();
+        view.objects.clear();
+        view.pose.pos = start;
+        view.mates.insert(
+            1,
+            Mate {
+                pos: DVec2::new(3.5, 0.7),
+                heading: None,
+            },
+        );
+        let mut states = Vec::new();
+        for k in 0..5 {
+            at(&mut view, &mut states, cycle * f64::from(k) + 1.0);
+        }
+        let c = at(&mut view, &mut states, cycle * 5.0 + SEARCH_TURN + 1.0);
+        assert!(c.v.x > 0.0 && c.v.y.abs() < 1e-9, "{c:?}");
+        assert!(states[0].lookout.is_none());
     }
 
     /// A skill whose object was never seen looks round for it, then

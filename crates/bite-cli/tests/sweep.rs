@@ -627,6 +627,22 @@ fn a_box_hidden_by_its_crashed_pusher_far_along_is_found() {
     hidden_box_completes_with("far-along", &["--fault", "crash=r0@48.845s"], &["85"]);
 }
 
+/// Found by sweeping the hidden box on seeds 201..400 (partition seed
+/// 352): after the partition healed, the push went to the robot that had
+/// never seen the box, 5.8 m off in the far corner, beyond its camera. Its
+/// search headed for its nearest teammate, the watcher, which trails its
+/// pusher: the two stayed in the south-west corner for 120 s. A search
+/// that has not found its object for 40 s explores the open floor, looking
+/// round from places far from where it has looked.
+#[test]
+fn a_search_followed_by_its_watcher_explores_and_finds_the_box() {
+    hidden_box_completes_with(
+        "explore",
+        &["--fault", "partition=r0|r1@7.706s+11.46s"],
+        &["352"],
+    );
+}
+
 /// The compiled search and rescue on its hidden-box scenario completes,
 /// without a deadline, on each of `seeds`.
 fn hidden_box_completes(name: &str, seeds: &[&str]) {
