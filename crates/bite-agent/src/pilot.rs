@@ -667,9 +667,12 @@ impl Pilot {
         self.view.roles = self.roles.clone();
         self.view.skill_time = t - self.skill_started;
         let mut cmd = schema::command(&self.skill, &self.view, &mut self.states, draw);
-        // A trapped robot plans its detour on the arena's map (made the
-        // first time one is needed: its next command follows the detour).
-        if self.map.is_none() && self.states.iter().any(|s| s.trapped.is_some()) {
+        // A trapped robot plans its detour on the arena's map, and a long
+        // search explores it (made the first time one is needed: its next
+        // command follows the detour, or heads for a lookout). A robot
+        // restarted after its teammates were lost knows of none lost, and
+        // had no map for its search.
+        if self.map.is_none() && (self.states.iter()).any(|s| s.needs_map(self.view.skill_time)) {
             self.map = Some(Arc::new(crate::plan::Map::new(&self.spec)));
         }
         let reference = self.reference();

@@ -573,6 +573,13 @@ pub struct State {
 }
 
 impl State {
+    /// True when this schema needs the arena's map at skill time `now`:
+    /// trapped (its detour is planned on it), or searching for its object
+    /// for [`EXPLORE_AFTER`] s (it explores the open floor on it).
+    pub fn needs_map(&self, now: f64) -> bool {
+        self.trapped.is_some() || self.lost.is_some_and(|since| now - since >= EXPLORE_AFTER)
+    }
+
     /// Keep track of a schema's headway (move-to-goal, push getting behind
     /// its object) while it `drives` the robot,
     /// now `to` m from its goal at skill time `now`: trapped after
@@ -2705,6 +2712,9 @@ mod tests {
             assert!(c.v.x > 0.0 && c.v.y.abs() < 1e-9, "{c:?}");
         }
         assert_eq!(states[0].looks_near_mate.0, LOOKS_NEAR_MATE);
+        // Its pilot makes the arena's map for it once it has searched that
+        // long (the search began at 1 s).
+        assert!(!states[0].needs_map(EXPLORE_AFTER) && states[0].needs_map(EXPLORE_AFTER + 1.0));
         // After EXPLORE_AFTER, with LOOKS_NEAR_MATE looks round near the
         // teammate in vain, it explores: first the far side of the
         // teammate (which may have hidden the object all along) ...

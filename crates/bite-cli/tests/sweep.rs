@@ -643,6 +643,22 @@ fn a_search_followed_by_its_watcher_explores_and_finds_the_box() {
     );
 }
 
+/// Found by sweeping the hidden box on seeds 601..800 (restart seed 679):
+/// r0, restarted, was dealt the push of a box only r1 had seen, and
+/// searched the south-west corner for 120 s beside its watcher. Its pilot
+/// had no map of the arena (made when a teammate is lost or the robot
+/// trapped; the restart forgot that r0 had been lost, and r1 was never), so
+/// the search could not explore. A search long enough to explore now
+/// makes the map.
+#[test]
+fn a_restarted_robot_searching_for_a_box_it_never_saw_explores() {
+    hidden_box_completes_with(
+        "restart-map",
+        &["--fault", "restart=r0@16.566s+3.416s"],
+        &["679"],
+    );
+}
+
 /// The compiled search and rescue on its hidden-box scenario completes,
 /// without a deadline, on each of `seeds`.
 fn hidden_box_completes(name: &str, seeds: &[&str]) {
