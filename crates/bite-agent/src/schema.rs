@@ -630,6 +630,46 @@ impl State {
     }
 }
 
+/// One leg of a search: heading for a point, then a look all round there
+/// ([`State::explore`]'s lookouts, [`State::circle_round`]'s vantage
+/// points).
+#[derive(Clone, Copy, Debug)]
+struct Visit {
+    /// When it started heading there, or looking round.
+    since: f64,
+    /// It is looking round.
+    looking: bool,
+}
+
+impl Visit {
+    /// A leg that starts heading for its point at skill time `now`.
+    fn new(now: f64) -> Visit {
+        Visit {
+            since: now,
+            looking: false,
+        }
+    }
+
+    /// Looking round, and not yet round once ([`SEARCH_TURN`]) at `now`.
+    fn still_looking(&self, now: f64) -> bool {
+        self.looking && now - self.since < SEARCH_TURN
+    }
+
+    /// The step toward `to` from `pos` at `now`: on the way until within
+    /// [`ARRIVED`] of it or `limit` s after it set out, then a look round.
+    fn head(&mut self, to: DVec2, pos: DVec2, now: f64, limit: f64) -> Schema {
+        if to.distance(pos) > ARRIVED && now - self.since < limit {
+            return Schema::MoveToGoal {
+                goal: Target::Point(to),
+                speed: SEARCH_SPEED,
+            };
+        }
+        self.looking = true;
+        self.since = now;
+        Schema::LookAround
+    }
+}
+
 /// A search for an object round a lost teammate's body near where it was
 /// last seen (see [`vantage`]).
 #[derive(Clone, Copy, Debug)]
@@ -639,10 +679,8 @@ struct Circle {
     from: f64,
     /// The vantage point it heads for or looks from: the `k`-th.
     k: usize,
-    /// When it started heading there, or looking round from there.
-    since: f64,
-    /// It is looking round.
-    looking: bool,
+    /// The leg to it.
+    visit: Visit,
 }
 
 /// A search for an object exploring the open floor (see [`State::explore`]).
@@ -650,10 +688,8 @@ struct Circle {
 struct Lookout {
     /// The point it heads for, or looks round from.
     at: DVec2,
-    /// When it started heading there, or looking round.
-    since: f64,
-    /// It is looking round.
-    looking: bool,
+    /// The leg to it.
+    visit: Visit,
 }
 
 impl State {
@@ -683,33 +719,19 @@ impl State {
             if let Some(at) = beyond {
                 self.lookout = Some(Lookout {
                     at,
-                    since: now,
-                    looking: false,
+                    visit: Visit::new(now),
                 });
             }
         }
-        match self.lookout {
-            Some(l) if l.looking => {
-                if now - l.since < SEARCH_TURN && now >= l.since {
+        match &mut self.lookout {
+            Some(l) if l.visit.looking => {
+                if l.visit.still_looking(now) {
                     return Schema::LookAround;
                 }
                 self.looked.push(pos);
                 self.lookout = None;
             }
-            Some(l) => {
-                if l.at.distance(pos) > ARRIVED && now - l.since < LOOKOUT_TIME && now >= l.since {
-                    return Schema::MoveToGoal {
-                        goal: Target::Point(l.at),
-                        speed: SEARCH_SPEED,
-                    };
-                }
-                self.lookout = Some(Lookout {
-                    at: pos,
-                    since: now,
-                    looking: true,
-                });
-                return Schema::LookAround;
-            }
+            Some(l) => return l.visit.head(l.at, pos, now, LOOKOUT_TIME),
             None => {}
         }
         let mut next = map.lookout(&self.looked, pos, LOOK_APART, clear);
@@ -721,8 +743,7 @@ impl State {
             Some((at, _)) => {
                 self.lookout = Some(Lookout {
                     at,
-                    since: now,
-                    looking: false,
+                    visit: Visit::new(now),
                 });
                 Schema::MoveToGoal {
                     goal: Target::Point(at),
@@ -746,30 +767,18 @@ impl State {
             Circle {
                 from: d.y.atan2(d.x),
                 k: 0,
-                since: now,
-                looking: false,
+                visit: Visit::new(now),
             }
         });
-        if c.looking {
-            if now - c.since < SEARCH_TURN && now >= c.since {
+        if c.visit.looking {
+            if c.visit.still_looking(now) {
                 return Schema::LookAround;
             }
             c.k += 1;
-            c.since = now;
-            c.looking = false;
+            c.visit = Visit::new(now);
         }
         match vantage(view, centre, c.from, c.k) {
-            Some(p) if p.distance(pos) > ARRIVED && now - c.since < VANTAGE_TIME => {
-                Schema::MoveToGoal {
-                    goal: Target::Point(p),
-                    speed: SEARCH_SPEED,
-                }
-            }
-            Some(_) => {
-                c.looking = true;
-                c.since = now;
-                Schema::LookAround
-            }
+            Some(p) => c.visit.head(p, pos, now, VANTAGE_TIME),
             None => Schema::Wander {
                 speed: SEARCH_SPEED,
                 period: 2.0,
