@@ -542,6 +542,11 @@ pub struct State {
     /// That search: how many of its turns it has looked round with a
     /// teammate within [`MATE_NEAR`], and the last such turn.
     looks_near_mate: (u32, Option<u32>),
+    /// That search: the far side of a live teammate near it, which it
+    /// heads for and looks round from once, after its first look round
+    /// (see [`command`]), and whether it has.
+    beyond: Option<Lookout>,
+    went_beyond: bool,
     /// Move-to-goal, push getting behind its object: the point it drives
     /// to at this tick.
     bound_for: Option<DVec2>,
@@ -755,6 +760,21 @@ impl State {
                 period: 2.0,
             },
         }
+    }
+
+    /// The next step of a search heading beyond a live teammate (see
+    /// [`command`]), at `pos` at skill time `now`: `None` once it has
+    /// looked round there.
+    fn go_beyond(&mut self, pos: DVec2, now: f64) -> Option<Schema> {
+        let l = self.beyond.as_mut()?;
+        if l.visit.looking && !l.visit.still_looking(now) {
+            self.beyond = None;
+            return None;
+        }
+        if l.visit.looking {
+            return Some(Schema::LookAround);
+        }
+        Some(l.visit.head(l.at, pos, now, VANTAGE_TIME))
     }
 
     /// The next step of a search round `centre` (see [`vantage`]): to the
@@ -1527,18 +1547,18 @@ pub fn command(
                 Schema::Push { goal, .. } => Some(*goal),
                 _ => None,
             };
-            let centre = (skill[i].schema.object())
-                .and_then(|o| view.objects.get(o).copied())
-                .and_then(|last| {
-                    (view.bodies.iter().copied())
-                        .filter(|b| {
-                            b.distance(last) < BODY_NEAR_OBJECT
-                                || pushed_to.is_some_and(|g| {
-                                    crate::plan::segment_distance(last, g, *b) < BODY_ON_THE_WAY
-                                })
-                        })
-                        .min_by(|a, b| a.distance(last).total_cmp(&b.distance(last)))
-                });
+            let last_seen = (skill[i].schema.object()).and_then(|o| view.objects.get(o).copied());
+            let seen_before = last_seen.is_some();
+            let centre = last_seen.and_then(|last| {
+                (view.bodies.iter().copied())
+                    .filter(|b| {
+                        b.distance(last) < BODY_NEAR_OBJECT
+                            || pushed_to.is_some_and(|g| {
+                                crate::plan::segment_distance(last, g, *b) < BODY_ON_THE_WAY
+                            })
+                    })
+                    .min_by(|a, b| a.distance(last).total_cmp(&b.distance(last)))
+            });
             let to_mate = nearest.filter(|p| p.distance(pos) > 1.0);
             // Looks round with a teammate near, counted once a turn: the
             // team is not where the object is (or a follower keeps near).
@@ -1554,7 +1574,31 @@ pub fn command(
                 let in_vain = st.looks_near_mate.0 >= LOOKS_NEAR_MATE || nearest.is_none();
                 st.lookout.is_some() || (long && in_vain)
             });
-            let schema = match (centre, explore) {
+            // After a look round in vain for an object seen before, a live
+            // teammate near may stand between this robot and the object
+            // (pushed on out of its sight, the teammate now in front of
+            // it): the far side of the
+            // teammate, [`VANTAGE`] m beyond it, and a look round there,
+            // once a search. Not when a body is searched round instead.
+            if !st.went_beyond
+                && seen_before
+                && centre.is_none()
+                && st.lookout.is_none()
+                && view.skill_time - since >= SEARCH_TURN
+                && let Some(m) =
+                    nearest.filter(|m| m.distance(pos) < MATE_NEAR && m.distance(pos) > 1e-6)
+            {
+                st.went_beyond = true;
+                let at = m + (m - pos).normalize() * VANTAGE;
+                st.beyond = (view.map.as_deref())
+                    .is_none_or(|map| map.open(at, 2.0 * view.radius))
+                    .then(|| Lookout {
+                        at,
+                        visit: Visit::new(view.skill_time),
+                    });
+            }
+            let beyond = st.go_beyond(pos, view.skill_time);
+            let schema = beyond.unwrap_or_else(|| match (centre, explore) {
                 // After the first look round, with no teammate at work to
                 // head for: from one vantage point round it to the next.
                 (Some(c), _) if to_mate.is_none() && view.skill_time - since >= SEARCH_TURN => {
@@ -1573,7 +1617,7 @@ pub fn command(
                         period: 2.0,
                     },
                 },
-            };
+            });
             if matches!(schema, Schema::LookAround) {
                 st.wander = None;
             }
@@ -1591,6 +1635,8 @@ pub fn command(
                 st.lookout = None;
                 st.looked.clear();
                 st.looks_near_mate = (0, None);
+                st.beyond = None;
+                st.went_beyond = false;
             }
         }
     }
@@ -2664,6 +2710,82 @@ mod tests {
         view.pose.pos = DVec2::new(0.0, 2.5);
         let c = search(&mut view);
         assert!((c.v.length() - SEARCH_SPEED).abs() < 1e-9, "{c:?}");
+    }
+
+    /// A pusher that lost its box (one-way seed 217 of the hidden box: its
+    /// teammate pushed the box on out of its sight, then stood between the
+    /// two) looks round once, then heads for the far side of the live
+    /// teammate near it and looks round there, once a search; a search for
+    /// an object never seen does not (the teammate beside it at the start
+    /// hides nothing).
+    #[test]
+    fn a_search_for_a_box_seen_before_looks_beyond_the_teammate_near_it() {
+        let map = std::sync::Arc::new(crate::plan::Map::new(&crate::plan::tests::hall()));
+        let skill = vec![weighted(
+            Schema::Push {
+                object: "box".into(),
+                goal: DVec2::new(0.8, 2.0),
+                offset: 0.3,
+                speed: 0.2,
+            },
+            1,
+        )];
+        let start = DVec2::new(4.6, 2.3);
+        let mate = DVec2::new(3.8, 2.3);
+        let beyond = DVec2::new(2.8, 2.3);
+        let mut view = View {
+            map: Some(map),
+            radius: 0.12,
+            max_speed: 0.3,
+            ..View::default()
+        };
+        view.pose.pos = start;
+        view.mates.insert(
+            1,
+            Mate {
+                pos: mate,
+                heading: None,
+            },
+        );
+        let run = |view: &mut View, states: &mut Vec<State>, t: f64| {
+            view.skill_time = t;
+            command(&skill, view, states, &mut || 0.5)
+        };
+        for seen in [true, false] {
+            view.pose.pos = start;
+            view.objects.clear();
+            if seen {
+                // Last seen north-east, and not there (a full turn showed it
+                // gone).
+                view.objects.insert("box".into(), DVec2::new(5.2, 2.8));
+            }
+            let mut states = vec![State {
+                gone: seen,
+                ..State::default()
+            }];
+            // A look round first ...
+            let c = run(&mut view, &mut states, 1.0);
+            assert!(c.face.is_some() && c.v == DVec2::ZERO, "{c:?}");
+            let c = run(&mut view, &mut states, 1.0 + SEARCH_TURN + 0.1);
+            if !seen {
+                // ... then, never seen, not beyond the teammate.
+                assert!(states[0].beyond.is_none() && !states[0].went_beyond);
+                continue;
+            }
+            // ... then beyond the teammate, a metre past it, westward.
+            assert_eq!(states[0].beyond.map(|l| l.at), Some(beyond));
+            assert!(c.v.normalize().dot(-DVec2::X) > 0.99, "{c:?}");
+            // There: a look round ...
+            view.pose.pos = beyond;
+            let c = run(&mut view, &mut states, 10.0);
+            assert!(c.face.is_some() && c.v == DVec2::ZERO, "{c:?}");
+            // ... and then the search goes on as before, not beyond again.
+            run(&mut view, &mut states, 10.0 + SEARCH_TURN + 0.1);
+            assert!(states[0].beyond.is_none() && states[0].went_beyond);
+            view.pose.pos = start;
+            run(&mut view, &mut states, 20.0 + SEARCH_TURN + 0.1);
+            assert!(states[0].beyond.is_none(), "once a search");
+        }
     }
 
     /// A search that has not found its object for [`EXPLORE_AFTER`] s,

@@ -659,6 +659,33 @@ fn a_restarted_robot_searching_for_a_box_it_never_saw_explores() {
     );
 }
 
+/// One-way seed 217 of the hidden box: in the last leg, the finishing
+/// pusher looked for the box where it had last seen it, 0.7 m off; its
+/// teammate had pushed the box on out of its sight and stood between the
+/// two, 1.1 m off, hiding it. The pusher searched round there for half a
+/// minute, and the task ended at 168.5 s. A search for an object seen before now looks
+/// beyond the live teammate near it after its first look round: 149.6 s.
+#[test]
+fn a_pusher_that_lost_its_box_looks_beyond_the_teammate_in_front() {
+    let scenario = example("scenarios/search-rescue-hidden-physics.yaml");
+    let mission = example("search-rescue.rtcl");
+    let v = run_one(
+        "hidden-beyond-217",
+        &[
+            mission.as_str(),
+            "--scenario",
+            scenario.as_str(),
+            "--fault",
+            "oneway=r0>r1@6.112s+9.221s",
+            "--seed",
+            "217",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+    let t = v["task_time"].as_f64().expect("a task time");
+    assert!(t < 160.0, "the search went on as before: {t} s");
+}
+
 /// The compiled search and rescue on its hidden-box scenario completes,
 /// without a deadline, on each of `seeds`.
 fn hidden_box_completes(name: &str, seeds: &[&str]) {
