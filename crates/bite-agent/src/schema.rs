@@ -1270,6 +1270,10 @@ const LOOKED_NEAR: f64 = 1.0;
 /// Seconds an exploring robot heads for one lookout at most.
 const LOOKOUT_TIME: f64 = 30.0;
 
+/// How far a search past a live teammate goes round it from its far side
+/// (radians; see [`command`]).
+const BEYOND_TURN: f64 = std::f64::consts::FRAC_PI_3;
+
 /// How far from the body it searches round a robot looks for its object
 /// from, m (see [`vantage`]).
 const VANTAGE: f64 = 1.0;
@@ -1577,9 +1581,9 @@ pub fn command(
             // After a look round in vain for an object seen before, a live
             // teammate near may stand between this robot and the object
             // (pushed on out of its sight, the teammate now in front of
-            // it): the far side of the
-            // teammate, [`VANTAGE`] m beyond it, and a look round there,
-            // once a search. Not when a body is searched round instead.
+            // it): past the teammate, [`VANTAGE`] m from it, and a look
+            // round there, once a search. Not when a body is searched round
+            // instead.
             if !st.went_beyond
                 && seen_before
                 && centre.is_none()
@@ -1589,13 +1593,25 @@ pub fn command(
                     nearest.filter(|m| m.distance(pos) < MATE_NEAR && m.distance(pos) > 1e-6)
             {
                 st.went_beyond = true;
-                let at = m + (m - pos).normalize() * VANTAGE;
-                st.beyond = (view.map.as_deref())
-                    .is_none_or(|map| map.open(at, 2.0 * view.radius))
-                    .then(|| Lookout {
-                        at,
-                        visit: Visit::new(view.skill_time),
-                    });
+                // Round the teammate, not through it (driving straight at
+                // it can drive it on ahead): a sixth of a turn off its far
+                // side, toward where the object was last seen first.
+                let away = (m - pos).normalize();
+                let off = |turn: f64| m + DVec2::from_angle(turn).rotate(away) * VANTAGE;
+                let (a, b) = (off(BEYOND_TURN), off(-BEYOND_TURN));
+                let last = last_seen.unwrap_or(m);
+                let (a, b) = if a.distance(last) <= b.distance(last) {
+                    (a, b)
+                } else {
+                    (b, a)
+                };
+                let open = |p: &DVec2| {
+                    (view.map.as_deref()).is_none_or(|map| map.open(*p, 2.0 * view.radius))
+                };
+                st.beyond = [a, b].into_iter().find(open).map(|at| Lookout {
+                    at,
+                    visit: Visit::new(view.skill_time),
+                });
             }
             let beyond = st.go_beyond(pos, view.skill_time);
             let schema = beyond.unwrap_or_else(|| match (centre, explore) {
@@ -2714,9 +2730,9 @@ mod tests {
 
     /// A pusher that lost its box (one-way seed 217 of the hidden box: its
     /// teammate pushed the box on out of its sight, then stood between the
-    /// two) looks round once, then heads for the far side of the live
-    /// teammate near it and looks round there, once a search; a search for
-    /// an object never seen does not (the teammate beside it at the start
+    /// two) looks round once, then heads past the live teammate near it,
+    /// round it, and looks round there, once a search; a search for an
+    /// object never seen does not (the teammate beside it at the start
     /// hides nothing).
     #[test]
     fn a_search_for_a_box_seen_before_looks_beyond_the_teammate_near_it() {
@@ -2732,7 +2748,9 @@ mod tests {
         )];
         let start = DVec2::new(4.6, 2.3);
         let mate = DVec2::new(3.8, 2.3);
-        let beyond = DVec2::new(2.8, 2.3);
+        // A metre from the teammate, a sixth of a turn off its far side
+        // (west), toward where the box was last seen (north-east).
+        let beyond = mate + DVec2::from_angle(2.0 * std::f64::consts::FRAC_PI_3) * VANTAGE;
         let mut view = View {
             map: Some(map),
             radius: 0.12,
@@ -2772,9 +2790,11 @@ mod tests {
                 assert!(states[0].beyond.is_none() && !states[0].went_beyond);
                 continue;
             }
-            // ... then beyond the teammate, a metre past it, westward.
-            assert_eq!(states[0].beyond.map(|l| l.at), Some(beyond));
-            assert!(c.v.normalize().dot(-DVec2::X) > 0.99, "{c:?}");
+            // ... then past the teammate, round it.
+            let at = states[0].beyond.expect("past the teammate").at;
+            assert!(at.distance(beyond) < 1e-9, "{at}");
+            let way = (beyond - start).normalize();
+            assert!(c.v.normalize().dot(way) > 0.99, "{c:?}");
             // There: a look round ...
             view.pose.pos = beyond;
             let c = run(&mut view, &mut states, 10.0);

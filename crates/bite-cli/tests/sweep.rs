@@ -663,8 +663,9 @@ fn a_restarted_robot_searching_for_a_box_it_never_saw_explores() {
 /// pusher looked for the box where it had last seen it, 0.7 m off; its
 /// teammate had pushed the box on out of its sight and stood between the
 /// two, 1.1 m off, hiding it. The pusher searched round there for half a
-/// minute, and the task ended at 168.5 s. A search for an object seen before now looks
-/// beyond the live teammate near it after its first look round: 149.6 s.
+/// minute, and the task ended at 168.5 s. A search for an object seen
+/// before now looks past the live teammate near it, round it, after its
+/// first look round: 148.4 s.
 #[test]
 fn a_pusher_that_lost_its_box_looks_beyond_the_teammate_in_front() {
     let scenario = example("scenarios/search-rescue-hidden-physics.yaml");
