@@ -542,9 +542,9 @@ pub struct State {
     /// That search: how many of its turns it has looked round with a
     /// teammate within [`MATE_NEAR`], and the last such turn.
     looks_near_mate: (u32, Option<u32>),
-    /// That search: the far side of a live teammate near it, which it
-    /// heads for and looks round from once, after its first look round
-    /// (see [`command`]), and whether it has.
+    /// That search: the point past a live teammate near it, round it,
+    /// which it heads for and looks round from once, after its first look
+    /// round (see [`command`]), and whether it has.
     beyond: Option<Lookout>,
     went_beyond: bool,
     /// Move-to-goal, push getting behind its object: the point it drives
@@ -762,19 +762,19 @@ impl State {
         }
     }
 
-    /// The next step of a search heading beyond a live teammate (see
+    /// The next step of a search heading past a live teammate (see
     /// [`command`]), at `pos` at skill time `now`: `None` once it has
     /// looked round there.
     fn go_beyond(&mut self, pos: DVec2, now: f64) -> Option<Schema> {
         let l = self.beyond.as_mut()?;
-        if l.visit.looking && !l.visit.still_looking(now) {
-            self.beyond = None;
-            return None;
+        if !l.visit.looking {
+            return Some(l.visit.head(l.at, pos, now, VANTAGE_TIME));
         }
-        if l.visit.looking {
+        if l.visit.still_looking(now) {
             return Some(Schema::LookAround);
         }
-        Some(l.visit.head(l.at, pos, now, VANTAGE_TIME))
+        self.beyond = None;
+        None
     }
 
     /// The next step of a search round `centre` (see [`vantage`]): to the
