@@ -719,7 +719,7 @@ impl State {
             // far side of it, [`VANTAGE`] m beyond.
             let beyond = mate
                 .filter(|m| m.distance(pos) < MATE_NEAR && m.distance(pos) > 1e-6)
-                .map(|m| m + (m - pos).normalize() * VANTAGE)
+                .map(|m| past(m, pos, 0.0))
                 .filter(|p| map.open(*p, clear));
             if let Some(at) = beyond {
                 self.lookout = Some(Lookout {
@@ -1274,6 +1274,14 @@ const LOOKOUT_TIME: f64 = 30.0;
 /// (radians; see [`command`]).
 const BEYOND_TURN: f64 = std::f64::consts::FRAC_PI_3;
 
+/// A point [`VANTAGE`] m past a teammate at `mate`, seen from `pos`: on
+/// its far side, turned `turn` radians round it (0: straight beyond it, as
+/// exploring's first lookout; [`BEYOND_TURN`]: round it, as a search's
+/// first leg, see [`command`]).
+fn past(mate: DVec2, pos: DVec2, turn: f64) -> DVec2 {
+    mate + DVec2::from_angle(turn).rotate((mate - pos).normalize()) * VANTAGE
+}
+
 /// How far from the body it searches round a robot looks for its object
 /// from, m (see [`vantage`]).
 const VANTAGE: f64 = 1.0;
@@ -1596,9 +1604,7 @@ pub fn command(
                 // Round the teammate, not through it (driving straight at
                 // it can drive it on ahead): a sixth of a turn off its far
                 // side, toward where the object was last seen first.
-                let away = (m - pos).normalize();
-                let off = |turn: f64| m + DVec2::from_angle(turn).rotate(away) * VANTAGE;
-                let (a, b) = (off(BEYOND_TURN), off(-BEYOND_TURN));
+                let (a, b) = (past(m, pos, BEYOND_TURN), past(m, pos, -BEYOND_TURN));
                 let last = last_seen.unwrap_or(m);
                 let (a, b) = if a.distance(last) <= b.distance(last) {
                     (a, b)
