@@ -49,9 +49,14 @@ pub(crate) fn parallel(n: usize) -> bool {
 /// short enough not to hold a core long after the last).
 const AWAKE_SPINS: u32 = 1 << 20;
 
-/// One of the pool's threads kept awake until the pool's next turn, from
+/// One of the pool's threads kept awake until the pool's next turn: from
 /// late in the run's own thread's carrying out of a window of events the
-/// pool handled ([`Sim::batch`]). A thread that fell asleep was
+/// pool handled ([`Sim::batch`]); in a physical world, from the minds'
+/// end to the world leaving to step ahead ([`Sim::step_ahead`]) and from
+/// the run's thread waiting for the world to the robots' sensing (the
+/// world's job and the sensing's second half started 1.5 ms late at every
+/// tick otherwise: a tenth of a 10,000-robot tick on two threads;
+/// docs/performance.md, "2026-12-01"). A thread that fell asleep was
 /// woken at the next turn only once the other had started and handed it
 /// work, and on a virtual machine whose idle processor the host had put
 /// to sleep, that took 1.4 ms a turn at 100,000 robots (a fifth of the
@@ -473,6 +478,11 @@ struct Stepping {
 }
 
 impl Sim<'_, '_> {
+    /// The threads of the run's pool (or the global pool's).
+    fn threads(&self) -> usize {
+        (self.pool.as_ref()).map_or_else(rayon::current_num_threads, |p| p.current_num_threads())
+    }
+
     fn schedule(&mut self, at: Time, what: What) {
         self.queue.push(at, what);
     }
@@ -491,10 +501,7 @@ impl Sim<'_, '_> {
     /// world before the next tick, a crash or a restart before the next
     /// tick, or the run's time limit before it.
     fn step_ahead(&mut self, next: Time, limit: Time) {
-        let threads = self
-            .pool
-            .as_ref()
-            .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
+        let threads = self.threads();
         let crash = self.crash_times.partition_point(|t| *t < self.now);
         if self.physics.is_none()
             || self
@@ -513,6 +520,7 @@ impl Sim<'_, '_> {
         let radio = w.radio();
         let stopped = self.crashed.clone();
         let (tx, rx) = std::sync::mpsc::sync_channel(1);
+        self.awake.release();
         let job = move || {
             let stepped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(move || {
                 w.advance(next, &stopped);
@@ -636,6 +644,11 @@ impl Sim<'_, '_> {
                 .enumerate()
                 .for_each(run);
         }
+        // The world leaves soon to step ahead, on one of the pool's
+        // threads, kept awake for it meanwhile (see `Awake`).
+        if par && self.physics.is_some() && self.threads() > 1 {
+            self.awake.keep(self.pool.as_deref());
+        }
         for i in 0..n {
             if let Some((cmd, steering)) = self.drives[i].take()
                 && let Some(w) = self.physics.as_mut()
@@ -730,8 +743,7 @@ impl Sim<'_, '_> {
         if self.physics.is_some() || n < self.batch_from || !parallel(n) {
             return None;
         }
-        let threads = (self.pool.as_ref())
-            .map_or_else(rayon::current_num_threads, |p| p.current_num_threads());
+        let threads = self.threads();
         let window = self.net.model().latency.min(self.beacon_period);
         (threads > 1 && !window.is_zero()).then_some(window)
     }
@@ -1313,6 +1325,12 @@ impl Sim<'_, '_> {
             self.now = at;
             match what {
                 What::Control => {
+                    // Waiting for the world, one of the pool's threads
+                    // is kept awake for the robots' sensing, which comes
+                    // next (see `Awake`).
+                    if self.stepping.is_some() {
+                        self.awake.keep(self.pool.as_deref());
+                    }
                     let stepped = self.home();
                     if let Some(w) = self.physics.as_mut() {
                         // A watcher that asked to see the world more often
@@ -1389,6 +1407,9 @@ impl Sim<'_, '_> {
                         // is carried out while it steps.
                         self.step_ahead(next, limit);
                     }
+                    // The thread kept awake for the world goes back to
+                    // the pool if the world did not leave.
+                    self.awake.release();
                     self.carry_out_tick();
                     if let Some(rec) = poses.0 {
                         // A watcher with its own pace sees its own.

@@ -527,10 +527,14 @@ impl World {
     pub fn advance(&mut self, now: Time, stopped: &[bool]) {
         // The floor the robots covered at the last tick is marked while
         // the bodies move (on a second thread of the pool the world steps
-        // on, when it has one; it reads only the positions recorded).
+        // on, when it has one; it reads only the positions recorded). The
+        // bodies move on this thread at once and the marking waits to be
+        // taken by the other: the other way round, the world waited for
+        // the marking whenever the other thread was asleep (on a virtual
+        // machine, woken 1.5 ms late; docs/performance.md, "2026-12-01").
         let mut coverage = std::mem::take(&mut self.coverage);
         if rayon::current_thread_index().is_some() {
-            rayon::join(|| coverage.flush(), || self.step_until(now, stopped));
+            rayon::join(|| self.step_until(now, stopped), || coverage.flush());
         } else {
             coverage.flush();
             self.step_until(now, stopped);
