@@ -1560,7 +1560,6 @@ pub fn command(
                 _ => None,
             };
             let last_seen = (skill[i].schema.object()).and_then(|o| view.objects.get(o).copied());
-            let seen_before = last_seen.is_some();
             let centre = last_seen.and_then(|last| {
                 (view.bodies.iter().copied())
                     .filter(|b| {
@@ -1593,7 +1592,7 @@ pub fn command(
             // round there, once a search. Not when a body is searched round
             // instead.
             if !st.went_beyond
-                && seen_before
+                && let Some(last) = last_seen
                 && centre.is_none()
                 && st.lookout.is_none()
                 && view.skill_time - since >= SEARCH_TURN
@@ -1605,7 +1604,6 @@ pub fn command(
                 // it can drive it on ahead): a sixth of a turn off its far
                 // side, toward where the object was last seen first.
                 let (a, b) = (past(m, pos, BEYOND_TURN), past(m, pos, -BEYOND_TURN));
-                let last = last_seen.unwrap_or(m);
                 let (a, b) = if a.distance(last) <= b.distance(last) {
                     (a, b)
                 } else {
