@@ -532,8 +532,10 @@ pub struct State {
     /// That search round a lost teammate's body near where the object
     /// was last seen.
     circle: Option<Circle>,
-    /// That search's detour round a lost teammate's body.
-    search_route: Option<crate::plan::Route>,
+    /// That search's own moves: its detour round a lost teammate's body,
+    /// and whether it is pinned (see [`State::watch_search`]); kept apart
+    /// from the skill's schema's, which they replace while it evaluates.
+    search_moves: Moves,
     /// That search, exploring (after [`EXPLORE_AFTER`]): the places it has
     /// looked round from in vain, and the lookout it heads for or looks
     /// round from.
@@ -577,12 +579,55 @@ pub struct State {
     shoving: bool,
 }
 
+/// What a search's moves keep of the way they go (see [`command`]): a
+/// planned detour, and the watch for a pin (see [`State::watch_search`]),
+/// apart from the skill's schema's.
+#[derive(Clone, Debug, Default)]
+struct Moves {
+    route: Option<crate::plan::Route>,
+    trapped: Option<f64>,
+    roam: Option<(DVec2, f64)>,
+    escape: Option<DVec2>,
+}
+
 impl State {
     /// True when this schema needs the arena's map at skill time `now`:
-    /// trapped (its detour is planned on it), or searching for its object
-    /// for [`EXPLORE_AFTER`] s (it explores the open floor on it).
+    /// trapped (its detour is planned on it), its search pinned, or
+    /// searching for its object for [`EXPLORE_AFTER`] s (it explores the
+    /// open floor on it).
     pub fn needs_map(&self, now: f64) -> bool {
-        self.trapped.is_some() || self.lost.is_some_and(|since| now - since >= EXPLORE_AFTER)
+        self.trapped.is_some()
+            || self.search_moves.trapped.is_some()
+            || self.lost.is_some_and(|since| now - since >= EXPLORE_AFTER)
+    }
+
+    /// Swap the search's moves ([`Moves`]) with the schema's: the search
+    /// evaluates its moves between two swaps.
+    fn swap_moves(&mut self) {
+        let m = &mut self.search_moves;
+        std::mem::swap(&mut self.route, &mut m.route);
+        std::mem::swap(&mut self.trapped, &mut m.trapped);
+        std::mem::swap(&mut self.roam, &mut m.roam);
+        std::mem::swap(&mut self.escape, &mut m.escape);
+    }
+
+    /// Keep track of a search's moves (its moves swapped in), at `pos` at
+    /// skill time `now`: pinned when it has stayed within [`PIN_RADIUS`]
+    /// of one spot for [`SEARCH_PINNED_AFTER`], looking round and moving
+    /// by turns (held between a wall and an obstacle by its move toward a
+    /// teammate, say, where attraction and avoidance cancel). A pinned
+    /// search is trapped for [`DETOUR`]: its moves follow a planned
+    /// detour, and it does not stop to look round meanwhile.
+    fn watch_search(&mut self, pos: DVec2, now: f64) {
+        match self.trapped {
+            Some(t) if now - t >= DETOUR || now < t => {
+                self.trapped = None;
+                self.roam = None;
+            }
+            Some(_) => return,
+            None => {}
+        }
+        self.watch_roaming(pos, now, SEARCH_PINNED_AFTER);
     }
 
     /// Keep track of a schema's headway (move-to-goal, push getting behind
@@ -620,11 +665,11 @@ impl State {
     /// avoidance overrides the wander whichever way it turns). A pinned
     /// robot is trapped: it heads for open floor on a planned detour, as a
     /// trapped robot driving to a goal does (see [`evaluate`]).
-    fn watch_roaming(&mut self, pos: DVec2, now: f64) {
+    fn watch_roaming(&mut self, pos: DVec2, now: f64, patience: f64) {
         match self.roam {
             _ if self.trapped.is_some() => self.roam = Some((pos, now)),
             Some((at, since)) if at.distance(pos) <= PIN_RADIUS && now >= since => {
-                if now - since >= PINNED_AFTER {
+                if now - since >= patience {
                     self.roam = Some((pos, now));
                     self.trapped = Some(now);
                     self.escape = None;
@@ -906,6 +951,12 @@ const SHOVE_NEAR: f64 = 0.2;
 /// Seconds a wandering robot may stay within [`PIN_RADIUS`] m of one spot
 /// before it counts as pinned there (see `State::watch_roaming`).
 pub const PINNED_AFTER: f64 = 10.0;
+/// Seconds a robot searching for its object may stay within
+/// [`PIN_RADIUS`] m of one spot before its search counts as pinned there
+/// (see `State::watch_search`): two of its looks round and moves (a move
+/// on open floor takes it 0.75 m; a look round from a lookout or vantage
+/// point stays put for one look).
+pub const SEARCH_PINNED_AFTER: f64 = 2.0 * (SEARCH_TURN + SEARCH_MOVE);
 const PIN_RADIUS: f64 = 0.5;
 /// How far off the open floor a pinned robot heads for is, m, and how
 /// many random points it tries.
@@ -1487,7 +1538,7 @@ pub fn command(
                 .all(|(v, (_, _, o))| o.is_none() || v.layer <= w.layer || v.schema.avoids());
         st.watch_headway(drives, to, view.skill_time, patience);
         if matches!(w.schema, Schema::Wander { .. }) {
-            st.watch_roaming(view.pose.pos, view.skill_time);
+            st.watch_roaming(view.pose.pos, view.skill_time, PINNED_AFTER);
         }
     }
     // A lost teammate's body blocking the only way to a goal (a robot
@@ -1626,7 +1677,7 @@ pub fn command(
                 }
                 // Long in vain: explore.
                 (_, Some(map)) => st.explore(view, map, nearest),
-                _ if phase < SEARCH_TURN => Schema::LookAround,
+                _ if phase < SEARCH_TURN && st.search_moves.trapped.is_none() => Schema::LookAround,
                 _ => match to_mate {
                     Some(p) => Schema::MoveToGoal {
                         goal: Target::Point(p),
@@ -1641,11 +1692,13 @@ pub fn command(
             if matches!(schema, Schema::LookAround) {
                 st.wander = None;
             }
-            // The search's own detour round a lost teammate's body is kept
-            // apart from the schema's (see the detours below).
-            std::mem::swap(&mut st.route, &mut st.search_route);
+            // The search's own moves (its detour round a lost teammate's
+            // body, its watch for a trap) are kept apart from the schema's
+            // (see the detours below).
+            st.swap_moves();
             let search = evaluate(&schema, view, st, rng);
-            std::mem::swap(&mut st.route, &mut st.search_route);
+            st.watch_search(view.pose.pos, view.skill_time);
+            st.swap_moves();
             outputs.push((skill[i].layer, 1.0, search));
         }
         _ => {
@@ -1657,6 +1710,7 @@ pub fn command(
                 st.looks_near_mate = (0, None);
                 st.beyond = None;
                 st.went_beyond = false;
+                st.search_moves = Moves::default();
             }
         }
     }
@@ -1711,12 +1765,16 @@ pub fn command(
     // trapped robot's detour, planned clear of what its rays hit,
     // teammates included, superposes teammate avoidance too (a sighting
     // at the edge of its range, or a stale one, would otherwise hold the
-    // robot in the trap).
-    if let Some((layer, trapped)) = skill
-        .iter()
-        .zip(states.iter())
-        .find(|(_, s)| s.route.as_ref().is_some_and(crate::plan::Route::leads))
+    // robot in the trap). So does a pinned search's detour.
+    let leads = |r: &Option<crate::plan::Route>| r.as_ref().is_some_and(crate::plan::Route::leads);
+    if let Some((layer, trapped)) = (skill.iter().zip(states.iter()))
+        .find(|(_, s)| leads(&s.route))
         .map(|(w, s)| (w.layer, s.trapped.is_some()))
+        .or_else(|| {
+            (skill.iter().zip(states.iter()))
+                .find(|(_, s)| s.search_moves.trapped.is_some() && leads(&s.search_moves.route))
+                .map(|(w, _)| (w.layer, true))
+        })
     {
         for (w, o) in skill.iter().zip(outputs.iter_mut()) {
             let demote = match w.schema {
@@ -2695,6 +2753,101 @@ mod tests {
         }
     }
 
+    /// A pusher that never saw its box, held between the hall's west wall
+    /// and its south chair by its search's move toward a teammate beyond
+    /// the chair (the hidden box, `search-rescue.rtcl`, partition seed
+    /// 1616: attraction and avoidance cancelled there for 120 s): after
+    /// two looks round and moves within half a metre of one spot its
+    /// search is pinned, and it follows a planned detour toward the
+    /// teammate for 8 s without stopping to look round, avoidance
+    /// superposed on the detour; then it searches as before. A search
+    /// that moves on is never pinned.
+    #[test]
+    fn a_pinned_search_takes_a_detour_to_its_teammate() {
+        let map = std::sync::Arc::new(crate::plan::Map::new(&crate::plan::tests::hidden_hall()));
+        let skill = vec![
+            weighted(
+                Schema::Push {
+                    object: "box".into(),
+                    goal: DVec2::new(6.0, 0.5),
+                    offset: 0.25,
+                    speed: 0.2,
+                },
+                1,
+            ),
+            weighted(Schema::AvoidTeammate { range: 0.4 }, 2),
+            weighted(Schema::AvoidObstacle { range: 0.35 }, 3),
+        ];
+        let start = DVec2::new(0.41, 0.89);
+        let mate = DVec2::new(1.5, 2.3);
+        let mut view = View {
+            map: Some(map.clone()),
+            radius: 0.12,
+            max_speed: 0.3,
+            ..View::default()
+        };
+        view.pose.pos = start;
+        view.mates.insert(
+            1,
+            Mate {
+                pos: mate,
+                heading: None,
+            },
+        );
+        let straight = (mate - start).normalize();
+        let mut states = Vec::new();
+        let at =
+            |view: &mut View, states: &mut Vec<State>, t: f64| command_at(&skill, view, states, t);
+        // Looking round and heading straight for the teammate by turns,
+        // held on the spot: not pinned before two of them.
+        let mut k = 0;
+        while f64::from(k) * 0.1 < SEARCH_PINNED_AFTER - 0.05 {
+            let t = f64::from(k) * 0.1;
+            let c = at(&mut view, &mut states, t);
+            assert!(states[0].search_moves.trapped.is_none(), "{t}");
+            if t % (SEARCH_TURN + SEARCH_MOVE) > SEARCH_TURN + 0.05 {
+                assert!(c.v.normalize().dot(straight) > 0.999, "{t}: {c:?}");
+            }
+            k += 1;
+        }
+        let pinned = SEARCH_PINNED_AFTER + 0.05;
+        at(&mut view, &mut states, pinned);
+        assert!(states[0].search_moves.trapped.is_some());
+        assert!(
+            states[0].trapped.is_none(),
+            "the schema's own watch is apart"
+        );
+        // A look round is due (the third turn), but it moves, on a planned
+        // detour round the chair, not straight through it.
+        for t in [0.1, 0.2, 3.0, 7.5] {
+            let c = at(&mut view, &mut states, pinned + t);
+            let r = states[0].search_moves.route.as_ref().expect("a detour");
+            assert!(r.leads(), "{t}");
+            assert!(c.v.length() > 0.1, "{t}: {c:?}");
+            assert!(c.v.normalize().dot(straight) < 0.9, "{t}: {c:?}");
+            assert!(
+                c.v.normalize().dot((r.path[0] - start).normalize()) > 0.9,
+                "{t}: {c:?} toward {:?}",
+                r.path[0]
+            );
+        }
+        // The detour over, it heads straight for the teammate again.
+        let t = pinned + DETOUR + 0.05;
+        at(&mut view, &mut states, t);
+        assert!(states[0].search_moves.trapped.is_none());
+        let c = at(&mut view, &mut states, t + 0.1);
+        assert!(c.v.normalize().dot(straight) > 0.999, "{t}: {c:?}");
+        // A search that moves a metre at every move is never pinned.
+        let mut states = Vec::new();
+        for k in 0..600 {
+            let t = f64::from(k) * 0.1;
+            let moves = (t / (SEARCH_TURN + SEARCH_MOVE)).floor();
+            view.pose.pos = start + DVec2::X * moves;
+            at(&mut view, &mut states, t);
+            assert!(states[0].search_moves.trapped.is_none(), "{t}");
+        }
+    }
+
     /// Between its turns, a robot searching for an object heads for the
     /// nearest teammate it knows of (the team works on the object, most
     /// likely near it) while farther than a metre from it; a lost
@@ -2865,6 +3018,15 @@ mod tests {
                 cycle * f64::from(k) + SEARCH_TURN + 1.0,
             );
             assert!(c.v.x > 0.0 && c.v.y.abs() < 1e-9, "{c:?}");
+            // (It moves, and comes back: a search held on one spot for
+            // two turns would be pinned.)
+            view.pose.pos = start + DVec2::Y * 0.6;
+            at(
+                &mut view,
+                &mut states,
+                cycle * f64::from(k) + SEARCH_TURN + 2.0,
+            );
+            view.pose.pos = start;
         }
         assert_eq!(states[0].looks_near_mate.0, LOOKS_NEAR_MATE);
         // Its pilot makes the arena's map for it once it has searched that
@@ -2926,8 +3088,16 @@ mod tests {
         );
         let mut states = Vec::new();
         for k in 0..5 {
+            view.pose.pos = start;
             at(&mut view, &mut states, cycle * f64::from(k) + 1.0);
+            view.pose.pos = start + DVec2::Y * 0.6;
+            at(
+                &mut view,
+                &mut states,
+                cycle * f64::from(k) + SEARCH_TURN + 2.0,
+            );
         }
+        view.pose.pos = start;
         let c = at(&mut view, &mut states, cycle * 5.0 + SEARCH_TURN + 1.0);
         assert!(c.v.x > 0.0 && c.v.y.abs() < 1e-9, "{c:?}");
         assert!(states[0].lookout.is_none());

@@ -659,6 +659,23 @@ fn a_restarted_robot_searching_for_a_box_it_never_saw_explores() {
     );
 }
 
+/// Found by sweeping the hidden box on seeds 1201..2000 (partition seed
+/// 1616): after the partition healed, the push went to r0, which had never
+/// seen the box, and the watch to r1. r0's search headed for r1 with the
+/// south chair straight on its way, and r0 stood 120 s in the 0.6 m gap
+/// between the chair and the west wall, where attraction and avoidance
+/// cancel, looking round and heading on by turns. A search that stays
+/// within half a metre of one spot for 22 s is pinned and takes a planned
+/// detour.
+#[test]
+fn a_search_pinned_between_a_wall_and_a_chair_gets_out() {
+    hidden_box_completes_with(
+        "search-pinned",
+        &["--fault", "partition=r0|r1@5.189s+6.693s"],
+        &["1616"],
+    );
+}
+
 /// One-way seed 217 of the hidden box: in the last leg, the finishing
 /// pusher looked for the box where it had last seen it, 0.7 m off; its
 /// teammate had pushed the box on out of its sight and stood between the
