@@ -544,11 +544,8 @@ pub struct State {
     /// That search: how many of its turns it has looked round with a
     /// teammate within [`MATE_NEAR`], and the last such turn.
     looks_near_mate: (u32, Option<u32>),
-    /// That search: the point past a live teammate near it, round it,
-    /// which it heads for and looks round from once, after its first look
-    /// round (see [`command`]), and whether it has.
-    beyond: Option<Lookout>,
-    went_beyond: bool,
+    /// That search's look past a live teammate near it (see [`Beyond`]).
+    beyond: Beyond,
     /// Move-to-goal, push getting behind its object: the point it drives
     /// to at this tick.
     bound_for: Option<DVec2>,
@@ -733,6 +730,19 @@ struct Circle {
     visit: Visit,
 }
 
+/// A search's look past a live teammate near it, round it, once a search,
+/// after its first look round (see [`command`]).
+#[derive(Clone, Copy, Debug, Default)]
+enum Beyond {
+    /// Not yet.
+    #[default]
+    NotYet,
+    /// Heading for the point past the teammate, or looking round there.
+    Going(Lookout),
+    /// Done (or found no open floor there).
+    Done,
+}
+
 /// A search for an object exploring the open floor (see [`State::explore`]).
 #[derive(Clone, Copy, Debug)]
 struct Lookout {
@@ -811,14 +821,16 @@ impl State {
     /// [`command`]), at `pos` at skill time `now`: `None` once it has
     /// looked round there.
     fn go_beyond(&mut self, pos: DVec2, now: f64) -> Option<Schema> {
-        let l = self.beyond.as_mut()?;
+        let Beyond::Going(l) = &mut self.beyond else {
+            return None;
+        };
         if !l.visit.looking {
             return Some(l.visit.head(l.at, pos, now, VANTAGE_TIME));
         }
         if l.visit.still_looking(now) {
             return Some(Schema::LookAround);
         }
-        self.beyond = None;
+        self.beyond = Beyond::Done;
         None
     }
 
@@ -1642,7 +1654,7 @@ pub fn command(
             // it): past the teammate, [`VANTAGE`] m from it, and a look
             // round there, once a search. Not when a body is searched round
             // instead.
-            if !st.went_beyond
+            if matches!(st.beyond, Beyond::NotYet)
                 && let Some(last) = last_seen
                 && centre.is_none()
                 && st.lookout.is_none()
@@ -1650,7 +1662,6 @@ pub fn command(
                 && let Some(m) =
                     nearest.filter(|m| m.distance(pos) < MATE_NEAR && m.distance(pos) > 1e-6)
             {
-                st.went_beyond = true;
                 // Round the teammate, not through it (driving straight at
                 // it can drive it on ahead): a sixth of a turn off its far
                 // side, toward where the object was last seen first.
@@ -1663,10 +1674,13 @@ pub fn command(
                 let open = |p: &DVec2| {
                     (view.map.as_deref()).is_none_or(|map| map.open(*p, 2.0 * view.radius))
                 };
-                st.beyond = [a, b].into_iter().find(open).map(|at| Lookout {
-                    at,
-                    visit: Visit::new(view.skill_time),
-                });
+                st.beyond = match [a, b].into_iter().find(open) {
+                    Some(at) => Beyond::Going(Lookout {
+                        at,
+                        visit: Visit::new(view.skill_time),
+                    }),
+                    None => Beyond::Done,
+                };
             }
             let beyond = st.go_beyond(pos, view.skill_time);
             let schema = beyond.unwrap_or_else(|| match (centre, explore) {
@@ -1708,8 +1722,7 @@ pub fn command(
                 st.lookout = None;
                 st.looked.clear();
                 st.looks_near_mate = (0, None);
-                st.beyond = None;
-                st.went_beyond = false;
+                st.beyond = Beyond::NotYet;
                 st.search_moves = Moves::default();
             }
         }
@@ -2944,11 +2957,13 @@ mod tests {
             let c = run(&mut view, &mut states, 1.0 + SEARCH_TURN + 0.1);
             if !seen {
                 // ... then, never seen, not beyond the teammate.
-                assert!(states[0].beyond.is_none() && !states[0].went_beyond);
+                assert!(matches!(states[0].beyond, Beyond::NotYet));
                 continue;
             }
             // ... then past the teammate, round it.
-            let at = states[0].beyond.expect("past the teammate").at;
+            let Beyond::Going(Lookout { at, .. }) = states[0].beyond else {
+                panic!("past the teammate: {:?}", states[0].beyond);
+            };
             assert!(at.distance(beyond) < 1e-9, "{at}");
             let way = (beyond - start).normalize();
             assert!(c.v.normalize().dot(way) > 0.99, "{c:?}");
@@ -2958,10 +2973,10 @@ mod tests {
             assert!(c.face.is_some() && c.v == DVec2::ZERO, "{c:?}");
             // ... and then the search goes on as before, not beyond again.
             run(&mut view, &mut states, 10.0 + SEARCH_TURN + 0.1);
-            assert!(states[0].beyond.is_none() && states[0].went_beyond);
+            assert!(matches!(states[0].beyond, Beyond::Done));
             view.pose.pos = start;
             run(&mut view, &mut states, 20.0 + SEARCH_TURN + 0.1);
-            assert!(states[0].beyond.is_none(), "once a search");
+            assert!(matches!(states[0].beyond, Beyond::Done), "once a search");
         }
     }
 
