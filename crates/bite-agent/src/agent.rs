@@ -520,6 +520,14 @@ impl Agent {
             self.through_world_model(now, |wm, own, told| wm.perceive(now, &percepts, own, told));
             self.share(now);
             self.kernel.tick(now, &[]);
+            // Ended here on what the world model, not due at this tick,
+            // has not reported: reported at once.
+            if let Some(wm) = self.wm.as_deref_mut() {
+                wm.share_ending(now, &self.kernel);
+                while let Some(o) = wm.poll(now) {
+                    self.out.push_back(AgentOutput::Inform(o));
+                }
+            }
         }
         self.percepts = percepts;
         self.drain(now);

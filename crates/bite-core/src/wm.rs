@@ -36,6 +36,7 @@ use crate::graph::BehaviorGraph;
 pub use crate::graph::sharing::{Policy, Sharing};
 use crate::ids::{BehaviorId, BeliefId, RobotId, TeamId};
 use crate::kernel::Kernel;
+use crate::members::MemberSet;
 use crate::time::Time;
 use crate::value::Value;
 use serde::{Deserialize, Serialize};
@@ -431,21 +432,8 @@ impl WorldModel {
         } else {
             self.changed.clear();
         }
-        // Inform(b, t): to the live members of t other than this robot.
         let (me, lost) = (self.me, kernel.lost());
-        let inform = |t: &crate::org::Team, reason, about, beliefs| {
-            let to: Vec<RobotId> = (t.members.iter())
-                .filter(|r| *r != me && !lost.contains(*r))
-                .collect();
-            (!to.is_empty()).then_some(Outgoing {
-                to,
-                msg: Inform {
-                    reason,
-                    about: Some(about),
-                    beliefs,
-                },
-            })
-        };
+        let inform = |t, reason, about, beliefs| inform(me, lost, t, reason, about, beliefs);
         // (reason, the subteam, the behavior, the edge, the reports).
         let mut found = Vec::new();
         if self.sharing.policy.focused() {
@@ -521,6 +509,57 @@ impl WorldModel {
             .partition(|(_, o)| o.msg.reason == Reason::Obligatory);
         first.extend(rest);
         self.queue = first;
+    }
+
+    /// The kernel has just ended a behavior by its own condition and waits
+    /// at its termination point, on beliefs this world model has not
+    /// reported: it was not due at this tick. A robot whose clock runs slow
+    /// decides what to share less often than its kernel ticks, and a
+    /// condition that held for one tick (a noisy sighting) would never
+    /// reach the teammates, who then never reach the point, and the team
+    /// waits for ever; one that holds on would reach them only at the
+    /// first [`RESEND`]. What the condition read is reported at once
+    /// (obligatory), and again every [`RESEND`] while it holds (see
+    /// [`WorldModel::share`]). Call after every tick of the kernel.
+    pub fn share_ending(&mut self, now: Time, kernel: &Kernel) {
+        if !self.sharing.policy.focused() {
+            return;
+        }
+        let Some(f) = kernel.ending() else {
+            return;
+        };
+        let Some(t) = kernel.org().team(f.team) else {
+            return;
+        };
+        let graph = kernel.mission().graph();
+        let held = self.conditions(
+            graph,
+            kernel.beliefs(),
+            (now, f.started),
+            f.behavior,
+            f.team,
+            f.epoch,
+        );
+        for (edge, reports) in held.into_iter().filter(|(e, _)| e.3.is_none()) {
+            if self.informed.contains(&(Reason::Obligatory, edge))
+                || self.waiting.contains_key(&edge)
+            {
+                continue;
+            }
+            self.informed.insert((Reason::Obligatory, edge));
+            self.waiting.insert(edge, now);
+            // Obligatory: ahead of any helpful message waiting.
+            if let Some(o) = inform(
+                self.me,
+                kernel.lost(),
+                t,
+                Reason::Obligatory,
+                f.behavior,
+                reports,
+            ) {
+                self.queue.push_front((now, o));
+            }
+        }
     }
 
     /// The conditions of behavior `b` (run by team `t`, execution `epoch`)
@@ -645,6 +684,29 @@ impl WorldModel {
     pub fn queued(&self) -> usize {
         self.queue.len()
     }
+}
+
+/// Inform(b, t): `beliefs` about behavior `about` for the live members of
+/// team `t` other than robot `me`; none if there are none.
+fn inform(
+    me: RobotId,
+    lost: &MemberSet,
+    t: &crate::org::Team,
+    reason: Reason,
+    about: BehaviorId,
+    beliefs: Vec<Report>,
+) -> Option<Outgoing> {
+    let to: Vec<RobotId> = (t.members.iter())
+        .filter(|r| *r != me && !lost.contains(*r))
+        .collect();
+    (!to.is_empty()).then_some(Outgoing {
+        to,
+        msg: Inform {
+            reason,
+            about: Some(about),
+            beliefs,
+        },
+    })
 }
 
 /// A name for each belief of a message, for logs.
