@@ -1646,7 +1646,10 @@ pub fn command(
             let explore = (view.map.as_deref()).filter(|_| {
                 let long = view.skill_time - since >= EXPLORE_AFTER;
                 let in_vain = st.looks_near_mate.0 >= LOOKS_NEAR_MATE || nearest.is_none();
-                st.lookout.is_some() || (long && in_vain)
+                // Pinned with no teammate to head for (wandering beside
+                // one): explore rather than wander off at random.
+                let pinned = st.search_moves.trapped.is_some() && to_mate.is_none();
+                st.lookout.is_some() || (long && in_vain) || pinned
             });
             // After a look round in vain for an object seen before, a live
             // teammate near may stand between this robot and the object
@@ -2859,6 +2862,64 @@ mod tests {
             at(&mut view, &mut states, t);
             assert!(states[0].search_moves.trapped.is_none(), "{t}");
         }
+    }
+
+    /// A search pinned while it wanders beside its teammate (within a
+    /// metre, so there is no teammate to head for: a restarted pusher that
+    /// never saw the box, its teammate standing between it and the box)
+    /// explores instead of wandering off at random: first the far side of
+    /// the teammate, on a planned detour, and on from lookout to lookout
+    /// after the pin.
+    #[test]
+    fn a_search_pinned_beside_its_teammate_explores() {
+        let map = std::sync::Arc::new(crate::plan::Map::new(&crate::plan::tests::hall()));
+        let skill = vec![
+            weighted(
+                Schema::Push {
+                    object: "box".into(),
+                    goal: DVec2::new(6.0, 0.5),
+                    offset: 0.25,
+                    speed: 0.2,
+                },
+                1,
+            ),
+            weighted(Schema::AvoidObstacle { range: 0.35 }, 3),
+        ];
+        let start = DVec2::new(4.4, 2.3);
+        let mate = DVec2::new(3.6, 2.3);
+        let mut view = View {
+            map: Some(map.clone()),
+            radius: 0.12,
+            max_speed: 0.3,
+            ..View::default()
+        };
+        view.pose.pos = start;
+        view.mates.insert(
+            1,
+            Mate {
+                pos: mate,
+                heading: None,
+            },
+        );
+        let mut states = Vec::new();
+        let at =
+            |view: &mut View, states: &mut Vec<State>, t: f64| command_at(&skill, view, states, t);
+        for k in 0..220 {
+            at(&mut view, &mut states, f64::from(k) * 0.1);
+            assert!(states[0].lookout.is_none(), "{k}: not exploring yet");
+        }
+        at(&mut view, &mut states, SEARCH_PINNED_AFTER + 0.05);
+        assert!(states[0].search_moves.trapped.is_some());
+        // Exploring: first the far side of the teammate, a metre beyond.
+        let c = at(&mut view, &mut states, SEARCH_PINNED_AFTER + 0.15);
+        let lookout = states[0].lookout.expect("a lookout").at;
+        assert!(lookout.distance(past(mate, start, 0.0)) < 1e-9, "{lookout}");
+        assert!(c.v.length() > 0.1, "{c:?}");
+        // Still exploring once the pin is over.
+        view.pose.pos = start.lerp(lookout, 0.5);
+        at(&mut view, &mut states, SEARCH_PINNED_AFTER + DETOUR + 1.0);
+        assert!(states[0].search_moves.trapped.is_none());
+        assert_eq!(states[0].lookout.map(|l| l.at), Some(lookout));
     }
 
     /// Between its turns, a robot searching for an object heads for the
