@@ -2769,35 +2769,26 @@ mod tests {
         }
     }
 
-    /// A pusher that never saw its box, held between the hall's west wall
-    /// and its south chair by its search's move toward a teammate beyond
-    /// the chair (the hidden box, `search-rescue.rtcl`, partition seed
-    /// 1616: attraction and avoidance cancelled there for 120 s): after
-    /// two looks round and moves within half a metre of one spot its
-    /// search is pinned, and it follows a planned detour toward the
-    /// teammate for 8 s without stopping to look round, avoidance
-    /// superposed on the detour; then it searches as before. A search
-    /// that moves on is never pinned.
-    #[test]
-    fn a_pinned_search_takes_a_detour_to_its_teammate() {
-        let map = std::sync::Arc::new(crate::plan::Map::new(&crate::plan::tests::hidden_hall()));
-        let skill = vec![
-            weighted(
-                Schema::Push {
-                    object: "box".into(),
-                    goal: DVec2::new(6.0, 0.5),
-                    offset: 0.25,
-                    speed: 0.2,
-                },
-                1,
-            ),
-            weighted(Schema::AvoidTeammate { range: 0.4 }, 2),
-            weighted(Schema::AvoidObstacle { range: 0.35 }, 3),
-        ];
-        let start = DVec2::new(0.41, 0.89);
-        let mate = DVec2::new(1.5, 2.3);
+    /// A push of a box the robot never saw, obstacle avoidance on top
+    /// (layer 3) and `more` schemas with their layers.
+    fn pushing_a_box_never_seen(more: &[(Schema, u8)]) -> Vec<Weighted> {
+        let push = Schema::Push {
+            object: "box".into(),
+            goal: DVec2::new(6.0, 0.5),
+            offset: 0.25,
+            speed: 0.2,
+        };
+        let mut skill = vec![weighted(push, 1)];
+        skill.extend(more.iter().map(|(s, l)| weighted(s.clone(), *l)));
+        skill.push(weighted(Schema::AvoidObstacle { range: 0.35 }, 3));
+        skill
+    }
+
+    /// What a robot at `start` in `world` (its map) sees: one teammate, at
+    /// `mate`.
+    fn searching(world: crate::spec::PhysicsSpec, start: DVec2, mate: DVec2) -> View {
         let mut view = View {
-            map: Some(map.clone()),
+            map: Some(std::sync::Arc::new(crate::plan::Map::new(&world))),
             radius: 0.12,
             max_speed: 0.3,
             ..View::default()
@@ -2810,6 +2801,24 @@ mod tests {
                 heading: None,
             },
         );
+        view
+    }
+
+    /// A pusher that never saw its box, held between the hall's west wall
+    /// and its south chair by its search's move toward a teammate beyond
+    /// the chair (the hidden box, `search-rescue.rtcl`, partition seed
+    /// 1616: attraction and avoidance cancelled there for 120 s): after
+    /// two looks round and moves within half a metre of one spot its
+    /// search is pinned, and it follows a planned detour toward the
+    /// teammate for 8 s without stopping to look round, avoidance
+    /// superposed on the detour; then it searches as before. A search
+    /// that moves on is never pinned.
+    #[test]
+    fn a_pinned_search_takes_a_detour_to_its_teammate() {
+        let skill = pushing_a_box_never_seen(&[(Schema::AvoidTeammate { range: 0.4 }, 2)]);
+        let start = DVec2::new(0.41, 0.89);
+        let mate = DVec2::new(1.5, 2.3);
+        let mut view = searching(crate::plan::tests::hidden_hall(), start, mate);
         let straight = (mate - start).normalize();
         let mut states = Vec::new();
         let at =
@@ -2872,35 +2881,10 @@ mod tests {
     /// after the pin.
     #[test]
     fn a_search_pinned_beside_its_teammate_explores() {
-        let map = std::sync::Arc::new(crate::plan::Map::new(&crate::plan::tests::hall()));
-        let skill = vec![
-            weighted(
-                Schema::Push {
-                    object: "box".into(),
-                    goal: DVec2::new(6.0, 0.5),
-                    offset: 0.25,
-                    speed: 0.2,
-                },
-                1,
-            ),
-            weighted(Schema::AvoidObstacle { range: 0.35 }, 3),
-        ];
+        let skill = pushing_a_box_never_seen(&[]);
         let start = DVec2::new(4.4, 2.3);
         let mate = DVec2::new(3.6, 2.3);
-        let mut view = View {
-            map: Some(map.clone()),
-            radius: 0.12,
-            max_speed: 0.3,
-            ..View::default()
-        };
-        view.pose.pos = start;
-        view.mates.insert(
-            1,
-            Mate {
-                pos: mate,
-                heading: None,
-            },
-        );
+        let mut view = searching(crate::plan::tests::hall(), start, mate);
         let mut states = Vec::new();
         let at =
             |view: &mut View, states: &mut Vec<State>, t: f64| command_at(&skill, view, states, t);
