@@ -614,7 +614,8 @@ impl State {
     /// by turns (held between a wall and an obstacle by its move toward a
     /// teammate, say, where attraction and avoidance cancel). A pinned
     /// search is trapped for [`DETOUR`]: its moves follow a planned
-    /// detour, and it does not stop to look round meanwhile.
+    /// detour, and it does not stop to look round meanwhile; one with no
+    /// teammate to head for explores (see [`command`]).
     fn watch_search(&mut self, pos: DVec2, now: f64) {
         match self.trapped {
             Some(t) if now - t >= DETOUR || now < t => {
