@@ -2952,7 +2952,6 @@ mod tests {
     /// hides nothing).
     #[test]
     fn a_search_for_a_box_seen_before_looks_beyond_the_teammate_near_it() {
-        let map = std::sync::Arc::new(crate::plan::Map::new(&crate::plan::tests::hall()));
         let skill = vec![weighted(
             Schema::Push {
                 object: "box".into(),
@@ -2967,20 +2966,7 @@ mod tests {
         // A metre from the teammate, a sixth of a turn off its far side
         // (west), toward where the box was last seen (north-east).
         let beyond = mate + DVec2::from_angle(2.0 * std::f64::consts::FRAC_PI_3) * VANTAGE;
-        let mut view = View {
-            map: Some(map),
-            radius: 0.12,
-            max_speed: 0.3,
-            ..View::default()
-        };
-        view.pose.pos = start;
-        view.mates.insert(
-            1,
-            Mate {
-                pos: mate,
-                heading: None,
-            },
-        );
+        let mut view = searching(crate::plan::tests::hall(), start, mate);
         let run = |view: &mut View, states: &mut Vec<State>, t: f64| {
             view.skill_time = t;
             command(&skill, view, states, &mut || 0.5)
@@ -3036,8 +3022,6 @@ mod tests {
     /// teammates are again. A teammate never near is headed for as before.
     #[test]
     fn a_long_search_explores_the_hall_instead_of_following_its_follower() {
-        let hall = crate::plan::tests::hall();
-        let map = std::sync::Arc::new(crate::plan::Map::new(&hall));
         let skill = vec![weighted(
             Schema::Face {
                 target: Target::Object("box".into()),
@@ -3045,22 +3029,9 @@ mod tests {
             1,
         )];
         let start = DVec2::new(0.5, 0.7);
-        let mut view = View {
-            map: Some(map.clone()),
-            radius: 0.12,
-            max_speed: 0.3,
-            ..View::default()
-        };
-        view.pose.pos = start;
         // The teammate 1.2 m east: the search heads for it ...
         let mate = DVec2::new(1.7, 0.7);
-        view.mates.insert(
-            1,
-            Mate {
-                pos: mate,
-                heading: None,
-            },
-        );
+        let mut view = searching(crate::plan::tests::hall(), start, mate);
         let mut states = Vec::new();
         let mut rng = || 0.5;
         let mut at = |view: &mut View, states: &mut Vec<State>, t: f64| {
