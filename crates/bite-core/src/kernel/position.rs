@@ -381,7 +381,15 @@ pub(super) struct RecentEnded {
 impl RecentEnded {
     pub(super) fn push(&mut self, e: Ended) {
         let bit = filter_bit(&e.id);
-        push_recent(&mut self.list, e);
+        // [`push_recent`], with the filter answering for most ids: one
+        // whose bit is clear is not in the list.
+        if self.filter & bit != 0 && self.list.contains(&e) {
+            return;
+        }
+        if self.list.len() >= RECENT {
+            self.list.pop_front();
+        }
+        self.list.push_back(e);
         self.filter |= bit;
         if self.filter.count_ones() as usize > 2 * RECENT {
             self.filter = self.list.iter().fold(0, |m, e| m | filter_bit(&e.id));
@@ -1022,6 +1030,30 @@ mod tests {
         ];
         for (pos, through) in cases {
             assert_eq!(pos.went_through(key), through, "{pos:?}");
+        }
+    }
+
+    proptest::proptest! {
+        /// The list of recently ended executions keeps what the plain ring
+        /// ([`push_recent`]) keeps, whatever the pushes, repeats included,
+        /// and its filter answers for every execution in it.
+        #[test]
+        fn recent_ended_keeps_what_the_plain_ring_keeps(
+            pushes in proptest::collection::vec((0u64..6, 0u32..4, 1u32..4, proptest::option::of(0u32..3)), 0..80),
+        ) {
+            let mut recent = RecentEnded::default();
+            let mut ring = std::collections::VecDeque::new();
+            for (team, behavior, epoch, parent) in pushes {
+                let id = FrameId { team: TeamId(team), behavior: BehaviorId(behavior), epoch };
+                let parent = parent.map(|b| FrameId { team: TeamId::ROOT, behavior: BehaviorId(b), epoch: 1 });
+                let e = Ended { id, parent };
+                recent.push(e);
+                push_recent(&mut ring, e);
+                proptest::prop_assert!(recent.iter().eq(ring.iter()));
+                for x in &ring {
+                    proptest::prop_assert!(recent.contains(&x.id) && recent.contains_ended(x));
+                }
+            }
         }
     }
 }

@@ -57,6 +57,12 @@ pub(super) struct Slots<V> {
     slots: Vec<(Packed, Option<V>)>,
     /// How many are `Some`.
     live: usize,
+    /// The slot last found by a change (`get_mut`, `take`, `insert`),
+    /// tried before a search: a call into an instance looks it up, lends
+    /// it out and puts it back, three finds of the same key in a row.
+    /// Only a hint: checked against the key, so a stale one costs one
+    /// comparison.
+    last: usize,
 }
 
 impl<V> Default for Slots<V> {
@@ -64,6 +70,7 @@ impl<V> Default for Slots<V> {
         Slots {
             slots: Vec::new(),
             live: 0,
+            last: 0,
         }
     }
 }
@@ -72,7 +79,20 @@ impl<V> Slots<V> {
     #[inline]
     fn find(&self, key: &InstanceKey) -> Result<usize, usize> {
         let key = Packed::new(key);
+        if self.slots.get(self.last).is_some_and(|(k, _)| *k == key) {
+            return Ok(self.last);
+        }
         self.slots.binary_search_by(|(k, _)| k.cmp(&key))
+    }
+
+    /// [`Slots::find`], remembering the slot for the next.
+    #[inline]
+    fn find_mut(&mut self, key: &InstanceKey) -> Result<usize, usize> {
+        let found = self.find(key);
+        if let Ok(i) = found {
+            self.last = i;
+        }
+        found
     }
 
     /// See [`super::Kernel::prefetch`].
@@ -93,7 +113,7 @@ impl<V> Slots<V> {
     }
 
     pub(super) fn get_mut(&mut self, key: &InstanceKey) -> Option<&mut V> {
-        match self.find(key) {
+        match self.find_mut(key) {
             Ok(i) => self.slots[i].1.as_mut(),
             Err(_) => None,
         }
@@ -101,7 +121,7 @@ impl<V> Slots<V> {
 
     /// Put `value` under `key`, returning the value it replaces.
     pub(super) fn insert(&mut self, key: InstanceKey, value: V) -> Option<V> {
-        match self.find(&key) {
+        match self.find_mut(&key) {
             Ok(i) => {
                 let old = self.slots[i].1.replace(value);
                 if old.is_none() {
@@ -112,6 +132,7 @@ impl<V> Slots<V> {
             Err(i) => {
                 self.slots.insert(i, (Packed::new(&key), Some(value)));
                 self.live += 1;
+                self.last = i;
                 None
             }
         }
@@ -121,7 +142,7 @@ impl<V> Slots<V> {
     /// [`Slots::insert`]: absent meanwhile, as if removed, but its slot
     /// stays, so that neither moves the values after it.
     pub(super) fn take(&mut self, key: &InstanceKey) -> Option<V> {
-        let i = self.find(key).ok()?;
+        let i = self.find_mut(key).ok()?;
         let old = self.slots[i].1.take();
         if old.is_some() {
             self.live -= 1;
