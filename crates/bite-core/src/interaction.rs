@@ -335,6 +335,14 @@ pub trait Interaction: Send {
     /// send what the new leader needs (a member re-sends its vote or
     /// arrival; a member that already knows the decision tells it).
     fn on_members_changed(&mut self, _cx: &mut Cx<'_>) {}
+    /// Termination only: teammate `from`'s heartbeats have shown it waiting
+    /// at this termination point (its own part over) for at least a retry
+    /// interval, and no report of its own may have reached this robot (lost
+    /// on the way). A protocol whose members report their end to a
+    /// coordinator may count it as arrived, as if its report had come; one
+    /// that already heard it does nothing. Called on every such heartbeat
+    /// while the instance runs, armed or waiting.
+    fn on_member_waiting(&mut self, _cx: &mut Cx<'_>, _from: RobotId) {}
     /// This robot leaves the instance before it decided (an ancestor
     /// behavior ended). Tell the teammates what they need to go on without
     /// it (a barrier member reports itself done, a coordinator releases who

@@ -21,12 +21,18 @@
 //! The leader (lowest-id live member) keeps the barrier. A member that
 //! finishes sends `Done` to the leader, which acknowledges it; once enough
 //! members have arrived (all, counting the leader, or a majority) the
-//! leader multicasts `Release`. A member resends `Done` every retry
-//! interval until acknowledged, then every 4, 8, 16… intervals until
-//! released (a lost `Release` is recovered because the leader answers a
-//! late `Done` with `Release`; so it answers the `Query` a member's kernel
-//! sends as soon as a heartbeat shows the leader past the barrier, which
-//! under heavy loss comes long before the next backed-off `Done`). Members
+//! leader multicasts `Release`. A member resends `Done` after 1, 2, 4…
+//! retry intervals (at most 64) until acknowledged, then every 4, 8, 16…
+//! intervals until released. A lost `Release` is recovered because the
+//! leader answers a late `Done` with `Release`; so it answers the `Query`
+//! a member's kernel sends as soon as a heartbeat shows the leader past
+//! the barrier, which under heavy loss comes long before the next
+//! backed-off `Done`. A lost `Done` is recovered the same way the other
+//! way round: a member whose heartbeats have shown it waiting at the
+//! barrier for a retry interval has arrived, whether its `Done` came or
+//! not (`on_member_waiting`; under heavy loss all of a member's reports,
+//! ever further apart, may be lost, and the leader waited out its
+//! deadline; without loss its `Done` arrives first). Members
 //! released while still working
 //! (majority, first-wins, or the leader's deadline) are told until they
 //! acknowledge, every 1, 2, 4, 4, 4… retry intervals, at most 40 times (a
@@ -210,6 +216,16 @@ impl Barrier {
         }
     }
 
+    /// Member `from` reported that its part is over (leader only).
+    fn arrival(&mut self, cx: &mut Cx<'_>, from: RobotId) {
+        self.arrive(cx, from);
+        // It is done here: whatever this robot still runs below
+        // this behavior will not wait for it.
+        cx.member_done(from);
+        cx.send(from, Body::Ack);
+        self.try_release(cx);
+    }
+
     fn try_release(&mut self, cx: &mut Cx<'_>) {
         if cx.is_decided() || cx.is_aborted() {
             return;
@@ -308,14 +324,7 @@ impl Interaction for Barrier {
                     cx.send(from, Body::Release { next: None });
                 }
             }
-            Body::Done if cx.is_leader() => {
-                self.arrive(cx, from);
-                // It is done here: whatever this robot still runs below
-                // this behavior will not wait for it.
-                cx.member_done(from);
-                cx.send(from, Body::Ack);
-                self.try_release(cx);
-            }
+            Body::Done if cx.is_leader() => self.arrival(cx, from),
             Body::Ack if cx.is_decided() && self.stragglers.contains(&from) => {
                 // A member released while working confirms.
                 self.stragglers.retain(|r| *r != from);
@@ -394,6 +403,19 @@ impl Interaction for Barrier {
             self.release(cx, &arrived);
         }
         cx.decide(Outcome::Terminate(None));
+    }
+
+    /// Its heartbeats show `from` waiting here, and its `Done` has not
+    /// arrived (lost: under heavy loss a member backs off and may not be
+    /// heard before the deadline): it arrived.
+    fn on_member_waiting(&mut self, cx: &mut Cx<'_>, from: RobotId) {
+        if !cx.is_leader() || cx.is_decided() || cx.is_aborted() {
+            return;
+        }
+        if self.arrived(cx).contains(from) {
+            return;
+        }
+        self.arrival(cx, from);
     }
 
     fn on_members_changed(&mut self, cx: &mut Cx<'_>) {

@@ -642,7 +642,51 @@ impl Kernel {
         self.reconcile(from, pos);
         self.reconcile_allocation(from, pos);
         self.ask_past_point(from, pos);
+        self.heard_waiting(from, pos);
         self.step();
+    }
+
+    /// A teammate whose heartbeats have shown it waiting at a termination
+    /// point this robot coordinates, for a retry interval at least (its
+    /// engagement unchanged that long), has reported its end: its report
+    /// was sent when it began to wait, and arrives within a trip unless it
+    /// was lost. Tell the protocol ([`Interaction::on_member_waiting`]),
+    /// which counts it as arrived if it has not heard it: under heavy loss
+    /// a member backs off between resends, and a barrier whose every
+    /// member had arrived waited out its deadline (docs/reliability.md,
+    /// "A report lost on the way to the barrier"). A run without faults
+    /// hears every report long before: nothing changes there.
+    ///
+    /// [`Interaction::on_member_waiting`]: crate::interaction::Interaction::on_member_waiting
+    fn heard_waiting(&mut self, from: RobotId, pos: &Position) {
+        // Only the last frame of a position can be one it waits at (the
+        // one it ended, or the top it idles under).
+        let Some(f) = pos.frames.last().filter(|f| f.state == FrameState::Ending) else {
+            return;
+        };
+        let key = InstanceKey {
+            team: f.id.team,
+            behavior: f.id.behavior,
+            kind: Kind::Terminate,
+            epoch: f.id.epoch,
+            round: 0,
+        };
+        let now = self.now;
+        let Some(inst) = self.instances.get(&key) else {
+            return;
+        };
+        let waiting_long = (self.peers.get(&from))
+            .and_then(|p| p.moved)
+            .is_some_and(|t| now - t >= inst.retry);
+        if !waiting_long
+            || !matches!(inst.state, super::State::Armed | super::State::Active)
+            || !inst.team.contains(from)
+            || self.coordinator_of(key) != Some(self.me)
+        {
+            return;
+        }
+        self.call(key, |imp, cx| imp.on_member_waiting(cx, from));
+        self.refresh_due();
     }
 
     /// A coordinator whose heartbeat shows it past a sync point, through
