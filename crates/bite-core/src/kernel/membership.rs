@@ -123,7 +123,11 @@ impl Kernel {
     /// The coordinator of running instance `key` as its protocol sees it:
     /// the first member this robot does not leave out.
     pub(super) fn coordinator_of(&self, key: InstanceKey) -> Option<RobotId> {
-        let inst = self.instances.get(&key)?;
+        self.coordinator(key, self.instances.get(&key)?)
+    }
+
+    /// [`Kernel::coordinator_of`], for an instance already in hand.
+    pub(super) fn coordinator(&self, key: InstanceKey, inst: &Instance) -> Option<RobotId> {
         let team = self.org.team(key.team).unwrap_or(&inst.team);
         let live = |r: RobotId| inst.excluded.as_ref().is_none_or(|x| !x.contains(r));
         team.members.iter().find(|r| live(*r))

@@ -681,7 +681,7 @@ impl Kernel {
         if !waiting_long
             || !matches!(inst.state, super::State::Armed | super::State::Active)
             || !inst.team.contains(from)
-            || self.coordinator_of(key) != Some(self.me)
+            || self.coordinator(key, inst) != Some(self.me)
         {
             return;
         }
