@@ -423,7 +423,9 @@ impl Agent {
             }
             Input::Inform { from, msg } => {
                 if self.wm.is_some() {
-                    self.through_world_model(now, |wm, own, told| wm.receive(from, msg, own, told));
+                    self.through_world_model(now, |wm, own, told| {
+                        wm.receive(now, from, msg, own, told)
+                    });
                 }
             }
             Input::Timer => {

@@ -378,6 +378,40 @@ fn a_barrier_counts_a_member_its_heartbeats_show_waiting() {
     assert_eq!(v["timeouts"], 0, "{v:#}");
 }
 
+/// Found by the first run of the hidden box's seeds 6001 to 7000:
+/// `box-push.yaml`, clock-skew seed 6362, stalled. r0, the pusher, saw the
+/// box past `box_halfway`, ended `first_leg` and told r1, the watcher, at
+/// once; r1 never adopted the report, which was dated by r0's clock while
+/// r1's ran 2.6 s ahead, so it looked older than r1's own reading. Reports
+/// now carry the age of their value, which the receiver dates on its own
+/// clock. Seed 6346 is the draft of that change that stalled a run: r0's
+/// clock, 1.2 s behind, held at the mission's start and dated both its own
+/// reading and r1's report 0, and the robot's own reading won the tie for
+/// 30 s. A report dated at or after the robot's own change wins.
+#[test]
+fn a_report_is_dated_by_its_age_not_by_the_senders_clock() {
+    for (faults, seed, latest) in [
+        (
+            &["skew=r0:0.934:-0.007s", "skew=r1:0.733:2.618s"][..],
+            "6362",
+            45.0,
+        ),
+        (&["skew=r0:0.983:-1.238s"][..], "6346", 70.0),
+    ] {
+        let graph = example("box-push.yaml");
+        let scenario = example("scenarios/box-push-hidden-physics.yaml");
+        let mut args = vec![graph.as_str(), "--scenario", scenario.as_str()];
+        for f in faults {
+            args.extend(["--fault", f]);
+        }
+        args.extend(["--seed", seed]);
+        let v = run_one(&format!("skewed-report-{seed}"), &args);
+        assert_eq!(v["outcome"], "completed", "seed {seed}: {v:#}");
+        let t = v["task_time"].as_f64().unwrap_or(f64::MAX);
+        assert!(t < latest, "seed {seed}: {t} s");
+    }
+}
+
 /// Found by the sweep at 30 % loss: r0, coordinating `linewalk`'s
 /// allocation, reached the behavior's end at once, decided from what it
 /// had and announced it as it left; the announcement to r1 was lost. The

@@ -99,10 +99,40 @@ pub struct Report {
     pub belief: BeliefId,
     /// Its value.
     pub value: Value,
-    /// When the sender's value last changed.
-    pub time: Time,
+    /// How long before the message left the sender its value last
+    /// changed, microseconds. An age rather than a time, so that robots
+    /// whose clocks disagree still agree which report is newer: the
+    /// receiver reads it against its own clock on arrival
+    /// ([`Report::changed_at`]).
+    pub age_us: u64,
     /// The sender's confidence in it, 0-1.
     pub confidence: f32,
+}
+
+impl Report {
+    /// A report at `now` of a value that last changed at `changed` (both on
+    /// the sender's clock).
+    pub fn new(belief: BeliefId, value: Value, changed: Time, now: Time, confidence: f32) -> Self {
+        Report {
+            belief,
+            value,
+            age_us: now.as_micros().saturating_sub(changed.as_micros()),
+            confidence,
+        }
+    }
+
+    /// When the value changed, on the clock of a receiver that reads the
+    /// report at `now` (the time the message spent on its way counts as
+    /// age it did not have: a report looks that much newer).
+    pub fn changed_at(&self, now: Time) -> Time {
+        Time(now.as_micros().saturating_sub(self.age_us))
+    }
+
+    /// The report as it is when it leaves `waited` later than it was made.
+    fn aged(&mut self, waited: Duration) {
+        let us = u64::try_from(waited.as_micros()).unwrap_or(u64::MAX);
+        self.age_us = self.age_us.saturating_add(us);
+    }
 }
 
 /// A world-model message: some beliefs, and why they are sent.
@@ -282,9 +312,12 @@ impl WorldModel {
         }
     }
 
-    /// A teammate's message. Writes into `out` the beliefs it changes.
+    /// A teammate's message, arrived at `now` (this robot's clock: the
+    /// reports' ages are read against it). Writes into `own_out` and
+    /// `told_out` the beliefs it changes.
     pub fn receive(
         &mut self,
+        now: Time,
         from: RobotId,
         msg: &Inform,
         own_out: &mut Vec<(BeliefId, Value)>,
@@ -300,13 +333,14 @@ impl WorldModel {
                 self.stats.ignored += 1;
                 continue;
             };
-            if slot.as_ref().is_some_and(|t| t.time > r.time) {
+            let time = r.changed_at(now);
+            if slot.as_ref().is_some_and(|t| t.time > time) {
                 self.stats.ignored += 1; // an older report than one we have
                 continue;
             }
             *slot = Some(Told {
                 value: r.value.clone(),
-                time: r.time,
+                time,
                 from,
                 confidence: r.confidence.clamp(0.0, 1.0),
             });
@@ -330,6 +364,10 @@ impl WorldModel {
             (None, None) => None,
             (Some(o), None) => Some((o.value.clone(), Source::Percept)),
             (None, Some(t)) => Some((t.value.clone(), Source::Teammate(t.from))),
+            // A teammate that tells the robot what it perceives itself
+            // adds nothing: the robot's own reading stands (and keeps its
+            // every-tick age), however the two changes are ordered.
+            (Some(o), Some(t)) if o.value == t.value => Some((o.value.clone(), Source::Percept)),
             (Some(o), Some(t)) => {
                 let apart = if o.changed > t.time {
                     o.changed.saturating_since(t.time)
@@ -345,7 +383,11 @@ impl WorldModel {
                     let p = [(a[0] * wa + b[0] * wb) / w, (a[1] * wa + b[1] * wb) / w];
                     return Some((Value::Vec2(p), Source::Percept));
                 }
-                if t.time > o.changed {
+                // At or after: a tie is a report dated where the robot's
+                // own clock cannot tell the two apart (a clock held at the
+                // mission's start dates every change 0), and the teammate
+                // tells of a change the robot did not see.
+                if t.time >= o.changed {
                     Some((t.value.clone(), Source::Teammate(t.from)))
                 } else {
                     Some((o.value.clone(), Source::Percept))
@@ -403,16 +445,18 @@ impl WorldModel {
                 .into_iter()
                 .filter_map(|id| {
                     let b = beliefs.get(id).filter(|b| b.source == Source::Percept)?;
-                    Some(Report {
-                        belief: id,
-                        value: b.value.clone(),
-                        time: self
-                            .own
-                            .get(id.index())?
-                            .as_ref()
-                            .map_or(b.time, |o| o.changed),
-                        confidence: OWN_CONFIDENCE,
-                    })
+                    let changed = self
+                        .own
+                        .get(id.index())?
+                        .as_ref()
+                        .map_or(b.time, |o| o.changed);
+                    Some(Report::new(
+                        id,
+                        b.value.clone(),
+                        changed,
+                        now,
+                        OWN_CONFIDENCE,
+                    ))
                 })
                 .collect();
             let to: Vec<RobotId> = (0..graph.roster().len() as u32)
@@ -612,7 +656,7 @@ impl WorldModel {
             let reports: Vec<Report> = e
                 .beliefs()
                 .iter()
-                .filter_map(|id| self.report(beliefs, *id))
+                .filter_map(|id| self.report(now, beliefs, *id))
                 .collect();
             if !reports.is_empty() {
                 found.push(((t, b, epoch, succ), reports));
@@ -623,7 +667,7 @@ impl WorldModel {
 
     /// A report of belief `id` as the kernel holds it (none for a private
     /// belief).
-    fn report(&self, beliefs: &BeliefStore, id: BeliefId) -> Option<Report> {
+    fn report(&self, now: Time, beliefs: &BeliefStore, id: BeliefId) -> Option<Report> {
         if self.is_private(id) {
             return None;
         }
@@ -642,12 +686,7 @@ impl WorldModel {
                 .as_ref()
                 .map_or(b.time, |t| t.time),
         };
-        Some(Report {
-            belief: id,
-            value: b.value.clone(),
-            time,
-            confidence: OWN_CONFIDENCE,
-        })
+        Some(Report::new(id, b.value.clone(), time, now, OWN_CONFIDENCE))
     }
 
     /// The next message to send now, within the budget.
@@ -668,7 +707,12 @@ impl WorldModel {
             if self.sharing.budget.is_some() && self.tokens < cost.min(self.tokens.max(1.0)) {
                 return None; // wait for budget
             }
-            let (_, o) = self.queue.pop_front()?;
+            let (at, mut o) = self.queue.pop_front()?;
+            // Ages count to the moment the message leaves.
+            let waited = now.saturating_since(at);
+            if !waited.is_zero() {
+                o.msg.beliefs.iter_mut().for_each(|r| r.aged(waited));
+            }
             if self.sharing.budget.is_some() {
                 self.tokens -= cost;
             }

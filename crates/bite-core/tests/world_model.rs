@@ -191,11 +191,12 @@ fn a_belief_a_teammate_told_is_not_echoed() {
         beliefs: vec![Report {
             belief: obstacle,
             value: Value::Bool(true),
-            time: Time::from_secs_f64(0.05),
+            age_us: 10_000,
             confidence: 1.0,
         }],
     };
-    r1.wm.receive(RobotId(0), &msg, &mut own, &mut told);
+    let at = Time::from_secs_f64(0.06);
+    r1.wm.receive(at, RobotId(0), &msg, &mut own, &mut told);
     assert_eq!(
         told,
         vec![(obstacle, Value::Bool(true), Source::Teammate(RobotId(0)))]
@@ -241,11 +242,12 @@ fn private_beliefs_are_neither_reported_nor_adopted() {
         beliefs: vec![Report {
             belief: gap,
             value: Value::Bool(false),
-            time: Time::from_secs_f64(5.0),
+            age_us: 0,
             confidence: 1.0,
         }],
     };
-    r1.wm.receive(RobotId(0), &msg, &mut own, &mut told);
+    let at = Time::from_secs_f64(5.0);
+    r1.wm.receive(at, RobotId(0), &msg, &mut own, &mut told);
     assert!(own.is_empty() && told.is_empty());
     assert_eq!(r1.wm.stats().ignored, 1);
 }
@@ -270,20 +272,17 @@ fn latest_change_wins_and_positions_are_fused_by_confidence() {
     wm.perceive(t(0.1), &[(flag, Value::Bool(false))], &mut own, &mut told);
     assert_eq!(own, vec![(flag, Value::Bool(false))]);
     // A teammate saw it true at 2 s: newer than our last change, it wins...
-    let report = |b, v, at| Inform {
+    // (`report(b, v, changed, now)`: read at `now`, changed at `changed`.)
+    let report = |b, v, changed: f64, now: f64| Inform {
         reason: Reason::Obligatory,
         about: None,
-        beliefs: vec![Report {
-            belief: b,
-            value: v,
-            time: t(at),
-            confidence: 0.5,
-        }],
+        beliefs: vec![Report::new(b, v, t(changed), t(now), 0.5)],
     };
     own.clear();
     wm.receive(
+        t(2.0),
         RobotId(0),
-        &report(flag, Value::Bool(true), 2.0),
+        &report(flag, Value::Bool(true), 2.0, 2.0),
         &mut own,
         &mut told,
     );
@@ -303,8 +302,9 @@ fn latest_change_wins_and_positions_are_fused_by_confidence() {
     own.clear();
     told.clear();
     wm.receive(
+        t(5.0),
         RobotId(2),
-        &report(flag, Value::Bool(true), 4.5),
+        &report(flag, Value::Bool(true), 4.5, 5.0),
         &mut own,
         &mut told,
     );
@@ -319,12 +319,112 @@ fn latest_change_wins_and_positions_are_fused_by_confidence() {
     );
     own.clear();
     wm.receive(
+        t(6.5),
         RobotId(0),
-        &report(pos, Value::Vec2([3.0, 3.0]), 6.5),
+        &report(pos, Value::Vec2([3.0, 3.0]), 6.5, 6.5),
         &mut own,
         &mut told,
     );
     assert_eq!(own, vec![(pos, Value::Vec2([1.0, 1.0]))]);
+}
+
+#[test]
+fn reports_are_ordered_by_age_whatever_the_clocks_say() {
+    // The receiver's clock runs 2.6 s ahead of the sender's. It read the
+    // flag false at 3.0 s of its clock (0.4 s of the sender's); the sender
+    // saw it true at 1.8 s of its own clock (4.4 s of the receiver's),
+    // later in fact. By the sender's time (1.8 s < 3.0 s) the report would
+    // look older than the receiver's reading and never be adopted; by its
+    // age (0.05 s on arrival at 4.45 s) it is newer, and wins.
+    let mut wm = WorldModel::new(RobotId(1), 1, Sharing::default(), Arc::from(vec![false]));
+    let flag = BeliefId(0);
+    let t = Time::from_secs_f64;
+    let (mut own, mut told) = (Vec::new(), Vec::new());
+    wm.perceive(t(2.9), &[(flag, Value::Bool(true))], &mut own, &mut told);
+    wm.perceive(t(3.0), &[(flag, Value::Bool(false))], &mut own, &mut told);
+    own.clear();
+    let sent = Report::new(flag, Value::Bool(true), t(1.8), t(1.85), 1.0);
+    assert_eq!(sent.age_us, 50_000);
+    assert_eq!(sent.changed_at(t(4.45)), t(4.4));
+    let msg = Inform {
+        reason: Reason::Obligatory,
+        about: None,
+        beliefs: vec![sent],
+    };
+    wm.receive(t(4.45), RobotId(0), &msg, &mut own, &mut told);
+    assert_eq!(
+        told,
+        vec![(flag, Value::Bool(true), Source::Teammate(RobotId(0)))]
+    );
+    // A report older than the reading (age 1.5 s: changed at 2.95 s of the
+    // receiver's clock) is not, whatever the sender's clock read.
+    let mut wm2 = WorldModel::new(RobotId(1), 1, Sharing::default(), Arc::from(vec![false]));
+    let (mut own, mut told) = (Vec::new(), Vec::new());
+    wm2.perceive(t(3.0), &[(flag, Value::Bool(false))], &mut own, &mut told);
+    own.clear();
+    let stale = Inform {
+        beliefs: vec![Report::new(flag, Value::Bool(true), t(9.0), t(10.5), 1.0)],
+        ..msg
+    };
+    wm2.receive(t(4.45), RobotId(0), &stale, &mut own, &mut told);
+    assert!(own.is_empty() && told.is_empty(), "{own:?} {told:?}");
+}
+
+#[test]
+fn a_report_dated_like_the_robots_own_reading_wins_the_tie() {
+    // The receiver's clock is held at 0 until the mission starts on it (it
+    // runs behind): its own reading and a teammate's report of a change
+    // made meanwhile are both dated 0. The teammate tells of a change the
+    // robot did not see, so it wins; a report of the same value does not
+    // displace the robot's own reading.
+    let mut wm = WorldModel::new(RobotId(0), 1, Sharing::default(), Arc::from(vec![false]));
+    let found = BeliefId(0);
+    let (mut own, mut told) = (Vec::new(), Vec::new());
+    wm.perceive(
+        Time::ZERO,
+        &[(found, Value::Bool(false))],
+        &mut own,
+        &mut told,
+    );
+    let report = |v| Inform {
+        reason: Reason::Obligatory,
+        about: None,
+        beliefs: vec![Report {
+            belief: found,
+            value: v,
+            age_us: 20_000,
+            confidence: 1.0,
+        }],
+    };
+    own.clear();
+    wm.receive(
+        Time::ZERO,
+        RobotId(1),
+        &report(Value::Bool(false)),
+        &mut own,
+        &mut told,
+    );
+    assert!(own.is_empty() && told.is_empty(), "{own:?} {told:?}");
+    wm.receive(
+        Time::ZERO,
+        RobotId(1),
+        &report(Value::Bool(true)),
+        &mut own,
+        &mut told,
+    );
+    assert_eq!(
+        told,
+        vec![(found, Value::Bool(true), Source::Teammate(RobotId(1)))]
+    );
+    // Its own reading, unchanged, does not take it back.
+    told.clear();
+    wm.perceive(
+        Time::from_millis(100),
+        &[(found, Value::Bool(false))],
+        &mut own,
+        &mut told,
+    );
+    assert!(own.is_empty() && told.is_empty(), "{own:?} {told:?}");
 }
 
 #[test]
@@ -333,19 +433,37 @@ fn a_budget_that_starves_helpful_messages_still_sends_every_obligatory_one() {
     // about `triangle`/`regroup`) or one (helpful, about the others' roles).
     let mut r1 = robot(1, Policy::FocusedHelpful, Some(1.0), &[]);
     let mut sent: Vec<Outgoing> = Vec::new();
+    // When each message left.
+    let mut left: Vec<Time> = Vec::new();
     // Everything becomes true at once: obligatory `obstacle` and `clear`,
     // helpful `gap` and `right_done`.
-    sent.extend(r1.sense(
-        0.1,
-        &[
-            ("gap", Value::Bool(true)),
-            ("right_done", Value::Bool(true)),
-            ("obstacle", Value::Bool(true)),
-            ("clear", Value::Bool(true)),
-        ],
-    ));
-    for k in 2..=60 {
-        sent.extend(r1.sense(k as f64 * 0.1, &[]));
+    for k in 1..=60 {
+        let now = k as f64 * 0.1;
+        let percepts: &[(&str, Value)] = if k == 1 {
+            &[
+                ("gap", Value::Bool(true)),
+                ("right_done", Value::Bool(true)),
+                ("obstacle", Value::Bool(true)),
+                ("clear", Value::Bool(true)),
+            ]
+        } else {
+            &[]
+        };
+        let out = r1.sense(now, percepts);
+        left.extend(out.iter().map(|_| Time::from_secs_f64(now)));
+        sent.extend(out);
+    }
+    // A message that waited for budget reports its beliefs as old as they
+    // are when it leaves, not when it was queued: all changed at 0.1 s.
+    assert!(
+        left.iter().any(|t| *t > Time::from_secs_f64(0.1)),
+        "{left:?}"
+    );
+    for (o, at) in sent.iter().zip(&left) {
+        for r in &o.msg.beliefs {
+            let age = at.as_micros() - Time::from_secs_f64(0.1).as_micros();
+            assert_eq!(r.age_us, age, "{o:?} left at {at}");
+        }
     }
     let obligatory: Vec<&Outgoing> = sent
         .iter()

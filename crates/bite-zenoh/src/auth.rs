@@ -606,9 +606,9 @@ mod tests {
             tag ^= u64::from(*b);
             tag = tag.wrapping_mul(0x0000_0100_0000_01b3);
         }
-        // A heartbeat payload: payload version 3, finished = false (postcard
+        // A heartbeat payload: payload version 4, finished = false (postcard
         // bool: one byte), no position (postcard Option: 0 = None).
-        let payload = [3u8, 0, 0];
+        let payload = [4u8, 0, 0];
         let hb = crate::wire::Heartbeat {
             finished: false,
             position: None,

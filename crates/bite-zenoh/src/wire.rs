@@ -13,8 +13,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
-/// Version of the payloads inside frames.
-pub const PAYLOAD_VERSION: u8 = 3;
+/// Version of the payloads inside frames. 4: world-model reports carry
+/// the age of each value (`age_us`), no longer the sender's clock time.
+pub const PAYLOAD_VERSION: u8 = 4;
 
 /// Who a kernel message is for.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -340,7 +341,6 @@ mod tests {
     #[test]
     fn world_model_reports_of_every_value_type_round_trip() {
         use bite_core::ids::BeliefId;
-        use bite_core::time::Time;
         use bite_core::value::Value;
         use bite_core::wm::{Reason, Report};
         let values = [
@@ -358,7 +358,7 @@ mod tests {
                 .map(|(i, v)| Report {
                     belief: BeliefId(i as u32),
                     value: v.clone(),
-                    time: Time::from_millis(i as u64),
+                    age_us: i as u64 * 1000,
                     confidence: 0.75,
                 })
                 .collect(),

@@ -98,7 +98,7 @@ def main():
     before = rejected()
 
     tag = fnv1a64(b"id\0" + mission_id.encode())
-    heartbeat = bytes([3, 0, 0])  # payload version 3, finished = false, no position
+    heartbeat = bytes([4, 0, 0])  # payload version 4, finished = false, no position
     now_us = time.time_ns() // 1000
     good = frame(key, team, tag, 3, 1, now_us, heartbeat)
     forged = frame(b"\x11" * 32, team, tag, 3, 1, now_us + 1, heartbeat)
