@@ -308,6 +308,18 @@ pub enum Closed {
     Left,
 }
 
+impl Closed {
+    /// The decision applied (`None`: this robot left before it decided).
+    pub fn outcome(&self) -> Option<Outcome> {
+        match self {
+            Closed::Synced(c) => Some(Outcome::Sync(*c)),
+            Closed::Allocated(a) => Some(Outcome::Allocate(a.clone())),
+            Closed::Terminated(n) => Some(Outcome::Terminate(*n)),
+            Closed::Left => None,
+        }
+    }
+}
+
 /// One running protocol instance (see the module documentation).
 pub trait Interaction: Send {
     /// The instance begins. For synchronization and allocation this is when
@@ -343,6 +355,12 @@ pub trait Interaction: Send {
     /// that already heard it does nothing. Called on every such heartbeat
     /// while the instance runs, armed or waiting.
     fn on_member_waiting(&mut self, _cx: &mut Cx<'_>, _from: RobotId) {}
+    /// The kernel applied the team's decision, `outcome`, to this instance
+    /// (a teammate presumed lost told this robot how the team decided
+    /// without it: `Body::Missed`). The instance is decided now, as
+    /// applied: a protocol that answers teammates or tells a new leader
+    /// what it decided answers with this one, and never decides another.
+    fn on_team_decision(&mut self, _cx: &mut Cx<'_>, _outcome: &Outcome) {}
     /// This robot leaves the instance before it decided (an ancestor
     /// behavior ended). Tell the teammates what they need to go on without
     /// it (a barrier member reports itself done, a coordinator releases who

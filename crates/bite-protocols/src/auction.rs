@@ -446,6 +446,10 @@ impl Interaction for Market {
         }
     }
 
+    fn on_team_decision(&mut self, _cx: &mut Cx<'_>, outcome: &Outcome) {
+        self.coord.team_decided(outcome);
+    }
+
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
         if cx.is_leader() && self.leading && self.coord.result.is_none() {
             // Leaving: the others go on with the awards made and the rest

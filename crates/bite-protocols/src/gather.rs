@@ -263,6 +263,16 @@ impl Coord {
         true
     }
 
+    /// The kernel applied the team's decision to this instance (a notice
+    /// from a teammate presumed lost): it is this instance's decision now,
+    /// which it answers with and tells a new leader, and it decides no
+    /// other (see [`Interaction::on_team_decision`]).
+    pub(crate) fn team_decided(&mut self, outcome: &Outcome) {
+        if self.result.is_none() {
+            self.result = Some(outcome.clone());
+        }
+    }
+
     /// A leader answers a member with the decision, if there is one.
     pub(crate) fn answer(&self, cx: &mut Cx<'_>, to: RobotId) -> bool {
         match &self.result {
@@ -491,6 +501,10 @@ impl<R: Rule> Interaction for Gather<R> {
             self.coord.reset_backoff();
             self.contribute(cx);
         }
+    }
+
+    fn on_team_decision(&mut self, _cx: &mut Cx<'_>, outcome: &Outcome) {
+        self.coord.team_decided(outcome);
     }
 
     fn on_abort(&mut self, cx: &mut Cx<'_>) {

@@ -341,6 +341,10 @@ impl Interaction for Tokens {
         }
     }
 
+    fn on_team_decision(&mut self, _cx: &mut Cx<'_>, outcome: &Outcome) {
+        self.coord.team_decided(outcome);
+    }
+
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
         if cx.is_leader() && self.leading && self.coord.result.is_none() {
             self.finish(cx);

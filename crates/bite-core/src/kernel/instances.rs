@@ -561,12 +561,25 @@ impl Kernel {
         let Some(mut inst) = self.instances.take(&key) else {
             return;
         };
+        let open = matches!(inst.state, State::Armed | State::Active);
         let fx = Effects {
             outcome: Some(outcome),
             ..Effects::default()
         };
         self.apply_effects(key, &mut inst, fx);
-        self.instances.insert(key, inst);
+        // The protocol learns what was applied (as checked), so that it
+        // answers with it and never announces a decision of its own.
+        match inst
+            .closed
+            .as_ref()
+            .filter(|_| open)
+            .and_then(Closed::outcome)
+        {
+            Some(o) => self.call_with(key, inst, |imp, cx| imp.on_team_decision(cx, &o)),
+            None => {
+                self.instances.insert(key, inst);
+            }
+        }
         self.refresh_due();
     }
 

@@ -571,6 +571,10 @@ impl Interaction for GraphRun {
         self.advance(cx);
     }
 
+    fn on_team_decision(&mut self, _cx: &mut Cx<'_>, outcome: &Outcome) {
+        self.coord.team_decided(outcome);
+    }
+
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
         self.with_sub(cx, |i, c| i.on_abort(c));
         if self.coord.result.is_some() {

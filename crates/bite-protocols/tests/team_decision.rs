@@ -1,0 +1,119 @@
+//! A robot whose kernel applied the team's decision from a teammate's
+//! notice (`Missed`: the team decided without this robot while it presumed
+//! the sender lost) holds that decision in its protocol instance too: when
+//! it then leads the instance, it answers teammates with the decision it
+//! applied and never decides, or announces, another.
+
+use bite_core::event::Event;
+use bite_core::graph::load_str;
+use bite_core::interaction::Recipients;
+use bite_core::kernel::Output;
+use bite_core::msg::{Body, Envelope, InstanceKey};
+use bite_core::time::Time;
+use bite_core::{BehaviorId, Kernel, Mission, RobotId, Value};
+use std::sync::Arc;
+
+/// Three robots run `a` until `go`, then vote between `b` and `c`.
+const GRAPH: &str = "graph: notice\nteam: { robots: 3 }\nstart: a\n\
+    defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
+    behaviors:\n  a: { team: true, skill: w, until: go, next: [b, c] }\n\
+    \x20 b: { team: true, skill: w }\n  c: { team: true, skill: w }\n";
+
+/// What the kernel sent (to whom, what) and the sync points it started and
+/// decided since the last call.
+#[derive(Default)]
+struct Drained {
+    sent: Vec<(Recipients, Body)>,
+    started: Option<InstanceKey>,
+    decided: Vec<String>,
+}
+
+fn drain(k: &mut Kernel) -> Drained {
+    let mut d = Drained::default();
+    while let Some(o) = k.poll_output() {
+        match o {
+            Output::Send(s) => d.sent.push((s.to, s.envelope.body)),
+            Output::Event(Event::InteractionStarted { instance, .. }) => d.started = Some(instance),
+            Output::Event(e @ Event::InteractionDecided { .. }) => d.decided.push(format!("{e:?}")),
+            Output::Event(_) => {}
+        }
+    }
+    d
+}
+
+fn from(r: u32, key: InstanceKey, seq: u64, body: Body) -> Envelope {
+    Envelope {
+        instance: key,
+        sender: RobotId(r),
+        seq,
+        body,
+    }
+}
+
+#[test]
+fn a_robot_that_applied_the_teams_decision_leads_with_it() {
+    let g = load_str(&Arc::from("notice.yaml"), GRAPH).expect("the test graph loads");
+    let (b, c): (BehaviorId, BehaviorId) = (g.find("b").expect("b"), g.find("c").expect("c"));
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r1 = Kernel::new(mission, RobotId(1), 2);
+    let go = r1.mission().graph().symbols().get("go").expect("belief");
+    let t = Time::from_secs_f64;
+    r1.tick(t(0.0), &[(go, Value::Bool(false))]);
+    // r0 presumed lost a while, then heard again.
+    r1.member_lost(t(0.1), RobotId(0));
+    r1.member_back(t(0.2), RobotId(0));
+    drain(&mut r1);
+    // `a` ends: the vote starts, r0 leads it and calls; r1 votes.
+    r1.tick(t(0.3), &[(go, Value::Bool(true))]);
+    let key = drain(&mut r1).started.expect("the vote started");
+    let propose = Body::Propose {
+        candidates: vec![b, c],
+    };
+    r1.message(t(0.31), from(0, key, 1, propose));
+    let voted = drain(&mut r1);
+    assert!(
+        voted
+            .sent
+            .iter()
+            .any(|(to, m)| *to == Recipients::One(RobotId(0)) && matches!(m, Body::Vote { .. })),
+        "r1 votes: {:?}",
+        voted.sent
+    );
+    // r0's notice: the team (r0 and r2, while r0 presumed r1 lost) chose
+    // `c`. r1's kernel applies it.
+    let missed = Body::Missed {
+        choice: Some(c),
+        children: Vec::new(),
+        members: Vec::new(),
+    };
+    r1.message(t(0.32), from(0, key, 2, missed));
+    let applied = drain(&mut r1);
+    assert_eq!(applied.decided.len(), 1, "{:?}", applied.decided);
+    // r0 is presumed lost again: r1 leads the vote now. r2 votes `b`.
+    r1.member_lost(t(0.33), RobotId(0));
+    let led = drain(&mut r1);
+    r1.message(t(0.34), from(2, key, 1, Body::Vote { choice: Some(b) }));
+    let answered = drain(&mut r1);
+    let decisions: Vec<&(Recipients, Body)> = (led.sent.iter())
+        .chain(&answered.sent)
+        .filter(|(_, m)| matches!(m, Body::Decision { .. }))
+        .collect();
+    assert!(
+        decisions
+            .iter()
+            .all(|(_, m)| *m == Body::Decision { choice: Some(c) }),
+        "r1 announced a decision it did not apply: {decisions:?}"
+    );
+    assert!(
+        (answered.sent.iter()).any(|(to, m)| *to == Recipients::One(RobotId(2))
+            && *m == Body::Decision { choice: Some(c) }),
+        "r1 answers r2 with the decision it applied: {:?}",
+        answered.sent
+    );
+    assert!(
+        led.decided.is_empty() && answered.decided.is_empty(),
+        "decided once: {:?} {:?}",
+        led.decided,
+        answered.decided
+    );
+}
