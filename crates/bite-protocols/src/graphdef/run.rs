@@ -571,6 +571,29 @@ impl Interaction for GraphRun {
         self.advance(cx);
     }
 
+    fn on_member_waiting(&mut self, cx: &mut Cx<'_>, from: RobotId) {
+        // As the built-in barriers do: a member whose heartbeats have shown
+        // it waiting at the point counts as having sent its report of
+        // that, the protocol's message marked `departs` that carries
+        // nothing, when the report itself has not come (lost on the way).
+        if !cx.is_leader() || self.coord.idle(cx) {
+            return;
+        }
+        let Some(msg) = (self.p.def.messages.iter())
+            .position(|m| m.departs && matches!(m.carries, super::Carries::Nothing))
+        else {
+            return;
+        };
+        if self.heard[msg].contains_key(&from) {
+            return;
+        }
+        cx.member_done(from);
+        self.heard[msg].insert(from, Payload::Nothing);
+        self.heard_any.insert(from);
+        self.coord.progress(cx);
+        self.advance(cx);
+    }
+
     fn on_team_decision(&mut self, _cx: &mut Cx<'_>, outcome: &Outcome) {
         self.coord.team_decided(outcome);
     }
