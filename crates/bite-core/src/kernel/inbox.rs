@@ -259,29 +259,31 @@ impl Kernel {
             members,
         } = body
         {
-            // A synchronization or an allocation that a robot presumed
-            // lost (not one that left the behavior) decided without this
-            // robot, while this robot decides it with teammates of its
-            // own: the two sides of a partition decided apart. This side
-            // follows its own protocol: applied by one of its robots while
-            // another, not told yet, decided by the protocol, the notice
-            // parted them (docs/reliability.md, "Seeds 61 to 180"; for an
-            // allocation, "A lone robot's allocation"). So does a member
-            // whose coordinator is a robot of its own side, which may
-            // decide apart from the sender (it started the instance before
-            // it heard the sender back) while this member, starting it
-            // after, would follow the notice (docs/reliability.md, "A
-            // member that followed the other side"). A side whose members
-            // see it differently (one heard the sender back first and
-            // follows it) may then wait for a deadline, where applying the
-            // notice would have parted two robots that decided together.
-            // Positions heal the split with the other side
+            // A synchronization that a robot presumed lost (not one that
+            // left the behavior) decided without this robot, while this
+            // robot decides it with teammates of its own: the two sides of
+            // a partition decided apart. This side follows its own
+            // protocol: applied by one of its robots while another, not
+            // told yet, decided by the protocol, the notice parted them
+            // (docs/reliability.md, "Seeds 61 to 180"). So does a member
+            // (of a synchronization or an allocation) whose coordinator is
+            // a robot of its own side, which may decide apart from the
+            // sender (it started the instance before it heard the sender
+            // back) while this member, starting it after, would follow the
+            // notice (docs/reliability.md, "A member that followed the
+            // other side", "A lone robot's allocation"). A coordinator of
+            // an allocation applies the notice, and its protocol instance
+            // keeps that decision for the members that ask
+            // (`Interaction::on_team_decision`; "An instance decided from a
+            // notice"). Positions heal the split with the other side
             // (`Kernel::peer`: a synchronization's histories are compared,
             // an allocation is made anew in a next round).
             if matches!(key.kind, Kind::Sync | Kind::Allocate)
                 && self.ever_lost.contains(from)
                 && !Frame::any_left_by(&self.stack, from)
-                && ((self.instances.get(&key)).is_some_and(|i| i.decides_apart_from(from, self.me))
+                && ((key.kind == Kind::Sync
+                    && (self.instances.get(&key))
+                        .is_some_and(|i| i.decides_apart_from(from, self.me)))
                     || self
                         .coordinator_of(key)
                         .is_some_and(|c| c != self.me && c != from && !self.ever_lost.contains(c)))
