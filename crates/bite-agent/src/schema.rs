@@ -574,6 +574,12 @@ pub struct State {
     /// Move-to-goal: it pushes a lost teammate's body that blocks its only
     /// way (see [`command`]).
     shoving: bool,
+    /// Push: the nearest its object has come to the goal, and when it
+    /// last came nearer; and whether it needs the arena's map, to plan
+    /// the object's way round walls and obstacles (see [`push_way`]):
+    /// once the object has made no headway for [`TRAPPED_AFTER`].
+    object_headway: Option<(f64, f64)>,
+    pushing: bool,
 }
 
 /// What a search's moves keep of the way they go (see [`command`]): a
@@ -589,11 +595,14 @@ struct Moves {
 
 impl State {
     /// True when this schema needs the arena's map at skill time `now`:
-    /// trapped (its detour is planned on it), its search pinned, or
+    /// pushing an object that makes no headway (its way round obstacles
+    /// is planned on it), trapped (its detour is planned on it), its
+    /// search pinned, or
     /// searching for its object for [`EXPLORE_AFTER`] s (it explores the
     /// open floor on it).
     pub fn needs_map(&self, now: f64) -> bool {
-        self.trapped.is_some()
+        self.pushing
+            || self.trapped.is_some()
             || self.search_moves.trapped.is_some()
             || self.lost.is_some_and(|since| now - since >= EXPLORE_AFTER)
     }
@@ -1267,6 +1276,20 @@ pub fn evaluate(
             let along = rel.dot(dir); // < 0: behind the object
             let lateral = rel.dot(dir.perp());
             if along < -offset * 0.6 && lateral.abs() < offset * 0.35 {
+                // An object pushed that has made no headway toward the
+                // goal for a while may be stuck on a wall or an obstacle
+                // in its straight way: its way round is planned on the map
+                // (without a map, a robot pushes straight; made for every
+                // push, the map's ways made other runs slower:
+                // docs/reliability.md, "A box pushed against a chair with
+                // no one lost").
+                let (d, now) = (goal.distance(o), view.skill_time);
+                match state.object_headway {
+                    Some((best, at)) if d >= best - HEADWAY && now >= at => {
+                        state.pushing |= now - at >= TRAPPED_AFTER;
+                    }
+                    _ => state.object_headway = Some((d, now)),
+                }
                 // In position: drive through the object toward the goal,
                 // steering back onto the line through it.
                 let v = dir * *speed - dir.perp() * lateral * 2.0;
@@ -1274,6 +1297,7 @@ pub fn evaluate(
             }
             // Get behind it, going round it rather than into it (or, when
             // trapped on the way, by a planned detour clear of it).
+            state.object_headway = None;
             state.bound_for = Some(behind);
             let mut v = (behind - pose.pos).normalize_or_zero() * *speed;
             if state.trapped.is_some() {
@@ -2584,6 +2608,55 @@ mod tests {
                 assert!(dir.distance(straight) < 1e-9, "{dir} {straight}");
             }
         }
+    }
+
+    /// A robot without the arena's map (no teammate lost, never trapped)
+    /// pushes straight; once the object it pushes, in position behind it,
+    /// has made no headway toward the goal for [`TRAPPED_AFTER`] (held
+    /// against a chair, say), it needs the map to plan the object's way
+    /// round. Getting behind the object does not count, nor does an object
+    /// that moves on.
+    #[test]
+    fn a_pusher_whose_object_makes_no_headway_asks_for_the_map() {
+        let goal = DVec2::new(3.0, 0.0);
+        let push = Schema::Push {
+            object: "box".into(),
+            goal,
+            offset: 0.4,
+            speed: 0.2,
+        };
+        let mut view = View {
+            radius: 0.12,
+            max_speed: 0.3,
+            ..View::default()
+        };
+        view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
+        view.in_view.insert("box".into());
+        let run = |view: &mut View, robot: DVec2, moves: bool| {
+            let mut st = State::default();
+            for k in 0..=60 {
+                view.skill_time = f64::from(k) * 0.1;
+                let x = if moves {
+                    1.0 + view.skill_time * 0.1
+                } else {
+                    1.0
+                };
+                view.objects.insert("box".into(), DVec2::new(x, 0.0));
+                view.pose.pos = robot + DVec2::new(x - 1.0, 0.0);
+                evaluate(&push, view, &mut st, &mut || 0.5).expect("active");
+                if st.needs_map(view.skill_time) {
+                    return Some(view.skill_time);
+                }
+            }
+            None
+        };
+        // In position behind the box, the box stuck: after 5 s.
+        let at = run(&mut view, DVec2::new(0.6, 0.0), false).expect("asks for the map");
+        assert!((TRAPPED_AFTER..TRAPPED_AFTER + 0.2).contains(&at), "{at}");
+        // The box moving on: never.
+        assert_eq!(run(&mut view, DVec2::new(0.6, 0.0), true), None);
+        // Not in position (beside the box, getting behind it): never.
+        assert_eq!(run(&mut view, DVec2::new(1.0, 0.5), false), None);
     }
 
     /// A body far from where the object was last seen, but on its way from
