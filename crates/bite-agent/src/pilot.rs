@@ -670,11 +670,10 @@ impl Pilot {
         // A trapped robot plans its detour on the arena's map, a long
         // search explores it, and a pusher whose object makes no headway
         // plans the object's way round obstacles on it (made the first
-        // time one is needed: its next
-        // command follows the detour, heads for a lookout, or steers the
-        // object). A robot
-        // restarted after its teammates were lost knows of none lost, and
-        // had no map for its search.
+        // time one is needed: its next command follows the detour, heads
+        // for a lookout, or steers the object). A robot restarted after
+        // its teammates were lost knows of none lost, and had no map for
+        // its search.
         if self.map.is_none() && (self.states.iter()).any(|s| s.needs_map(self.view.skill_time)) {
             self.map = Some(Arc::new(crate::plan::Map::new(&self.spec)));
         }

@@ -574,11 +574,12 @@ pub struct State {
     /// Move-to-goal: it pushes a lost teammate's body that blocks its only
     /// way (see [`command`]).
     shoving: bool,
-    /// Push: the nearest its object has come to the goal, and when it
-    /// last came nearer; and whether it needs the arena's map, to plan
-    /// the object's way round walls and obstacles (see [`push_way`]):
-    /// once the object has made no headway for [`TRAPPED_AFTER`].
+    /// Push, in position behind its object: the nearest the object has
+    /// come to the goal, and when it last came nearer.
     object_headway: Option<(f64, f64)>,
+    /// Push: it needs the arena's map, to plan its object's way round
+    /// walls and obstacles (see [`push_way`]), since the object made no
+    /// headway for [`TRAPPED_AFTER`].
     pushing: bool,
 }
 
