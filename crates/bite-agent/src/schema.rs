@@ -2122,12 +2122,7 @@ mod tests {
         };
         view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
         view.in_view.insert("box".into());
-        let s = Schema::Push {
-            object: "box".into(),
-            goal: DVec2::new(3.0, 0.0),
-            offset: 0.4,
-            speed: 0.2,
-        };
+        let s = push_box(DVec2::new(3.0, 0.0));
         let mut rng = || 0.5;
         // Behind it, on the line: straight at the goal.
         view.pose.pos = DVec2::new(0.5, 0.0);
@@ -2429,11 +2424,26 @@ mod tests {
     /// A push of the object `box` to (-3, 0), standing 0.4 m behind it, at
     /// 0.2 m/s: the skill the pushing tests run.
     fn push_box_west() -> Schema {
+        push_box(DVec2::new(-3.0, 0.0))
+    }
+
+    /// Push the box to `goal` from 0.4 m behind it, at 0.2 m/s.
+    fn push_box(goal: DVec2) -> Schema {
         Schema::Push {
             object: "box".into(),
-            goal: DVec2::new(-3.0, 0.0),
+            goal,
             offset: 0.4,
             speed: 0.2,
+        }
+    }
+
+    /// What a pusher of the tests knows of itself: a 0.12 m robot at up
+    /// to 0.3 m/s, in an arena it has no map of.
+    fn pusher_view() -> View {
+        View {
+            radius: 0.12,
+            max_speed: 0.3,
+            ..View::default()
         }
     }
 
@@ -2447,11 +2457,7 @@ mod tests {
     fn a_pusher_pushes_aside_an_object_a_lost_body_stands_behind() {
         let push = push_box_west();
         let o = DVec2::new(1.0, 0.0);
-        let mut view = View {
-            radius: 0.12,
-            max_speed: 0.3,
-            ..View::default()
-        };
+        let mut view = pusher_view();
         view.pose.pos = DVec2::new(1.0, 1.0);
         view.objects.insert("box".into(), o);
         view.in_view.insert("box".into());
@@ -2523,10 +2529,8 @@ mod tests {
         let skill = vec![weighted(push_box_west(), 2)];
         let body = DVec2::new(1.5, 0.0);
         let mut view = View {
-            radius: 0.12,
-            max_speed: 0.3,
             bodies: vec![body],
-            ..View::default()
+            ..pusher_view()
         };
         view.pose.pos = DVec2::new(0.6, 0.0);
         view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
@@ -2577,17 +2581,10 @@ mod tests {
     fn a_pusher_steers_its_object_round_a_chair() {
         let map = crate::plan::Map::new(&crate::plan::tests::hidden_hall());
         let (chair, goal) = (DVec2::new(0.8, 2.65), DVec2::new(0.8, 2.0));
-        let push = Schema::Push {
-            object: "box".into(),
-            goal,
-            offset: 0.4,
-            speed: 0.2,
-        };
+        let push = push_box(goal);
         let mut view = View {
-            radius: 0.12,
-            max_speed: 0.3,
             map: Some(std::sync::Arc::new(map)),
-            ..View::default()
+            ..pusher_view()
         };
         view.pose.pos = DVec2::new(2.0, 3.2);
         for (o, planned) in [(DVec2::new(1.17, 2.6), true), (DVec2::new(3.0, 2.0), false)] {
@@ -2620,17 +2617,8 @@ mod tests {
     #[test]
     fn a_pusher_whose_object_makes_no_headway_asks_for_the_map() {
         let goal = DVec2::new(3.0, 0.0);
-        let push = Schema::Push {
-            object: "box".into(),
-            goal,
-            offset: 0.4,
-            speed: 0.2,
-        };
-        let mut view = View {
-            radius: 0.12,
-            max_speed: 0.3,
-            ..View::default()
-        };
+        let push = push_box(goal);
+        let mut view = pusher_view();
         view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
         view.in_view.insert("box".into());
         let run = |view: &mut View, robot: DVec2, moves: bool| {
@@ -2673,10 +2661,8 @@ mod tests {
         ] {
             assert!(body.distance(DVec2::new(1.0, 0.0)) > BODY_NEAR_OBJECT);
             let mut view = View {
-                radius: 0.12,
-                max_speed: 0.3,
                 bodies: vec![body],
-                ..View::default()
+                ..pusher_view()
             };
             view.pose.pos = DVec2::new(0.6, 0.0);
             view.objects.insert("box".into(), DVec2::new(1.0, 0.0));
