@@ -532,6 +532,22 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         "r0/r1",
         seal_with(&t.key, &scope, FrameKind::Heartbeat, 1, unix_micros(), &hb),
     );
+    // 7. Genuine (r0's identity, the team's key) but of another payload
+    //    version, as from a robot of an older build: authenticated, then
+    //    dropped as unreadable, and said once.
+    for _ in 0..2 {
+        put(
+            "r0",
+            seal_with(
+                &t.key,
+                &scope,
+                FrameKind::Heartbeat,
+                0,
+                unix_micros(),
+                &[3, 0],
+            ),
+        );
+    }
     t.all_complete(Duration::from_secs(240));
     // r1 and r2 each received every injected frame once, and r1 the frame
     // addressed to it.
@@ -552,6 +568,15 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
             .filter(|e| e["event"] == "frame_rejected")
             .count();
         assert_eq!(logged, 5 + addressed as usize, "{r}");
+        assert_eq!(fin["payload_rejects"]["payload-version"], 2, "{r}: {fin}");
+        let told: Vec<_> = log
+            .iter()
+            .filter(|e| e["event"] == "peer_version")
+            .collect();
+        assert_eq!(told.len(), 1, "{r}: said once per teammate");
+        assert_eq!(told[0]["teammate"], "r0", "{r}");
+        assert_eq!(told[0]["theirs"], 3, "{r}");
+        assert_eq!(told[0]["ours"], bite_zenoh::wire::PAYLOAD_VERSION, "{r}");
         assert!(fin["auth"]["accepted"].as_u64().unwrap() > 10, "{fin}");
     }
     check_agreement(&t.out, &["r0", "r1", "r2"]);

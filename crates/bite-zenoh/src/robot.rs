@@ -30,6 +30,7 @@ use bite_core::graph::BehaviorGraph;
 use bite_core::ids::RobotId;
 use bite_core::interaction::Recipients;
 use bite_core::mission::Mission;
+use bite_core::msg::WireError;
 use bite_core::time::Time;
 use serde_json::json;
 use std::collections::{BTreeMap, BTreeSet};
@@ -311,6 +312,8 @@ struct Running {
     mission_id: Option<String>,
     finished_at: Option<u64>,
     payload_rejects: BTreeMap<&'static str, u64>,
+    /// Teammates heard speaking another payload version (warned once each).
+    other_versions: BTreeMap<u32, u8>,
     /// Kernel messages that arrived before the first control tick.
     early: Vec<bite_core::msg::Envelope>,
     /// Presume silent teammates lost (the scenario's failure detector).
@@ -853,6 +856,7 @@ impl Node {
             mission_id: id,
             finished_at: None,
             payload_rejects: BTreeMap::new(),
+            other_versions: BTreeMap::new(),
             early: Vec::new(),
             names,
             scenario: p.scenario,
@@ -1190,7 +1194,7 @@ impl Node {
                         self.flush_agent();
                     }
                 }
-                Err(_) => *r.payload_rejects.entry("heartbeat-malformed").or_insert(0) += 1,
+                Err(e) => self.payload_rejected(sender, "heartbeat-malformed", &e),
             },
             FrameKind::Kernel => match wire::decode_kernel(&payload) {
                 Ok((to, env)) => {
@@ -1209,7 +1213,7 @@ impl Node {
                         }
                     }
                 }
-                Err(_) => *r.payload_rejects.entry("kernel-malformed").or_insert(0) += 1,
+                Err(e) => self.payload_rejected(sender, "kernel-malformed", &e),
             },
             FrameKind::Inform => match wire::decode_inform(&payload) {
                 Ok((to, msg)) => {
@@ -1217,9 +1221,40 @@ impl Node {
                         r.agent.inform(now, RobotId(sender), &msg);
                     }
                 }
-                Err(_) => *r.payload_rejects.entry("inform-malformed").or_insert(0) += 1,
+                Err(e) => self.payload_rejected(sender, "inform-malformed", &e),
             },
         }
+    }
+
+    /// A teammate's authenticated frame whose payload this robot cannot
+    /// read: counted under `malformed`, or, when the teammate speaks another
+    /// payload version (a team not upgraded together), under
+    /// `payload-version`, and said once per teammate in the log and on
+    /// standard error: its frames are all dropped until it is upgraded.
+    fn payload_rejected(&mut self, sender: u32, malformed: &'static str, e: &WireError) {
+        let Some(r) = self.run.as_mut() else { return };
+        let WireError::Version(theirs) = *e else {
+            *r.payload_rejects.entry(malformed).or_insert(0) += 1;
+            return;
+        };
+        *r.payload_rejects.entry("payload-version").or_insert(0) += 1;
+        if r.other_versions.insert(sender, theirs).is_some() {
+            return;
+        }
+        let teammate =
+            (r.names.get(sender as usize).cloned()).unwrap_or_else(|| format!("#{sender}"));
+        eprintln!(
+            "robot {}: teammate {teammate} speaks payload version {theirs}, this robot version {}: \
+             its frames are dropped; run the same version of bite on every robot of the team",
+            self.opts.name,
+            wire::PAYLOAD_VERSION
+        );
+        self.log_record(json!({
+            "event": "peer_version",
+            "teammate": teammate,
+            "theirs": theirs,
+            "ours": wire::PAYLOAD_VERSION,
+        }));
     }
 
     fn submission(&mut self, bytes: &[u8], loader: &Loader) {
