@@ -534,7 +534,17 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
     );
     // 7. Genuine (r0's identity, the team's key) but of another payload
     //    version, as from a robot of an older build: authenticated, then
-    //    dropped as unreadable, and said once.
+    //    dropped as unreadable, said once, and shown in the status.
+    let (stx, srx) = std::sync::mpsc::channel::<Value>();
+    let _status = session
+        .declare_subscriber(format!("bite/{}/status/r1", t.team))
+        .callback(move |s| {
+            if let Ok(v) = serde_json::from_slice(&s.payload().to_bytes()) {
+                let _ = stx.send(v);
+            }
+        })
+        .wait()
+        .unwrap();
     for _ in 0..2 {
         put(
             "r0",
@@ -579,6 +589,10 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         assert_eq!(told[0]["ours"], bite_zenoh::wire::PAYLOAD_VERSION, "{r}");
         assert!(fin["auth"]["accepted"].as_u64().unwrap() > 10, "{fin}");
     }
+    let shown = srx
+        .try_iter()
+        .any(|v| v["peer_versions"] == serde_json::json!({"r0": 3}));
+    assert!(shown, "r1's status never showed r0's payload version");
     check_agreement(&t.out, &["r0", "r1", "r2"]);
     let _ = &t.key_file;
 }

@@ -312,8 +312,9 @@ struct Running {
     mission_id: Option<String>,
     finished_at: Option<u64>,
     payload_rejects: BTreeMap<&'static str, u64>,
-    /// Teammates heard speaking another payload version (warned once each).
-    other_versions: BTreeMap<u32, u8>,
+    /// Teammates heard speaking another payload version, by name (each
+    /// said once).
+    other_versions: BTreeMap<String, u8>,
     /// Kernel messages that arrived before the first control tick.
     early: Vec<bite_core::msg::Envelope>,
     /// Presume silent teammates lost (the scenario's failure detector).
@@ -1238,11 +1239,12 @@ impl Node {
             return;
         };
         *r.payload_rejects.entry("payload-version").or_insert(0) += 1;
-        if r.other_versions.insert(sender, theirs).is_some() {
-            return;
-        }
+        // On the roster: the frame authenticated.
         let teammate =
             (r.names.get(sender as usize).cloned()).unwrap_or_else(|| format!("#{sender}"));
+        if r.other_versions.insert(teammate.clone(), theirs).is_some() {
+            return;
+        }
         eprintln!(
             "robot {}: teammate {teammate} speaks payload version {theirs}, this robot version {}: \
              its frames are dropped; run the same version of bite on every robot of the team",
@@ -1488,6 +1490,7 @@ impl Node {
             last_rejection: self.last_rejection.clone(),
             version: 0,
             pending_version: None,
+            peer_versions: BTreeMap::new(),
         };
         if let Some(r) = &self.run {
             let k = r.agent.kernel();
@@ -1517,6 +1520,7 @@ impl Node {
                 .map(|i| r.names[i as usize].clone())
                 .collect();
             s.auth = r.opener.stats().clone();
+            s.peer_versions = r.other_versions.clone();
         }
         s
     }

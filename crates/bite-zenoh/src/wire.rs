@@ -169,6 +169,11 @@ pub struct Status {
     /// A newer version held until the team's next safe point.
     #[serde(default)]
     pub pending_version: Option<u32>,
+    /// Teammates heard speaking another payload version than
+    /// [`PAYLOAD_VERSION`], and which: every frame of theirs is dropped
+    /// (the team was not upgraded together).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub peer_versions: BTreeMap<String, u8>,
 }
 
 /// A submission a robot did not run, and why.
