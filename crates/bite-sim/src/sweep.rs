@@ -239,6 +239,9 @@ pub struct RunResult {
     pub task_time: f64,
     /// Protocol instances that needed their deadline.
     pub timeouts: u64,
+    /// Protocol messages sent (a team multicast counts once): a run whose
+    /// robots answer each other in a loop stands out here.
+    pub messages: u64,
     /// Invariant violations.
     pub violations: usize,
     /// The first violation, the stall, or the panic message.
@@ -321,6 +324,7 @@ pub fn run_one(cases: &[Case], spec: &RunSpec) -> RunResult {
         outcome: None,
         task_time: 0.0,
         timeouts: 0,
+        messages: 0,
         violations: 0,
         detail: None,
         panicked: false,
@@ -333,6 +337,7 @@ pub fn run_one(cases: &[Case], spec: &RunSpec) -> RunResult {
             r.outcome = Some(s.outcome);
             r.task_time = s.task_time;
             r.timeouts = s.timeouts;
+            r.messages = s.messages.total();
             r.violations = report.violations.len();
             r.detail = report
                 .violations

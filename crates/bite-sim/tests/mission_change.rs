@@ -294,6 +294,40 @@ fn hot_change_under_loss_and_crashes_never_splits_or_stalls() {
     );
 }
 
+/// Found on unseen seeds (`bite sweep --graph examples/formation-change.yaml
+/// --seeds 321..400`, partition seed 325): r0 is cut from r1 and r2 at
+/// 12.9 s, ends `walk` #1 alone and goes on in the running version; the
+/// change comes at 20 s; the partition heals at 21.3 s. Two defects:
+///
+/// - r1, its side's leader while r0 was presumed lost, switched after
+///   `walk` #1 on r0's notice of how the walk ended, before r0's heartbeats
+///   said r0 had gone on in the running version there; r2, reaching the
+///   same boundary after r0 was back, followed r0. The team chose in two
+///   versions. A leader now holds for a member presumed lost but heard
+///   from since.
+/// - r0 and r2 had both left `walk` #1 and answered each other's `Done` for
+///   r2's re-allocation of it, a hundred messages a second until the end
+///   of the mission (6,348 in all). A `Done` or a notice now gets no answer.
+#[test]
+fn a_change_after_a_partition_waits_for_the_teammate_that_went_on_alone() {
+    let r = run_change(20.0, 325, &faults("partition=r0|r1,r2@12.904s+8.391s"));
+    assert!(
+        broken("seed 325", &r).is_empty(),
+        "{:?}",
+        broken("seed 325", &r)
+    );
+    assert_eq!(r.versions, [1, 1, 1], "{}", r.summary);
+    let after: std::collections::BTreeSet<&str> = r.switched.iter().map(|s| s.2.as_str()).collect();
+    assert_eq!(
+        after.len(),
+        1,
+        "all at the same safe point: {:?}",
+        r.switched
+    );
+    let sent = r.summary.messages.total();
+    assert!(sent < 300, "{sent} messages: robots answering each other");
+}
+
 /// Two versions in quick succession (the second while the first is still
 /// pending on some robots, or just applied on others): no split between
 /// versions, and the team ends on the newest.

@@ -194,6 +194,13 @@ impl Kernel {
                 .filter(|p| self.now - p.heard <= FRESH)
         };
         let all_fresh = members.iter().all(|r| fresh(r).is_some());
+        // A member presumed lost but heard from since (its heartbeats are
+        // on their way) may have passed `after` on its own side, in the
+        // running version: the leader does not decide without it, but
+        // holds for its heartbeat (docs/reliability.md, "A change decided
+        // beside a teammate that had gone on").
+        let stirring =
+            (self.stirring.iter()).any(|r| in_team(*r) && !Frame::any_left_by(above, *r));
         let all_hold = members
             .iter()
             .all(|r| fresh(r).is_some_and(|p| p.pending >= v || p.version >= v));
@@ -206,7 +213,7 @@ impl Kernel {
             None if passed_old => Some(None),
             // 2. The leader decides, on what it heard recently from every
             // member (back from a pause, it first hears them again).
-            None if leads && all_fresh => Some(leader_decides),
+            None if leads && all_fresh && !stirring => Some(leader_decides),
             // 3. Hold for the decision (a member), or for fresh news (the
             // leader), for a while.
             None => None,

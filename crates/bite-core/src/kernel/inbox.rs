@@ -118,6 +118,9 @@ impl Kernel {
         if !(self.seen).accept(from, env.seq, self.now, DEDUP_PER_SENDER) {
             return self.drop_msg(from, DropReason::Duplicate);
         }
+        if self.lost.contains(from) && !self.stirring.contains(&from) {
+            self.stirring.push(from);
+        }
         if key.kind == Kind::Allocate && key.round > 0 && !self.instances.contains_key(&key) {
             let frame = self
                 .stack
@@ -136,12 +139,18 @@ impl Kernel {
                     self.reallocate(i, key.round, &told);
                 }
                 Some(_) => {}
-                // This robot has left that behavior: it takes no part.
+                // This robot has left that behavior: it takes no part. A
+                // teammate's own `Done`, or its notice of how it decided,
+                // asks for nothing and gets no answer: two robots that had
+                // both left it answered each other's `Done` for ever
+                // (docs/reliability.md, "Two robots answering each other").
                 None if self.org.runs(key.team, key.behavior) >= key.epoch
                     && self.org.team(key.team).is_some_and(|t| t.contains(from)) =>
                 {
                     self.stats.received += 1;
-                    self.reply(key, from, Body::Done);
+                    if !matches!(env.body, Body::Done | Body::Missed { .. }) {
+                        self.reply(key, from, Body::Done);
+                    }
                     return;
                 }
                 None => {}

@@ -11,6 +11,7 @@ impl Kernel {
         if r == self.me || !self.lost.insert(r) {
             return;
         }
+        self.stirring.retain(|x| *x != r);
         self.ever_lost.insert(r);
         self.emit(Event::MemberLost { member: r });
         let affected: Vec<InstanceKey> = self
@@ -42,6 +43,7 @@ impl Kernel {
         self.set_now(now);
         if self.lost.contains(r) {
             self.lost.remove(r);
+            self.stirring.retain(|x| *x != r);
             self.emit(Event::MemberBack { member: r });
             // Tell it how what it missed was decided: it may be waiting in
             // one of those instances, or running below a behavior its team

@@ -402,6 +402,10 @@ pub struct Kernel {
     inbox: Inbox,
     /// Teammates presumed lost (reported by the runtime).
     lost: MemberSet,
+    /// Of those, the ones heard from since (a message, ahead of the
+    /// heartbeats that will bring them back): they may have gone on on
+    /// their own, so a mission change's safe point waits for them.
+    stirring: Vec<RobotId>,
     /// Instances decided without a teammate presumed lost, per teammate:
     /// when it comes back it is told how they ended (it may be waiting in
     /// one, or running below a behavior its team ended meanwhile).
@@ -484,6 +488,7 @@ impl Kernel {
             closed: Default::default(),
             inbox: Inbox::default(),
             lost: MemberSet::empty(n),
+            stirring: Vec::new(),
             missed: BTreeMap::new(),
             ever_lost: MemberSet::empty(n),
             tombstones: Default::default(),

@@ -821,6 +821,68 @@ behaviors:
     );
 }
 
+/// A robot that has left a behavior answers a teammate's re-allocation of
+/// it with `Done`, but answers neither a `Done` nor a notice: two robots
+/// that had both left it answered each other's `Done` for ever
+/// (docs/reliability.md, "Two robots answering each other").
+#[test]
+fn a_robot_done_with_a_behavior_answers_a_call_but_not_an_answer() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.test-first }
+behaviors:
+  root: { team: true, children: [split] }
+  split: { team: true, children: [x, y], until: over, next: [after] }
+  x: { team: true, members: 1, until: never }
+  y: { team: true, members: 1, until: never }
+  after: { team: true, until: never }",
+        2,
+    );
+    h.tick(0, &[]);
+    h.tick(100, &[("over", T)]);
+    h.tick(200, &[]);
+    assert_eq!(h.stack(0), ["root", "after"]);
+    let split = h.kernels[0].mission().graph().find("split").unwrap();
+    let k = &mut h.kernels[0];
+    while k.poll_output().is_some() {}
+    let round1 = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: split,
+        kind: Kind::Allocate,
+        epoch: 1,
+        round: 1,
+    };
+    let answers = |k: &mut Kernel, seq: u64, body: Body| {
+        let sender = RobotId(1);
+        k.message(
+            Time::from_millis(250),
+            Envelope {
+                instance: round1,
+                sender,
+                seq,
+                body,
+            },
+        );
+        std::iter::from_fn(|| k.poll_output())
+            .filter_map(|o| match o {
+                Output::Send(s) => Some(s.envelope.body),
+                Output::Event(_) => None,
+            })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        answers(k, 100, Body::Reallocate { lost: vec![] }),
+        [Body::Done]
+    );
+    assert_eq!(answers(k, 101, Body::Done), []);
+    let notice = Body::Missed {
+        choice: None,
+        children: vec![],
+        members: vec![],
+    };
+    assert_eq!(answers(k, 102, notice), []);
+}
+
 impl Harness {
     /// Every robot hears every other's heartbeat (its position).
     fn beacons(&mut self) {
