@@ -769,35 +769,46 @@ behaviors:
     );
 }
 
-#[test]
-fn messages_for_a_dissolved_subteam_are_stale() {
-    let mut h = Harness::new(
-        "start: root
+/// Two robots split between `x` and `y` under `split`, which ends (at
+/// 100 ms, "over") for `after`.
+const SPLIT_THEN_AFTER: &str = "start: root
 defaults: { terminate: term.test-first }
 behaviors:
   root: { team: true, children: [split] }
   split: { team: true, children: [x, y], until: over, next: [after] }
   x: { team: true, members: 1, until: never }
   y: { team: true, members: 1, until: never }
-  after: { team: true, until: never }",
-        2,
-    );
-    h.tick(0, &[]);
-    let k = &h.kernels[0];
-    let g = k.mission().graph().clone();
-    let (split, y) = (g.find("split").unwrap(), g.find("y").unwrap());
-    // Robot 0 runs x; robot 1 runs y in its own subteam.
-    let y_team = TeamId::derive(
-        TeamId::ROOT,
-        split,
-        (1, 0),
-        1,
-        crate::org::MemberSet::from_iter(2, [RobotId(1)]).fingerprint(),
-    );
-    assert!(h.kernels[0].org().team(y_team).is_some());
-    h.tick(100, &[("over", T)]);
-    h.tick(200, &[]);
-    assert_eq!(h.stack(0), ["root", "after"]);
+  after: { team: true, until: never }";
+
+impl Harness {
+    /// [`SPLIT_THEN_AFTER`] run until both robots run `after`.
+    fn split_then_after(during: impl FnOnce(&Harness)) -> Harness {
+        let mut h = Harness::new(SPLIT_THEN_AFTER, 2);
+        h.tick(0, &[]);
+        during(&h);
+        h.tick(100, &[("over", T)]);
+        h.tick(200, &[]);
+        assert_eq!(h.stack(0), ["root", "after"]);
+        h
+    }
+}
+
+#[test]
+fn messages_for_a_dissolved_subteam_are_stale() {
+    let mut y_team = TeamId::ROOT;
+    let mut h = Harness::split_then_after(|h| {
+        let g = h.kernels[0].mission().graph().clone();
+        // Robot 0 runs x; robot 1 runs y in its own subteam.
+        y_team = TeamId::derive(
+            TeamId::ROOT,
+            g.find("split").unwrap(),
+            (1, 0),
+            1,
+            crate::org::MemberSet::from_iter(2, [RobotId(1)]).fingerprint(),
+        );
+        assert!(h.kernels[0].org().team(y_team).is_some());
+    });
+    let y = h.kernels[0].mission().graph().find("y").unwrap();
     assert!(h.kernels[0].org().is_dead(y_team), "dissolved with `split`");
     // A late message in y's subteam (which robot 0 never joined) is stale.
     h.kernels[0].message(
@@ -827,21 +838,7 @@ behaviors:
 /// (docs/reliability.md, "Two robots answering each other").
 #[test]
 fn a_robot_done_with_a_behavior_answers_a_call_but_not_an_answer() {
-    let mut h = Harness::new(
-        "start: root
-defaults: { terminate: term.test-first }
-behaviors:
-  root: { team: true, children: [split] }
-  split: { team: true, children: [x, y], until: over, next: [after] }
-  x: { team: true, members: 1, until: never }
-  y: { team: true, members: 1, until: never }
-  after: { team: true, until: never }",
-        2,
-    );
-    h.tick(0, &[]);
-    h.tick(100, &[("over", T)]);
-    h.tick(200, &[]);
-    assert_eq!(h.stack(0), ["root", "after"]);
+    let mut h = Harness::split_then_after(|_| {});
     let split = h.kernels[0].mission().graph().find("split").unwrap();
     let k = &mut h.kernels[0];
     while k.poll_output().is_some() {}
