@@ -328,6 +328,23 @@ fn a_change_after_a_partition_waits_for_the_teammate_that_went_on_alone() {
     assert!(sent < 300, "{sent} messages: robots answering each other");
 }
 
+/// Found on unseen seeds (`bite sweep --graph examples/formation-change.yaml
+/// --classes pause --seeds 481..1280`, seed 1041), which never finished: a
+/// member holding at a safe point for its leader waits longer while the
+/// leader is heard, but its timer was due after the shorter wait, so from
+/// then on it was woken at the same instant, again and again, and the
+/// simulated clock stood still. The run completes now.
+#[test]
+fn a_member_holding_for_its_leader_is_woken_when_its_wait_is_over() {
+    let r = run_change(20.0, 1041, &faults("pause=r1@29.552s+7.128s"));
+    assert!(
+        broken("seed 1041", &r).is_empty(),
+        "{:?}",
+        broken("seed 1041", &r)
+    );
+    assert_eq!(r.versions, [1, 1, 1], "{}", r.summary);
+}
+
 /// Two versions in quick succession (the second while the first is still
 /// pending on some robots, or just applied on others): no split between
 /// versions, and the team ends on the newest.

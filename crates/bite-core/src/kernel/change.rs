@@ -222,12 +222,8 @@ impl Kernel {
             Some(s) => s,
             None => {
                 let since = match self.fence_wait {
-                    Some((f, t)) if f == after => t,
-                    _ => {
-                        self.fence_wait = Some((after, self.now));
-                        self.refresh_due();
-                        self.now
-                    }
+                    Some((f, t, _)) if f == after => t,
+                    _ => self.now,
                 };
                 // A member whose leader is heard, still short of the
                 // boundary, waits for it longer (bounded).
@@ -240,7 +236,18 @@ impl Kernel {
                 } else {
                     FENCE_WAIT
                 };
-                if self.now - since < wait {
+                // The timer is due when the wait is over: at the wait
+                // of the moment (it used to be due after the shorter wait
+                // whatever the member waited for, and a member whose
+                // leader was heard was woken at the same instant for ever:
+                // docs/reliability.md, "A member woken for ever at a safe
+                // point").
+                let until = since + wait;
+                if self.now < until {
+                    if self.fence_wait != Some((after, since, until)) {
+                        self.fence_wait = Some((after, since, until));
+                        self.refresh_due();
+                    }
                     return false;
                 }
                 if leads {

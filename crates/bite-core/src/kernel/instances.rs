@@ -537,7 +537,7 @@ impl Kernel {
 
     pub(super) fn refresh_due(&mut self) {
         // A plain loop: this runs after every call into an instance.
-        let mut due = self.fence_wait.map(|(_, t)| t + change::FENCE_WAIT);
+        let mut due = self.fence_wait.map(|(_, _, until)| until);
         let mut earlier = |t: Time| due = Some(due.map_or(t, |d| d.min(t)));
         for i in self.instances.values() {
             if let Some(w) = i.wake {

@@ -458,8 +458,9 @@ pub struct Kernel {
     /// What teammates did at recent safe points of its teams, passed on
     /// with its heartbeats (members hear only their leader).
     relayed: VecDeque<Fence>,
-    /// Holding at a safe point for the leader's decision: where, since when.
-    fence_wait: Option<(FrameId, Time)>,
+    /// Holding at a safe point for the leader's decision: where, since
+    /// when, and until when (the kernel's timer is due then).
+    fence_wait: Option<(FrameId, Time, Time)>,
     /// What teammates' heartbeats said about versions.
     peer_versions: BTreeMap<RobotId, change::PeerVersion>,
 }
