@@ -150,6 +150,14 @@ fn broken(what: &str, r: &Run) -> Vec<String> {
     out
 }
 
+/// Run `what` broke nothing and ended with its three robots on the second
+/// version.
+fn assert_whole_on_version_2(what: &str, r: &Run) {
+    let broke = broken(what, r);
+    assert!(broke.is_empty(), "{broke:?}");
+    assert_eq!(r.versions, [1, 1, 1], "{what}: {}", r.summary);
+}
+
 fn faults(spec: &str) -> Vec<Fault> {
     Fault::parse_all(spec).unwrap_or_else(|e| panic!("{spec}: {e}"))
 }
@@ -311,12 +319,7 @@ fn hot_change_under_loss_and_crashes_never_splits_or_stalls() {
 #[test]
 fn a_change_after_a_partition_waits_for_the_teammate_that_went_on_alone() {
     let r = run_change(20.0, 325, &faults("partition=r0|r1,r2@12.904s+8.391s"));
-    assert!(
-        broken("seed 325", &r).is_empty(),
-        "{:?}",
-        broken("seed 325", &r)
-    );
-    assert_eq!(r.versions, [1, 1, 1], "{}", r.summary);
+    assert_whole_on_version_2("seed 325", &r);
     let after: std::collections::BTreeSet<&str> = r.switched.iter().map(|s| s.2.as_str()).collect();
     assert_eq!(
         after.len(),
@@ -337,12 +340,7 @@ fn a_change_after_a_partition_waits_for_the_teammate_that_went_on_alone() {
 #[test]
 fn a_member_holding_for_its_leader_is_woken_when_its_wait_is_over() {
     let r = run_change(20.0, 1041, &faults("pause=r1@29.552s+7.128s"));
-    assert!(
-        broken("seed 1041", &r).is_empty(),
-        "{:?}",
-        broken("seed 1041", &r)
-    );
-    assert_eq!(r.versions, [1, 1, 1], "{}", r.summary);
+    assert_whole_on_version_2("seed 1041", &r);
 }
 
 /// Two versions in quick succession (the second while the first is still
