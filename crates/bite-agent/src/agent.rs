@@ -211,6 +211,13 @@ pub enum Ahead {
 
 /// How long a drained output queue keeps its room while the mission runs
 /// (see [`Agent::poll`]).
+/// Timer calls in a row that leave the kernel's timer due at the time it
+/// was called at, after which a runtime takes the kernel for spinning (see
+/// [`Agent::timer_spinning`]). A sound kernel fires everything due when
+/// called and leaves its timer in the future, so one such call is already
+/// odd; a thousand is a defect, not a burst.
+pub const TIMER_SPIN_LIMIT: u32 = 1000;
+
 const ROOM_KEPT: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// What an agent asks its runtime to do.
@@ -254,6 +261,9 @@ pub struct Agent {
     /// dated earlier is taken at this time, and counted).
     last: Time,
     backwards: u64,
+    /// Timer calls in a row after which the kernel's timer was still due
+    /// (see [`Agent::timer_spinning`]).
+    spins: u32,
     /// When the drained output queue next gives back its room.
     room_until: Time,
     out: VecDeque<AgentOutput>,
@@ -324,6 +334,7 @@ impl Agent {
             body_t: Time::ZERO,
             last: Time::ZERO,
             backwards: 0,
+            spins: 0,
             room_until: Time::ZERO,
             out: VecDeque::new(),
             recorder: None,
@@ -366,6 +377,15 @@ impl Agent {
     /// Inputs dated before an earlier one (taken at the later time).
     pub fn time_went_back(&self) -> u64 {
         self.backwards
+    }
+
+    /// Has the kernel's timer been due again after each of the last
+    /// [`TIMER_SPIN_LIMIT`] timer calls, at the time of the call? A runtime
+    /// that woke it for each would never let its clock move (the
+    /// simulator) or spin a core (a robot process): the simulator ends the
+    /// run as stalled, a robot process says so and wakes it less often.
+    pub fn timer_spinning(&self) -> bool {
+        self.spins >= TIMER_SPIN_LIMIT
     }
 
     /// The kernel (read only).
@@ -432,6 +452,10 @@ impl Agent {
                 if self.kernel.poll_timeout().is_some_and(|t| t <= now) {
                     self.kernel.timer(now);
                     self.drain(now);
+                    self.spins = match self.kernel.poll_timeout() {
+                        Some(t) if t <= now => self.spins.saturating_add(1),
+                        _ => 0,
+                    };
                 }
             }
             Input::Peer { from, pos } => {

@@ -40,5 +40,5 @@ pub mod spec;
 pub mod swarm;
 pub mod timed;
 
-pub use agent::{Agent, AgentOutput, Input, Shared};
+pub use agent::{Agent, AgentOutput, Input, Shared, TIMER_SPIN_LIMIT};
 pub use scenario::{MissionParts, Scenario};

@@ -693,9 +693,16 @@ impl Sim<'_, '_> {
             Done::Later => unreachable!("an event handled later is handled by `agent_event`"),
             Done::Nothing => {}
             Done::Beacon(b) => self.send_beacon(r, b),
-            Done::Handled(mut outs, timeout) => {
+            Done::Handled(mut outs, mut timeout) => {
                 if matches!(what, What::Timer(_)) {
                     self.timers[r.index()] = None;
+                    // A kernel whose timer stays due would be woken at
+                    // this instant for ever, and the clock would never
+                    // move: the run ends as stalled at the next tick.
+                    if self.agents[r.index()].timer_spinning() {
+                        self.stall.spinning(self.now, r);
+                        timeout = None;
+                    }
                 }
                 self.carry_out(r, &mut outs, timeout);
             }

@@ -2,8 +2,9 @@
 //! ends as **STALLED** with what was repeating, instead of running to its
 //! time limit.
 //!
-//! Fed the same event stream as the invariant checker. Two signs of a
-//! stall, both configurable in the scenario (`stall:`):
+//! Fed the same event stream as the invariant checker (and, for a spinning
+//! timer, by the simulator). Signs of a stall, their limits configurable
+//! in the scenario (`stall:`) but for the spinning timer's:
 //!
 //! - **no progress**: no robot selected, ended or decided anything for
 //!   `after` (default 120 s) while the mission is not over — every live
@@ -17,6 +18,9 @@
 //!   times (default 100) within one execution of its parent — a livelock
 //!   such as `search → linewalk → search …` that never reaches the
 //!   parent's end;
+//! - **a spinning timer**: a robot's kernel left its timer due at the
+//!   instant it was woken, [`bite_agent::TIMER_SPIN_LIMIT`] times in a row
+//!   (a defect: the simulated clock would never move on again);
 //! - **standstill** (physical world): no robot moved for `after` — the
 //!   kernels may go round (legs that end by time) while the team is stuck.
 
@@ -180,6 +184,23 @@ impl StallWatch {
         }
     }
 
+    /// `robot`'s kernel left its timer due after each of its last
+    /// [`bite_agent::TIMER_SPIN_LIMIT`] timer calls at `now`: the simulated
+    /// clock would stand still. Its timer is no longer armed, and the run
+    /// ends as stalled.
+    pub fn spinning(&mut self, now: Time, robot: RobotId) {
+        if self.stalled.is_none() {
+            self.stalled = Some((
+                now,
+                format!(
+                    "{robot}'s kernel timer was due again after each of {} timer calls at {now}: \
+                     the clock could not move on",
+                    bite_agent::TIMER_SPIN_LIMIT
+                ),
+            ));
+        }
+    }
+
     /// When and why the run stalled, if it did.
     pub fn stalled(&self) -> Option<&(Time, String)> {
         self.stalled.as_ref()
@@ -231,5 +252,22 @@ mod tests {
         assert!(w.stalled().is_some_and(|(_, why)| {
             why.starts_with("no robot selected, ended or decided anything for")
         }));
+    }
+
+    /// A spinning timer stalls the run even with no limit configured, and
+    /// the first reason found is the one kept.
+    #[test]
+    fn a_spinning_timer_stalls_the_run_and_the_first_reason_stays() {
+        let mut w = StallWatch::new(StallLimits {
+            after: None,
+            repeats: 0,
+        });
+        w.idle_check(at(1000));
+        assert!(w.stalled().is_none());
+        w.spinning(at(31), RobotId(1));
+        w.spinning(at(32), RobotId(2));
+        let (when, why) = w.stalled().expect("stalled");
+        assert_eq!(*when, at(31));
+        assert!(why.starts_with("r1's kernel timer was due again"), "{why}");
     }
 }

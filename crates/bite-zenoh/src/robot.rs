@@ -315,6 +315,8 @@ struct Running {
     /// Teammates heard speaking another payload version, by name (each
     /// said once).
     other_versions: BTreeMap<String, u8>,
+    /// Said that the kernel's timer spins (see `Robot::timer_spinning`).
+    spin_said: bool,
     /// Kernel messages that arrived before the first control tick.
     early: Vec<bite_core::msg::Envelope>,
     /// Presume silent teammates lost (the scenario's failure detector).
@@ -858,6 +860,7 @@ impl Node {
             finished_at: None,
             payload_rejects: BTreeMap::new(),
             other_versions: BTreeMap::new(),
+            spin_said: false,
             early: Vec::new(),
             names,
             scenario: p.scenario,
@@ -959,12 +962,22 @@ impl Node {
             wake = wake.min(r.clock.wall_at(r.next_control));
         }
         if let Some(t) = r.agent.poll_timeout() {
-            if t <= now {
+            if t > now {
+                wake = wake.min(r.clock.wall_at(t));
+            } else {
                 r.agent.timer(now);
+                let (spinning, period) = (r.agent.timer_spinning(), r.period);
                 self.flush_agent();
-                return now_us;
+                if !spinning {
+                    return now_us;
+                }
+                // A kernel whose timer stays due however often it is
+                // woken would have this loop spin a core: said once, and
+                // woken once a control period while it lasts (messages
+                // and heartbeats still wake it).
+                self.timer_spinning(now);
+                wake = wake.min(now_us + period.as_micros() as u64);
             }
-            wake = wake.min(r.clock.wall_at(t));
         }
         self.check_finished();
         wake
@@ -1232,6 +1245,26 @@ impl Node {
     /// payload version (a team not upgraded together), under
     /// `payload-version`, and said once per teammate in the log and on
     /// standard error: its frames are all dropped until it is upgraded.
+    /// The kernel's timer stays due however often it is woken (see
+    /// [`Agent::timer_spinning`]): a defect, said once per run.
+    fn timer_spinning(&mut self, now: Time) {
+        let Some(r) = self.run.as_mut() else { return };
+        if std::mem::replace(&mut r.spin_said, true) {
+            return;
+        }
+        eprintln!(
+            "robot {}: its kernel's timer stays due at {now} however often it is woken \
+             (a defect in bite: please report it with this robot's log); \
+             woken once a control period from now on",
+            self.opts.name
+        );
+        self.log_record(json!({
+            "t": now.as_secs_f64(),
+            "event": "timer_spin",
+            "calls": bite_agent::TIMER_SPIN_LIMIT,
+        }));
+    }
+
     fn payload_rejected(&mut self, sender: u32, malformed: &'static str, e: &WireError) {
         let Some(r) = self.run.as_mut() else { return };
         let WireError::Version(theirs) = *e else {
