@@ -343,6 +343,52 @@ fn a_member_holding_for_its_leader_is_woken_when_its_wait_is_over() {
     assert_whole_on_version_2("seed 1041", &r);
 }
 
+/// Found on unseen seeds (`bite sweep --graph examples/formation-change.yaml
+/// --seeds 481..1280`): a robot that reaches a safe point late read the
+/// version a teammate runs *now* as the version it chose in there. In
+/// pause seed 1222, r0 and r1 end `walk` #1 without r2 (paused) and with
+/// no change pending; the change comes at 20 s and they switch after
+/// `search` #2. r2, back at 23 s, reached the boundary after `walk` #1 and
+/// switched there, its leader and its teammate being on the new version:
+/// the team chose in two versions after `walk` #1. A teammate that
+/// switched at a later boundary (its fences and the order of its ends say
+/// so) went on in an older version at the earlier one. One-way seeds 965
+/// and 1011 broke the same invariant and pass with the same change.
+#[test]
+fn a_late_member_does_not_take_a_later_switch_for_one_at_its_boundary() {
+    for (seed, spec) in [
+        (1222, "pause=r2@16.032s+6.914s"),
+        (965, "oneway=r1>r0,r2@2.549s+21.493s"),
+        (1011, "oneway=r2>r0,r1@16.474s+13.202s"),
+    ] {
+        let r = run_change(20.0, seed, &faults(spec));
+        assert_whole_on_version_2(&format!("seed {seed}"), &r);
+        if seed == 1222 {
+            // Everyone switched at the same safe point, r2 as it caught up.
+            let after: std::collections::BTreeSet<&str> =
+                r.switched.iter().map(|s| s.2.as_str()).collect();
+            assert_eq!(after, ["search"].into(), "{:?}", r.switched);
+        }
+    }
+}
+
+/// Found on unseen seeds (`bite sweep --graph examples/formation-change.yaml
+/// --seeds 1281..1680`, pause seed 1451): r1 reaches the safe point after
+/// `search` #2 with the change pending and holds for its leader's
+/// decision; it is paused at 20.3 s for 6.8 s. r0 and r2 switch there
+/// meanwhile. Back at 27.1 s, r1 found its 5 s hold over before it heard a
+/// heartbeat and went on in the running version: the team chose in two
+/// versions. Time asleep no longer counts toward the hold: r1 hears its
+/// teammates' decision and switches there too.
+#[test]
+fn a_hold_at_a_safe_point_does_not_run_out_while_its_robot_is_paused() {
+    let r = run_change(20.0, 1451, &faults("pause=r1@20.275s+6.82s"));
+    assert_whole_on_version_2("seed 1451", &r);
+    let after: std::collections::BTreeSet<&str> = r.switched.iter().map(|s| s.2.as_str()).collect();
+    assert_eq!(after, ["search"].into(), "{:?}", r.switched);
+    assert_eq!(r.fence_timeouts, 0, "{}", r.summary);
+}
+
 /// Two versions in quick succession (the second while the first is still
 /// pending on some robots, or just applied on others): no split between
 /// versions, and the team ends on the newest.

@@ -36,6 +36,13 @@ use serde::Deserialize;
 /// times as long while its leader is heard, short of the boundary).
 pub const FENCE_WAIT: Duration = Duration::from_secs(5);
 
+/// A gap between two inputs of a kernel longer than this: the robot was
+/// not running (its process paused or descheduled; a running one has a
+/// control tick every period). What it waits for at a safe point, news
+/// from its teammates, could not reach it meanwhile: the gap does not
+/// count toward [`FENCE_WAIT`].
+pub const ASLEEP: Duration = Duration::from_secs(1);
+
 /// How many pending versions a robot holds (the newest).
 const HELD: usize = 4;
 
@@ -59,6 +66,26 @@ pub(super) struct PeerVersion {
     pub(super) fences: Vec<Fence>,
     /// The executions its frames follow (it has chosen their successors).
     pub(super) past: Vec<FrameId>,
+    /// Executions it ended before the boundary where it switched to
+    /// `version` (as far as its recent ends show): it chose their
+    /// successors in an older version.
+    pub(super) older: Vec<FrameId>,
+}
+
+impl PeerVersion {
+    /// The version it chose the successor of `after` in, if it has, as
+    /// far as this robot can tell: its version, unless it switched to it
+    /// at a later boundary (then one before it: a version at most this
+    /// old).
+    fn chose_at(&self, after: FrameId) -> Option<u32> {
+        if !self.past.contains(&after) {
+            return None;
+        }
+        Some(match self.older.contains(&after) {
+            true => self.version.saturating_sub(1),
+            false => self.version,
+        })
+    }
 }
 
 impl Kernel {
@@ -161,9 +188,13 @@ impl Kernel {
         // A teammate heard past `after`: in this robot's version (the team
         // went on without switching there), or in a newer one it holds (it
         // switched there).
+        // The version it chose in there is the one it runs now, unless it
+        // switched to that at a later boundary: then it went on there, in
+        // an older one (docs/reliability.md, "A version read from a
+        // teammate that switched later").
         let past: Vec<u32> = (self.peer_versions.iter())
-            .filter(|(r, p)| in_team(**r) && p.past.contains(&after))
-            .map(|(_, p)| p.version)
+            .filter(|(r, _)| in_team(**r))
+            .filter_map(|(_, p)| p.chose_at(after))
             .collect();
         let passed_new = past.iter().copied().find(|w| *w > me && held(*w));
         let passed_old = past.iter().any(|w| *w <= me);
@@ -174,6 +205,7 @@ impl Kernel {
             .filter(|l| *l != self.me)
             .and_then(|l| self.peer_versions.get(&l))
             .filter(|p| self.now - p.heard <= FRESH && p.version > me)
+            .filter(|p| !p.older.contains(&after))
             .map(|p| p.version)
             .filter(|w| held(*w));
         // The leader's view of its members: each fresh, holding `v` or not.
@@ -292,6 +324,16 @@ impl Kernel {
         true
     }
 
+    /// The robot was asleep for `gap` (see [`ASLEEP`]): a hold at a safe
+    /// point resumes where it was (docs/reliability.md, "A hold that ran
+    /// out while its robot was paused").
+    pub(super) fn slept(&mut self, gap: Duration) {
+        if let Some((f, since, until)) = self.fence_wait {
+            self.fence_wait = Some((f, since + gap, until + gap));
+            self.refresh_due();
+        }
+    }
+
     fn record_fence(&mut self, f: Fence) {
         self.fences.push_back(f);
         while self.fences.len() > RECENT {
@@ -374,6 +416,14 @@ impl Kernel {
                     .filter(|id| !choosing.contains(id)),
             )
             .collect();
+        // What it ended before the boundary where it switched to the
+        // version it runs (the first of its recent ends with a fence that
+        // says it switched to it there).
+        let switched_at = (pos.ended.iter()).position(|e| {
+            (pos.fences.iter()).any(|f| f.switched && f.version == pos.version && f.after == e.id)
+        });
+        let older =
+            switched_at.map_or_else(Vec::new, |i| pos.ended[..i].iter().map(|e| e.id).collect());
         // Pass on what teammates did at safe points of this robot's teams.
         for f in &pos.fences {
             let mine = self
@@ -395,6 +445,7 @@ impl Kernel {
                 pending: pos.pending,
                 fences: pos.fences.clone(),
                 past,
+                older,
             },
         );
     }

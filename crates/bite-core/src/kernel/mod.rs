@@ -594,6 +594,12 @@ impl Kernel {
     }
 
     fn set_now(&mut self, now: Time) {
+        // Asleep (paused, descheduled) between two inputs: the time does
+        // not count toward a hold at a safe point, which waits for news
+        // this robot could not hear meanwhile.
+        if now > self.now + change::ASLEEP {
+            self.slept(now - self.now);
+        }
         // Time never goes backwards inside the kernel, whatever the runtime does.
         self.now = self.now.max(now);
     }
