@@ -8,7 +8,8 @@ fn bite() -> Command {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bite-cli-test-{}-{name}", std::process::id()));
+    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("bite-cli-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("scratch dir");
     d
@@ -579,7 +580,8 @@ fn bench_commands_print_json_rows_for_scripts() {
     );
     assert_eq!(team["rows"][0]["completed"], true);
     // Sizes × thread counts × repetitions, one row each, and the picture.
-    let dir = std::env::temp_dir().join(format!("bite-bench-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("bite-bench-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch dir");
     let svg = dir.join("team.svg");
     let svg_arg = svg.to_string_lossy().to_string();

@@ -39,7 +39,8 @@ fn readme() -> String {
 /// repository's, so that the README's relative paths work and what the
 /// commands write (`out/`, pictures, keys) stays out of the repository.
 fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("bite-readme-test-{}-{name}", std::process::id()));
+    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("bite-readme-test-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).expect("scratch dir");
     std::os::unix::fs::symlink(root().join("examples"), d.join("examples")).expect("link examples");

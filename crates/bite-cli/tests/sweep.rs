@@ -10,7 +10,8 @@ fn bite() -> Command {
 
 /// Where a test's scratch directory `name` is (see [`scratch`]).
 fn scratch_path(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("bite-sweep-test-{}-{name}", std::process::id()))
+    std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("bite-sweep-test-{}-{name}", std::process::id()))
 }
 
 /// A fresh scratch directory `name` for a test.
