@@ -490,6 +490,31 @@ fn a_member_asks_a_coordinator_through_the_allocation_at_once() {
     }
 }
 
+/// Found on unseen seeds (`bite sweep --seeds 561..640`, configuration 6,
+/// timed, partition seed 577): after the heal, r2 started the
+/// re-allocation of `linewalk` #2 one millisecond before it heard r0 back,
+/// so without r0. `alloc.by-attribute` takes the lowest member for its
+/// coordinator: r0 for r0 and r1, r1 for r2. r2 sent its colour to r1,
+/// which ignored it, and r0 waited for it: all three waited out the 5 s
+/// deadline. An instance now takes back a teammate whose heartbeat shows
+/// it engaged in the same allocation, and r2 sends its colour to r0.
+#[test]
+fn a_member_takes_back_a_teammate_heard_in_the_same_allocation() {
+    let v = run_one(
+        "two-coordinators",
+        &[
+            "--timed",
+            "--config",
+            &config(6),
+            "--fault",
+            "partition=r0|r1,r2@36.177s+19.858s",
+            "--seed",
+            "577",
+        ],
+    );
+    assert_eq!(v["outcome"], "completed", "{v:#}");
+}
+
 /// Seen tracing the timed world: a leg (`walk`, `linewalk`: `until:
 /// leg_walked >= 1.5`) whose roles were not dealt yet at its first tick
 /// read the last leg's count, still 1.5, and ended 0.1 s after it began,

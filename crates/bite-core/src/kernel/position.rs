@@ -643,7 +643,73 @@ impl Kernel {
         self.reconcile_allocation(from, pos);
         self.ask_past_point(from, pos);
         self.heard_waiting(from, pos);
+        self.take_back(from, pos);
         self.step();
+    }
+
+    /// A teammate back from being presumed lost whose heartbeat shows it
+    /// engaged in a synchronization or allocation instance this robot
+    /// started without it (it was presumed lost then): the instance takes
+    /// it back, and its protocol is told that the members changed (a new
+    /// leader gets this robot's contribution). Members that started the
+    /// same instance with different views named different coordinators,
+    /// and waited out the deadline (docs/reliability.md, "Two
+    /// coordinators after a heal"). A member that left the behavior above
+    /// is not taken back, and a robot that coordinates the instance takes
+    /// no one back.
+    fn take_back(&mut self, from: RobotId, pos: &Position) {
+        if !self.ever_lost.contains(from) || self.lost.contains(from) {
+            return;
+        }
+        let depth = self.stack.len();
+        let mut back = Vec::new();
+        for (key, inst) in self.instances.iter() {
+            // Not where this robot coordinates: a coordinator decides with
+            // the members it has (the protocols move a lead only to a
+            // member when the one before it is lost, never away from a
+            // robot that leads).
+            if inst.state != super::State::Active
+                || !matches!(key.kind, Kind::Sync | Kind::Allocate)
+                || !inst.excluded.as_ref().is_some_and(|x| x.contains(from))
+                || !inst.team.contains(from)
+                || self.coordinator(key, inst) == Some(self.me)
+            {
+                continue;
+            }
+            let id = FrameId::of(key);
+            let engaged = pos.frames.iter().any(|f| {
+                f.id == id
+                    && match key.kind {
+                        // At the point, not past it.
+                        Kind::Sync => f.state == FrameState::Ended,
+                        // In the allocation, not through this round.
+                        _ => {
+                            f.state == FrameState::Running
+                                && f.alloc.is_none_or(|(round, _)| round < key.round)
+                        }
+                    }
+            });
+            if engaged && !pos.went_past(key) {
+                back.push(key);
+            }
+        }
+        for key in back {
+            let above = match key.kind {
+                Kind::Allocate => depth.saturating_sub(1),
+                _ => depth,
+            };
+            if Frame::any_left_by(&self.stack[..above], from) {
+                continue;
+            }
+            if let Some(x) = self
+                .instances
+                .get_mut(&key)
+                .and_then(|i| i.excluded.as_mut())
+            {
+                x.remove(from);
+            }
+            self.call(key, |imp, cx| imp.on_members_changed(cx));
+        }
     }
 
     /// A teammate whose heartbeats have shown it waiting at a termination
