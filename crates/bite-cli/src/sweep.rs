@@ -268,6 +268,9 @@ pub fn cmd_sweep(a: SweepArgs) -> Result<ExitCode> {
     let t = totals(&classes, &results);
     let violations: usize = t.iter().map(|c| c.violations).sum();
     let panics: usize = t.iter().map(|c| c.panics).sum();
+    // Robots that sent far faster than any protocol needs (see
+    // `bite_sim::chatter`): failures, though no invariant broke.
+    let chatter = results.iter().filter(|r| r.chatter).count();
     if a.json {
         let failures: Vec<&RunResult> = results.iter().filter(|r| r.failed()).collect();
         outln!(
@@ -276,6 +279,7 @@ pub fn cmd_sweep(a: SweepArgs) -> Result<ExitCode> {
                 "runs": results.len(),
                 "violations": violations,
                 "panics": panics,
+                "chatter": chatter,
                 "wall_seconds": wall,
                 "runs_per_second": results.len() as f64 / wall.max(1e-9),
                 "threads": jobs,
@@ -287,7 +291,7 @@ pub fn cmd_sweep(a: SweepArgs) -> Result<ExitCode> {
     } else {
         print_report(&t, &results, wall, jobs, &a.out);
     }
-    Ok(if violations > 0 || panics > 0 {
+    Ok(if violations > 0 || panics > 0 || chatter > 0 {
         ExitCode::from(bite_sim::summary::EXIT_VIOLATION)
     } else {
         ExitCode::SUCCESS
@@ -330,14 +334,18 @@ fn print_report(
     let n = results.len();
     let violations: usize = t.iter().map(|c| c.violations).sum();
     let panics: usize = t.iter().map(|c| c.panics).sum();
+    let chatter = match results.iter().filter(|r| r.chatter).count() {
+        0 => String::new(),
+        c => format!(", {c} with robots chattering"),
+    };
     outln!(
-        "{n} runs in {wall:.1} s on {jobs} threads ({:.1} runs/s): {violations} with violations, {panics} panics; one JSON line per run in {}",
+        "{n} runs in {wall:.1} s on {jobs} threads ({:.1} runs/s): {violations} with violations{chatter}, {panics} panics; one JSON line per run in {}",
         n as f64 / wall.max(1e-9),
         out.display()
     );
     let failed: Vec<&RunResult> = results.iter().filter(|r| r.failed()).collect();
     if !failed.is_empty() {
-        outln!("\nruns that broke an invariant or panicked (replay each):");
+        outln!("\nruns that broke an invariant, chattered or panicked (replay each):");
         for r in failed {
             outln!("  {}\n    {}", r.replay, r.detail.as_deref().unwrap_or(""));
         }

@@ -24,6 +24,7 @@
 
 #![warn(missing_docs)]
 
+pub mod chatter;
 pub mod check;
 pub mod fault;
 pub mod log;

@@ -427,6 +427,7 @@ struct Sim<'a, 'w> {
     checker: crate::check::Checker,
     /// The stall watch, fed every event.
     stall: crate::stall::StallWatch,
+    chatter: crate::chatter::ChatterWatch,
     /// Each robot's process incarnation (restarts).
     incarnation: Vec<u32>,
     /// Recent genuine messages and heartbeats, for replay injection.
@@ -979,6 +980,7 @@ impl Sim<'_, '_> {
                 } => {
                     let key = envelope.instance;
                     self.agg.sent(key.behavior, key.kind, bytes);
+                    self.chatter.sent(self.now, r);
                     let env = Arc::new(envelope);
                     if self.inject.is_some() {
                         if self.captured.len() >= 64 {
@@ -1827,6 +1829,7 @@ pub fn run(
         beacons: (0, 0),
         checker: crate::check::Checker::new(mission.clone()),
         stall: crate::stall::StallWatch::new(scenario.stall),
+        chatter: crate::chatter::ChatterWatch::new(n),
         incarnation: vec![0; n],
         captured: std::collections::VecDeque::new(),
         captured_pos: std::collections::VecDeque::new(),
@@ -1921,6 +1924,7 @@ pub fn run(
         summary.outcome = crate::summary::Outcome::Stalled;
         summary.stall = Some(why);
     }
+    summary.chatter = sim.chatter.found().map(ToString::to_string);
     summary.world = sim.physics.as_ref().map(crate::summary::of_world);
     summary.heartbeats = crate::summary::Heartbeats {
         messages: sim.beacons.0,

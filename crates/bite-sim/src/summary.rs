@@ -132,6 +132,10 @@ pub struct Summary {
     /// What stalled, when the outcome is `stalled`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stall: Option<String>,
+    /// A robot that sent kernel messages far faster than any protocol
+    /// needs (see `chatter`), if one did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub chatter: Option<String>,
     /// True when every live robot completed the mission (with or without
     /// timeouts).
     pub completed: bool,
@@ -388,6 +392,7 @@ impl Aggregator {
                 (false, _) => Outcome::NotCompleted,
             },
             stall: None,
+            chatter: None,
             completed,
             completed_robots,
             crashed_robots: n - live.len(),
@@ -531,6 +536,9 @@ impl fmt::Display for Summary {
             self.heartbeats.messages,
             self.heartbeats.bytes
         )?;
+        if let Some(c) = &self.chatter {
+            writeln!(f, "  chatter          {c}")?;
+        }
         if self.timeouts > 0 || self.violations > 0 || !self.dropped.is_empty() {
             let dropped: Vec<String> = self
                 .dropped

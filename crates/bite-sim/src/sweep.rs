@@ -244,7 +244,11 @@ pub struct RunResult {
     pub messages: u64,
     /// Invariant violations.
     pub violations: usize,
-    /// The first violation, the stall, or the panic message.
+    /// A robot sent kernel messages far faster than any protocol needs
+    /// (see [`crate::chatter`]): a failure, though no invariant broke.
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub chatter: bool,
+    /// The first violation, the stall, the chatter, or the panic message.
     pub detail: Option<String>,
     /// True when the run panicked.
     pub panicked: bool,
@@ -257,9 +261,10 @@ pub struct RunResult {
 }
 
 impl RunResult {
-    /// True when the run broke something: an invariant or a panic.
+    /// True when the run broke something: an invariant, or a panic, or a
+    /// robot chattered.
     pub fn failed(&self) -> bool {
-        self.panicked || self.violations > 0
+        self.panicked || self.violations > 0 || self.chatter
     }
 }
 
@@ -326,6 +331,7 @@ pub fn run_one(cases: &[Case], spec: &RunSpec) -> RunResult {
         timeouts: 0,
         messages: 0,
         violations: 0,
+        chatter: false,
         detail: None,
         panicked: false,
         replay,
@@ -339,11 +345,13 @@ pub fn run_one(cases: &[Case], spec: &RunSpec) -> RunResult {
             r.timeouts = s.timeouts;
             r.messages = s.messages.total();
             r.violations = report.violations.len();
+            r.chatter = s.chatter.is_some();
             r.detail = report
                 .violations
                 .first()
                 .map(ToString::to_string)
-                .or_else(|| s.stall.clone());
+                .or_else(|| s.stall.clone())
+                .or_else(|| s.chatter.clone());
             r.summary = Some(Box::new(report.summary));
         }
         Ok(Err(d)) => {
