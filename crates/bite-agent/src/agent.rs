@@ -209,8 +209,6 @@ pub enum Ahead {
     Pilot,
 }
 
-/// How long a drained output queue keeps its room while the mission runs
-/// (see [`Agent::poll`]).
 /// Timer calls in a row that leave the kernel's timer due at the time it
 /// was called at, after which a runtime takes the kernel for spinning (see
 /// [`Agent::timer_spinning`]). A sound kernel fires everything due when
@@ -218,6 +216,8 @@ pub enum Ahead {
 /// odd; a thousand is a defect, not a burst.
 pub const TIMER_SPIN_LIMIT: u32 = 1000;
 
+/// How long a drained output queue keeps its room while the mission runs
+/// (see [`Agent::poll`]).
 const ROOM_KEPT: std::time::Duration = std::time::Duration::from_secs(1);
 
 /// What an agent asks its runtime to do.

@@ -427,6 +427,7 @@ struct Sim<'a, 'w> {
     checker: crate::check::Checker,
     /// The stall watch, fed every event.
     stall: crate::stall::StallWatch,
+    /// What each robot sent, window by window (see `chatter`).
     chatter: crate::chatter::ChatterWatch,
     /// Each robot's process incarnation (restarts).
     incarnation: Vec<u32>,

@@ -315,7 +315,7 @@ struct Running {
     /// Teammates heard speaking another payload version, by name (each
     /// said once).
     other_versions: BTreeMap<String, u8>,
-    /// Said that the kernel's timer spins (see `Robot::timer_spinning`).
+    /// Said that the kernel's timer spins (see `Node::timer_spinning`).
     spin_said: bool,
     /// Kernel messages that arrived before the first control tick.
     early: Vec<bite_core::msg::Envelope>,
@@ -1240,11 +1240,6 @@ impl Node {
         }
     }
 
-    /// A teammate's authenticated frame whose payload this robot cannot
-    /// read: counted under `malformed`, or, when the teammate speaks another
-    /// payload version (a team not upgraded together), under
-    /// `payload-version`, and said once per teammate in the log and on
-    /// standard error: its frames are all dropped until it is upgraded.
     /// The kernel's timer stays due however often it is woken (see
     /// [`Agent::timer_spinning`]): a defect, said once per run.
     fn timer_spinning(&mut self, now: Time) {
@@ -1265,6 +1260,11 @@ impl Node {
         }));
     }
 
+    /// A teammate's authenticated frame whose payload this robot cannot
+    /// read: counted under `malformed`, or, when the teammate speaks another
+    /// payload version (a team not upgraded together), under
+    /// `payload-version`, and said once per teammate in the log and on
+    /// standard error: its frames are all dropped until it is upgraded.
     fn payload_rejected(&mut self, sender: u32, malformed: &'static str, e: &WireError) {
         let Some(r) = self.run.as_mut() else { return };
         let WireError::Version(theirs) = *e else {

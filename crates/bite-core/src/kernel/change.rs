@@ -187,11 +187,10 @@ impl Kernel {
         let in_team = |r: RobotId| team.as_ref().is_some_and(|t| t.contains(r));
         // A teammate heard past `after`: in this robot's version (the team
         // went on without switching there), or in a newer one it holds (it
-        // switched there).
-        // The version it chose in there is the one it runs now, unless it
-        // switched to that at a later boundary: then it went on there, in
-        // an older one (docs/reliability.md, "A version read from a
-        // teammate that switched later").
+        // switched there). The version it chose in there is the one it
+        // runs now, unless it switched to that at a later boundary: then it
+        // went on there, in an older one (docs/reliability.md, "A version
+        // read from a teammate that switched later").
         let past: Vec<u32> = (self.peer_versions.iter())
             .filter(|(r, _)| in_team(**r))
             .filter_map(|(_, p)| p.chose_at(after))
