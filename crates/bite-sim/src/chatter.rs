@@ -74,7 +74,8 @@ impl ChatterWatch {
 
     /// Robot `r` sent a kernel message at `now`.
     pub fn sent(&mut self, now: Time, r: RobotId) {
-        let w = now.0 / WINDOW.as_micros() as u64;
+        let window = WINDOW.as_micros() as u64;
+        let w = now.0 / window;
         let Some(c) = self.counts.get_mut(r.index()) else {
             return;
         };
@@ -82,16 +83,17 @@ impl ChatterWatch {
             *c = (w, 0);
         }
         c.1 += 1;
+        let from = Time(w * window);
         match &mut self.found {
             None if c.1 > self.limit => {
                 self.found = Some(Chatter {
                     robot: r,
-                    from: Time(w * WINDOW.as_micros() as u64),
+                    from,
                     sent: c.1,
                     limit: self.limit,
                 });
             }
-            Some(f) if f.robot == r && f.from.0 / WINDOW.as_micros() as u64 == w => f.sent = c.1,
+            Some(f) if f.robot == r && f.from == from => f.sent = c.1,
             _ => {}
         }
     }
@@ -110,9 +112,9 @@ mod tests {
         Time(ms * 1000)
     }
 
-    /// A robot sending at a protocol's pace is not chatter; one that sends
-    /// more than the limit within one window is, with the whole window's
-    /// count; a burst split across two windows is counted in each.
+    /// A robot sending at a protocol's pace is not chatter; the first that
+    /// sends more than the limit within one window is, with the whole
+    /// window's count.
     #[test]
     fn only_more_than_the_limit_within_one_window_is_chatter() {
         let mut w = ChatterWatch::new(3);

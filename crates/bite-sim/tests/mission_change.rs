@@ -158,6 +158,11 @@ fn assert_whole_on_version_2(what: &str, r: &Run) {
     assert_eq!(r.versions, [1, 1, 1], "{what}: {}", r.summary);
 }
 
+/// The behaviors after which robots of run `r` switched versions.
+fn safe_points(r: &Run) -> std::collections::BTreeSet<&str> {
+    r.switched.iter().map(|s| s.2.as_str()).collect()
+}
+
 fn faults(spec: &str) -> Vec<Fault> {
     Fault::parse_all(spec).unwrap_or_else(|e| panic!("{spec}: {e}"))
 }
@@ -180,7 +185,7 @@ fn the_example_changes_course_mid_way_and_completes_with_everyone_switching_toge
         "every robot switches: {:?}",
         r.switched
     );
-    let after: std::collections::BTreeSet<&str> = r.switched.iter().map(|s| s.2.as_str()).collect();
+    let after = safe_points(&r);
     assert_eq!(
         after.len(),
         1,
@@ -320,7 +325,7 @@ fn hot_change_under_loss_and_crashes_never_splits_or_stalls() {
 fn a_change_after_a_partition_waits_for_the_teammate_that_went_on_alone() {
     let r = run_change(20.0, 325, &faults("partition=r0|r1,r2@12.904s+8.391s"));
     assert_whole_on_version_2("seed 325", &r);
-    let after: std::collections::BTreeSet<&str> = r.switched.iter().map(|s| s.2.as_str()).collect();
+    let after = safe_points(&r);
     assert_eq!(
         after.len(),
         1,
@@ -365,8 +370,7 @@ fn a_late_member_does_not_take_a_later_switch_for_one_at_its_boundary() {
         assert_whole_on_version_2(&format!("seed {seed}"), &r);
         if seed == 1222 {
             // Everyone switched at the same safe point, r2 as it caught up.
-            let after: std::collections::BTreeSet<&str> =
-                r.switched.iter().map(|s| s.2.as_str()).collect();
+            let after = safe_points(&r);
             assert_eq!(after, ["search"].into(), "{:?}", r.switched);
         }
     }
@@ -384,7 +388,7 @@ fn a_late_member_does_not_take_a_later_switch_for_one_at_its_boundary() {
 fn a_hold_at_a_safe_point_does_not_run_out_while_its_robot_is_paused() {
     let r = run_change(20.0, 1451, &faults("pause=r1@20.275s+6.82s"));
     assert_whole_on_version_2("seed 1451", &r);
-    let after: std::collections::BTreeSet<&str> = r.switched.iter().map(|s| s.2.as_str()).collect();
+    let after = safe_points(&r);
     assert_eq!(after, ["search"].into(), "{:?}", r.switched);
     assert_eq!(r.fence_timeouts, 0, "{}", r.summary);
 }
