@@ -515,6 +515,31 @@ fn a_member_takes_back_a_teammate_heard_in_the_same_allocation() {
     assert_eq!(v["outcome"], "completed", "{v:#}");
 }
 
+/// Histories that diverged while the team was cut apart. Config 6 in the
+/// physical world, r0 cut off from r1 and r2 for 18.7 s: r0 walked a
+/// triangle leg (`walk` #4) under `line` while the other two searched
+/// again and walked two line legs (`linewalk` #2). After the heal neither
+/// side's execution was on the other's way: each side's barrier waited
+/// 30 s for teammates in another execution, eleven deadlines in all and
+/// 149.5 s. Config 5, r1 paused for 7.4 s (it presumes no one lost: its
+/// timers do not run): r1 went on alone under `triangle` and then `line`,
+/// and five deadlines came of it. The members now meet their healing
+/// leader (r0) in its execution, and neither run needs a deadline.
+#[test]
+fn members_meet_their_leader_after_histories_diverged() {
+    for (n, fault, seed) in [
+        (6, "partition=r0|r1,r2@26.184s+18.694s", "42"),
+        (5, "pause=r1@36.49s+7.374s", "454"),
+    ] {
+        let name = format!("diverged-{n}-{seed}");
+        let v = run_one(
+            &name,
+            &["--config", &config(n), "--fault", fault, "--seed", seed],
+        );
+        assert_eq!(v["outcome"], "completed", "{name}: {v:#}");
+    }
+}
+
 /// Seen tracing the timed world: a leg (`walk`, `linewalk`: `until:
 /// leg_walked >= 1.5`) whose roles were not dealt yet at its first tick
 /// read the last leg's count, still 1.5, and ended 0.1 s after it began,

@@ -6,7 +6,7 @@ use super::position::{
 };
 use super::{Frame, Kernel, Phase};
 use crate::event::{EndReason, Event, FrameRef, Via};
-use crate::ids::RobotId;
+use crate::ids::{BehaviorId, RobotId};
 use crate::ids::{InstanceKey, Kind};
 use crate::org::MemberSet;
 use smallvec::SmallVec;
@@ -326,8 +326,9 @@ impl Kernel {
 
     /// Compare this robot's frames with a teammate's after the same
     /// predecessor; converge on one execution (at most one change per
-    /// heartbeat: what lies below a changed frame is gone).
-    pub(super) fn reconcile(&mut self, from: RobotId, pos: &Position) {
+    /// heartbeat: what lies below a changed frame is gone). True when it
+    /// converged.
+    pub(super) fn reconcile(&mut self, from: RobotId, pos: &Position) -> bool {
         // By index, nothing collected: until it converges (and returns),
         // the loop changes neither the stack nor the frame it ended.
         for k in 0..=self.stack.len() {
@@ -367,8 +368,127 @@ impl Kernel {
                 continue;
             }
             self.converge(slot, from, id, g.id, prev);
-            return;
+            return true;
         }
+        false
+    }
+
+    /// Histories that diverged while the team was cut apart (a partition,
+    /// a robot paused) and did not meet again: under the same execution of
+    /// a parent, this robot and a teammate run different executions that
+    /// came after different predecessors, and neither is on the other's
+    /// way (it did not run the other's execution, and the other did not
+    /// come from its own; a teammate behind or ahead on the same way is
+    /// not diverged). Each side's barrier then waits out its deadline for
+    /// teammates that are in another execution, and the next ones may
+    /// miss each other again (docs/reliability.md, "Histories that
+    /// diverged in a partition"). The team meets where its healing leader
+    /// is, as at a split: a member that follows leaves its execution (and
+    /// burns the ones it ran since the sides parted, so that the team
+    /// numbers their behaviors' next executions alike) and joins the
+    /// leader's, after the leader's predecessor. True when it moved.
+    pub(super) fn meet(&mut self, from: RobotId, pos: &Position) -> bool {
+        if self.lost.contains(from) {
+            return false;
+        }
+        let ran = |id: FrameId, parent: FrameId| {
+            pos.ended
+                .iter()
+                .any(|e| e.id == id && e.parent == Some(parent))
+        };
+        // Both chains run root first: only the first depth where they part
+        // can hold a diverged execution (above it they agree; below it the
+        // parents differ). Read in place: a leader hears every member.
+        let depth = self.stack.len();
+        let at = |i: usize| match self.stack.get(i) {
+            Some(f) => Some(f.id()),
+            None if i == depth => self.popped().map(|(f, _)| f.id()),
+            None => None,
+        };
+        let Some(k) = (0..=depth).find(|&i| match (at(i), pos.frames.get(i)) {
+            (Some(a), Some(g)) => a != g.id,
+            _ => true,
+        }) else {
+            return false;
+        };
+        // Frames of two teams (subteams an allocation made) are not
+        // compared: the common case at a leader, which hears every member.
+        let (Some(g), Some(here)) = (pos.frames.get(k), at(k)) else {
+            return false;
+        };
+        if k == 0 || g.id.team != here.team {
+            return false;
+        }
+        let Some((slot, id, mine)) = self.anchored_at(k) else {
+            return false;
+        };
+        let parent = self.stack[k - 1].id();
+        let Some(theirs) = g.anchor else {
+            return false;
+        };
+        if theirs == mine || g.state == FrameState::Ended {
+            return false;
+        }
+        let came_from =
+            |a: Anchor, f: FrameId| !a.first && a.behavior == f.behavior && a.epoch == f.epoch;
+        let on_the_way = came_from(theirs, id)
+            || came_from(mine, g.id)
+            || ran(id, parent)
+            || self.recent_ended.contains_ended(&Ended {
+                id: g.id,
+                parent: Some(parent),
+            });
+        if on_the_way {
+            return false;
+        }
+        // The side further on its way, when both came from the same
+        // behavior: the one that ran it more times (the team goes on
+        // from there, not back over work done). Else the healing
+        // leader's side; a member on it does not move for a lower-id
+        // member on the other (every member hears the leader).
+        let ahead = |x: Anchor, y: Anchor| {
+            !x.first && !y.first && x.behavior == y.behavior && x.epoch > y.epoch
+        };
+        let follow = ahead(theirs, mine)
+            || (!ahead(mine, theirs) && self.heal_leader(id.team, k) == Some(from));
+        if !follow {
+            return false;
+        }
+        // What this robot ran under the parent since the sides parted:
+        // later than anything of the behavior the teammate tells of.
+        let told = |b: BehaviorId| {
+            let frames = pos.frames.iter().map(|f| f.id);
+            let ended = pos.ended.iter().map(|e| e.id);
+            let anchor = (!theirs.first).then_some(FrameId {
+                team: id.team,
+                behavior: theirs.behavior,
+                epoch: theirs.epoch,
+            });
+            (frames
+                .chain(ended)
+                .chain(pos.burned.iter().copied())
+                .chain(anchor))
+            .filter(|f| f.team == id.team && f.behavior == b)
+            .map(|f| f.epoch)
+            .max()
+            .unwrap_or(0)
+        };
+        let since: SmallVec<[FrameId; RECENT]> = self
+            .recent_ended
+            .iter()
+            .filter(|e| e.parent == Some(parent) && e.id.team == id.team)
+            .filter(|e| e.id.epoch > told(e.id.behavior))
+            .map(|e| e.id)
+            .collect();
+        for e in since {
+            self.burn(e);
+        }
+        if !theirs.first {
+            self.org
+                .runs_at_least(id.team, theirs.behavior, theirs.epoch);
+        }
+        self.converge(slot, from, id, g.id, theirs);
+        true
     }
 
     /// The healing leader saw a member on another successor: record it

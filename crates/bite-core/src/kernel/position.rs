@@ -46,7 +46,12 @@
 //! 4. **catching up**: a teammate that runs the same execution after a
 //!    later execution of its predecessor (cut off, it ran the predecessor
 //!    more times) makes the robot burn the executions between, so that
-//!    both number the next one alike.
+//!    both number the next one alike;
+//! 5. **meeting**: a teammate that runs, under the same execution of a
+//!    parent, an execution after another predecessor, with neither on the
+//!    other's way (the histories diverged while the team was cut apart),
+//!    is a split too: the member follows its healing leader into the
+//!    leader's execution, burning what it ran since the sides parted.
 //!
 //! Silent protocols keep their zero-message decisions; healing sends no
 //! message of its own (it rides on the heartbeats).
@@ -639,7 +644,9 @@ impl Kernel {
         self.count_past(pos);
         self.catch_up(pos);
         self.learn_departures(from, pos);
-        self.reconcile(from, pos);
+        if !self.reconcile(from, pos) {
+            self.meet(from, pos);
+        }
         self.reconcile_allocation(from, pos);
         self.ask_past_point(from, pos);
         self.heard_waiting(from, pos);
