@@ -523,10 +523,12 @@ fn a_member_takes_back_a_teammate_heard_in_the_same_allocation() {
 /// 30 s for teammates in another execution, eleven deadlines in all and
 /// 149.5 s. Config 5, r1 paused for 7.4 s (it presumes no one lost: its
 /// timers do not run): r1 went on alone under `triangle` and then `line`,
-/// and five deadlines came of it. The members now meet their healing
-/// leader (r0) in its execution, and neither run needs a deadline.
+/// and five deadlines came of it. The team now meets on one side: the one
+/// further on (seed 42: r1 and r2, after `search` #4 against r0's #3), or
+/// else the healing leader's (seed 454: r0's), and neither run needs a
+/// deadline.
 #[test]
-fn members_meet_their_leader_after_histories_diverged() {
+fn a_team_meets_again_after_histories_diverged() {
     for (n, fault, seed) in [
         (6, "partition=r0|r1,r2@26.184s+18.694s", "42"),
         (5, "pause=r1@36.49s+7.374s", "454"),

@@ -382,11 +382,12 @@ impl Kernel {
     /// not diverged). Each side's barrier then waits out its deadline for
     /// teammates that are in another execution, and the next ones may
     /// miss each other again (docs/reliability.md, "Histories that
-    /// diverged in a partition"). The team meets where its healing leader
-    /// is, as at a split: a member that follows leaves its execution (and
-    /// burns the ones it ran since the sides parted, so that the team
+    /// diverged in a partition"). The team meets on one side, as at a
+    /// split: the one further on when both came from the same behavior,
+    /// else the healing leader's. A robot that moves leaves its execution
+    /// (and burns the ones it ran since the sides parted, so that the team
     /// numbers their behaviors' next executions alike) and joins the
-    /// leader's, after the leader's predecessor. True when it moved.
+    /// teammate's, after the teammate's predecessor. True when it moved.
     pub(super) fn meet(&mut self, from: RobotId, pos: &Position) -> bool {
         if self.lost.contains(from) {
             return false;

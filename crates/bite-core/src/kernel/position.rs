@@ -50,8 +50,9 @@
 //! 5. **meeting**: a teammate that runs, under the same execution of a
 //!    parent, an execution after another predecessor, with neither on the
 //!    other's way (the histories diverged while the team was cut apart),
-//!    is a split too: the member follows its healing leader into the
-//!    leader's execution, burning what it ran since the sides parted.
+//!    is a split too: the team meets on the side further on (it ran the
+//!    common predecessor more times) or else its healing leader's; a robot
+//!    that moves burns what it ran since the sides parted.
 //!
 //! Silent protocols keep their zero-message decisions; healing sends no
 //! message of its own (it rides on the heartbeats).
