@@ -316,12 +316,18 @@ impl Kernel {
     /// one it ended), if anchored: for loops that change the kernel as
     /// they go.
     fn anchored_at(&self, k: usize) -> Option<(Slot, FrameId, Anchor)> {
-        let (slot, f) = match self.stack.get(k) {
-            Some(f) => (Slot::Stack(k), f),
-            None if k == self.stack.len() => (Slot::Popped, self.popped()?.0),
-            None => return None,
-        };
+        let (slot, f) = self.slot_at(k)?;
         f.anchor.map(|a| (slot, f.id(), a))
+    }
+
+    /// The `k`-th frame of this robot's chain, root first: the stack's,
+    /// then the one it ended (as its position lists them).
+    fn slot_at(&self, k: usize) -> Option<(Slot, &Frame)> {
+        match self.stack.get(k) {
+            Some(f) => Some((Slot::Stack(k), f)),
+            None if k == self.stack.len() => Some((Slot::Popped, self.popped()?.0)),
+            None => None,
+        }
     }
 
     /// Compare this robot's frames with a teammate's after the same
@@ -400,13 +406,8 @@ impl Kernel {
         // Both chains run root first: only the first depth where they part
         // can hold a diverged execution (above it they agree; below it the
         // parents differ). Read in place: a leader hears every member.
-        let depth = self.stack.len();
-        let at = |i: usize| match self.stack.get(i) {
-            Some(f) => Some(f.id()),
-            None if i == depth => self.popped().map(|(f, _)| f.id()),
-            None => None,
-        };
-        let Some(k) = (0..=depth).find(|&i| match (at(i), pos.frames.get(i)) {
+        let at = |i: usize| self.slot_at(i).map(|(_, f)| f.id());
+        let Some(k) = (0..=self.stack.len()).find(|&i| match (at(i), pos.frames.get(i)) {
             (Some(a), Some(g)) => a != g.id,
             _ => true,
         }) else {
