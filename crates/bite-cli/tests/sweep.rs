@@ -542,6 +542,52 @@ fn a_team_meets_again_after_histories_diverged() {
     }
 }
 
+/// A robot whose messages do not get out (a one-way link from r0) still
+/// hears its teammates, which presume it lost and go on without it. It
+/// waited for them at every point until its deadline: the vote after
+/// `walk` (B), then two rounds of `walk`'s allocation (C), three
+/// deadlines in seed 450. It now reads from their heartbeats that they
+/// went past the point without it, and goes on as they did (a
+/// `left_behind` event): their successor at B and A, the end at each
+/// barrier, no part in the allocation they made without it (it idles
+/// under `walk` until the team ends it). Neither run needs a deadline
+/// (seed 19, physical world: two before, 80.3 s against 62.5 s now).
+#[test]
+fn a_robot_whose_messages_do_not_get_out_goes_on_with_its_team() {
+    // The timed world, then the physical one.
+    for (timed, fault, seed, points) in [
+        (
+            true,
+            "oneway=r0>r1,r2@13.405s+20.393s",
+            "450",
+            &["allocate", "sync", "terminate"][..],
+        ),
+        (false, "oneway=r0>r1,r2@5.301s+11.851s", "19", &["allocate"]),
+    ] {
+        let name = format!("left-behind-{seed}");
+        let c = config(5);
+        let mut args = vec!["--config", &c, "--fault", fault, "--seed", seed];
+        if timed {
+            args.push("--timed");
+        }
+        let v = run_one(&name, &args);
+        assert_eq!(v["outcome"], "completed", "{name}: {v:#}");
+        let log = std::fs::read_to_string(scratch_path(&name).join("run.jsonl")).expect("the log");
+        let kinds: std::collections::BTreeSet<String> = log
+            .lines()
+            .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+            .filter(|e| e["event"] == "left_behind")
+            .map(|e| {
+                assert_eq!(e["robot"], "r0", "{e}");
+                e["instance"]["kind"].as_str().unwrap_or("?").to_string()
+            })
+            .collect();
+        let points: std::collections::BTreeSet<String> =
+            points.iter().map(|p| p.to_string()).collect();
+        assert_eq!(kinds, points, "{name}: where r0 follows its team");
+    }
+}
+
 /// Seen tracing the timed world: a leg (`walk`, `linewalk`: `until:
 /// leg_walked >= 1.5`) whose roles were not dealt yet at its first tick
 /// read the last leg's count, still 1.5, and ended 0.1 s after it began,

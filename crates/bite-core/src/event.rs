@@ -547,6 +547,18 @@ pub enum Event {
         /// This robot converges on `theirs`.
         follows: bool,
     },
+    /// This robot waited at `instance`'s point (a synchronization or a
+    /// barrier) for longer than a retry and heard teammate `member` past
+    /// it, with no other teammate still waiting there with it: the team
+    /// decided without it (it presumes this robot lost: its messages do
+    /// not get out). It goes on as they did, with the teammate's successor
+    /// or the end of the behavior, instead of waiting out the deadline.
+    LeftBehind {
+        /// The instance it waited in.
+        instance: InstanceKey,
+        /// The teammate heard past the point.
+        member: RobotId,
+    },
     /// A teammate under the same execution of an allocation point holds
     /// another allocation of it (views diverged: a partition healed, or a
     /// deadline decided on each side): this robot allocates again, in

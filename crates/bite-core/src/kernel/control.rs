@@ -351,6 +351,7 @@ impl Kernel {
             departed: None,
             anchor,
             alloc_heals: 0,
+            left_behind: false,
         });
         self.stack_version += 1;
         self.stats.selections += 1;
@@ -505,7 +506,7 @@ impl Kernel {
         let Outcome::Allocate(asg) = outcome else {
             return false;
         };
-        let (b, team, epoch) = (key.behavior, key.team, key.epoch);
+        let (b, team) = (key.behavior, key.team);
         // The subteams, shared with every teammate of this process that
         // applied the same allocation (made when it was decided).
         let split = match self.instances.get(&key).and_then(|i| i.split.clone()) {
@@ -528,27 +529,34 @@ impl Kernel {
                 // it). With a silent protocol it ends its part at its next
                 // tick (see `Phase::Idle`).
                 self.emit(Event::Unassigned { behavior: b });
-                let key = InstanceKey {
-                    team,
-                    behavior: b,
-                    kind: Kind::Terminate,
-                    epoch,
-                    round: 0,
-                };
-                let communicates = self
-                    .mission
-                    .bound(b, Kind::Terminate)
-                    .is_some_and(|x| x.protocol.communicates());
-                self.phase = Phase::Idle {
-                    since: self.ticks,
-                    silent: !communicates,
-                };
-                if communicates {
-                    self.term_local_done(key, LocalEnd::Idle);
-                }
+                self.idle_under_top();
             }
         }
         true
+    }
+
+    /// This robot has no part in the top frame's children: it idles under
+    /// it until it ends — by its own condition, or by its team (a
+    /// communicating termination protocol is told at once that this
+    /// robot's part is over, so barriers do not wait for it). With a
+    /// silent protocol it ends its part at its next tick (see
+    /// `Phase::Idle`).
+    pub(super) fn idle_under_top(&mut self) {
+        let Some(top) = self.stack.last() else {
+            return;
+        };
+        let key = top.term_key();
+        let communicates = self
+            .mission
+            .bound(top.behavior, Kind::Terminate)
+            .is_some_and(|x| x.protocol.communicates());
+        self.phase = Phase::Idle {
+            since: self.ticks,
+            silent: !communicates,
+        };
+        if communicates {
+            self.term_local_done(key, LocalEnd::Idle);
+        }
     }
 
     /// Lines 6–7: once the termination protocol decided, run its

@@ -30,6 +30,7 @@ impl Kernel {
                 // Rejoined under it after a restart, and the team has
                 // allocated it since: take part.
                 if idle_top == Some(i)
+                    && !f.left_behind
                     && let Some((round, _)) = (pos.frames.iter())
                         .find(|g| g.id == f.id() && g.state == FrameState::Running)
                         .and_then(|g| g.alloc)

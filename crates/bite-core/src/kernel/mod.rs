@@ -187,6 +187,10 @@ pub struct Frame {
     /// one (bounded: [`position::ALLOC_HEALS`]).
     #[serde(skip)]
     alloc_heals: u8,
+    /// The team allocated it without this robot, which idles under it
+    /// (see `Kernel::follow_past`): it does not allocate it again to join.
+    #[serde(skip)]
+    left_behind: bool,
 }
 
 impl Frame {
@@ -435,6 +439,9 @@ pub struct Kernel {
     recent_ended: position::RecentEnded,
     /// Executions burned recently, here or by teammates.
     recent_burned: VecDeque<FrameId>,
+    /// A teammate heard past the point of an instance where this robot
+    /// waits, and since when (see `Kernel::follow_past`).
+    left_behind: Option<(InstanceKey, RobotId, Time)>,
     /// Splits this robot, as healing leader, has already recorded.
     splits_seen: std::collections::BTreeSet<(RobotId, FrameId)>,
     /// A restarted process: since when it waits to hear where its team is.
@@ -507,6 +514,7 @@ impl Kernel {
             stats: Stats::default(),
             recent_ended: position::RecentEnded::default(),
             recent_burned: VecDeque::new(),
+            left_behind: None,
             splits_seen: std::collections::BTreeSet::new(),
             rejoin_since: None,
             peers: Default::default(),

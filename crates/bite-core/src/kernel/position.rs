@@ -52,7 +52,13 @@
 //!    other's way (the histories diverged while the team was cut apart),
 //!    is a split too: the team meets on the side further on (it ran the
 //!    common predecessor more times) or else its healing leader's; a robot
-//!    that moves burns what it ran since the sides parted.
+//!    that moves burns what it ran since the sides parted;
+//! 6. **left behind**: a robot that has waited at a point for a retry and
+//!    hears a teammate past it for a retry, with no other teammate still
+//!    talking to it from the point, was left out by a team that presumes
+//!    it lost (its own messages do not get out): it goes on as they did
+//!    (their successor, the end of the behavior, or no part in the
+//!    allocation they made) instead of waiting out its deadline.
 //!
 //! Silent protocols keep their zero-message decisions; healing sends no
 //! message of its own (it rides on the heartbeats).
@@ -273,6 +279,26 @@ impl Position {
                 && f.anchor
                     .is_some_and(|a| !a.first && a.behavior == key.behavior && a.epoch == key.epoch)
         })
+    }
+
+    /// What the sender ran after execution `id` (it decided the sync point
+    /// of `id`): the frame it runs that follows `id`, or the execution it
+    /// ended next under the same parent (its recent ends are in order, and
+    /// the next of a chain ends after its own descendants).
+    pub fn successor_of(&self, id: FrameId) -> Option<BehaviorId> {
+        let running = self.frames.iter().find(|f| {
+            f.id.team == id.team
+                && f.anchor
+                    .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch == id.epoch)
+        });
+        if let Some(f) = running {
+            return Some(f.id.behavior);
+        }
+        let i = self.ended.iter().position(|e| e.id == id)?;
+        let parent = self.ended[i].parent;
+        // The next of its chain ends after its own descendants.
+        let next = self.ended[i + 1..].iter().find(|e| e.parent == parent)?;
+        (next.id.team == id.team).then_some(next.id.behavior)
     }
 
     /// Where the sender is in the execution of `key`'s point: `None` when
@@ -652,7 +678,136 @@ impl Kernel {
         self.ask_past_point(from, pos);
         self.heard_waiting(from, pos);
         self.take_back(from, pos);
+        self.follow_past(from, pos);
         self.step();
+    }
+
+    /// Left behind: a robot that has waited at a point for longer than a
+    /// retry hears a teammate past that point for a retry, while no other teammate it
+    /// waits for there still talks to it from the point (heard within two
+    /// retries engaged there). The team decided without it: it presumes
+    /// this robot lost, its own messages do not get out (a one-way link,
+    /// heavy loss), and no message of its own (a vote, a report, a query)
+    /// will reach them before its deadline. A teammate that no longer sends
+    /// this robot its heartbeats, though alive, has another leader: it
+    /// presumes this robot lost too. So the robot goes on as the team did
+    /// instead of waiting the deadline out, and a `left_behind` event says
+    /// so:
+    ///
+    /// - at a synchronization point it takes the successor the teammate
+    ///   runs;
+    /// - at a barrier it ends the behavior;
+    /// - at an allocation the teammate went through, the team allocated
+    ///   without it, and its part cannot be read from a heartbeat (when
+    ///   the teammate is its coordinator, it most likely has a part whose
+    ///   decision was lost, and asks for it: it waits six retries, not
+    ///   one, before it gives up): it
+    ///   leaves the allocation and idles under the behavior until the
+    ///   behavior ends (by its condition, or at the team's barrier), and
+    ///   does not allocate it again to join the team there (its teammates
+    ///   would not hear that either).
+    fn follow_past(&mut self, from: RobotId, pos: &Position) {
+        use crate::interaction::Outcome;
+        // Only a robot at a point waits there (a robot that runs, the
+        // common case of a heartbeat, returns here).
+        let allocating = match self.phase {
+            Phase::Allocating(k) => Some(k),
+            Phase::Terminating { .. } | Phase::Selecting { .. } | Phase::Idle { .. } => None,
+            _ => return,
+        };
+        let now = self.now;
+        let mut past = None;
+        for (key, inst) in self.instances.iter() {
+            if inst.state != super::State::Active
+                || inst.waiting_since.is_none_or(|t| now - t < inst.retry)
+                || !inst.team.contains(from)
+                || inst.excluded.as_ref().is_some_and(|x| x.contains(from))
+            {
+                continue;
+            }
+            let outcome = match (key.kind, &inst.input) {
+                (Kind::Sync, super::PointInput::Sync { successors, .. }) => pos
+                    .successor_of(FrameId::of(key))
+                    .filter(|b| successors.contains(b))
+                    .map(|b| Some(Outcome::Sync(Some(b)))),
+                (Kind::Terminate, _) => pos
+                    .past_barrier(key)
+                    .then_some(Some(Outcome::Terminate(None))),
+                (Kind::Allocate, _) => {
+                    (allocating == Some(key) && pos.went_through(key)).then_some(None)
+                }
+                _ => None,
+            };
+            if let Some(o) = outcome {
+                // A robot its own coordinator went through an allocation
+                // without has a part it missed, most likely (the decision
+                // was lost), and asks for it (`ask_past_point`): it gives
+                // up only after six retries of asking unanswered.
+                let patience = match key.kind {
+                    Kind::Allocate if self.coordinator(key, inst) == Some(from) => 6,
+                    _ => 1,
+                };
+                past = Some((key, inst.retry, patience, o));
+                break;
+            }
+        }
+        let Some((key, retry, patience, outcome)) = past else {
+            return;
+        };
+        // Past it for a retry: a decision sent to this robot (a release, a
+        // reply to its query) has arrived by then, and the heartbeat that
+        // overtook it changes nothing. Then the team is looked at, once a
+        // retry at most.
+        match self.left_behind {
+            Some((k, r, since)) if k == key && r == from => {
+                if now - since < retry * patience {
+                    return;
+                }
+                self.left_behind = Some((key, from, now));
+            }
+            _ => {
+                self.left_behind = Some((key, from, now));
+                return;
+            }
+        }
+        let Some(inst) = self.instances.get(&key) else {
+            return;
+        };
+        let id = FrameId::of(key);
+        // Still at the point (or on its way there): engaged in the
+        // execution, or, at an allocation, not below it yet.
+        let at_point = |frames: &[(FrameId, FrameState)]| match key.kind {
+            Kind::Allocate => frames.last().is_some_and(|(f, _)| *f == id),
+            _ => frames.iter().any(|(f, _)| *f == id),
+        };
+        let waits_here = |r: RobotId| {
+            r != self.me
+                && r != from
+                && !self.lost.contains(r)
+                && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
+                && self
+                    .peers
+                    .get(&r)
+                    .is_some_and(|p| now - p.heard <= retry * 2 && at_point(&p.frames))
+        };
+        if inst.team.members.iter().any(waits_here) {
+            return;
+        }
+        self.left_behind = None;
+        self.emit(Event::LeftBehind {
+            instance: key,
+            member: from,
+        });
+        match outcome {
+            Some(o) => self.force(key, o),
+            None => {
+                self.abort_quietly(key);
+                if let Some(top) = self.stack.last_mut() {
+                    top.left_behind = true;
+                }
+                self.idle_under_top();
+            }
+        }
     }
 
     /// A teammate back from being presumed lost whose heartbeat shows it
@@ -900,21 +1055,7 @@ impl Kernel {
         }
         // Else idle under it: tell its termination that this robot has no
         // part to wait for.
-        let Some(top) = self.stack.last() else {
-            return;
-        };
-        let key = top.term_key();
-        let communicates = self
-            .mission
-            .bound(top.behavior, Kind::Terminate)
-            .is_some_and(|x| x.protocol.communicates());
-        self.phase = Phase::Idle {
-            since: self.ticks,
-            silent: !communicates,
-        };
-        if communicates {
-            self.term_local_done(key, crate::interaction::LocalEnd::Idle);
-        }
+        self.idle_under_top();
     }
 
     /// A robot that rejoined under frame `i` (an allocation point it took
