@@ -547,12 +547,14 @@ pub enum Event {
         /// This robot converges on `theirs`.
         follows: bool,
     },
-    /// This robot waited at `instance`'s point (a synchronization or a
-    /// barrier) for longer than a retry and heard teammate `member` past
-    /// it, with no other teammate still waiting there with it: the team
-    /// decided without it (it presumes this robot lost: its messages do
-    /// not get out). It goes on as they did, with the teammate's successor
-    /// or the end of the behavior, instead of waiting out the deadline.
+    /// This robot waited at `instance`'s point (a synchronization, a
+    /// barrier or an allocation) for longer than a retry and heard
+    /// teammate `member` past it, with no other teammate still waiting
+    /// there with it: the team decided without it (it presumes this robot
+    /// lost: its messages do not get out). It goes on as they did, with
+    /// the teammate's successor, the end of the behavior, or no part in
+    /// the allocation (it idles under the behavior), instead of waiting
+    /// out the deadline.
     LeftBehind {
         /// The instance it waited in.
         instance: InstanceKey,

@@ -439,9 +439,9 @@ pub struct Kernel {
     recent_ended: position::RecentEnded,
     /// Executions burned recently, here or by teammates.
     recent_burned: VecDeque<FrameId>,
-    /// A teammate heard past the point of an instance where this robot
-    /// waits, and since when (see `Kernel::follow_past`).
-    left_behind: Option<(InstanceKey, RobotId, Time)>,
+    /// An instance where this robot waits, and since when teammates are
+    /// heard past its point (see `Kernel::follow_past`).
+    left_behind: Option<(InstanceKey, Time)>,
     /// Splits this robot, as healing leader, has already recorded.
     splits_seen: std::collections::BTreeSet<(RobotId, FrameId)>,
     /// A restarted process: since when it waits to hear where its team is.

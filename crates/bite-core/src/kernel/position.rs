@@ -683,29 +683,29 @@ impl Kernel {
     }
 
     /// Left behind: a robot that has waited at a point for longer than a
-    /// retry hears a teammate past that point for a retry, while no other teammate it
-    /// waits for there still talks to it from the point (heard within two
-    /// retries engaged there). The team decided without it: it presumes
-    /// this robot lost, its own messages do not get out (a one-way link,
-    /// heavy loss), and no message of its own (a vote, a report, a query)
-    /// will reach them before its deadline. A teammate that no longer sends
-    /// this robot its heartbeats, though alive, has another leader: it
-    /// presumes this robot lost too. So the robot goes on as the team did
-    /// instead of waiting the deadline out, and a `left_behind` event says
-    /// so:
+    /// retry hears teammates past that point for a retry, while no other
+    /// teammate it waits for there still talks to it from the point (heard
+    /// within two retries engaged there). The team decided without it: it
+    /// presumes this robot lost, its own messages do not get out (a
+    /// one-way link, heavy loss), and no message of its own (a vote, a
+    /// report, a query) will reach them before its deadline. A teammate
+    /// that no longer sends this robot its heartbeats, though alive, has
+    /// another leader: it presumes this robot lost too. So the robot goes
+    /// on as the team did instead of waiting the deadline out, and a
+    /// `left_behind` event says so:
     ///
     /// - at a synchronization point it takes the successor the teammate
-    ///   runs;
+    ///   ran after it;
     /// - at a barrier it ends the behavior;
     /// - at an allocation the teammate went through, the team allocated
-    ///   without it, and its part cannot be read from a heartbeat (when
-    ///   the teammate is its coordinator, it most likely has a part whose
-    ///   decision was lost, and asks for it: it waits six retries, not
-    ///   one, before it gives up): it
+    ///   without it, and its part cannot be read from a heartbeat: it
     ///   leaves the allocation and idles under the behavior until the
     ///   behavior ends (by its condition, or at the team's barrier), and
     ///   does not allocate it again to join the team there (its teammates
-    ///   would not hear that either).
+    ///   would not hear that either). When the teammate is its own
+    ///   coordinator, it most likely has a part whose decision was lost,
+    ///   and asks for it (`ask_past_point`): it waits six retries, not
+    ///   one, before it gives up.
     fn follow_past(&mut self, from: RobotId, pos: &Position) {
         use crate::interaction::Outcome;
         // Only a robot at a point waits there (a robot that runs, the
@@ -754,19 +754,19 @@ impl Kernel {
         let Some((key, retry, patience, outcome)) = past else {
             return;
         };
-        // Past it for a retry: a decision sent to this robot (a release, a
-        // reply to its query) has arrived by then, and the heartbeat that
-        // overtook it changes nothing. Then the team is looked at, once a
-        // retry at most.
+        // Teammates past it for a retry: a decision sent to this robot (a
+        // release, a reply to its query) has arrived by then, and the
+        // heartbeat that overtook it changes nothing. Then the team is
+        // looked at, once a retry at most.
         match self.left_behind {
-            Some((k, r, since)) if k == key && r == from => {
+            Some((k, since)) if k == key => {
                 if now - since < retry * patience {
                     return;
                 }
-                self.left_behind = Some((key, from, now));
+                self.left_behind = Some((key, now));
             }
             _ => {
-                self.left_behind = Some((key, from, now));
+                self.left_behind = Some((key, now));
                 return;
             }
         }
