@@ -274,10 +274,15 @@ impl Position {
     /// behavior of `key`'s team that follows `key`'s execution. It decided
     /// that point.
     pub fn went_past(&self, key: InstanceKey) -> bool {
-        self.frames.iter().any(|f| {
-            f.id.team == key.team
+        self.running_after(FrameId::of(key)).is_some()
+    }
+
+    /// The frame the sender runs that follows execution `id` in its chain.
+    fn running_after(&self, id: FrameId) -> Option<&PosFrame> {
+        self.frames.iter().find(|f| {
+            f.id.team == id.team
                 && f.anchor
-                    .is_some_and(|a| !a.first && a.behavior == key.behavior && a.epoch == key.epoch)
+                    .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch == id.epoch)
         })
     }
 
@@ -286,12 +291,7 @@ impl Position {
     /// ended next under the same parent (its recent ends are in order, and
     /// the next of a chain ends after its own descendants).
     pub fn successor_of(&self, id: FrameId) -> Option<BehaviorId> {
-        let running = self.frames.iter().find(|f| {
-            f.id.team == id.team
-                && f.anchor
-                    .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch == id.epoch)
-        });
-        if let Some(f) = running {
+        if let Some(f) = self.running_after(id) {
             return Some(f.id.behavior);
         }
         let i = self.ended.iter().position(|e| e.id == id)?;
