@@ -442,6 +442,13 @@ pub struct Kernel {
     /// An instance where this robot waits, and since when teammates are
     /// heard past its point (see `Kernel::follow_past`).
     left_behind: Option<(InstanceKey, Time)>,
+    /// No instance has waited a retry before this time (`None`: none
+    /// waits): a heartbeat looks for instances to ask about
+    /// (`Kernel::ask_past_point`) only from then on, without reading each
+    /// instance (a large team's heartbeats found them out of the cache).
+    /// Lowered when an instance starts waiting, raised only by a walk of
+    /// every instance.
+    asks_from: Option<Time>,
     /// Splits this robot, as healing leader, has already recorded.
     splits_seen: std::collections::BTreeSet<(RobotId, FrameId)>,
     /// A restarted process: since when it waits to hear where its team is.
@@ -515,6 +522,7 @@ impl Kernel {
             recent_ended: position::RecentEnded::default(),
             recent_burned: VecDeque::new(),
             left_behind: None,
+            asks_from: None,
             splits_seen: std::collections::BTreeSet::new(),
             rejoin_since: None,
             peers: Default::default(),

@@ -934,6 +934,16 @@ impl Kernel {
     /// retry (a run without faults sends nothing more).
     fn ask_past_point(&mut self, from: RobotId, pos: &Position) {
         let now = self.now;
+        // No instance has waited a retry yet: nothing to ask, and no
+        // instance read (the common case of a heartbeat).
+        if self.asks_from.is_none_or(|t| now < t) {
+            return;
+        }
+        // Walk them all, and learn when the next will have waited a retry.
+        self.asks_from = (self.instances.values())
+            .filter(|inst| inst.state == super::State::Active)
+            .filter_map(|inst| inst.waiting_since.map(|t| t + inst.retry))
+            .min();
         let waiting = self.instances.iter().filter(|(_, inst)| {
             inst.state == super::State::Active
                 && inst.waiting_since.is_some_and(|t| now - t >= inst.retry)
