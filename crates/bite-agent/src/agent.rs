@@ -636,6 +636,7 @@ impl Agent {
                 let (front, back) = self.out.as_slices();
                 prefetch_slice(front, 2);
                 prefetch_slice(back, 2);
+                self.world.prefetch();
                 self.kernel.prefetch();
             }
             Ahead::Pilot => {

@@ -445,7 +445,9 @@ pub struct Resolved {
     pub crashes: Vec<(RobotId, Time, Option<Time>)>,
     /// Robots whose resumption is a restart with a fresh mind.
     pub restarts: Vec<(RobotId, Time)>,
-    /// Each robot's clock: rate and offset (seconds).
+    /// Each robot's clock: rate and offset (seconds). Empty when every
+    /// clock keeps true time (a runtime then reads no table per event; a
+    /// robot past its end keeps true time too).
     pub clocks: Vec<(f64, f64)>,
     /// Warnings (beliefs nobody reads, skills the scenario does not describe).
     pub warnings: Vec<Diagnostic>,
@@ -1107,9 +1109,12 @@ impl Scenario {
                 }
             }
         }
-        let mut clocks = vec![(1.0, 0.0); roster.len()];
+        let mut clocks = Vec::new();
         for (r, rate, offset, loc) in &self.clocks {
             if let Some(r) = one(r, *loc) {
+                if clocks.is_empty() {
+                    clocks = vec![(1.0, 0.0); roster.len()];
+                }
                 clocks[r.index()] = (*rate, *offset);
             }
         }

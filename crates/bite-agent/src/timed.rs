@@ -219,6 +219,17 @@ impl RobotWorld {
         &self.changed
     }
 
+    /// Ask for what a tick reads of this world to be brought into the
+    /// cache (see `Agent::prefetch`): the levels and the skill's rates,
+    /// each on the heap apart from the robot.
+    pub fn prefetch(&self) {
+        use bite_core::hint::prefetch_slice;
+        prefetch_slice(&self.levels, 1);
+        if let Some(a) = &self.active {
+            prefetch_slice(&a.rates, 1);
+        }
+    }
+
     fn level(&mut self, id: BeliefId) -> &mut f64 {
         if self.levels.len() <= id.index() {
             self.levels.resize(id.index() + 1, 0.0);
