@@ -1483,7 +1483,7 @@ fn cmd_bench_protocols(sizes: &[usize], large: usize, seed: u64, json: bool) -> 
 /// compiler make many small, short-lived allocations; measured in
 /// docs/performance.md, chosen in docs/dependencies.md.
 #[global_allocator]
-static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+static ALLOC: bite_alloc::MiMalloc = bite_alloc::MiMalloc;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();

@@ -12,7 +12,7 @@ use std::sync::Arc;
 
 // The allocator the `bite` binary runs with, so that the figures are its.
 #[global_allocator]
-static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
+static ALLOC: bite_alloc::MiMalloc = bite_alloc::MiMalloc;
 
 fn main() {
     divan::main();
