@@ -25,6 +25,27 @@ const BLOCK_ALIGN: usize = std::mem::size_of::<usize>();
 /// mimalloc, with requests aligned to a word or less on its plain calls.
 pub struct MiMalloc;
 
+/// A new block for `layout`: from `plain` when a word's alignment does,
+/// else from `aligned`.
+///
+/// # Safety
+/// `plain` and `aligned` are mimalloc's allocation calls (see the impl).
+#[inline(always)]
+unsafe fn fresh(
+    layout: Layout,
+    plain: unsafe extern "C" fn(usize) -> *mut c_void,
+    aligned: unsafe extern "C" fn(usize, usize) -> *mut c_void,
+) -> *mut u8 {
+    // SAFETY: the caller's contract; sizes and alignments as `Layout` has them.
+    unsafe {
+        if layout.align() <= BLOCK_ALIGN {
+            plain(layout.size()) as *mut u8
+        } else {
+            aligned(layout.size(), layout.align()) as *mut u8
+        }
+    }
+}
+
 // SAFETY: every method hands mimalloc a request it documents as valid and
 // returns what mimalloc returns. A layout aligned to `BLOCK_ALIGN` or less
 // goes to `mi_malloc` / `mi_zalloc` / `mi_realloc`, whose blocks are always
@@ -38,25 +59,13 @@ unsafe impl GlobalAlloc for MiMalloc {
     #[inline]
     unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
         // SAFETY: see the impl.
-        unsafe {
-            if layout.align() <= BLOCK_ALIGN {
-                ffi::mi_malloc(layout.size()) as *mut u8
-            } else {
-                ffi::mi_malloc_aligned(layout.size(), layout.align()) as *mut u8
-            }
-        }
+        unsafe { fresh(layout, ffi::mi_malloc, ffi::mi_malloc_aligned) }
     }
 
     #[inline]
     unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
         // SAFETY: see the impl.
-        unsafe {
-            if layout.align() <= BLOCK_ALIGN {
-                ffi::mi_zalloc(layout.size()) as *mut u8
-            } else {
-                ffi::mi_zalloc_aligned(layout.size(), layout.align()) as *mut u8
-            }
-        }
+        unsafe { fresh(layout, ffi::mi_zalloc, ffi::mi_zalloc_aligned) }
     }
 
     #[inline]
