@@ -446,8 +446,8 @@ pub struct Resolved {
     /// Robots whose resumption is a restart with a fresh mind.
     pub restarts: Vec<(RobotId, Time)>,
     /// Each robot's clock: rate and offset (seconds). Empty when every
-    /// clock keeps true time (a runtime then reads no table per event; a
-    /// robot past its end keeps true time too).
+    /// clock keeps true time, so that a runtime reads no table per event;
+    /// a robot without an entry keeps true time.
     pub clocks: Vec<(f64, f64)>,
     /// Warnings (beliefs nobody reads, skills the scenario does not describe).
     pub warnings: Vec<Diagnostic>,

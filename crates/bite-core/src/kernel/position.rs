@@ -937,6 +937,13 @@ impl Kernel {
         // No instance has waited a retry yet: nothing to ask, and no
         // instance read (the common case of a heartbeat).
         if self.asks_from.is_none_or(|t| now < t) {
+            debug_assert!(
+                self.instances
+                    .values()
+                    .all(|i| i.state != super::State::Active
+                        || i.waiting_since.is_none_or(|t| now - t < i.retry)),
+                "asks_from is later than an instance that has waited a retry"
+            );
             return;
         }
         // Walk them all, and learn when the next will have waited a retry.
