@@ -153,7 +153,7 @@ impl Kernel {
         });
         let protocol = inst.protocol;
         if !armed {
-            self.waits_from(self.now + inst.retry);
+            self.waits_from(inst.retry_due());
             let excluded = inst.excluded_members();
             let options: LogList<BehaviorId> = match &inst.input {
                 PointInput::Sync { candidates, .. } => match self.mission.next_shared(key.behavior)
@@ -210,7 +210,7 @@ impl Kernel {
         inst.deadline = now + inst.deadline_len;
         let protocol = inst.protocol;
         let excluded = inst.excluded_members();
-        let ready = now + inst.retry;
+        let ready = inst.retry_due();
         self.waits_from(ready);
         self.emit(Event::InteractionStarted {
             instance: key,
@@ -540,8 +540,10 @@ impl Kernel {
 
     /// An instance starts waiting, and will have waited a retry at
     /// `ready` (see `Kernel::asks_from`).
-    fn waits_from(&mut self, ready: Time) {
-        self.asks_from = Some(self.asks_from.map_or(ready, |t| t.min(ready)));
+    fn waits_from(&mut self, ready: Option<Time>) {
+        if let Some(ready) = ready {
+            self.asks_from = Some(self.asks_from.map_or(ready, |t| t.min(ready)));
+        }
     }
 
     pub(super) fn refresh_due(&mut self) {

@@ -346,6 +346,20 @@ impl Instance {
         })
     }
 
+    /// When it will have waited a retry for its decision (`None`: it does
+    /// not wait; see `Kernel::asks_from`).
+    fn retry_due(&self) -> Option<Time> {
+        match (self.state, self.waiting_since) {
+            (State::Active, Some(t)) => Some(t + self.retry),
+            _ => None,
+        }
+    }
+
+    /// True when it has waited a retry for its decision at `now`.
+    fn waited_a_retry(&self, now: Time) -> bool {
+        self.retry_due().is_some_and(|t| now >= t)
+    }
+
     /// The team's members it decides without, in id order.
     fn excluded_members(&self) -> Vec<RobotId> {
         self.excluded

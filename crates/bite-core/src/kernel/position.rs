@@ -718,8 +718,7 @@ impl Kernel {
         let now = self.now;
         let mut past = None;
         for (key, inst) in self.instances.iter() {
-            if inst.state != super::State::Active
-                || inst.waiting_since.is_none_or(|t| now - t < inst.retry)
+            if !inst.waited_a_retry(now)
                 || !inst.team.contains(from)
                 || inst.excluded.as_ref().is_some_and(|x| x.contains(from))
             {
@@ -938,23 +937,14 @@ impl Kernel {
         // instance read (the common case of a heartbeat).
         if self.asks_from.is_none_or(|t| now < t) {
             debug_assert!(
-                self.instances
-                    .values()
-                    .all(|i| i.state != super::State::Active
-                        || i.waiting_since.is_none_or(|t| now - t < i.retry)),
+                !self.instances.values().any(|i| i.waited_a_retry(now)),
                 "asks_from is later than an instance that has waited a retry"
             );
             return;
         }
         // Walk them all, and learn when the next will have waited a retry.
-        self.asks_from = (self.instances.values())
-            .filter(|inst| inst.state == super::State::Active)
-            .filter_map(|inst| inst.waiting_since.map(|t| t + inst.retry))
-            .min();
-        let waiting = self.instances.iter().filter(|(_, inst)| {
-            inst.state == super::State::Active
-                && inst.waiting_since.is_some_and(|t| now - t >= inst.retry)
-        });
+        self.asks_from = self.instances.values().filter_map(|i| i.retry_due()).min();
+        let waiting = self.instances.iter().filter(|(_, i)| i.waited_a_retry(now));
         // Each with whether to wait a retry first.
         let ask: Vec<(InstanceKey, bool)> = waiting
             .filter_map(|(k, _)| match k.kind {
