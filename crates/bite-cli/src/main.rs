@@ -1487,6 +1487,12 @@ static ALLOC: bite_alloc::MiMalloc = bite_alloc::MiMalloc;
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    // A command that ends with its work keeps the memory it frees for its
+    // next allocations (the services keep mimalloc's default and give it
+    // back; bite-alloc's docs say why).
+    if !matches!(cli.cmd, Cmd::Studio(_) | Cmd::Robot(_) | Cmd::Sim { .. }) {
+        bite_alloc::keep_freed_memory();
+    }
     // `BITE_PARSE_ONLY=1`: check the command line and stop (exit 0, or 2
     // on a bad one), so that the README test can check the commands it
     // shows that run for minutes or start a team over Zenoh.
