@@ -101,14 +101,14 @@ const PURGE_DELAY_ENV: &str = "MIMALLOC_PURGE_DELAY";
 /// otherwise. Returns whether it was set.
 ///
 /// For a process that ends with its work (a run, a sweep, a bench): by
-/// default mimalloc returns pages left unused for a second, and a large
-/// team's run keeps freeing and taking back hundreds of megabytes (its
-/// heartbeats, events and queues), each page taken back faulted in and
-/// cleared again by the kernel (a 100,000-robot team spent 5 % of its time
-/// in the kernel's page clearing). The peak stays the same; the process
-/// keeps its peak until it exits. Long-running services (`bite studio`,
-/// `bite robot`) keep the default. Call it first in `main`, before other
-/// threads start.
+/// default mimalloc gives back pages left unused for a second, and every
+/// page a large team's run takes back is faulted in and cleared again by
+/// the kernel (5.5 % of a 100,000-robot team's samples on one thread;
+/// with this, that team ran 1-35 % faster in nine alternated pairs:
+/// docs/performance.md, "2026-12-02, afternoon"). The peak grows a little
+/// (10-45 MB there), and the process keeps it until it exits, so the
+/// long-running services (`bite studio`, `bite robot`) keep the default.
+/// Call it first in `main`, before other threads start.
 pub fn keep_freed_memory() -> bool {
     if std::env::var_os(PURGE_DELAY_ENV).is_some() {
         return false;
