@@ -164,18 +164,6 @@ mod tests {
         }
     }
 
-    /// The option is set, unless the environment set it first.
-    #[test]
-    fn freed_memory_is_kept_unless_the_environment_says() {
-        if std::env::var_os(PURGE_DELAY_ENV).is_some() {
-            assert!(!keep_freed_memory());
-            return;
-        }
-        assert!(keep_freed_memory());
-        // SAFETY: reads one option's value.
-        assert_eq!(unsafe { ffi::mi_option_get(MI_OPTION_PURGE_DELAY) }, -1);
-    }
-
     /// A block's alignment is the word even where a size class is not a
     /// multiple of 16 (the case the aligned calls over-allocated for).
     #[test]

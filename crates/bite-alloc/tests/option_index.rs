@@ -8,6 +8,8 @@ use libmimalloc_sys as ffi;
 #[test]
 fn the_purge_delay_option_holds_its_default_until_set() {
     if std::env::var_os("MIMALLOC_PURGE_DELAY").is_some() {
+        // The environment's value wins: nothing is set.
+        assert!(!bite_alloc::keep_freed_memory());
         return;
     }
     // SAFETY: reads one option's value (15: `mi_option_purge_delay`).
