@@ -1,5 +1,6 @@
 //! Generated missions for large teams: the coverage task at any team
-//! size, for `bite bench sim` and for tests.
+//! size, its robots starting in their cells or across the arena from
+//! them, for `bite bench sim` and for tests.
 
 /// The coverage mission at scale: `n` robots split a square arena of about
 /// 16 m² per robot (pillars every 8 m, mid-lane, away from the lanes' ends)
@@ -9,15 +10,57 @@
 /// (a cell takes longer than a minute to sweep, so the figure is the
 /// steady state of sensing, kernels, fusion and physics).
 pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
+    cells_mission("coverage", n, seconds, |r| r)
+}
+
+/// The coverage mission with every robot starting in another's cell, about
+/// half the arena away from its own (robot `r` starts where robot
+/// `(r + n/2) mod n` starts in [`coverage_mission`]): the team crosses the
+/// arena before it sweeps, the bodies mixing as they pass each other. What
+/// a world costs when its bodies move far from where they began (rapier's
+/// broad phase keeps a tree of them: docs/performance.md, "The physical
+/// world, 2026-12-02, evening").
+pub fn crossing_mission(n: usize, seconds: f64) -> (String, String) {
+    cells_mission("crossing", n, seconds, |r| crossing_start_cell(n, r))
+}
+
+/// The cell robot `r` of `n` starts in, in [`crossing_mission`].
+pub fn crossing_start_cell(n: usize, r: usize) -> usize {
+    (r + n / 2) % n.max(1)
+}
+
+/// Where the sweep of cell `cell` of `n` begins, and where a robot
+/// starting in that cell is placed.
+pub fn cell_start(n: usize, cell: usize) -> [f64; 2] {
+    let side = side_of(n);
+    let c = crate::schema::split_cell([0.0, 0.0, side, side], cell as u32, n as u32);
+    // Where its sweep begins: by the cell's lower-left corner (pillars
+    // stand mid-cell).
+    [
+        c[0] + 0.5_f64.min((c[2] - c[0]) / 2.0),
+        c[1] + 0.5_f64.min((c[3] - c[1]) / 2.0),
+    ]
+}
+
+/// The arena's side for `n` robots (m): about 16 m² each.
+fn side_of(n: usize) -> f64 {
+    (16.0 * n as f64).sqrt().max(4.0)
+}
+
+fn cells_mission(
+    name: &str,
+    n: usize,
+    seconds: f64,
+    start_cell: impl Fn(usize) -> usize,
+) -> (String, String) {
     use std::fmt::Write as _;
-    let side = (16.0 * n as f64).sqrt().max(4.0);
-    let region = [0.0, 0.0, side, side];
+    let side = side_of(n);
     let graph = format!(
-        "graph: coverage-{n}\nteam: {{ robots: {n} }}\nstart: cover\ndefaults: {{ terminate: term.wait-all }}\n\
+        "graph: {name}-{n}\nteam: {{ robots: {n} }}\nstart: cover\ndefaults: {{ terminate: term.wait-all }}\n\
          behaviors:\n  cover: {{ team: true, skill: sweep, until: swept }}\n"
     );
     let mut sc = format!(
-        "scenario: coverage-{n}\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: {seconds}s\n\
+        "scenario: {name}-{n}\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: {seconds}s\n\
          physics:\n  arena: [{side:.2}, {side:.2}]\n  trail: 0\n\
          \x20 robot: {{ radius: 0.12, drive: differential, max_speed: 0.35, max_turn: 3, max_accel: 1.0 }}\n\
          \x20 sensors: {{ pose_noise: 0.005, rays: {{ count: 8, range: 1.0, noise: 0.005 }}, camera: {{ fov: 120, range: 3, noise: 0.01 }} }}\n\
@@ -36,15 +79,8 @@ pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
     }
     sc.push_str("  start:\n");
     for r in 0..n {
-        let c = crate::schema::split_cell(region, r as u32, n as u32);
-        let _ = writeln!(
-            sc,
-            "    r{r}: {{ at: [{:.2}, {:.2}] }}",
-            // Where its sweep begins: by the cell's lower-left corner
-            // (pillars stand mid-cell).
-            c[0] + 0.5_f64.min((c[2] - c[0]) / 2.0),
-            c[1] + 0.5_f64.min((c[3] - c[1]) / 2.0)
-        );
+        let [x, y] = cell_start(n, start_cell(r));
+        let _ = writeln!(sc, "    r{r}: {{ at: [{x:.2}, {y:.2}] }}");
     }
     let _ = write!(
         sc,
@@ -54,4 +90,48 @@ pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
          \x20     - {{ schema: avoid-obstacle, range: 0.3, layer: 3 }}\n"
     );
     (graph, sc)
+}
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crossing_robots_start_in_each_others_cells_half_the_arena_away() {
+        for n in [2usize, 16, 100, 1000] {
+            let side = side_of(n);
+            let mut cells: Vec<usize> = (0..n).map(|r| crossing_start_cell(n, r)).collect();
+            // Every robot has a start of its own: the same places as the
+            // coverage mission's, shared out differently.
+            assert!(cells.iter().enumerate().all(|(r, c)| *c != r), "n = {n}");
+            cells.sort_unstable();
+            assert_eq!(cells, (0..n).collect::<Vec<_>>(), "n = {n}");
+            // On average a robot starts about half the arena from its cell.
+            let mean = (0..n)
+                .map(|r| {
+                    let ([a, b], [c, d]) =
+                        (cell_start(n, r), cell_start(n, crossing_start_cell(n, r)));
+                    (a - c).hypot(b - d)
+                })
+                .sum::<f64>()
+                / n as f64;
+            assert!(
+                mean > 0.4 * side && mean < 0.8 * side,
+                "n = {n}: {mean} m of {side}"
+            );
+        }
+        // The coverage mission is the same text with the robots at home.
+        let (_, cov) = coverage_mission(16, 60.0);
+        let (_, cross) = crossing_mission(16, 60.0);
+        let starts = |s: &str| {
+            let mut v: Vec<String> = s
+                .lines()
+                .filter(|l| l.trim_start().starts_with('r') && l.contains("at:"))
+                .map(|l| l.split_once(':').map_or("", |x| x.1).trim().to_string())
+                .collect();
+            v.sort();
+            v
+        };
+        assert_eq!(starts(&cov), starts(&cross));
+        assert_ne!(cov.replace("coverage", "crossing"), cross);
+    }
 }

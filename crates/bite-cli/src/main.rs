@@ -296,12 +296,18 @@ enum BenchCmd {
     /// coverage), then teams of N robots roaming an arena for a simulated
     /// minute: wall time, physics steps per second, real-time factor.
     Sim {
-        /// Team sizes of the coverage runs at scale.
+        /// Team sizes of the runs at scale.
         #[arg(long, value_delimiter = ',', value_parser = parse_robots, default_values_t = [10usize, 100, 1000, 10000])]
         robots: Vec<usize>,
-        /// Simulated seconds of each coverage run at scale.
+        /// Simulated seconds of each run at scale.
         #[arg(long, default_value_t = 60.0)]
         seconds: f64,
+        /// The mission of the runs at scale: `coverage` (each robot sweeps
+        /// the cell it starts in) or `crossing` (each starts about half the
+        /// arena away from its cell: the team crosses the arena first, its
+        /// bodies mixing).
+        #[arg(long, value_enum, default_value_t = SimMission::Coverage)]
+        mission: SimMission,
         /// Seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
@@ -1126,10 +1132,29 @@ const BOX_PUSH_PHYSICS: &str = include_str!("../../../examples/scenarios/box-pus
 const COVERAGE_GRAPH: &str = include_str!("../../../examples/coverage.yaml");
 const COVERAGE_PHYSICS: &str = include_str!("../../../examples/scenarios/coverage-physics.yaml");
 
+/// The mission of `bite bench sim`'s runs at scale.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum SimMission {
+    /// Each robot sweeps the cell it starts in.
+    Coverage,
+    /// Each robot starts about half the arena away from its cell.
+    Crossing,
+}
+
+impl SimMission {
+    fn name(self) -> &'static str {
+        match self {
+            SimMission::Coverage => "coverage",
+            SimMission::Crossing => "crossing",
+        }
+    }
+}
+
 /// What `bite bench sim` runs.
 struct SimBench<'a> {
     robots: &'a [usize],
     seconds: f64,
+    mission: SimMission,
     seed: u64,
     scaling: &'a benchkit::Scaling,
     json: bool,
@@ -1155,11 +1180,15 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
             COVERAGE_PHYSICS.into(),
         ),
     ];
+    let at_scale = b.mission.name();
     for n in robots {
-        let (g, s) = bite_agent::swarm::coverage_mission(*n, seconds);
-        cases.push((format!("coverage {n}"), g, s));
+        let (g, s) = match b.mission {
+            SimMission::Coverage => bite_agent::swarm::coverage_mission(*n, seconds),
+            SimMission::Crossing => bite_agent::swarm::crossing_mission(*n, seconds),
+        };
+        cases.push((format!("{at_scale} {n}"), g, s));
     }
-    let at_scale = cases.len() - robots.len();
+    let first_at_scale = cases.len() - robots.len();
     let mut rows = Vec::new();
     if !b.json {
         outln!(
@@ -1232,12 +1261,12 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
                     );
                 }
             }
-            if k >= at_scale {
+            if k >= first_at_scale {
                 points.push((mission.graph().roster().len(), factors));
             }
         }
         curves.push(plot::Curve {
-            label: format!("coverage mission, {}", t.label),
+            label: format!("{at_scale} mission, {}", t.label),
             points,
         });
     }
@@ -1248,7 +1277,7 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
         plot::scaling(
             path,
             &format!(
-                "bite bench sim: coverage mission, {} s simulated, {} run(s) each",
+                "bite bench sim: {at_scale} mission, {} s simulated, {} run(s) each",
                 b.seconds, b.scaling.repeat
             ),
             &curves,
@@ -1585,6 +1614,7 @@ fn main() -> ExitCode {
                 BenchCmd::Sim {
                     robots,
                     seconds,
+                    mission,
                     seed,
                     scaling,
                     json,
@@ -1592,6 +1622,7 @@ fn main() -> ExitCode {
         } => cmd_bench_sim(SimBench {
             robots: &robots,
             seconds,
+            mission,
             seed,
             scaling: &scaling,
             json,

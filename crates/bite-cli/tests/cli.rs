@@ -639,4 +639,19 @@ fn bench_commands_print_json_rows_for_scripts() {
         "three shipped scenarios and one coverage size"
     );
     assert_eq!(rows[3]["robots"], 10);
+    assert_eq!(rows[3]["run"], "coverage 10");
+    let sim = parse(&[
+        "bench",
+        "sim",
+        "--robots",
+        "10",
+        "--seconds",
+        "3",
+        "--mission",
+        "crossing",
+        "--json",
+    ]);
+    let rows = sim["rows"].as_array().expect("rows");
+    assert_eq!(rows[3]["run"], "crossing 10", "{rows:?}");
+    assert_eq!(rows[3]["simulated_s"], 3.0, "{rows:?}");
 }

@@ -314,6 +314,37 @@ fn a_watcher_sees_the_world_between_control_ticks_without_changing_the_run() {
 }
 
 #[test]
+fn a_crossing_team_drives_across_the_arena_to_its_cells() {
+    // `bite bench sim --mission crossing`: every robot starts about half
+    // the arena from its cell and must cross, passing its teammates.
+    use bite_agent::swarm::{cell_start, crossing_mission, crossing_start_cell};
+    let n = 16;
+    let (g, s) = crossing_mission(n, 60.0);
+    let g = graph("crossing-16", &g);
+    let sc = scenario("crossing-16 scenario", &s);
+    let o = simulate(&g, &sc, 1);
+    assert_clean(&o, "crossing-16");
+    let world = o.report.world.as_ref().expect("world");
+    let w = o.report.summary.world.as_ref().expect("a physical world");
+    for r in 0..n {
+        let (home, start) = (cell_start(n, r), cell_start(n, crossing_start_cell(n, r)));
+        let far = (home[0] - start[0]).hypot(home[1] - start[1]);
+        // It drove at least the way home, and is nearer home than it began.
+        assert!(
+            w.distance[r] >= 0.9 * far,
+            "r{r} drove {} m of {far}",
+            w.distance[r]
+        );
+        let p = world.position(r);
+        let left = (home[0] - p.x).hypot(home[1] - p.y);
+        assert!(
+            left < 0.5 * far,
+            "r{r} is {left} m from home, started {far} m away"
+        );
+    }
+}
+
+#[test]
 fn a_large_team_runs_the_same_on_one_thread_and_on_several() {
     // Sensing and the minds' ticks run side by side from 64 robots on
     // (on rayon's global pool: every core); inside a pool's worker (as
