@@ -10,7 +10,7 @@
 /// (a cell takes longer than a minute to sweep, so the figure is the
 /// steady state of sensing, kernels, fusion and physics).
 pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
-    cells_mission("coverage", n, seconds, |r| r)
+    cells_mission("coverage", n, seconds, |r| r, None)
 }
 
 /// The coverage mission with every robot starting in another's cell, about
@@ -21,7 +21,16 @@ pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
 /// broad phase keeps a tree of them: docs/performance.md, "The physical
 /// world, 2026-12-02, evening").
 pub fn crossing_mission(n: usize, seconds: f64) -> (String, String) {
-    cells_mission("crossing", n, seconds, |r| crossing_start_cell(n, r))
+    // Nothing is decided while the team crosses: the run is not stalled
+    // until a robot could have crossed the whole arena and then some.
+    let patience = (side_of(n) / SPEED).ceil() + 120.0;
+    cells_mission(
+        "crossing",
+        n,
+        seconds,
+        |r| crossing_start_cell(n, r),
+        Some(patience),
+    )
 }
 
 /// The cell robot `r` of `n` starts in, in [`crossing_mission`].
@@ -42,6 +51,9 @@ pub fn cell_start(n: usize, cell: usize) -> [f64; 2] {
     ]
 }
 
+/// The robots' top speed, m/s.
+const SPEED: f64 = 0.35;
+
 /// The arena's side for `n` robots (m): about 16 m² each.
 fn side_of(n: usize) -> f64 {
     (16.0 * n as f64).sqrt().max(4.0)
@@ -52,6 +64,7 @@ fn cells_mission(
     n: usize,
     seconds: f64,
     start_cell: impl Fn(usize) -> usize,
+    stall_after: Option<f64>,
 ) -> (String, String) {
     use std::fmt::Write as _;
     let side = side_of(n);
@@ -59,10 +72,11 @@ fn cells_mission(
         "graph: {name}-{n}\nteam: {{ robots: {n} }}\nstart: cover\ndefaults: {{ terminate: term.wait-all }}\n\
          behaviors:\n  cover: {{ team: true, skill: sweep, until: swept }}\n"
     );
+    let stall = stall_after.map_or(String::new(), |s| format!("stall: {{ after: {s}s }}\n"));
     let mut sc = format!(
-        "scenario: {name}-{n}\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: {seconds}s\n\
+        "scenario: {name}-{n}\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: {seconds}s\n{stall}\
          physics:\n  arena: [{side:.2}, {side:.2}]\n  trail: 0\n\
-         \x20 robot: {{ radius: 0.12, drive: differential, max_speed: 0.35, max_turn: 3, max_accel: 1.0 }}\n\
+         \x20 robot: {{ radius: 0.12, drive: differential, max_speed: {SPEED}, max_turn: 3, max_accel: 1.0 }}\n\
          \x20 sensors: {{ pose_noise: 0.005, rays: {{ count: 8, range: 1.0, noise: 0.005 }}, camera: {{ fov: 120, range: 3, noise: 0.01 }} }}\n\
          \x20 beliefs: {{ swept: skill_done }}\n  obstacles:\n"
     );
@@ -85,7 +99,7 @@ fn cells_mission(
     let _ = write!(
         sc,
         "skills:\n  sweep:\n    schemas:\n\
-         \x20     - {{ schema: scan, region: [0, 0, {side:.2}, {side:.2}], split: true, spacing: 0.6, speed: 0.35, layer: 1 }}\n\
+         \x20     - {{ schema: scan, region: [0, 0, {side:.2}, {side:.2}], split: true, spacing: 0.6, speed: {SPEED}, layer: 1 }}\n\
          \x20     - {{ schema: avoid-teammate, range: 0.4, layer: 2 }}\n\
          \x20     - {{ schema: avoid-obstacle, range: 0.3, layer: 3 }}\n"
     );
@@ -132,6 +146,10 @@ mod tests {
             v
         };
         assert_eq!(starts(&cov), starts(&cross));
+        // Crossing takes minutes in which nothing is decided: the run is
+        // not called stalled before a robot could have crossed it all.
+        assert!(cross.contains("stall: { after: 166s }"), "{cross}");
+        assert!(!cov.contains("stall:"));
         assert_ne!(cov.replace("coverage", "crossing"), cross);
     }
 }
