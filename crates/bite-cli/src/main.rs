@@ -293,8 +293,9 @@ fn parse_fault(s: &str) -> Result<bite_sim::fault::Fault, String> {
 #[derive(Subcommand)]
 enum BenchCmd {
     /// The physical world: the shipped scenarios (formation, box push,
-    /// coverage), then teams of N robots roaming an arena for a simulated
-    /// minute: wall time, physics steps per second, real-time factor.
+    /// coverage), then teams of N robots sweeping an arena (`--mission`)
+    /// for a simulated minute (`--seconds`): wall time, physics steps per
+    /// second, real-time factor.
     Sim {
         /// Team sizes of the runs at scale.
         #[arg(long, value_delimiter = ',', value_parser = parse_robots, default_values_t = [10usize, 100, 1000, 10000])]

@@ -652,6 +652,7 @@ fn bench_commands_print_json_rows_for_scripts() {
         "--json",
     ]);
     let rows = sim["rows"].as_array().expect("rows");
+    assert_eq!(rows.len(), 4, "{rows:?}");
     assert_eq!(rows[3]["run"], "crossing 10", "{rows:?}");
     assert_eq!(rows[3]["simulated_s"], 3.0, "{rows:?}");
 }
