@@ -1181,13 +1181,13 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
             COVERAGE_PHYSICS.into(),
         ),
     ];
-    let at_scale = b.mission.name();
+    let mission_name = b.mission.name();
     for n in robots {
         let (g, s) = match b.mission {
             SimMission::Coverage => bite_agent::swarm::coverage_mission(*n, seconds),
             SimMission::Crossing => bite_agent::swarm::crossing_mission(*n, seconds),
         };
-        cases.push((format!("{at_scale} {n}"), g, s));
+        cases.push((format!("{mission_name} {n}"), g, s));
     }
     let first_at_scale = cases.len() - robots.len();
     let mut rows = Vec::new();
@@ -1267,7 +1267,7 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
             }
         }
         curves.push(plot::Curve {
-            label: format!("{at_scale} mission, {}", t.label),
+            label: format!("{mission_name} mission, {}", t.label),
             points,
         });
     }
@@ -1278,7 +1278,7 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
         plot::scaling(
             path,
             &format!(
-                "bite bench sim: {at_scale} mission, {} s simulated, {} run(s) each",
+                "bite bench sim: {mission_name} mission, {} s simulated, {} run(s) each",
                 b.seconds, b.scaling.repeat
             ),
             &curves,
