@@ -150,10 +150,11 @@ mod tests {
         // The coverage mission is the same text with the robots at home.
         let (_, cov) = coverage_mission(16, 60.0);
         let (_, cross) = crossing_mission(16, 60.0);
+        let is_start = |l: &&str| l.trim_start().starts_with('r') && l.contains("at:");
         let starts = |s: &str| {
             let mut v: Vec<String> = s
                 .lines()
-                .filter(|l| l.trim_start().starts_with('r') && l.contains("at:"))
+                .filter(is_start)
                 .map(|l| l.split_once(':').map_or("", |x| x.1).trim().to_string())
                 .collect();
             v.sort();
@@ -167,7 +168,7 @@ mod tests {
         let rest = |s: &str| {
             s.lines()
                 .filter(|l| !l.starts_with("stall:"))
-                .filter(|l| !(l.trim_start().starts_with('r') && l.contains("at:")))
+                .filter(|l| !is_start(l))
                 .collect::<Vec<_>>()
                 .join("\n")
         };
