@@ -22,9 +22,15 @@ pub fn coverage_mission(n: usize, seconds: f64) -> (String, String) {
 /// keeps a tree of them: docs/performance.md, "The physical world,
 /// 2026-12-02, evening").
 pub fn crossing_mission(n: usize, seconds: f64) -> (String, String) {
-    // Nothing is decided while the team crosses: the run is not stalled
-    // until a robot could have crossed the whole arena and then some.
-    let patience = (side_of(n) / SPEED).ceil() + 120.0;
+    // Nothing is decided until the whole team has crossed and swept: the
+    // run is not stalled until a robot could have crossed the whole arena
+    // and swept its cell, and then some. Nor does the team's barrier give
+    // up on a robot still at work before then: robots cross different
+    // distances (some a few cells, some most of the arena), so they finish
+    // minutes apart, and `term.wait-all`'s 30 s released the barrier under
+    // the last ones (fault-free runs completed with timeouts: 7 seeds of 8
+    // at 100 robots).
+    let patience = ((side_of(n) + CELL_AREA / SPACING) / SPEED).ceil() + 120.0;
     cells_mission(
         "crossing",
         n,
@@ -57,10 +63,14 @@ pub fn cell_start(n: usize, cell: usize) -> [f64; 2] {
 
 /// The robots' top speed, m/s.
 const SPEED: f64 = 0.35;
+/// The area of a robot's cell, about (m²).
+const CELL_AREA: f64 = 16.0;
+/// The distance between a sweep's lanes (m).
+const SPACING: f64 = 0.6;
 
 /// The arena's side for `n` robots (m): about 16 m² each.
 fn side_of(n: usize) -> f64 {
-    (16.0 * n as f64).sqrt().max(4.0)
+    (CELL_AREA * n as f64).sqrt().max(4.0)
 }
 
 fn cells_mission(
@@ -68,15 +78,20 @@ fn cells_mission(
     n: usize,
     seconds: f64,
     start_cell: impl Fn(usize) -> usize,
-    stall_after: Option<f64>,
+    patience: Option<f64>,
 ) -> (String, String) {
     use std::fmt::Write as _;
     let side = side_of(n);
+    // With `patience`, the run's stall limit and the team barrier's
+    // deadline (the time it waits without an arrival).
+    let terminate = patience.map_or("term.wait-all".to_string(), |s| {
+        format!("{{ protocol: term.wait-all, deadline: {s}s }}")
+    });
     let graph = format!(
-        "graph: {name}-{n}\nteam: {{ robots: {n} }}\nstart: cover\ndefaults: {{ terminate: term.wait-all }}\n\
+        "graph: {name}-{n}\nteam: {{ robots: {n} }}\nstart: cover\ndefaults: {{ terminate: {terminate} }}\n\
          behaviors:\n  cover: {{ team: true, skill: sweep, until: swept }}\n"
     );
-    let stall = stall_after.map_or(String::new(), |s| format!("stall: {{ after: {s}s }}\n"));
+    let stall = patience.map_or(String::new(), |s| format!("stall: {{ after: {s}s }}\n"));
     let mut sc = format!(
         "scenario: {name}-{n}\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: {seconds}s\n{stall}\
          physics:\n  arena: [{side:.2}, {side:.2}]\n  trail: 0\n\
@@ -103,7 +118,7 @@ fn cells_mission(
     let _ = write!(
         sc,
         "skills:\n  sweep:\n    schemas:\n\
-         \x20     - {{ schema: scan, region: [0, 0, {side:.2}, {side:.2}], split: true, spacing: 0.6, speed: {SPEED}, layer: 1 }}\n\
+         \x20     - {{ schema: scan, region: [0, 0, {side:.2}, {side:.2}], split: true, spacing: {SPACING}, speed: {SPEED}, layer: 1 }}\n\
          \x20     - {{ schema: avoid-teammate, range: 0.4, layer: 2 }}\n\
          \x20     - {{ schema: avoid-obstacle, range: 0.3, layer: 3 }}\n"
     );
@@ -148,8 +163,8 @@ mod tests {
             );
         }
         // The coverage mission is the same text with the robots at home.
-        let (_, cov) = coverage_mission(16, 60.0);
-        let (_, cross) = crossing_mission(16, 60.0);
+        let (cov_graph, cov) = coverage_mission(16, 60.0);
+        let (cross_graph, cross) = crossing_mission(16, 60.0);
         let is_start = |l: &&str| l.trim_start().starts_with('r') && l.contains("at:");
         let starts = |s: &str| {
             let mut v: Vec<String> = s
@@ -161,9 +176,17 @@ mod tests {
             v
         };
         assert_eq!(starts(&cov), starts(&cross));
-        // Crossing takes minutes in which nothing is decided: the run is
-        // not called stalled before a robot could have crossed it all.
-        assert!(cross.contains("\nstall: { after: 166s }\n"), "{cross}");
+        // Crossing and sweeping take minutes in which nothing is decided:
+        // the run is not called stalled, nor does the barrier give up on
+        // the last robots, before a robot could have crossed it all and
+        // swept its cell ((16 m + 16 m² / 0.6 m) / 0.35 m/s, + 2 min).
+        assert!(cross.contains("\nstall: { after: 242s }\n"), "{cross}");
+        let barrier = "defaults: { terminate: { protocol: term.wait-all, deadline: 242s } }";
+        assert!(cross_graph.contains(barrier), "{cross_graph}");
+        assert_eq!(
+            cov_graph.replace("coverage", "crossing"),
+            cross_graph.replace(barrier, "defaults: { terminate: term.wait-all }")
+        );
         // Otherwise the two are the same text.
         let rest = |s: &str| {
             s.lines()

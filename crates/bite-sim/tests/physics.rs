@@ -345,6 +345,36 @@ fn a_crossing_team_drives_across_the_arena_to_its_cells() {
 }
 
 #[test]
+fn a_crossing_team_sweeps_every_cell_and_ends_together_without_a_deadline() {
+    // Run to its end, the crossing mission's robots finish minutes apart
+    // (some cross a few cells, some most of the arena): the team's barrier
+    // waits for the last of them, and no run needs a deadline or is called
+    // stalled. With `term.wait-all`'s default 30 s, seeds 13, 16 and 19
+    // (6 of seeds 1 to 40) completed with timeouts, the last robots'
+    // sweeps cut short.
+    use bite_agent::swarm::crossing_mission;
+    let (g, s) = crossing_mission(16, 400.0);
+    let g = graph("crossing-16", &g);
+    let sc = scenario("crossing-16 scenario", &s);
+    for seed in [1, 13, 16, 19] {
+        let o = simulate(&g, &sc, seed);
+        assert_clean(&o, "crossing-16");
+        let sum = &o.report.summary;
+        assert_eq!(
+            (sum.outcome, sum.timeouts),
+            (bite_sim::summary::Outcome::Completed, 0),
+            "seed {seed}: {sum:?}"
+        );
+        let world = sum.world.as_ref().expect("a physical world");
+        assert!(
+            world.coverage >= 0.99,
+            "seed {seed}: {} covered",
+            world.coverage
+        );
+    }
+}
+
+#[test]
 fn a_large_team_runs_the_same_on_one_thread_and_on_several() {
     // Sensing and the minds' ticks run side by side from 64 robots on
     // (on rayon's global pool: every core); inside a pool's worker (as
