@@ -398,6 +398,15 @@ impl Agent {
         self.pilot.is_some()
     }
 
+    /// When its skill last made a step toward its end (a sweep coming
+    /// nearer its next waypoint: [`crate::schema::State::marks`]), in world
+    /// time; `None` if it never did or has no body.
+    pub fn skill_progressed_at(&self) -> Option<Time> {
+        (self.pilot.as_deref())
+            .and_then(|p| p.pilot.progressed_at())
+            .map(Time::from_secs_f64)
+    }
+
     /// The world model, if the team shares beliefs.
     pub fn world_model(&self) -> Option<&WorldModel> {
         self.wm.as_deref()

@@ -363,6 +363,10 @@ pub struct Pilot {
     lost: std::collections::BTreeSet<u32>,
     /// The arena as this robot knows it, built when first needed.
     map: Option<Arc<crate::plan::Map>>,
+    /// The steps the current skill's execution has made ([`State::marks`]),
+    /// and the world time of the last new one, of any skill.
+    marks: u32,
+    progressed_at: Option<f64>,
 }
 
 impl Pilot {
@@ -387,6 +391,8 @@ impl Pilot {
             values,
             lost: std::collections::BTreeSet::new(),
             map: None,
+            marks: 0,
+            progressed_at: None,
         }
     }
 
@@ -468,6 +474,13 @@ impl Pilot {
         })
     }
 
+    /// The world time at which its skill last made a step toward its end
+    /// (see [`State::marks`]: a sweep coming nearer its next waypoint),
+    /// if one ever did.
+    pub fn progressed_at(&self) -> Option<f64> {
+        self.progressed_at
+    }
+
     /// It starts the skill of a new leaf behavior (or none) at world time
     /// `t`, its odometer reading `odometer`.
     pub fn leaf_changed(
@@ -480,6 +493,7 @@ impl Pilot {
         self.leaf = leaf;
         self.skill = skill;
         self.states.clear();
+        self.marks = 0;
         self.skill_started = t;
         self.skill_odometer = odometer;
     }
@@ -667,6 +681,11 @@ impl Pilot {
         self.view.roles = self.roles.clone();
         self.view.skill_time = t - self.skill_started;
         let mut cmd = schema::command(&self.skill, &self.view, &mut self.states, draw);
+        let marks = self.states.iter().map(State::marks).sum::<u32>();
+        if marks > self.marks {
+            self.progressed_at = Some(t);
+        }
+        self.marks = marks;
         // A trapped robot plans its detour on the arena's map, a long
         // search explores it, and a pusher whose object makes no headway
         // plans the object's way round obstacles on it (made the first

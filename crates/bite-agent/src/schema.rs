@@ -519,6 +519,10 @@ pub struct State {
     approach: Option<(f64, f64)>,
     /// Scan: waypoints given up (out of reach).
     pub skipped: u32,
+    /// Scan: how many times the robot came nearer its next waypoint than
+    /// it had been, or passed one (the skill's progress; finitely many per
+    /// execution: see [`State::marks`]).
+    marks: u32,
     /// Push: when it started looking round for an object that was not
     /// where it was last seen.
     search: Option<f64>,
@@ -636,6 +640,17 @@ impl State {
             None => {}
         }
         self.watch_roaming(pos, now, SEARCH_PINNED_AFTER);
+    }
+
+    /// How many steps the skill's execution has made so far: a sweep
+    /// (`scan`) coming 5 cm nearer its next waypoint than it had been, or
+    /// passing one. A sweep makes finitely many (its waypoints are few,
+    /// and the nearest it has been to one only shrinks), so a robot that
+    /// keeps making them is getting on with a skill that will end, not
+    /// going round in circles: the simulator's stall watch counts them as
+    /// progress (`bite_sim::stall`). Other schemas make none.
+    pub fn marks(&self) -> u32 {
+        self.marks
     }
 
     /// Keep track of a schema's headway (move-to-goal, push getting behind
@@ -1184,6 +1199,7 @@ pub fn evaluate(
                     // Closer by 5 cm: progress.
                     Some((best, _)) if d < best - 0.05 => {
                         state.approach = Some((d, view.skill_time));
+                        state.marks = state.marks.saturating_add(1);
                         false
                     }
                     Some((_, since)) => view.skill_time - since > *patience,
@@ -1194,6 +1210,7 @@ pub fn evaluate(
                 };
                 if d < 0.2 || stuck {
                     state.skipped += u32::from(stuck && d >= 0.2);
+                    state.marks = state.marks.saturating_add(1);
                     state.waypoint += 1;
                     state.approach = None;
                 } else {

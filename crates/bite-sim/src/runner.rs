@@ -1388,7 +1388,13 @@ impl Sim<'_, '_> {
                         if let Some(w) = &self.physics {
                             self.stall.goal(self.now, w.goal_distance());
                         }
-                        self.stall.idle_check(self.now);
+                        let (agents, crashed) = (&self.agents, &self.crashed);
+                        self.stall.idle_check(self.now, || {
+                            (agents.iter().zip(crashed))
+                                .filter(|(_, down)| !**down)
+                                .filter_map(|(a, _)| a.skill_progressed_at())
+                                .max()
+                        });
                         if let Some(w) = &self.physics {
                             let mut at = std::mem::take(&mut self.positions);
                             at.clear();

@@ -13,7 +13,11 @@
 //!   than it has ever been is progress too: a lone robot shoving a box and
 //!   a crashed teammate's body together home decides nothing for minutes;
 //!   it cannot go round in circles that way (the nearest it has been only
-//!   shrinks), and it still ends by the time limit;
+//!   shrinks), and it still ends by the time limit. So is a robot's skill
+//!   making a step toward its end (`bite_agent::schema::State::marks`: a
+//!   sweep coming nearer its next waypoint than it has been, or passing
+//!   one): a team sweeping a large arena decides nothing until every cell
+//!   is swept, and a sweep makes finitely many such steps;
 //! - **repetition**: a robot started the same behavior more than `repeats`
 //!   times (default 100) within one execution of its parent — a livelock
 //!   such as `search → linewalk → search …` that never reaches the
@@ -57,6 +61,9 @@ pub struct StallWatch {
     /// Physical world: the nearest the scenario's goal object has been to
     /// its zone, m.
     goal_nearest: Option<f64>,
+    /// Physical world: some robot's skill made a step toward its end (see
+    /// [`StallWatch::idle_check`]).
+    skills_seen: bool,
 }
 
 impl StallWatch {
@@ -69,6 +76,7 @@ impl StallWatch {
             stalled: None,
             moved: None,
             goal_nearest: None,
+            skills_seen: false,
         }
     }
 
@@ -115,25 +123,40 @@ impl StallWatch {
     }
 
     /// The run is at `now` and not over: has it gone without progress for
-    /// too long?
-    pub fn idle_check(&mut self, now: Time) {
-        if let Some(after) = self.limits.after
-            && self.stalled.is_none()
-            && now - self.last_progress > after
-        {
-            self.stalled = Some((
-                now,
-                format!(
-                    "no robot selected, ended or decided anything{} for {:.0} s (since {})",
-                    match self.goal_nearest {
-                        Some(_) => " nor brought the goal object nearer its zone",
-                        None => "",
-                    },
-                    after.as_secs_f64(),
-                    self.last_progress
-                ),
-            ));
+    /// too long? `skills` says when a live robot's skill last made a step
+    /// toward its end (`bite_agent::Agent::skill_progressed_at`: a sweep
+    /// coming nearer its next waypoint), if one ever did; it is asked only
+    /// when nothing else happened for the limit (it reads every robot).
+    pub fn idle_check(&mut self, now: Time, skills: impl FnOnce() -> Option<Time>) {
+        let Some(after) = self.limits.after else {
+            return;
+        };
+        if self.stalled.is_some() || now - self.last_progress <= after {
+            return;
         }
+        if let Some(t) = skills() {
+            self.skills_seen = true;
+            self.last_progress = self.last_progress.max(t.min(now));
+            if now - self.last_progress <= after {
+                return;
+            }
+        }
+        self.stalled = Some((
+            now,
+            format!(
+                "no robot selected, ended or decided anything{}{} for {:.0} s (since {})",
+                match self.goal_nearest {
+                    Some(_) => " nor brought the goal object nearer its zone",
+                    None => "",
+                },
+                match self.skills_seen {
+                    true => " nor got nearer a waypoint of its sweep",
+                    false => "",
+                },
+                after.as_secs_f64(),
+                self.last_progress
+            ),
+        ));
     }
 
     /// Physical world: where the live robots are at `now` (`None`: crashed).
@@ -229,7 +252,7 @@ mod tests {
         // Shoved home slowly: 0.3 m a minute, nothing decided.
         for k in 1..=8 {
             w.goal(at(60 * k), Some(3.0 - 0.3 * k as f64));
-            w.idle_check(at(60 * k));
+            w.idle_check(at(60 * k), || None);
         }
         assert!(w.stalled().is_none(), "{:?}", w.stalled());
         // Back and forth by less than a step, then away and back: no
@@ -237,7 +260,7 @@ mod tests {
         for k in 9..=11 {
             let d = if k % 2 == 0 { 0.6 + 0.2 } else { 0.6 - 0.2 };
             w.goal(at(60 * k), Some(d));
-            w.idle_check(at(60 * k));
+            w.idle_check(at(60 * k), || None);
         }
         let (when, why) = w.stalled().expect("stalled");
         assert_eq!(*when, at(60 * 11));
@@ -248,10 +271,44 @@ mod tests {
         // Without a goal, the message is as it was.
         let mut w = StallWatch::new(limits);
         w.goal(at(0), None);
-        w.idle_check(at(121));
+        w.idle_check(at(121), || None);
         assert!(w.stalled().is_some_and(|(_, why)| {
             why.starts_with("no robot selected, ended or decided anything for")
         }));
+    }
+
+    /// A robot's skill making steps toward its end (a sweep coming nearer
+    /// its waypoints) is progress, asked for only when the run looks idle;
+    /// once the steps stop, the run is stalled the limit after the last.
+    #[test]
+    fn a_sweep_getting_on_with_its_waypoints_is_progress() {
+        let limits = StallLimits::default();
+        let mut w = StallWatch::new(limits);
+        let mut asked = 0;
+        // A step every second until 400 s, nothing decided.
+        for k in 1..=600u64 {
+            w.idle_check(at(k), || {
+                asked += 1;
+                Some(at(k.min(400)))
+            });
+            if k <= 520 {
+                assert!(w.stalled().is_none(), "{k}: {:?}", w.stalled());
+            }
+        }
+        let (when, why) = w.stalled().expect("stalled");
+        assert_eq!(*when, at(521));
+        assert!(
+            why.contains("nor got nearer a waypoint of its sweep"),
+            "{why}"
+        );
+        assert!(why.ends_with("(since 400.000s)"), "{why}");
+        // Asked once the run had been idle for the limit, not every tick.
+        assert!(asked < 10, "asked {asked} times");
+        // A sweep that made its last step over the limit ago is no reason
+        // to wait longer.
+        let mut w = StallWatch::new(limits);
+        w.idle_check(at(200), || Some(at(3)));
+        assert_eq!(w.stalled().map(|s| s.0), Some(at(200)));
     }
 
     /// A spinning timer stalls the run even with no limit configured, and
@@ -262,7 +319,7 @@ mod tests {
             after: None,
             repeats: 0,
         });
-        w.idle_check(at(1000));
+        w.idle_check(at(1000), || None);
         assert!(w.stalled().is_none());
         w.spinning(at(31), RobotId(1));
         w.spinning(at(32), RobotId(2));

@@ -375,6 +375,46 @@ fn a_crossing_team_sweeps_every_cell_and_ends_together_without_a_deadline() {
 }
 
 #[test]
+fn a_lone_robot_sweeping_a_hall_for_minutes_is_not_stalled() {
+    // One robot sweeps a 9 m × 9 m hall: some 15 lanes, minutes of work
+    // in which nothing is decided. Its sweep coming nearer its waypoints
+    // is progress (under the default limit of 120 s the run was called
+    // stalled); it completes.
+    let g = graph(
+        "sweep-1",
+        "graph: sweep-1\nteam: { robots: 1 }\nstart: cover\n\
+         behaviors:\n  cover: { skill: sweep, until: swept }\n",
+    );
+    let sc = scenario(
+        "sweep-1 scenario",
+        "scenario: sweep-1\nworld: physics\nseed: 1\ncontrol_hz: 10\ntime_limit: 1200s\n\
+         physics:\n  arena: [9, 9]\n\
+         \x20 robot: { radius: 0.12, drive: differential, max_speed: 0.35, max_turn: 3, max_accel: 1.0 }\n\
+         \x20 sensors: { pose_noise: 0.005, rays: { count: 8, range: 1.0, noise: 0.005 } }\n\
+         \x20 beliefs: { swept: skill_done }\n\
+         \x20 obstacles: [{ disc: 0.25, at: [4.5, 4.5] }]\n\
+         skills:\n  sweep:\n    schemas:\n\
+         \x20     - { schema: scan, region: [0, 0, 9, 9], spacing: 0.6, speed: 0.35, layer: 1 }\n\
+         \x20     - { schema: avoid-obstacle, range: 0.3, layer: 3 }\n",
+    );
+    let o = simulate(&g, &sc, 1);
+    assert_clean(&o, "sweep-1");
+    let sum = &o.report.summary;
+    assert_eq!(
+        sum.outcome,
+        bite_sim::summary::Outcome::Completed,
+        "{sum:?}"
+    );
+    assert!(
+        sum.task_time > 240.0,
+        "a sweep of minutes: {}",
+        sum.task_time
+    );
+    let world = sum.world.as_ref().expect("a physical world");
+    assert!(world.coverage >= 0.9, "{} covered", world.coverage);
+}
+
+#[test]
 fn a_large_team_runs_the_same_on_one_thread_and_on_several() {
     // Sensing and the minds' ticks run side by side from 64 robots on
     // (on rayon's global pool: every core); inside a pool's worker (as
