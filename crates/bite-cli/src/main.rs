@@ -1193,7 +1193,7 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
     let mut rows = Vec::new();
     if !b.json {
         outln!(
-            "| run | robots | threads | simulated | wall | real-time factor | physics steps/s | completed |"
+            "| run | robots | threads | simulated | wall | real-time factor | physics steps/s | outcome |"
         );
         outln!("| --- | ---: | ---: | ---: | ---: | ---: | ---: | --- |");
     }
@@ -1250,15 +1250,13 @@ fn cmd_bench_sim(b: SimBench<'_>) -> Result<ExitCode> {
                     "real_time_factor": factor, "physics_steps_per_s": steps,
                     "peak_rss_kb": peak,
                     "completed": report.summary.completed,
+                    "outcome": report.summary.outcome,
+                    "timeouts": report.summary.timeouts,
                 }));
                 if !b.json {
                     outln!(
                         "| {name} | {n} | {threads_used} | {sim:.1} s | {wall:.2} s | {factor:.1}× | {steps:.0} | {} |",
-                        if report.summary.completed {
-                            "yes"
-                        } else {
-                            "no"
-                        }
+                        report.summary.outcome.label()
                     );
                 }
             }
@@ -1312,7 +1310,7 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
     let mut curves = Vec::new();
     if !b.json {
         outln!(
-            "| robots | threads | simulated | wall | simulated s per wall s | robot-ticks per s | peak memory | messages sent / delivered | completed |"
+            "| robots | threads | simulated | wall | simulated s per wall s | robot-ticks per s | peak memory | messages sent / delivered | outcome |"
         );
         outln!("| ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |");
     }
@@ -1372,7 +1370,7 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
                         peak.map_or("?".to_string(), |kb| format!("{} MB", kb / 1024)),
                         s.messages.total(),
                         s.network.delivered,
-                        if s.completed { "yes" } else { "no" },
+                        s.outcome.label(),
                     );
                 }
                 rows.push(serde_json::json!({
@@ -1380,7 +1378,8 @@ fn cmd_bench_team(b: TeamBench<'_>) -> Result<ExitCode> {
                     "simulated_s": sim, "wall_s": wall,
                     "real_time_factor": factor, "robot_ticks_per_s": ticks,
                     "peak_rss_kb": peak,
-                    "completed": s.completed, "messages": s.messages.total(),
+                    "completed": s.completed, "outcome": s.outcome, "timeouts": s.timeouts,
+                    "messages": s.messages.total(),
                     "delivered": s.network.delivered, "seed": b.seed,
                     "side_by_side": report.batched,
                 }));

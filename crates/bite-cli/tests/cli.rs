@@ -579,6 +579,9 @@ fn bench_commands_print_json_rows_for_scripts() {
             .is_some_and(|f| f > 0.0)
     );
     assert_eq!(team["rows"][0]["completed"], true);
+    // The run's outcome, honestly: fault-free, it needed no deadline.
+    assert_eq!(team["rows"][0]["outcome"], "completed", "{team}");
+    assert_eq!(team["rows"][0]["timeouts"], 0, "{team}");
     // Sizes × thread counts × repetitions, one row each, and the picture.
     let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
         .join(format!("bite-bench-{}", std::process::id()));
@@ -640,6 +643,16 @@ fn bench_commands_print_json_rows_for_scripts() {
     );
     assert_eq!(rows[3]["robots"], 10);
     assert_eq!(rows[3]["run"], "coverage 10");
+    // The shipped missions run to their end, fault-free and without a
+    // deadline; the coverage team is stopped after 3 s.
+    for r in &rows[..3] {
+        assert_eq!(
+            (&r["outcome"], &r["timeouts"]),
+            (&"completed".into(), &0.into()),
+            "{r}"
+        );
+    }
+    assert_eq!(rows[3]["outcome"], "not-completed", "{:?}", rows[3]);
     let sim = parse(&[
         "bench",
         "sim",
