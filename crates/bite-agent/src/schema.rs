@@ -519,9 +519,9 @@ pub struct State {
     approach: Option<(f64, f64)>,
     /// Scan: waypoints given up (out of reach).
     pub skipped: u32,
-    /// Scan: how many times the robot came nearer its next waypoint than
-    /// it had been, or passed one (the skill's progress; finitely many per
-    /// execution: see [`State::marks`]).
+    /// Scan: how many times the robot came 5 cm nearer its next waypoint
+    /// than it had been, reached one or gave one up (the skill's progress;
+    /// finitely many: see [`State::marks`]).
     marks: u32,
     /// Push: when it started looking round for an object that was not
     /// where it was last seen.
@@ -642,13 +642,15 @@ impl State {
         self.watch_roaming(pos, now, SEARCH_PINNED_AFTER);
     }
 
-    /// How many steps the skill's execution has made so far: a sweep
-    /// (`scan`) coming 5 cm nearer its next waypoint than it had been, or
-    /// passing one. A sweep makes finitely many (its waypoints are few,
-    /// and the nearest it has been to one only shrinks), so a robot that
-    /// keeps making them is getting on with a skill that will end, not
-    /// going round in circles: the simulator's stall watch counts them as
-    /// progress (`bite_sim::stall`). Other schemas make none.
+    /// How many steps the skill has made since its state was last reset
+    /// (the pilot resets it whenever the robot's stack changes): a sweep
+    /// (`scan`) coming 5 cm nearer its next waypoint than it had been,
+    /// reaching it, or giving it up (no nearer for its `patience`). A
+    /// sweep makes finitely many (its waypoints are few, and the nearest
+    /// it has been to one only shrinks), so a robot that keeps making them
+    /// is getting on with a skill that will end, not going round in
+    /// circles: the simulator's stall watch counts them as progress
+    /// (`bite_sim::stall`). Other schemas make none.
     pub fn marks(&self) -> u32 {
         self.marks
     }

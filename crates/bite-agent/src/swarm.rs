@@ -83,7 +83,8 @@ fn cells_mission(
     use std::fmt::Write as _;
     let side = side_of(n);
     // With `patience`, the run's stall limit and the team barrier's
-    // deadline (the time it waits without an arrival).
+    // deadline (the kernel waits on past it for teammates heard working
+    // only while their stacks change: not while they drive and sweep).
     let terminate = patience.map_or("term.wait-all".to_string(), |s| {
         format!("{{ protocol: term.wait-all, deadline: {s}s }}")
     });

@@ -1097,6 +1097,9 @@ impl Sim<'_, '_> {
     /// messages as duplicates of the old incarnation's.
     fn restart(&mut self, r: RobotId) {
         let i = r.index();
+        // What its skill got done before it went down still counts.
+        self.stall
+            .skill_progressed(self.agents[i].skill_progressed_at());
         self.incarnation[i] += 1;
         let now = self.clock(i);
         self.agents[i] = Agent::restart(
@@ -1388,12 +1391,11 @@ impl Sim<'_, '_> {
                         if let Some(w) = &self.physics {
                             self.stall.goal(self.now, w.goal_distance());
                         }
-                        let (agents, crashed) = (&self.agents, &self.crashed);
+                        // Crashed robots too: what they got done while
+                        // they ran was progress then.
+                        let agents = &self.agents;
                         self.stall.idle_check(self.now, || {
-                            (agents.iter().zip(crashed))
-                                .filter(|(_, down)| !**down)
-                                .filter_map(|(a, _)| a.skill_progressed_at())
-                                .max()
+                            agents.iter().filter_map(Agent::skill_progressed_at).max()
                         });
                         if let Some(w) = &self.physics {
                             let mut at = std::mem::take(&mut self.positions);

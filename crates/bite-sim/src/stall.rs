@@ -15,9 +15,10 @@
 //!   it cannot go round in circles that way (the nearest it has been only
 //!   shrinks), and it still ends by the time limit. So is a robot's skill
 //!   making a step toward its end (`bite_agent::schema::State::marks`: a
-//!   sweep coming nearer its next waypoint than it has been, or passing
-//!   one): a team sweeping a large arena decides nothing until every cell
-//!   is swept, and a sweep makes finitely many such steps;
+//!   sweep coming 5 cm nearer its next waypoint than it has been, reaching
+//!   it or giving it up): a team sweeping a large arena decides nothing
+//!   until every cell is swept, and a sweep makes finitely many such steps
+//!   (a robot's own, and crashed robots' before they crashed, count);
 //! - **repetition**: a robot started the same behavior more than `repeats`
 //!   times (default 100) within one execution of its parent — a livelock
 //!   such as `search → linewalk → search …` that never reaches the
@@ -122,11 +123,21 @@ impl StallWatch {
         }
     }
 
+    /// A robot's skill last made a step toward its end at `t`, if ever
+    /// (told of a robot about to lose what it knows of it: restarted).
+    pub fn skill_progressed(&mut self, t: Option<Time>) {
+        if let Some(t) = t {
+            self.skills_seen = true;
+            self.last_progress = self.last_progress.max(t);
+        }
+    }
+
     /// The run is at `now` and not over: has it gone without progress for
-    /// too long? `skills` says when a live robot's skill last made a step
-    /// toward its end (`bite_agent::Agent::skill_progressed_at`: a sweep
-    /// coming nearer its next waypoint), if one ever did; it is asked only
-    /// when nothing else happened for the limit (it reads every robot).
+    /// too long? `skills` says when a robot's skill last made a step toward
+    /// its end (`bite_agent::Agent::skill_progressed_at`: a sweep coming
+    /// nearer its next waypoint, reaching it or giving it up), if one ever
+    /// did; it is asked only when nothing else happened for the limit (it
+    /// reads every robot).
     pub fn idle_check(&mut self, now: Time, skills: impl FnOnce() -> Option<Time>) {
         let Some(after) = self.limits.after else {
             return;
@@ -134,12 +145,9 @@ impl StallWatch {
         if self.stalled.is_some() || now - self.last_progress <= after {
             return;
         }
-        if let Some(t) = skills() {
-            self.skills_seen = true;
-            self.last_progress = self.last_progress.max(t.min(now));
-            if now - self.last_progress <= after {
-                return;
-            }
+        self.skill_progressed(skills().map(|t| t.min(now)));
+        if now - self.last_progress <= after {
+            return;
         }
         self.stalled = Some((
             now,
@@ -309,6 +317,16 @@ mod tests {
         let mut w = StallWatch::new(limits);
         w.idle_check(at(200), || Some(at(3)));
         assert_eq!(w.stalled().map(|s| s.0), Some(at(200)));
+        // What a restarted robot's sweep got done before it went down
+        // counts, though the robot no longer knows it.
+        let mut w = StallWatch::new(limits);
+        w.skill_progressed(Some(at(200)));
+        w.idle_check(at(311), || None);
+        assert!(w.stalled().is_none());
+        w.idle_check(at(321), || None);
+        let (when, why) = w.stalled().expect("stalled");
+        assert_eq!(*when, at(321));
+        assert!(why.ends_with("(since 200.000s)"), "{why}");
     }
 
     /// A spinning timer stalls the run even with no limit configured, and
