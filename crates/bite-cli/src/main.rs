@@ -708,8 +708,6 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     )?;
     if !a.faults.is_empty() {
         scenario = bite_sim::fault::apply_all(&scenario, &a.faults);
-        // A fault that names a robot the team lacks is an input error.
-        scenario.resolve(&graph).map_err(bad_input)?;
     }
     if (a.svg.is_some() || a.frames.is_some() || a.gif.is_some()) && scenario.physics.is_none() {
         eprintln!(
@@ -723,6 +721,12 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         anyhow::bail!("--every must be a positive number of seconds");
     }
     let mission = prepare(&graph, &scenario, a.robots, &registry()).map_err(bad_input)?;
+    if !a.faults.is_empty() {
+        // A fault that names a robot the team lacks is an input error: the
+        // team as it runs (`--robots`, or the scenario's `robots:`), not
+        // the graph's own roster.
+        scenario.resolve(mission.graph()).map_err(bad_input)?;
+    }
     let seed = a.seed.unwrap_or(scenario.seed);
     let log_path = a.log.unwrap_or_else(|| {
         let mut name = mission.graph().name().to_string();

@@ -669,3 +669,31 @@ fn bench_commands_print_json_rows_for_scripts() {
     assert_eq!(rows[3]["run"], "crossing 10", "{rows:?}");
     assert_eq!(rows[3]["simulated_s"], 3.0, "{rows:?}");
 }
+
+#[test]
+fn a_fault_may_name_any_robot_of_the_team_as_it_runs() {
+    // `--robots 6` grows the formation example's team of three: a fault
+    // may name r5, and r6 is an input error that says the team's size.
+    let d = scratch("fault-robots");
+    let run = |fault: &str| {
+        bite()
+            .current_dir(root())
+            .args(["run", "examples/formation.yaml", "--timed", "--robots", "6"])
+            .args(["--fault", fault, "--json", "--log"])
+            .arg(d.join("run.jsonl"))
+            .output()
+            .expect("bite runs")
+    };
+    let out = run("crash=r5@20s");
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stderr)));
+    assert_eq!(summary["robots"], 6, "{summary:#}");
+    assert_eq!(summary["crashed_robots"], 1, "{summary:#}");
+    let out = run("crash=r6@20s");
+    assert_eq!(out.status.code(), Some(2), "an input error");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no robot `r6` in the team of 6 robots"),
+        "{err}"
+    );
+}
