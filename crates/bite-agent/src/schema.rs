@@ -1034,6 +1034,14 @@ pub fn scan_waypoints(region: [f64; 4], spacing: f64) -> Vec<DVec2> {
         forward = !forward;
         y += spacing;
     }
+    // A region thinner than half a lane (a strip of a large team's
+    // split) still has its lane, along its middle: without it the sweep
+    // would be over before it began.
+    if pts.is_empty() {
+        let mid = (ya + yb) / 2.0;
+        pts.push(DVec2::new(xa, mid));
+        pts.push(DVec2::new(xb, mid));
+    }
     pts
 }
 
@@ -2151,6 +2159,18 @@ mod tests {
         view.pose.pos = DVec2::new(1.4, 0.1);
         let out = evaluate(&s, &view, &mut State::default(), &mut rng).unwrap();
         assert!(out.v.y > 0.0 && out.v.x < 0.0, "{out:?}");
+    }
+
+    #[test]
+    fn a_strip_thinner_than_half_a_lane_has_its_lane_along_its_middle() {
+        // The 60th of a 5 m tall hall (`scan:0:0:10:5:0.6` for 60 robots).
+        let (ya, yb) = (0.5, 0.5 + 5.0 / 60.0);
+        let pts = scan_waypoints([0.0, ya, 10.0, yb], 0.6);
+        let mid = (ya + yb) / 2.0;
+        assert_eq!(pts, vec![DVec2::new(0.3, mid), DVec2::new(9.7, mid)]);
+        // One just thick enough keeps its lane half a spacing in.
+        let pts = scan_waypoints([0.0, 0.0, 10.0, 0.3], 0.6);
+        assert_eq!(pts, vec![DVec2::new(0.3, 0.3), DVec2::new(9.7, 0.3)]);
     }
 
     #[test]

@@ -697,3 +697,29 @@ fn a_fault_may_name_any_robot_of_the_team_as_it_runs() {
         "{err}"
     );
 }
+
+#[test]
+fn a_large_team_sweeps_the_whole_hall_however_thin_its_strips() {
+    // `scan` splits the hall into one strip per robot: with 30 robots a
+    // strip of the 5 m hall is 17 cm, thinner than half the 0.6 m between
+    // sweeps. Each still has its lane (it had none: the team "completed"
+    // in 3 s, having swept 14 % of the hall).
+    let d = scratch("thin-strips");
+    let out = bite()
+        .current_dir(root())
+        .args(["run", "examples/coverage-sweep.rtcl", "--robots", "30"])
+        .args(["--json", "--log"])
+        .arg(d.join("run.jsonl"))
+        .output()
+        .expect("bite runs");
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stderr)));
+    assert_eq!(summary["outcome"], "completed", "{summary:#}");
+    let covered = summary["world"]["coverage"].as_f64().expect("coverage");
+    assert!(covered > 0.9, "{covered} of the hall swept");
+    let least = (summary["world"]["distance"].as_array().expect("distances"))
+        .iter()
+        .filter_map(serde_json::Value::as_f64)
+        .fold(f64::INFINITY, f64::min);
+    assert!(least > 1.0, "every robot drove its lane: {least} m");
+}
