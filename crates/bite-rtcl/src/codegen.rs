@@ -1145,6 +1145,22 @@ mod tests {
     }
 
     #[test]
+    fn a_goto_team_stops_in_a_crowd_that_grows_with_the_root_of_its_size() {
+        // 0.15 m more for each robot of a small team; from 12 robots on,
+        // 0.5·√N: 60 robots are done within 4.17 m of the point, not 9.3.
+        let near = |robots: usize| {
+            let out = build("goto:0:0\n", robots, [0.0, 0.0]);
+            let cond = out.beliefs["goto_1_arrived"].clone();
+            let (_, r) = cond.split_once("< ").expect("a distance");
+            r.parse::<f64>().expect("a number")
+        };
+        assert_eq!(near(5), 1.05);
+        assert_eq!(near(11), 1.95);
+        assert_eq!(near(60), 4.172983346);
+        assert!((near(1000) - 16.1114).abs() < 1e-3, "{}", near(1000));
+    }
+
+    #[test]
     fn the_origin_moves_every_point() {
         let out = build("goto:1:2\nscan:0:0:2:1\n", 2, [10.0, -1.0]);
         assert_eq!(out.beliefs["goto_1_arrived"], "dist(pos, [11, 1]) < 0.6");

@@ -109,6 +109,16 @@ pub enum EvalError {
         /// What it is.
         what: &'static str,
     },
+    /// A function got a value it cannot use.
+    #[error("`{func}` needs numbers, but `{var}` is {what}")]
+    Arg {
+        /// The function.
+        func: &'static str,
+        /// The offending variable or value.
+        var: String,
+        /// What it is.
+        what: &'static str,
+    },
     /// Division by zero or overflow.
     #[error("the expression has no finite value")]
     NotFinite,
@@ -159,6 +169,40 @@ pub enum Expr {
     Neg(Box<Expr>),
     /// `a op b`
     Bin(Op, Box<Expr>, Box<Expr>),
+    /// `min(a, b)`, `max(a, b)`, `sqrt(a)`, with the call's byte offset.
+    Call(Func, Vec<Expr>, usize),
+}
+
+/// A function of the template language.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Func {
+    /// The smaller of two numbers.
+    Min,
+    /// The larger of two numbers.
+    Max,
+    /// The square root of a number (not negative).
+    Sqrt,
+}
+
+impl Func {
+    /// Its name in templates.
+    pub fn name(self) -> &'static str {
+        match self {
+            Func::Min => "min",
+            Func::Max => "max",
+            Func::Sqrt => "sqrt",
+        }
+    }
+
+    /// The function a name calls, and how many arguments it takes.
+    fn of(name: &str) -> Option<(Func, usize)> {
+        match name {
+            "min" => Some((Func::Min, 2)),
+            "max" => Some((Func::Max, 2)),
+            "sqrt" => Some((Func::Sqrt, 1)),
+            _ => None,
+        }
+    }
 }
 
 impl Expr {
@@ -172,6 +216,7 @@ impl Expr {
                 a.vars(out);
                 b.vars(out);
             }
+            Expr::Call(_, args, _) => args.iter().for_each(|a| a.vars(out)),
         }
     }
 
@@ -192,6 +237,29 @@ impl Expr {
                     Op::Sub => x - y,
                     Op::Mul => x * y,
                     Op::Div => x / y,
+                };
+                if r.is_finite() {
+                    Ok(Val::Num(r))
+                } else {
+                    Err(EvalError::NotFinite)
+                }
+            }
+            Expr::Call(f, args, _) => {
+                let mut x = [0.0; 2];
+                for (slot, a) in x.iter_mut().zip(args) {
+                    *slot = num(&a.eval(env)?, '(', a).map_err(|e| match e {
+                        EvalError::Type { var, what, .. } => EvalError::Arg {
+                            func: f.name(),
+                            var,
+                            what,
+                        },
+                        e => e,
+                    })?;
+                }
+                let r = match f {
+                    Func::Min => x[0].min(x[1]),
+                    Func::Max => x[0].max(x[1]),
+                    Func::Sqrt => x[0].sqrt(),
                 };
                 if r.is_finite() {
                     Ok(Val::Num(r))
@@ -467,10 +535,46 @@ impl<'a> ExprParser<'a> {
                 {
                     self.pos += 1;
                 }
-                Ok(Expr::Var(
-                    self.text[start..self.pos].to_string(),
-                    self.base + start,
-                ))
+                let name = &self.text[start..self.pos];
+                let end = self.pos;
+                self.ws();
+                if self.s.get(self.pos) != Some(&b'(') {
+                    self.pos = end;
+                    return Ok(Expr::Var(name.to_string(), self.base + start));
+                }
+                let Some((f, arity)) = Func::of(name) else {
+                    return Err(SyntaxError {
+                        at: self.base + start,
+                        message: format!(
+                            "`{name}` is not a function of templates (min, max, sqrt)"
+                        ),
+                    });
+                };
+                self.pos += 1;
+                let mut args = Vec::new();
+                loop {
+                    args.push(self.sum()?);
+                    self.ws();
+                    match self.s.get(self.pos) {
+                        Some(b',') => self.pos += 1,
+                        Some(b')') => {
+                            self.pos += 1;
+                            break;
+                        }
+                        _ => return Err(self.err("expected `,` or `)`")),
+                    }
+                }
+                if args.len() != arity {
+                    return Err(SyntaxError {
+                        at: self.base + start,
+                        message: format!(
+                            "`{name}` takes {arity} argument{}, not {}",
+                            if arity == 1 { "" } else { "s" },
+                            args.len()
+                        ),
+                    });
+                }
+                Ok(Expr::Call(f, args, self.base + start))
             }
             None => Err(self.err("expected a name or a number in the placeholder")),
             Some(_) => Err(self.err(format!(
@@ -783,6 +887,33 @@ mod tests {
         assert_eq!(neg.value(&mut env()), Ok(Val::Num(4.0)));
         let braces = Template::parse("{{x}}").expect("parses");
         assert_eq!(braces.render(&mut env()), Ok("{x}".to_string()));
+    }
+
+    #[test]
+    fn functions_take_their_arguments() {
+        let t = Template::parse("{0.3 + min(0.15 * n, 0.5 * sqrt (n + 1))}").expect("parses");
+        assert_eq!(t.value(&mut env()), Ok(Val::Num(0.75)));
+        let t = Template::parse("{max(i, n) - min(i, n)}").expect("parses");
+        assert_eq!(t.value(&mut env()), Ok(Val::Num(1.0)));
+        let mut vars = t.vars();
+        vars.sort_unstable();
+        assert_eq!(vars, [("i", 5), ("i", 17), ("n", 8), ("n", 20)]);
+        // A variable that happens to be named like a function is still one.
+        let t = Template::parse("{min + 1}").expect("parses");
+        assert_eq!(t.vars(), [("min", 1)]);
+        // Mistakes, where they are.
+        let at = |text: &str| Template::parse(text).map_err(|e| (e.at, e.message));
+        assert_eq!(at("{sqrt(1, 2)}").map_err(|e| e.0), Err(1));
+        assert!(at("{sqrt(1, 2)}").is_err_and(|e| e.1.contains("takes 1 argument, not 2")));
+        assert!(at("{cos(1)}").is_err_and(|e| e.1.contains("not a function of templates")));
+        assert_eq!(at("{min(1 2)}").map_err(|e| e.0), Err(7));
+        let t = Template::parse("{sqrt(0 - n)}").expect("parses");
+        assert_eq!(t.value(&mut env()), Err(EvalError::NotFinite));
+        let t = Template::parse("{min(object, 1)}").expect("parses");
+        assert!(matches!(
+            t.value(&mut env()),
+            Err(EvalError::Arg { func: "min", .. })
+        ));
     }
 
     #[test]
