@@ -169,8 +169,8 @@ pub enum Expr {
     Neg(Box<Expr>),
     /// `a op b`
     Bin(Op, Box<Expr>, Box<Expr>),
-    /// `min(a, b)`, `max(a, b)`, `sqrt(a)`, with the call's byte offset.
-    Call(Func, Vec<Expr>, usize),
+    /// `min(a, b)`, `max(a, b)`, `sqrt(a)`.
+    Call(Func, Vec<Expr>),
 }
 
 /// A function of the template language.
@@ -216,7 +216,7 @@ impl Expr {
                 a.vars(out);
                 b.vars(out);
             }
-            Expr::Call(_, args, _) => args.iter().for_each(|a| a.vars(out)),
+            Expr::Call(_, args) => args.iter().for_each(|a| a.vars(out)),
         }
     }
 
@@ -232,19 +232,14 @@ impl Expr {
             Expr::Bin(op, a, b) => {
                 let x = num(&a.eval(env)?, op.char(), a)?;
                 let y = num(&b.eval(env)?, op.char(), b)?;
-                let r = match op {
+                finite(match op {
                     Op::Add => x + y,
                     Op::Sub => x - y,
                     Op::Mul => x * y,
                     Op::Div => x / y,
-                };
-                if r.is_finite() {
-                    Ok(Val::Num(r))
-                } else {
-                    Err(EvalError::NotFinite)
-                }
+                })
             }
-            Expr::Call(f, args, _) => {
+            Expr::Call(f, args) => {
                 let mut x = [0.0; 2];
                 for (slot, a) in x.iter_mut().zip(args) {
                     *slot = num(&a.eval(env)?, '(', a).map_err(|e| match e {
@@ -256,18 +251,22 @@ impl Expr {
                         e => e,
                     })?;
                 }
-                let r = match f {
+                finite(match f {
                     Func::Min => x[0].min(x[1]),
                     Func::Max => x[0].max(x[1]),
                     Func::Sqrt => x[0].sqrt(),
-                };
-                if r.is_finite() {
-                    Ok(Val::Num(r))
-                } else {
-                    Err(EvalError::NotFinite)
-                }
+                })
             }
         }
+    }
+}
+
+/// A result, if it is a finite number.
+fn finite(r: f64) -> Result<Val, EvalError> {
+    if r.is_finite() {
+        Ok(Val::Num(r))
+    } else {
+        Err(EvalError::NotFinite)
     }
 }
 
@@ -574,7 +573,7 @@ impl<'a> ExprParser<'a> {
                         ),
                     });
                 }
-                Ok(Expr::Call(f, args, self.base + start))
+                Ok(Expr::Call(f, args))
             }
             None => Err(self.err("expected a name or a number in the placeholder")),
             Some(_) => Err(self.err(format!(
