@@ -519,9 +519,10 @@ pub struct State {
     approach: Option<(f64, f64)>,
     /// Scan: waypoints given up (out of reach).
     pub skipped: u32,
-    /// Scan: how many times the robot came 5 cm nearer its next waypoint
-    /// than it had been, reached one or gave one up (the skill's progress;
-    /// finitely many: see [`State::marks`]).
+    /// How many times the robot came 5 cm nearer its goal (scan: its next
+    /// waypoint; move-to-goal and push: the point it drives to) than it
+    /// had been, or (scan) reached a waypoint or gave one up: the skill's
+    /// progress, finitely many: see [`State::marks`].
     marks: u32,
     /// Push: when it started looking round for an object that was not
     /// where it was last seen.
@@ -556,6 +557,10 @@ pub struct State {
     /// The nearest it has come to that point while driving there, and
     /// when it last came nearer.
     headway: Option<(f64, f64)>,
+    /// The nearest it has come to that point at all during this execution
+    /// of the skill (whatever drove it, the point moving or not): each
+    /// 5 cm nearer is a step of the skill ([`State::marks`]).
+    nearest: Option<f64>,
     /// When it found itself trapped on the way there (no headway for
     /// [`TRAPPED_AFTER`]) and took a planned detour.
     pub trapped: Option<f64>,
@@ -645,12 +650,15 @@ impl State {
     /// How many steps the skill has made since its state was last reset
     /// (the pilot resets it whenever the robot's stack changes): a sweep
     /// (`scan`) coming 5 cm nearer its next waypoint than it had been,
-    /// reaching it, or giving it up (no nearer for its `patience`). A
-    /// sweep makes finitely many (its waypoints are few, and the nearest
-    /// it has been to one only shrinks), so a robot that keeps making them
-    /// is getting on with a skill that will end, not going round in
-    /// circles: the simulator's stall watch counts them as progress
-    /// (`bite_sim::stall`). Other schemas make none.
+    /// reaching it, or giving it up (no nearer for its `patience`); a
+    /// `move-to-goal`, or a `push` getting behind its object, coming 5 cm
+    /// nearer the point it drives to than it has been in this execution
+    /// (a pusher working its way to the box through a crowd). Each makes
+    /// finitely many (a sweep's waypoints are few, and the nearest a robot
+    /// has been to a point only shrinks, by 5 cm a step, down to nothing),
+    /// so a robot that keeps making them is getting on with its skill, not
+    /// going round in circles: the simulator's stall watch counts them as
+    /// progress (`bite_sim::stall`). Other schemas make none.
     pub fn marks(&self) -> u32 {
         self.marks
     }
@@ -985,6 +993,9 @@ const PUSH_NEAR_PATIENCE: f64 = 3.0;
 /// How near the place behind its object that holds, m.
 const PUSH_TRAP_FAR: f64 = 0.2;
 const HEADWAY: f64 = 0.15;
+/// A step of a skill (`State::marks`): this much nearer its goal than it
+/// has been.
+const MARK_NEARER: f64 = 0.05;
 /// A trapped robot pushes a lost teammate's body that blocks its only way
 /// when the body is ahead of it and this near its own (m between them).
 const SHOVE_NEAR: f64 = 0.2;
@@ -1207,7 +1218,7 @@ pub fn evaluate(
                 let d = p.distance(pose.pos);
                 let stuck = match state.approach {
                     // Closer by 5 cm: progress.
-                    Some((best, _)) if d < best - 0.05 => {
+                    Some((best, _)) if d < best - MARK_NEARER => {
                         state.approach = Some((d, view.skill_time));
                         state.marks = state.marks.saturating_add(1);
                         false
@@ -1602,6 +1613,16 @@ pub fn command(
                 .zip(&outputs)
                 .all(|(v, (_, _, o))| o.is_none() || v.layer <= w.layer || v.schema.avoids());
         st.watch_headway(drives, to, view.skill_time, patience);
+        if st.bound_for.is_some() {
+            match st.nearest {
+                Some(best) if to >= best - MARK_NEARER => {}
+                Some(_) => {
+                    st.nearest = Some(to);
+                    st.marks = st.marks.saturating_add(1);
+                }
+                None => st.nearest = Some(to),
+            }
+        }
         if matches!(w.schema, Schema::Wander { .. }) {
             st.watch_roaming(view.pose.pos, view.skill_time, PINNED_AFTER);
         }
@@ -2159,6 +2180,52 @@ mod tests {
         view.pose.pos = DVec2::new(1.4, 0.1);
         let out = evaluate(&s, &view, &mut State::default(), &mut rng).unwrap();
         assert!(out.v.y > 0.0 && out.v.x < 0.0, "{out:?}");
+    }
+
+    /// A robot driving to a goal makes a step of its skill each time it
+    /// comes 5 cm nearer than it has been, whatever drives it, and none
+    /// going back and forth short of its best (finitely many).
+    #[test]
+    fn a_robot_driving_to_its_goal_marks_each_5_cm_nearer() {
+        let skill = [
+            weighted(
+                Schema::MoveToGoal {
+                    goal: Target::Point(DVec2::new(3.0, 0.0)),
+                    speed: 0.3,
+                },
+                1,
+            ),
+            weighted(Schema::AvoidTeammate { range: 0.4 }, 2),
+        ];
+        let mut view = View {
+            max_speed: 0.3,
+            ..View::default()
+        };
+        let mut states = Vec::new();
+        let marks = |states: &Vec<State>| states.iter().map(State::marks).sum::<u32>();
+        let mut at = |x: f64, t: f64, states: &mut Vec<State>| {
+            view.pose.pos = DVec2::new(x, 0.0);
+            command_at(&skill, &mut view, states, t);
+        };
+        at(0.0, 0.0, &mut states);
+        assert_eq!(marks(&states), 0);
+        at(0.04, 0.1, &mut states);
+        assert_eq!(marks(&states), 0, "4 cm is no step");
+        at(0.06, 0.2, &mut states);
+        assert_eq!(marks(&states), 1);
+        // Pushed back and coming again, short of its best: nothing new.
+        for k in 0..50 {
+            at(
+                if k % 2 == 0 { -0.5 } else { 0.1 },
+                0.3 + f64::from(k),
+                &mut states,
+            );
+        }
+        assert_eq!(marks(&states), 1);
+        at(1.06, 60.0, &mut states);
+        assert_eq!(marks(&states), 2, "one step however far it came");
+        at(1.12, 60.1, &mut states);
+        assert_eq!(marks(&states), 3);
     }
 
     #[test]

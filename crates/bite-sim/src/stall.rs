@@ -16,9 +16,12 @@
 //!   shrinks), and it still ends by the time limit. So is a robot's skill
 //!   making a step toward its end (`bite_agent::schema::State::marks`: a
 //!   sweep coming 5 cm nearer its next waypoint than it has been, reaching
-//!   it or giving it up): a team sweeping a large arena decides nothing
-//!   until every cell is swept, and a sweep makes finitely many such steps
-//!   (a robot's own, and crashed robots' before they crashed, count);
+//!   it or giving it up; a robot driving to a goal coming 5 cm nearer it
+//!   than it has been): a team sweeping a large arena decides nothing
+//!   until every cell is swept, a pusher working its way to the box
+//!   through a crowd of teammates nothing until it gets there, and a skill
+//!   makes finitely many such steps (a robot's own, and crashed robots'
+//!   before they crashed, count);
 //! - **repetition**: a robot started the same behavior more than `repeats`
 //!   times (default 100) within one execution of its parent — a livelock
 //!   such as `search → linewalk → search …` that never reaches the
@@ -135,7 +138,8 @@ impl StallWatch {
     /// The run is at `now` and not over: has it gone without progress for
     /// too long? `skills` says when a robot's skill last made a step toward
     /// its end (`bite_agent::Agent::skill_progressed_at`: a sweep coming
-    /// nearer its next waypoint, reaching it or giving it up), if one ever
+    /// nearer its next waypoint, reaching it or giving it up, a robot
+    /// coming nearer the goal it drives to), if one ever
     /// did; it is asked only when nothing else happened for the limit (it
     /// reads every robot).
     pub fn idle_check(&mut self, now: Time, skills: impl FnOnce() -> Option<Time>) {
@@ -158,7 +162,7 @@ impl StallWatch {
                     None => "",
                 },
                 match self.skills_seen {
-                    true => " nor got nearer a waypoint of its sweep",
+                    true => " nor got nearer the goal or waypoint it drives to",
                     false => "",
                 },
                 after.as_secs_f64(),
@@ -306,7 +310,7 @@ mod tests {
         let (when, why) = w.stalled().expect("stalled");
         assert_eq!(*when, at(521));
         assert!(
-            why.contains("nor got nearer a waypoint of its sweep"),
+            why.contains("nor got nearer the goal or waypoint it drives to"),
             "{why}"
         );
         assert!(why.ends_with("(since 400.000s)"), "{why}");
