@@ -699,6 +699,30 @@ fn a_fault_may_name_any_robot_of_the_team_as_it_runs() {
 }
 
 #[test]
+fn a_crowd_finds_the_box_together_and_pushes_it_home_without_a_deadline() {
+    // `find` is collaborative: the first robot to see the box tells the
+    // team. Before, each robot had to see it for itself, and at 30 robots
+    // in the search-and-rescue hall one boxed in by its teammates never
+    // did: the search's barrier gave up on it after its deadline (seeds 2
+    // and 3), or the team waited minutes for it.
+    let d = scratch("crowd-find");
+    for seed in ["2", "3"] {
+        let out = bite()
+            .current_dir(root())
+            .args(["run", "examples/search-rescue.rtcl", "--robots", "30"])
+            .args(["--seed", seed, "--json", "--log"])
+            .arg(d.join("run.jsonl"))
+            .output()
+            .expect("bite runs");
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout)
+            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stderr)));
+        assert_eq!(summary["outcome"], "completed", "seed {seed}: {summary:#}");
+        assert_eq!(summary["timeouts"], 0, "seed {seed}: {summary:#}");
+        assert!(out.status.success(), "seed {seed}: {summary:#}");
+    }
+}
+
+#[test]
 fn a_large_team_sweeps_the_whole_hall_however_thin_its_strips() {
     // `scan` splits the hall into one strip per robot: with 30 robots a
     // strip of the 5 m hall is 17 cm, thinner than half the 0.6 m between

@@ -21,9 +21,10 @@ use bite_core::diag::{Diagnostic, Loc};
 use bite_core::graph::BehaviorEntry;
 use bite_core::graph::spec::{
     BehaviorSpec, BindingSpec, DefaultsSpec, GraphSpec, MembersSpec, Ordered, RobotsSpec,
-    SkillSpec, TeamSpec,
+    SkillSpec, TeamSpec, WorldModelSpec,
 };
 use bite_core::ids::name_hash;
+use bite_core::wm::Policy;
 use serde_saphyr::{Location, Spanned};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
@@ -314,7 +315,16 @@ pub fn generate(
         }
         before = Some(head);
     }
+    // What the robots tell each other: what any command needs (the
+    // library's few commands are asked, not every step).
+    let sharing = lib
+        .commands
+        .values()
+        .filter(|d| d.sharing != Policy::None)
+        .filter(|d| steps.iter().any(|s| s.command == d.name))
+        .fold(Policy::None, |p, d| p.union(d.sharing));
     let generated = GeneratedGraph {
+        sharing,
         name: printable(&stem(map.file())),
         file: printable(map.file()),
         commands: steps.len(),
@@ -875,6 +885,8 @@ pub struct GeneratedGraph {
     commands: usize,
     origin: [f64; 2],
     robots: usize,
+    /// What the robots tell each other (`world_model: { sharing: ... }`).
+    sharing: Policy,
     /// The behaviors as the loader reads them (it reads them in place),
     /// one list per command, where its thread made them; the mission's own
     /// first.
@@ -923,6 +935,9 @@ impl GeneratedGraph {
         y.push_str(
             "defaults:\n  sync: sync.by-rule\n  allocate: alloc.by-id\n  terminate: term.wait-all\n",
         );
+        if self.sharing != Policy::None {
+            let _ = writeln!(y, "world_model:\n  sharing: {}", self.sharing);
+        }
         y.push_str("behaviors:\n");
         let list = |names: &[Spanned<String>]| {
             names
@@ -1003,7 +1018,13 @@ impl GeneratedGraph {
                 terminate: protocol("term.wait-all"),
             },
             beliefs: Ordered::default(),
-            world_model: None,
+            world_model: (self.sharing != Policy::None).then(|| {
+                at(WorldModelSpec {
+                    sharing: Some(self.sharing.to_string()),
+                    hz: None,
+                    budget: None,
+                })
+            }),
             behaviors: None,
         }
     }
@@ -1158,6 +1179,55 @@ mod tests {
         assert_eq!(near(11), 1.95);
         assert_eq!(near(60), 4.172983346);
         assert!((near(1000) - 16.1114).abs() < 1e-3, "{}", near(1000));
+    }
+
+    /// A mission shares what any of its commands needs, in the YAML and
+    /// in the graph loaded in place alike; one that needs nothing shares
+    /// nothing.
+    #[test]
+    fn a_mission_shares_what_its_commands_need() {
+        let policy = |src: &str, lib: &Library| {
+            let out = compile("t.rtcl", src, lib, &CompileOptions::default())
+                .unwrap_or_else(|e| panic!("{e}"));
+            let file: std::sync::Arc<str> = "t.rtcl".into();
+            let in_place = out.load_graph(&file).expect("loads").sharing().policy;
+            let text = out.graph();
+            let from_yaml = bite_core::graph::load_str(&file, &text)
+                .expect("loads")
+                .sharing()
+                .policy;
+            assert_eq!(in_place, from_yaml, "{text}");
+            (in_place, text)
+        };
+        let builtin = Library::builtin();
+        let (p, text) = policy("find::::yellow=>box\nmove:box:0:0\n", &builtin);
+        assert_eq!(p, Policy::Focused);
+        assert!(
+            text.contains("world_model:\n  sharing: focused\n"),
+            "{text}"
+        );
+        let (p, text) = policy("goto:1:1\nwait:2\n", &builtin);
+        assert_eq!(p, Policy::None);
+        assert!(!text.contains("world_model"), "{text}");
+        let lib = Library::from_str(
+            "lib.yaml",
+            "\
+commands:
+  a:
+    sharing: focused
+    phases: [{ name: p, skill: [{ schema: stop, layer: 1 }], until: \"elapsed > 1\" }]
+  b:
+    sharing: helpful
+    phases: [{ name: p, skill: [{ schema: stop, layer: 1 }], until: \"elapsed > 1\" }]
+  c:
+    phases: [{ name: p, skill: [{ schema: stop, layer: 1 }], until: \"elapsed > 1\" }]
+",
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(policy("a\nc\n", &lib).0, Policy::Focused);
+        assert_eq!(policy("b\n", &lib).0, Policy::Helpful);
+        assert_eq!(policy("c\nb\na\n", &lib).0, Policy::FocusedHelpful);
+        assert_eq!(policy("c\n", &lib).0, Policy::None);
     }
 
     #[test]

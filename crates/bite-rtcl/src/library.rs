@@ -10,6 +10,7 @@
 use crate::template::{Guard, JsonTemplate, Template, Val};
 use bite_core::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
 use bite_core::graph::spec::MembersSpec;
+use bite_core::wm::Policy;
 use bite_core::yaml::Ordered;
 use serde::Deserialize;
 use serde_saphyr::Spanned;
@@ -242,6 +243,10 @@ pub struct CommandDef {
     pub phases: Vec<PhaseDef>,
     /// The smallest team it works with (a warning below).
     pub min_robots: usize,
+    /// What the robots tell each other while it runs (`sharing:` in the
+    /// library, a world-model policy): a mission's graph shares what any
+    /// of its commands needs ([`bite_core::wm::Policy::union`]).
+    pub sharing: Policy,
     /// Where it is written.
     pub loc: Loc,
 }
@@ -310,6 +315,7 @@ struct CommandSpec {
     beliefs: Ordered<String>,
     until: Option<Spanned<String>>,
     min_robots: Option<usize>,
+    sharing: Option<Spanned<String>>,
     phases: Option<Spanned<Vec<Spanned<PhaseSpec>>>>,
 }
 
@@ -970,6 +976,16 @@ fn command(
             }
         }
     }
+    let sharing = match &cmd.sharing {
+        None => Policy::None,
+        Some(s) => Policy::parse(&s.value).unwrap_or_else(|| {
+            let hint = did_you_mean(&s.value, Policy::NAMES)
+                .unwrap_or_else(|| format!("the policies are: {}", Policy::NAMES.join(", ")));
+            c.err(loc_of(s), format!("unknown sharing policy `{}`", s.value))
+                .hint = Some(hint);
+            Policy::None
+        }),
+    };
     if c.diags.len() > before {
         return None;
     }
@@ -984,6 +1000,7 @@ fn command(
         until,
         phases,
         min_robots: cmd.min_robots.unwrap_or(1),
+        sharing,
         loc,
     })
 }
@@ -1281,6 +1298,30 @@ mod tests {
         assert_eq!(e.len(), 1);
         assert_eq!((e[0].0, e[0].1), (3, 5));
         assert!(e[0].2.contains("unknown key `parms`"), "{e:?}");
+    }
+
+    #[test]
+    fn an_unknown_sharing_policy_is_located_with_the_ones_there_are() {
+        let text = "\
+commands:
+  go:
+    sharing: focussed
+    phases: [{ name: p, skill: [{ schema: stop, layer: 1 }], until: \"elapsed > 1\" }]
+";
+        let d = Library::from_str("lib.yaml", text).expect_err("unknown policy");
+        let d = &d.0[0];
+        assert_eq!((d.loc.line, d.loc.col), (3, 14));
+        assert_eq!(d.message, "unknown sharing policy `focussed`");
+        assert!(
+            d.hint.as_deref().is_some_and(|h| h.contains("`focused`")),
+            "{d:?}"
+        );
+        let lib = Library::from_str("lib.yaml", &text.replace("focussed", "focused+helpful"))
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(
+            lib.command("go").map(|c| c.sharing),
+            Some(Policy::FocusedHelpful)
+        );
     }
 
     #[test]

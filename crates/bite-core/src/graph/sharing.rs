@@ -37,6 +37,25 @@ impl Policy {
             _ => return None,
         })
     }
+    /// A policy that sends what either sends: broadcast with either
+    /// broadcasting, else Algorithm 2 if either runs it and Algorithm 3 if
+    /// either runs it (a mission whose commands need different sharing
+    /// gets all of it).
+    pub fn union(self, other: Policy) -> Policy {
+        if self == Policy::Broadcast || other == Policy::Broadcast {
+            return Policy::Broadcast;
+        }
+        match (
+            self.focused() || other.focused(),
+            self.helpful() || other.helpful(),
+        ) {
+            (true, true) => Policy::FocusedHelpful,
+            (true, false) => Policy::Focused,
+            (false, true) => Policy::Helpful,
+            (false, false) => Policy::None,
+        }
+    }
+
     pub(crate) fn focused(self) -> bool {
         matches!(self, Policy::Focused | Policy::FocusedHelpful)
     }
@@ -135,5 +154,30 @@ impl Sharing {
             }
         }
         out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Policy;
+
+    #[test]
+    fn a_union_sends_what_either_sends() {
+        use Policy::*;
+        let all = [None, Broadcast, Focused, Helpful, FocusedHelpful];
+        for a in all {
+            assert_eq!(a.union(None), a);
+            assert_eq!(a.union(a), a);
+            assert_eq!(a.union(Broadcast), Broadcast);
+            for b in all {
+                let u = a.union(b);
+                assert_eq!(u, b.union(a));
+                if u != Broadcast {
+                    assert_eq!(u.focused(), a.focused() || b.focused());
+                    assert_eq!(u.helpful(), a.helpful() || b.helpful());
+                }
+            }
+        }
+        assert_eq!(Focused.union(Helpful), FocusedHelpful);
     }
 }
