@@ -505,6 +505,10 @@ impl<'de> Deserialize<'de> for Sensed {
     }
 }
 
+/// The waypoint a sweep heads for ([`scan_waypoints`]): what its lanes
+/// were made from, its index, the point.
+type ScanLanes = (([f64; 4], f64, bool, (u32, u32)), usize, Option<DVec2>);
+
 /// State a schema keeps across steps during one execution of its skill.
 #[derive(Clone, Debug, Default)]
 pub struct State {
@@ -519,6 +523,10 @@ pub struct State {
     approach: Option<(f64, f64)>,
     /// Scan: waypoints given up (out of reach).
     pub skipped: u32,
+    /// Scan: what its lanes were made from (region, spacing, split, the
+    /// robot's rank among how many), the index of the waypoint it heads
+    /// for, and that waypoint (none: the sweep is done).
+    lanes: Option<ScanLanes>,
     /// How many times the robot came 5 cm nearer its goal (scan: its next
     /// waypoint; move-to-goal and push: the point it drives to) than it
     /// had been, or (scan) reached a waypoint or gave one up: the skill's
@@ -1208,13 +1216,22 @@ pub fn evaluate(
             split,
             patience,
         } => {
-            let region = if *split {
-                split_cell(*region, view.rank.0, view.rank.1)
-            } else {
-                *region
+            // The waypoint it heads for is kept: the lanes are made again
+            // only when it moves on to the next (or the robot's rank or its
+            // team's size changed), not at every tick.
+            let key = (*region, *spacing, *split, view.rank);
+            let waypoint = |i: usize| {
+                let cell = match *split {
+                    true => split_cell(*region, view.rank.0, view.rank.1),
+                    false => *region,
+                };
+                scan_waypoints(cell, *spacing).get(i).copied()
             };
-            let pts = scan_waypoints(region, *spacing);
-            while let Some(p) = pts.get(state.waypoint) {
+            let mut next = match state.lanes {
+                Some((k, i, p)) if k == key && i == state.waypoint => p,
+                _ => waypoint(state.waypoint),
+            };
+            while let Some(p) = next {
                 let d = p.distance(pose.pos);
                 let stuck = match state.approach {
                     // Closer by 5 cm: progress.
@@ -1234,12 +1251,14 @@ pub fn evaluate(
                     state.marks = state.marks.saturating_add(1);
                     state.waypoint += 1;
                     state.approach = None;
+                    next = waypoint(state.waypoint);
                 } else {
                     break;
                 }
             }
-            match pts.get(state.waypoint) {
-                Some(p) => out((*p - pose.pos).normalize_or_zero() * *speed),
+            state.lanes = Some((key, state.waypoint, next));
+            match next {
+                Some(p) => out((p - pose.pos).normalize_or_zero() * *speed),
                 None => {
                     state.finished = true;
                     Some(Output {
