@@ -579,7 +579,13 @@ impl Agent {
                 use rand::RngExt;
                 rng.random_range(0.0..1.0)
             };
+            let before = p.progressed_at();
             let cmd = p.control(world.as_secs_f64(), &mut draw);
+            if p.progressed_at() != before {
+                // Its teammates learn it with its heartbeats: one waiting
+                // for it at a barrier waits on while it gets on.
+                self.kernel.skill_progressed();
+            }
             self.out.push_back(AgentOutput::Drive(cmd));
         }
     }

@@ -1046,3 +1046,83 @@ fn a_pusher_that_loses_the_box_searches_for_it() {
     example_completes("red-cube.rtcl", "restart=r1@2.03s+1.516s", "48");
     example_completes("box-push.yaml", "crash=r0@18.763s", "4");
 }
+
+/// Sixteen robots sweep a 16 x 16 m hall, each its own strip, and wait for
+/// one another at the end (`term.wait-all`, a 30 s deadline). A robot whose
+/// strip was slow (crossing its teammates' strips, dodging them) still
+/// swept when the first had waited 30 s: seeds 13, 16 and 19 ended the
+/// barrier on its deadline, leaving it behind. Its heartbeats now carry
+/// the count of its skill's steps (`Position::progress`), and a teammate
+/// waiting for it waits on while the count changes.
+#[test]
+fn a_team_waits_for_a_teammate_still_sweeping_however_long_its_strip() {
+    let d = scratch("crossing");
+    let graph = d.join("crossing-16.yaml");
+    let scenario = d.join("crossing-16-scenario.yaml");
+    std::fs::write(&graph, CROSSING_GRAPH).expect("write the graph");
+    std::fs::write(&scenario, CROSSING_SCENARIO).expect("write the scenario");
+    for seed in ["13", "16", "19"] {
+        let name = format!("crossing-{seed}");
+        let v = run_one(
+            &name,
+            &[
+                graph.to_str().expect("utf-8 path"),
+                "--scenario",
+                scenario.to_str().expect("utf-8 path"),
+                "--seed",
+                seed,
+            ],
+        );
+        assert_eq!(v["outcome"], "completed", "{name}: {v:#}");
+    }
+}
+
+const CROSSING_GRAPH: &str = r#"graph: crossing-16
+team: { robots: 16 }
+start: cover
+defaults: { terminate: term.wait-all }
+behaviors:
+  cover: { team: true, skill: sweep, until: swept }
+"#;
+
+const CROSSING_SCENARIO: &str = r#"scenario: crossing-16
+world: physics
+seed: 1
+control_hz: 10
+time_limit: 600s
+stall: { after: 242s }
+physics:
+  arena: [16.00, 16.00]
+  trail: 0
+  robot: { radius: 0.12, drive: differential, max_speed: 0.35, max_turn: 3, max_accel: 1.0 }
+  sensors: { pose_noise: 0.005, rays: { count: 8, range: 1.0, noise: 0.005 }, camera: { fov: 120, range: 3, noise: 0.01 } }
+  beliefs: { swept: skill_done }
+  obstacles:
+    - { disc: 0.2, at: [6.00, 2.00] }
+    - { disc: 0.2, at: [6.00, 10.00] }
+    - { disc: 0.2, at: [14.00, 2.00] }
+    - { disc: 0.2, at: [14.00, 10.00] }
+  start:
+    r0: { at: [8.50, 8.50] }
+    r1: { at: [12.50, 8.50] }
+    r2: { at: [0.50, 12.50] }
+    r3: { at: [4.50, 12.50] }
+    r4: { at: [8.50, 12.50] }
+    r5: { at: [12.50, 12.50] }
+    r6: { at: [0.50, 0.50] }
+    r7: { at: [4.50, 0.50] }
+    r8: { at: [8.50, 0.50] }
+    r9: { at: [12.50, 0.50] }
+    r10: { at: [0.50, 4.50] }
+    r11: { at: [4.50, 4.50] }
+    r12: { at: [8.50, 4.50] }
+    r13: { at: [12.50, 4.50] }
+    r14: { at: [0.50, 8.50] }
+    r15: { at: [4.50, 8.50] }
+skills:
+  sweep:
+    schemas:
+      - { schema: scan, region: [0, 0, 16.00, 16.00], split: true, spacing: 0.6, speed: 0.35, layer: 1 }
+      - { schema: avoid-teammate, range: 0.4, layer: 2 }
+      - { schema: avoid-obstacle, range: 0.3, layer: 3 }
+"#;

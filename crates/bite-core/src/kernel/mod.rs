@@ -479,6 +479,9 @@ pub struct Kernel {
     quiet: rustc_hash::FxHashMap<RobotId, position::Quiet>,
     /// The version of the mission it runs (see `change.rs`).
     version: u32,
+    /// Steps its skill has made (the runtime's count, wrapping: see
+    /// [`Kernel::skill_progressed`]), told with its heartbeats.
+    progress: u32,
     /// Newer versions, held until a safe point (the newest few).
     pending: BTreeMap<u32, Arc<Mission>>,
     /// What it did at recent safe points while a version was pending.
@@ -542,6 +545,7 @@ impl Kernel {
             peers: Default::default(),
             quiet: Default::default(),
             version: 0,
+            progress: 0,
             pending: BTreeMap::new(),
             fences: VecDeque::new(),
             relayed: VecDeque::new(),

@@ -123,9 +123,11 @@ impl FrameId {
 pub(super) struct Peer {
     /// When it was last heard.
     pub heard: Time,
-    /// When its position last changed (it makes progress); `None`: it was
-    /// heard only after this robot finished.
+    /// When its position last changed, or its skill made a step (it makes
+    /// progress); `None`: it was heard only after this robot finished.
     pub moved: Option<Time>,
+    /// Its skill's steps, as it last told them ([`Position::progress`]).
+    pub progress: u32,
     /// The executions it is engaged in (its position's frames), kept in
     /// the entry up to a stack four deep: a team leader compares every
     /// member's heartbeat with them, and at 100,000 members a vector of
@@ -145,7 +147,7 @@ pub(super) struct Peer {
 pub(super) struct Quiet {
     /// [`Peer::moved`] in microseconds (`u64::MAX`: `None`).
     moved: u64,
-    /// [`digest`] of [`Peer::frames`].
+    /// [`digest`] of [`Peer::frames`] and [`Peer::progress`].
     frames: u64,
 }
 
@@ -153,7 +155,7 @@ impl Quiet {
     fn of(p: &Peer) -> Self {
         Quiet {
             moved: p.moved.map_or(u64::MAX, |t| t.0),
-            frames: digest(p.frames.iter().copied()),
+            frames: digest(p.frames.iter().copied(), p.progress),
         }
     }
     fn moved(self) -> Option<Time> {
@@ -161,14 +163,16 @@ impl Quiet {
     }
 }
 
-/// A digest of a peer's frames (SipHash with fixed keys: deterministic,
-/// and two different stacks share a digest once in 2^64).
-fn digest(frames: impl Iterator<Item = (FrameId, FrameState)>) -> u64 {
+/// A digest of a peer's frames and its skill's steps (SipHash with fixed
+/// keys: deterministic, and two different positions share a digest once in
+/// 2^64).
+fn digest(frames: impl Iterator<Item = (FrameId, FrameState)>, progress: u32) -> u64 {
     use std::hash::{Hash, Hasher};
     let mut h = std::hash::DefaultHasher::new();
     for f in frames {
         f.hash(&mut h);
     }
+    progress.hash(&mut h);
     h.finish()
 }
 
@@ -243,6 +247,11 @@ pub struct Position {
     /// was pending, and what it passes on from teammates (see
     /// `kernel/change.rs`).
     pub fences: Vec<super::change::Fence>,
+    /// How many steps its skill has made, wrapping
+    /// ([`Kernel::skill_progressed`]): a teammate whose count changes is
+    /// getting on with its work though its frames stay the same (a long
+    /// sweep), and a barrier waits for it (`Kernel::awaited_at_work`).
+    pub progress: u32,
 }
 
 impl Position {
@@ -500,7 +509,18 @@ impl Kernel {
             version: self.version,
             pending: self.pending_version().unwrap_or(0),
             fences: self.fences.iter().chain(&self.relayed).copied().collect(),
+            progress: self.progress,
         }
+    }
+
+    /// The runtime's word that this robot's skill made a step toward its
+    /// end (a sweep came nearer its next waypoint, a robot nearer the goal
+    /// it drives to: finitely many between two changes of its stack). Its
+    /// heartbeats say so, and a teammate waiting for it at a barrier waits
+    /// on while it keeps making them, however long it works (see
+    /// `Kernel::awaited_at_work`). The timed world's skills make none.
+    pub fn skill_progressed(&mut self) {
+        self.progress = self.progress.wrapping_add(1);
     }
 
     pub(super) fn pos_frame(&self, f: &Frame, depth: usize, state: FrameState) -> PosFrame {
@@ -649,11 +669,16 @@ impl Kernel {
                     p.frames.extend(engaged());
                     p.moved = Some(now);
                 }
+                if p.progress != pos.progress {
+                    p.progress = pos.progress;
+                    p.moved = Some(now);
+                }
             }
             None => {
-                // Heard again after a while: it moved if its frames changed.
+                // Heard again after a while: it moved if its frames changed
+                // or its skill made steps.
                 let moved = match self.quiet.remove(&from) {
-                    Some(q) if q.frames == digest(engaged()) => q.moved(),
+                    Some(q) if q.frames == digest(engaged(), pos.progress) => q.moved(),
                     _ => Some(now),
                 };
                 self.peers.insert(
@@ -661,6 +686,7 @@ impl Kernel {
                     Peer {
                         heard: now,
                         moved,
+                        progress: pos.progress,
                         frames: engaged().collect(),
                     },
                     self.org.roster_len(),
@@ -1109,8 +1135,8 @@ impl Kernel {
     /// deadline to recover what a crash took with it: a token).
     ///
     /// A slow teammate is waited for while it makes progress: its position
-    /// changed within [`SLOW_WAITS`] deadlines (and at least
-    /// [`SLOW_WAIT_MIN`]). One whose condition never holds (it cannot see
+    /// changed, or its skill made a step ([`Kernel::skill_progressed`]),
+    /// within [`SLOW_WAITS`] deadlines (and at least [`SLOW_WAIT_MIN`]). One whose condition never holds (it cannot see
     /// what it looks for) is then a timeout and a decision, not a team
     /// waiting forever. A member trusts a leader waiting at the point: the
     /// leader's own deadline decides for the team.

@@ -1260,6 +1260,55 @@ fn member_at_the_barrier(h: &mut Harness) -> InstanceKey {
     key
 }
 
+/// A leader waiting at a barrier for a teammate still running the behavior
+/// waits on while the teammate gets on: its frames changed, or its skill
+/// made a step (`Kernel::skill_progressed`, told with its heartbeats), within
+/// the slow-wait limit. A teammate sweeping a hall for minutes keeps the
+/// same frames throughout; before it told its steps, the barrier's deadline
+/// cut its sweep short.
+#[test]
+fn a_teammate_whose_skill_makes_steps_is_waited_for_however_long_it_works() {
+    // The leader ends `first` and waits at its barrier; its teammate runs
+    // it on, heard every second, its skill making a step every second until
+    // `steps_until`. Is the leader still waiting at `at` seconds?
+    let waiting = |steps_until: u64, at: u64| {
+        let mut h = Harness::new(TWICE, 2);
+        h.tick(0, &[]);
+        h.tick_one(0, 100, &[("first_done", T)]);
+        let [_, first, ..] = twice_ids(&h);
+        let key = InstanceKey {
+            team: TeamId::ROOT,
+            behavior: first.behavior,
+            kind: Kind::Terminate,
+            epoch: 1,
+            round: 0,
+        };
+        assert!(
+            h.kernels[0].instances.get(&key).is_some(),
+            "waits at the barrier"
+        );
+        for s in 1..=at {
+            if s <= steps_until {
+                h.kernels[1].skill_progressed();
+            }
+            let pos = h.kernels[1].position();
+            let now = Time::from_millis(s * 1_000);
+            h.kernels[0].peer(now, RobotId(1), &pos);
+            h.kernels[0].timer(now);
+        }
+        h.kernels[0].instances.get(&key).is_some()
+    };
+    let limit = super::position::SLOW_WAIT_MIN.as_secs();
+    // No step: waited for the limit, then a timeout and a decision.
+    assert!(waiting(0, limit - 10));
+    assert!(!waiting(0, limit + 60));
+    // Steps every second: waited for ten minutes and on.
+    assert!(waiting(600, 600));
+    // Once they stop, the limit runs from the last.
+    assert!(waiting(600, 600 + limit - 10));
+    assert!(!waiting(600, 600 + limit + 60));
+}
+
 /// Two executions of one behavior under different parents share an id
 /// when the team's count of it is the same in both (a robot that ran it
 /// once more than its teammates under the first parent, alone, counts the
