@@ -59,6 +59,11 @@ pub struct SweepArgs {
     /// skipped.
     #[arg(long)]
     scenario: Option<PathBuf>,
+    /// Team size (default: each scenario's, else each graph's), as `bite
+    /// run --robots`: the faults of each class pick their robots from
+    /// this team.
+    #[arg(long)]
+    robots: Option<usize>,
     /// Worlds: `timed`, `physics` (a graph without a physical scenario
     /// runs in the timed world only; a mission, `.rtcl`, and a graph with
     /// only a physical scenario beside it, in the physical world only).
@@ -155,8 +160,14 @@ fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
                     );
                     continue;
                 }
-                let (graph, scenario) =
-                    load_team(g, None, cfg.as_deref(), a.scenario.as_deref(), None, timed)?;
+                let (graph, scenario) = load_team(
+                    g,
+                    None,
+                    cfg.as_deref(),
+                    a.scenario.as_deref(),
+                    a.robots,
+                    timed,
+                )?;
                 if !timed && scenario.physics.is_none() {
                     continue;
                 }
@@ -166,8 +177,8 @@ fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
                 if timed && scenario.physics.is_some() {
                     continue;
                 }
-                let mission =
-                    bite_sim::prepare(&graph, &scenario, None, &registry()).map_err(bad_input)?;
+                let mission = bite_sim::prepare(&graph, &scenario, a.robots, &registry())
+                    .map_err(bad_input)?;
                 let mut args = g.map(|p| p.display().to_string()).unwrap_or_default();
                 args.push_str(&cfg_args);
                 if let Some(sc) = &a.scenario {
@@ -175,6 +186,9 @@ fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
                 }
                 if timed {
                     args.push_str(" --timed");
+                }
+                if let Some(n) = a.robots {
+                    args.push_str(&format!(" --robots {n}"));
                 }
                 let changes = crate::scenario_changes(&scenario, &mission)?;
                 cases.push(Case {

@@ -1126,3 +1126,51 @@ skills:
       - { schema: avoid-teammate, range: 0.4, layer: 2 }
       - { schema: avoid-obstacle, range: 0.3, layer: 3 }
 "#;
+
+/// `--robots N` runs every mission with a team of N, as `bite run
+/// --robots N`: the faults pick their robots from that team and every
+/// replay command says so.
+#[test]
+fn a_sweep_runs_the_team_size_it_is_given() {
+    let d = scratch("robots");
+    let out = d.join("sweep.jsonl");
+    let c = config(1);
+    let v = sweep(
+        &[
+            "--config",
+            &c,
+            "--worlds",
+            "timed",
+            "--robots",
+            "6",
+            "--classes",
+            "none,crash",
+            "--seeds",
+            "1..2",
+        ],
+        &out,
+    );
+    assert_eq!(v["runs"], 4, "{v:#}");
+    let lines = std::fs::read_to_string(&out).expect("the sweep's lines");
+    let mut far = false;
+    for l in lines.lines() {
+        let r: serde_json::Value = serde_json::from_str(l).expect("a JSON line");
+        let replay = r["replay"].as_str().expect("replay");
+        assert!(replay.contains("--robots 6"), "{replay}");
+        assert_eq!(r["violations"], 0, "{r}");
+        // A crash picks any of the six, not only the graph's three.
+        far |= r["faults"].as_array().is_some_and(|f| {
+            f.iter().any(|f| {
+                f.as_str()
+                    .is_some_and(|f| f.contains("r3") || f.contains("r4") || f.contains("r5"))
+            })
+        });
+        if r["class"] == "none" {
+            assert_eq!(r["outcome"], "completed", "{r}");
+        }
+    }
+    assert!(
+        far,
+        "a crash picks a robot past the graph's three:\n{lines}"
+    );
+}
