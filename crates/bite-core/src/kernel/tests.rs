@@ -1234,12 +1234,9 @@ fn in_s_under(h: &Harness, parent: &str) -> Position {
     }
 }
 
-/// [`TWICE`] with two robots: the member ends `first` (and `s` under it)
-/// and waits at its barrier. The barrier's key.
-fn member_at_the_barrier(h: &mut Harness) -> InstanceKey {
-    h.tick(0, &[]);
-    assert_eq!(h.stack(1), ["root", "first", "s"]);
-    h.tick_one(1, 100, &[("first_done", T)]);
+/// The barrier that ends [`TWICE`]'s first execution of `first`, at
+/// which robot `r` waits (checked).
+fn waiting_at_first(h: &Harness, r: usize) -> InstanceKey {
     let [_, first, ..] = twice_ids(h);
     let key = InstanceKey {
         team: TeamId::ROOT,
@@ -1249,9 +1246,19 @@ fn member_at_the_barrier(h: &mut Harness) -> InstanceKey {
         round: 0,
     };
     assert!(
-        h.kernels[1].instances.get(&key).is_some(),
-        "waits at the barrier"
+        h.kernels[r].instances.get(&key).is_some(),
+        "robot {r} waits at the barrier"
     );
+    key
+}
+
+/// [`TWICE`] with two robots: the member ends `first` (and `s` under it)
+/// and waits at its barrier. The barrier's key.
+fn member_at_the_barrier(h: &mut Harness) -> InstanceKey {
+    h.tick(0, &[]);
+    assert_eq!(h.stack(1), ["root", "first", "s"]);
+    h.tick_one(1, 100, &[("first_done", T)]);
+    let key = waiting_at_first(h, 1);
     assert_eq!(h.stack(1), ["root"]);
     assert!(matches!(
         h.kernels[1].popped(),
@@ -1275,18 +1282,7 @@ fn a_teammate_whose_skill_makes_steps_is_waited_for_however_long_it_works() {
         let mut h = Harness::new(TWICE, 2);
         h.tick(0, &[]);
         h.tick_one(0, 100, &[("first_done", T)]);
-        let [_, first, ..] = twice_ids(&h);
-        let key = InstanceKey {
-            team: TeamId::ROOT,
-            behavior: first.behavior,
-            kind: Kind::Terminate,
-            epoch: 1,
-            round: 0,
-        };
-        assert!(
-            h.kernels[0].instances.get(&key).is_some(),
-            "waits at the barrier"
-        );
+        let key = waiting_at_first(&h, 0);
         for s in 1..=at {
             if s <= steps_until {
                 h.kernels[1].skill_progressed();
