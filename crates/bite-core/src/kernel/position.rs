@@ -1136,10 +1136,11 @@ impl Kernel {
     ///
     /// A slow teammate is waited for while it makes progress: its position
     /// changed, or its skill made a step ([`Kernel::skill_progressed`]),
-    /// within [`SLOW_WAITS`] deadlines (and at least [`SLOW_WAIT_MIN`]). One whose condition never holds (it cannot see
-    /// what it looks for) is then a timeout and a decision, not a team
-    /// waiting forever. A member trusts a leader waiting at the point: the
-    /// leader's own deadline decides for the team.
+    /// within [`SLOW_WAITS`] deadlines (and at least [`SLOW_WAIT_MIN`]).
+    /// One whose condition never holds (it cannot see what it looks for)
+    /// is then a timeout and a decision, not a team waiting forever. A
+    /// member trusts a leader waiting at the point: the leader's own
+    /// deadline decides for the team.
     pub(super) fn awaited_at_work(&self, key: InstanceKey) -> bool {
         // At an allocation the leader counts only teammates behind on the
         // path: a team at the point reaches it together, and a protocol
