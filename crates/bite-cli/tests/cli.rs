@@ -670,6 +670,22 @@ fn bench_commands_print_json_rows_for_scripts() {
     assert_eq!(rows[3]["simulated_s"], 3.0, "{rows:?}");
 }
 
+/// `bite run ARGS --json --log LOG` from the repository's root: the
+/// summary and how the command exited.
+fn run_json(args: &[&str], log: &std::path::Path) -> (serde_json::Value, std::process::ExitStatus) {
+    let out = bite()
+        .current_dir(root())
+        .arg("run")
+        .args(args)
+        .args(["--json", "--log"])
+        .arg(log)
+        .output()
+        .expect("bite runs");
+    let summary = serde_json::from_slice(&out.stdout)
+        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stderr)));
+    (summary, out.status)
+}
+
 #[test]
 fn a_fault_may_name_any_robot_of_the_team_as_it_runs() {
     // `--robots 6` grows the formation example's team of three: a fault
@@ -707,18 +723,19 @@ fn a_crowd_finds_the_box_together_and_pushes_it_home_without_a_deadline() {
     // and 3), or the team waited minutes for it.
     let d = scratch("crowd-find");
     for seed in ["2", "3"] {
-        let out = bite()
-            .current_dir(root())
-            .args(["run", "examples/search-rescue.rtcl", "--robots", "30"])
-            .args(["--seed", seed, "--json", "--log"])
-            .arg(d.join("run.jsonl"))
-            .output()
-            .expect("bite runs");
-        let summary: serde_json::Value = serde_json::from_slice(&out.stdout)
-            .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stderr)));
+        let (summary, status) = run_json(
+            &[
+                "examples/search-rescue.rtcl",
+                "--robots",
+                "30",
+                "--seed",
+                seed,
+            ],
+            &d.join("run.jsonl"),
+        );
         assert_eq!(summary["outcome"], "completed", "seed {seed}: {summary:#}");
         assert_eq!(summary["timeouts"], 0, "seed {seed}: {summary:#}");
-        assert!(out.status.success(), "seed {seed}: {summary:#}");
+        assert!(status.success(), "seed {seed}: {summary:#}");
     }
 }
 
@@ -729,15 +746,10 @@ fn a_large_team_sweeps_the_whole_hall_however_thin_its_strips() {
     // sweeps. Each still has its lane (it had none: the team "completed"
     // in 3 s, having swept 14 % of the hall).
     let d = scratch("thin-strips");
-    let out = bite()
-        .current_dir(root())
-        .args(["run", "examples/coverage-sweep.rtcl", "--robots", "30"])
-        .args(["--json", "--log"])
-        .arg(d.join("run.jsonl"))
-        .output()
-        .expect("bite runs");
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout)
-        .unwrap_or_else(|e| panic!("{e}: {}", String::from_utf8_lossy(&out.stderr)));
+    let (summary, _) = run_json(
+        &["examples/coverage-sweep.rtcl", "--robots", "30"],
+        &d.join("run.jsonl"),
+    );
     assert_eq!(summary["outcome"], "completed", "{summary:#}");
     let covered = summary["world"]["coverage"].as_f64().expect("coverage");
     assert!(covered > 0.9, "{covered} of the hall swept");
