@@ -109,6 +109,42 @@ impl<'g> Namer<'g> {
 }
 
 impl Namer<'_> {
+    /// A `message` record: robot `from` sent `env` to `to` (a team
+    /// multicast lists its members but the sender), `bytes` on the wire.
+    /// Written with `bite run --log-messages`, to trace a conversation.
+    pub fn message(
+        &self,
+        t: Time,
+        from: RobotId,
+        to: &bite_core::interaction::Recipients,
+        env: &bite_core::msg::Envelope,
+        bytes: u32,
+    ) -> J {
+        use bite_core::interaction::Recipients;
+        let to: Vec<J> = match to {
+            Recipients::One(r) => vec![self.robot(*r)],
+            Recipients::Team(set) => set
+                .iter()
+                .filter(|r| *r != from)
+                .map(|r| self.robot(r))
+                .collect(),
+        };
+        let mut instance = serde_json::to_value(env.instance).unwrap_or(J::Null);
+        if let J::Object(m) = &mut instance {
+            self.rename_all(m);
+        }
+        serde_json::json!({
+            "t": t.as_secs_f64(),
+            "robot": self.robot(from),
+            "event": "message",
+            "to": to,
+            "instance": instance,
+            "seq": env.seq,
+            "body": env.body.name(),
+            "bytes": bytes,
+        })
+    }
+
     /// The reverse of [`Namer::record`] for the events the invariant
     /// checker reads (selections, terminations, protocol instances,
     /// lost and returning teammates), so that the logs of a team that ran

@@ -253,6 +253,11 @@ struct RunArgs {
     /// Where to write the JSON-lines run log (default: `out/<graph>-seed<seed>.jsonl`).
     #[arg(long)]
     log: Option<PathBuf>,
+    /// Also log every message a robot sends (`message` records: sender,
+    /// recipients, protocol instance, kind, bytes), to trace a
+    /// conversation.
+    #[arg(long)]
+    log_messages: bool,
     /// Print the summary as JSON instead of text.
     #[arg(long)]
     json: bool,
@@ -781,6 +786,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
             ),
             pool: None,
             batch_from: None,
+            log_messages: a.log_messages,
         },
     )
     .map_err(bad_input)?;

@@ -759,3 +759,49 @@ fn a_large_team_sweeps_the_whole_hall_however_thin_its_strips() {
         .fold(f64::INFINITY, f64::min);
     assert!(least > 1.0, "every robot drove its lane: {least} m");
 }
+
+/// `--log-messages` adds a `message` record for every message a robot
+/// sends (as many as the summary counts), each naming sender, recipients,
+/// instance and kind; the rest of the log is the run's without it.
+#[test]
+fn the_run_log_may_record_every_message_sent() {
+    let d = scratch("log-messages");
+    let args = ["--timed", "--seed", "1", "--fault", "loss=0.2"];
+    let (with, _) = run_json(
+        &[&args[..], &["--log-messages"]].concat(),
+        &d.join("with.jsonl"),
+    );
+    let (_, _) = run_json(&args, &d.join("without.jsonl"));
+    let read = |f: &str| std::fs::read_to_string(d.join(f)).expect("the run log");
+    let (with_log, without_log) = (read("with.jsonl"), read("without.jsonl"));
+    let records: Vec<serde_json::Value> = with_log
+        .lines()
+        .map(|l| serde_json::from_str(l).expect("a JSON line"))
+        .collect();
+    let messages: Vec<&serde_json::Value> =
+        records.iter().filter(|r| r["event"] == "message").collect();
+    let counted: u64 = ["sync", "allocate", "terminate"]
+        .iter()
+        .map(|k| with["messages"][k].as_u64().expect("a count"))
+        .sum();
+    assert!(counted > 0, "{with:#}");
+    assert_eq!(messages.len() as u64, counted);
+    for m in &messages {
+        assert!(
+            m["robot"].as_str().is_some_and(|r| r.starts_with('r')),
+            "{m}"
+        );
+        assert!(m["to"].as_array().is_some_and(|to| !to.is_empty()), "{m}");
+        assert!(m["instance"]["behavior"].is_string(), "{m}");
+        assert!(m["body"].is_string() && m["bytes"].is_u64(), "{m}");
+    }
+    // Everything else is the same run (the summary's fingerprint is the
+    // log's, so the last line differs).
+    let others = |log: &str| -> Vec<String> {
+        log.lines()
+            .filter(|l| !l.contains(r#""event":"message""#) && !l.contains("run_finished"))
+            .map(str::to_string)
+            .collect()
+    };
+    assert_eq!(others(&with_log), others(&without_log));
+}

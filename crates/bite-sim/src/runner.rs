@@ -173,6 +173,9 @@ pub struct RunOptions<'a> {
     /// robots' events are handled side by side (`Sim::batch`; default
     /// [`BATCH_FROM`]). Results are the same either way.
     pub batch_from: Option<usize>,
+    /// Write a `message` record to the log for every message a robot
+    /// sends (`bite run --log-messages`).
+    pub log_messages: bool,
 }
 
 /// The team size from which robots' events are handled side by side by
@@ -384,6 +387,8 @@ struct Sim<'a, 'w> {
     now: Time,
     agg: Aggregator,
     log: RunLog<'w>,
+    /// Log every message sent (`RunOptions::log_messages`).
+    log_messages: bool,
     record: bool,
     history: Vec<Record>,
     resolved: Resolved,
@@ -980,6 +985,11 @@ impl Sim<'_, '_> {
                     bytes,
                 } => {
                     let key = envelope.instance;
+                    if self.log_messages && self.log.is_writing() {
+                        let rec =
+                            Namer::new(&self.graph).message(self.now, r, &to, &envelope, bytes);
+                        self.log.write(&rec);
+                    }
                     self.agg.sent(key.behavior, key.kind, bytes);
                     self.chatter.sent(self.now, r);
                     let env = Arc::new(envelope);
@@ -1819,6 +1829,7 @@ pub fn run(
         now: Time::ZERO,
         agg: Aggregator::new(n),
         log,
+        log_messages: opts.log_messages,
         record: opts.record,
         history: Vec::new(),
         resolved,

@@ -629,6 +629,7 @@ fn run_mission(
                 }),
                 pool: None,
                 batch_from: None,
+                log_messages: false,
             },
         )
         .map_err(|d| anyhow::anyhow!("{d}"))?;
