@@ -528,12 +528,20 @@ fn same_kind(a: &Body, b: &Body) -> bool {
 
 /// The answer of a forgotten instance to a member's late message: the
 /// decision this robot applied (nothing if it left before deciding, or if
-/// the message is itself an announcement).
+/// the message asks for nothing: an announcement, an acknowledgement, or
+/// a teammate's `Done` — "I have left this behavior", which the kernel
+/// sends in answer to a message about a behavior its robot has left; a
+/// decision in answer to it drew another `Done`, for ever:
+/// docs/reliability.md, "A decision answered to a teammate that left").
 pub(crate) fn late_reply(closed: &bite_core::interaction::Closed, body: &Body) -> Option<Body> {
     use bite_core::interaction::Closed;
     if matches!(
         body,
-        Body::Decision { .. } | Body::Assignment { .. } | Body::Release { .. }
+        Body::Decision { .. }
+            | Body::Assignment { .. }
+            | Body::Release { .. }
+            | Body::Done
+            | Body::Ack
     ) {
         return None;
     }
@@ -542,5 +550,25 @@ pub(crate) fn late_reply(closed: &bite_core::interaction::Closed, body: &Body) -
         Closed::Allocated(a) => Some(Body::assignment(a)),
         Closed::Terminated(next) => Some(Body::Release { next: *next }),
         Closed::Left => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bite_core::interaction::Closed;
+
+    #[test]
+    fn a_forgotten_instance_answers_only_a_message_that_asks() {
+        let synced = Closed::Synced(None);
+        let decision = Some(Body::Decision { choice: None });
+        assert_eq!(late_reply(&synced, &Body::Vote { choice: None }), decision);
+        assert_eq!(late_reply(&synced, &Body::Query), decision);
+        // Notices ask for nothing: answering `Done` with the decision drew
+        // another `Done` from a robot that had left, for ever.
+        for notice in [Body::Done, Body::Ack, Body::Decision { choice: None }] {
+            assert_eq!(late_reply(&synced, &notice), None, "{notice:?}");
+        }
+        assert_eq!(late_reply(&Closed::Left, &Body::Query), None);
     }
 }
