@@ -61,7 +61,7 @@
 
 use crate::gather::backoff;
 use crate::sync::no_params;
-use bite_core::ids::RobotId;
+use bite_core::ids::{BehaviorId, RobotId};
 use bite_core::interaction::{
     Closed, Cx, Factory, Interaction, LocalEnd, Outcome, Params, Protocol, Setup,
 };
@@ -179,6 +179,8 @@ struct Barrier {
     reported_to: Option<RobotId>,
     /// This leader left with every member arrived, and released them.
     released_on_leave: bool,
+    /// What the release names to run next (told to stragglers again).
+    next: Option<BehaviorId>,
 }
 
 /// How many times a release is repeated to a member still working (it is
@@ -201,6 +203,7 @@ impl Barrier {
             stragglers: Vec::new(),
             reported_to: None,
             released_on_leave: false,
+            next: None,
         }
     }
 
@@ -269,7 +272,16 @@ impl Barrier {
 
     /// Release everyone; tell those still working until they confirm.
     fn release(&mut self, cx: &mut Cx<'_>, arrived: &MemberSet) {
-        cx.broadcast(Body::Release { next: None });
+        self.announce(cx, arrived, None);
+        cx.decide(Outcome::Terminate(None));
+    }
+
+    /// Tell every member the behavior ends (`next`: its replacement), and
+    /// keep telling those that had not arrived (`arrived`) until they
+    /// confirm: they are working, not waiting for anything.
+    fn announce(&mut self, cx: &mut Cx<'_>, arrived: &MemberSet, next: Option<BehaviorId>) {
+        cx.broadcast(Body::Release { next });
+        self.next = next;
         let me = cx.me();
         self.stragglers = cx
             .members()
@@ -279,7 +291,6 @@ impl Barrier {
             self.resends = 0;
             cx.wake_after_retry();
         }
-        cx.decide(Outcome::Terminate(None));
     }
 }
 
@@ -368,7 +379,7 @@ impl Interaction for Barrier {
             // STRAGGLER_TRIES times; after that a straggler learns it when
             // it arrives, from the leader's late reply.
             for r in self.stragglers.clone() {
-                cx.send(r, Body::Release { next: None });
+                cx.send(r, Body::Release { next: self.next });
             }
             self.resends += 1;
             if self.resends < STRAGGLER_TRIES {
@@ -440,6 +451,27 @@ impl Interaction for Barrier {
                 cx.send(leader, Body::Done);
                 cx.wake_after_retry();
             }
+        }
+    }
+
+    /// The team ended the behavior while this robot was presumed lost
+    /// (a teammate's notice, `Body::Missed`). A leader whose members are
+    /// still working tells them, as at its deadline: they are not waiting
+    /// for anything, and the releases of the leader that decided without
+    /// this robot are not from the leader they follow. A side that had
+    /// not arrived stayed in the behavior for good while the rest of the
+    /// team went on (docs/reliability.md, "A release no member heard").
+    fn on_team_decision(&mut self, cx: &mut Cx<'_>, outcome: &Outcome) {
+        let Outcome::Terminate(next) = outcome else {
+            return;
+        };
+        if !cx.is_leader() {
+            return;
+        }
+        let arrived = self.arrived(cx).clone();
+        let me = cx.me();
+        if cx.members().any(|m| m != me && !arrived.contains(m)) {
+            self.announce(cx, &arrived, *next);
         }
     }
 

@@ -117,3 +117,55 @@ fn a_robot_that_applied_the_teams_decision_leads_with_it() {
         answered.decided
     );
 }
+
+/// A leader waiting at a `term.wait-all` barrier hears that the team
+/// ended the behavior without it (a notice from a teammate it presumed
+/// lost, which led the others meanwhile and released them at its
+/// deadline). Its members still working take releases only from the
+/// leader they follow — this robot — so it tells them, and keeps telling
+/// them until they confirm. Found at 12 robots (configuration 6, a
+/// partition, seed 2): half the team stayed in `triangle` for good while
+/// the rest went on to `line` (docs/reliability.md, "A release no member
+/// heard").
+#[test]
+fn a_leader_that_applied_the_teams_end_releases_its_members_still_working() {
+    const WAIT: &str = "graph: released\nteam: { robots: 3 }\nstart: a\n\
+        defaults: { sync: sync.by-rule, allocate: alloc.by-id, terminate: term.wait-all }\n\
+        behaviors:\n  a: { team: true, skill: w, until: go, next: [b] }\n\
+        \x20 b: { team: true, skill: w }\n";
+    let g = load_str(&Arc::from("released.yaml"), WAIT).expect("the test graph loads");
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r0 = Kernel::new(mission, RobotId(0), 3);
+    let go = r0.mission().graph().symbols().get("go").expect("belief");
+    let t = Time::from_secs_f64;
+    r0.tick(t(0.0), &[(go, Value::Bool(false))]);
+    // r1 presumed lost a while (it led r2 meanwhile), then heard again.
+    r0.member_lost(t(0.1), RobotId(1));
+    r0.member_back(t(0.2), RobotId(1));
+    drain(&mut r0);
+    // r0 ends `a` and waits at the barrier it leads; r2 still works.
+    r0.tick(t(0.3), &[(go, Value::Bool(true))]);
+    let key = drain(&mut r0).started.expect("the barrier started");
+    // r1's notice: the team ended `a` without r0.
+    let missed = Body::Missed {
+        choice: None,
+        children: Vec::new(),
+        members: Vec::new(),
+    };
+    r0.message(t(0.4), from(1, key, 1, missed));
+    let told = drain(&mut r0);
+    assert_eq!(told.decided.len(), 1, "{:?}", told.decided);
+    let released = |sent: &[(Recipients, Body)]| {
+        sent.iter().any(|(to, m)| {
+            *m == Body::Release { next: None }
+                && match to {
+                    Recipients::One(r) => *r == RobotId(2),
+                    Recipients::Team(s) => s.contains(RobotId(2)),
+                }
+        })
+    };
+    assert!(released(&told.sent), "r2 is released: {:?}", told.sent);
+    // Told again until it confirms.
+    r0.tick(t(2.0), &[(go, Value::Bool(true))]);
+    assert!(released(&drain(&mut r0).sent), "r2 is told again");
+}
