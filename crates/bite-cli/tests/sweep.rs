@@ -1232,3 +1232,29 @@ fn a_side_still_working_hears_the_team_ended_its_behavior() {
     );
     assert!(v["completed"] == true, "{v:#}");
 }
+
+/// Eight robots under injected messages (configuration 2, seed 2): a
+/// heartbeat of a robot that had ended `walk`, replayed as from r3, told
+/// r4 that r3 had ended it too; r4 left r3 out of `walk`'s barrier, led
+/// the vote with r7 alone and chose `search` while r3 and r7 chose `walk`
+/// (an agreement break). A position now names its robot, and one heard as
+/// from another is dropped (docs/reliability.md, "A heartbeat replayed as
+/// from another robot").
+#[test]
+fn a_heartbeat_replayed_as_from_another_robot_splits_no_team() {
+    let c = config(2);
+    let v = run_one(
+        "misattributed",
+        &[
+            "--config",
+            &c,
+            "--robots",
+            "8",
+            "--fault",
+            "inject=100ms",
+            "--seed",
+            "2",
+        ],
+    );
+    assert!(v["completed"] == true, "{v:#}");
+}

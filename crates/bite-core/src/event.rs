@@ -75,6 +75,9 @@ pub enum DropReason {
     /// The buffer of messages for instances not started yet is full, or a
     /// buffered message expired.
     BufferOverflow,
+    /// A heartbeat whose position names another robot than the one it
+    /// came from (a teammate's position replayed as from another).
+    Misattributed,
 }
 
 /// Subteams up to this size are logged member by member.

@@ -606,10 +606,10 @@ mod tests {
             tag ^= u64::from(*b);
             tag = tag.wrapping_mul(0x0000_0100_0000_01b3);
         }
-        // A heartbeat payload: payload version 5, finished = false (postcard
+        // A heartbeat payload: payload version 6, finished = false (postcard
         // bool: one byte), no position (postcard Option: 0 = None).
         let payload = [crate::wire::PAYLOAD_VERSION, 0, 0];
-        assert_eq!(payload[0], 5, "docs/zenoh-interface.md gives version 5");
+        assert_eq!(payload[0], 6, "docs/zenoh-interface.md gives version 6");
         let hb = crate::wire::Heartbeat {
             finished: false,
             position: None,

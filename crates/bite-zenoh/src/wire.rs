@@ -16,8 +16,9 @@ use std::sync::Arc;
 /// Version of the payloads inside frames. 4: world-model reports carry
 /// the age of each value (`age_us`), no longer the sender's clock time.
 /// 5: a heartbeat's position ends with the count of its skill's steps
-/// (`Position::progress`).
-pub const PAYLOAD_VERSION: u8 = 5;
+/// (`Position::progress`). 6: a heartbeat's position begins with the
+/// robot it is of (`Position::robot`).
+pub const PAYLOAD_VERSION: u8 = 6;
 
 /// Who a kernel message is for.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

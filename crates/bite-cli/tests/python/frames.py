@@ -98,7 +98,9 @@ def main():
     before = rejected()
 
     tag = fnv1a64(b"id\0" + mission_id.encode())
-    heartbeat = bytes([4, 0, 0])  # payload version 4, finished = false, no position
+    # A heartbeat of an older payload version (4): only the frame checks
+    # matter here, and the robots act on no part of it.
+    heartbeat = bytes([4, 0, 0])
     now_us = time.time_ns() // 1000
     good = frame(key, team, tag, 3, 1, now_us, heartbeat)
     forged = frame(b"\x11" * 32, team, tag, 3, 1, now_us + 1, heartbeat)

@@ -231,8 +231,14 @@ pub struct Ended {
 }
 
 /// What a robot runs, as its teammates learn it from its heartbeats.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Position {
+    /// The robot whose position it is. A hearer refuses a position that
+    /// came as from another robot: one teammate's ended executions
+    /// credited to another would mark that one departed from a behavior
+    /// it still runs (`Kernel::learn_departures`), and a barrier decide
+    /// without it.
+    pub robot: RobotId,
     /// Its frames, root first; the last may be one it ended.
     pub frames: Vec<PosFrame>,
     /// Executions it ended recently, oldest first.
@@ -252,6 +258,22 @@ pub struct Position {
     /// getting on with its work though its frames stay the same (a long
     /// sweep), and a barrier waits for it (`Kernel::awaited_at_work`).
     pub progress: u32,
+}
+
+impl Default for Position {
+    /// An empty position of robot 0.
+    fn default() -> Self {
+        Position {
+            robot: RobotId(0),
+            frames: Vec::new(),
+            ended: Vec::new(),
+            burned: Vec::new(),
+            version: 0,
+            pending: 0,
+            fences: Vec::new(),
+            progress: 0,
+        }
+    }
 }
 
 impl Position {
@@ -503,6 +525,7 @@ impl Kernel {
             frames.push(self.pos_frame(f, self.stack.len(), state));
         }
         Position {
+            robot: self.me,
             frames,
             ended: self.recent_ended.iter().copied().collect(),
             burned: self.recent_burned.iter().copied().collect(),
@@ -626,6 +649,9 @@ impl Kernel {
             || !pos.is_bounded(self.org.roster_len(), u32::MAX as usize)
         {
             return self.drop_msg(from, crate::event::DropReason::Malformed);
+        }
+        if pos.robot != from {
+            return self.drop_msg(from, crate::event::DropReason::Misattributed);
         }
         self.peer_version(from, pos);
         if self.awaiting_rejoin() {

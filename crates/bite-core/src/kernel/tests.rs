@@ -1172,6 +1172,46 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
 
 /// `first` then `second`, both running `s`; `first` ends at a barrier
 /// that only its deadline decides (its release lost).
+/// A position heard as from another robot than the one it names (a
+/// teammate's heartbeat replayed as from another) is refused and counted:
+/// taken, the teammate that ended `a` would have the other one marked
+/// departed from `a`, which it still runs.
+#[test]
+fn a_position_heard_as_from_another_robot_is_refused() {
+    let yaml = "start: root
+defaults: { terminate: term.local, sync: { protocol: sync.test-never, deadline: 60s } }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, until: a_done, next: [b] }
+  b: { team: true, until: never }";
+    let mut h = Harness::new(yaml, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    h.tick_one(2, 200, &[("a_done", T)]);
+    let a = h.kernels[0].mission().graph().find("a").expect("a");
+    let ended_a = h.kernels[2].position();
+    assert_eq!(ended_a.robot, RobotId(2));
+    let departed = |h: &Harness| {
+        let f = h.kernels[1].stack().last().expect("a frame");
+        assert_eq!(f.behavior, a, "robot 1 still runs `a`");
+        f.departed
+            .as_ref()
+            .map(|d| d.iter().collect::<Vec<_>>())
+            .unwrap_or_default()
+    };
+    let heard = h.kernels[1].stats.positions;
+    h.kernels[1].peer(Time::from_millis(300), RobotId(0), &ended_a);
+    assert_eq!(departed(&h), [], "robot 0 has not left `a`");
+    assert_eq!(h.kernels[1].stats.positions, heard, "not taken");
+    assert_eq!(
+        h.kernels[1].stats.dropped.get(&DropReason::Misattributed),
+        Some(&1)
+    );
+    // From the robot it names, the same position is news.
+    h.kernels[1].peer(Time::from_millis(300), RobotId(2), &ended_a);
+    assert_eq!(departed(&h), [RobotId(2)]);
+}
+
 const TWICE: &str = "start: root
 defaults: { terminate: term.local }
 behaviors:
