@@ -1006,20 +1006,23 @@ fn a_team_goes_on_in_the_running_version_until_every_member_holds_the_new_one() 
     assert_eq!(h.kernels[0].pending_version(), Some(1), "still pending");
 }
 
-/// A leader's report of who departed a frame it ended lists the leader
-/// itself, so that the members still running the frame keep that report as
-/// it is: one bit set shared by the team instead of a roster-sized copy per
-/// member (at 100,000 robots those copies were 1.25 GB).
-#[test]
-fn members_keep_the_leaders_departure_report_itself() {
-    let yaml = "start: root
+/// `a`, then a sync point that never decides: robots that end `a` wait
+/// there while the others still run it.
+const A_THEN_WAIT: &str = "start: root
 defaults: { terminate: term.local, sync: { protocol: sync.test-never, deadline: 60s } }
 behaviors:
   root: { team: true, children: [a] }
   a: { team: true, until: a_done, next: [b, c] }
   b: { team: true, until: never }
   c: { team: true, until: never }";
-    let mut h = Harness::new(yaml, 40);
+
+/// A leader's report of who departed a frame it ended lists the leader
+/// itself, so that the members still running the frame keep that report as
+/// it is: one bit set shared by the team instead of a roster-sized copy per
+/// member (at 100,000 robots those copies were 1.25 GB).
+#[test]
+fn members_keep_the_leaders_departure_report_itself() {
+    let mut h = Harness::new(A_THEN_WAIT, 40);
     h.tick(0, &[]);
     h.tick(100, &[]);
     // Robots 0 (the leader) to 7 end `a` and wait at its sync point.
@@ -1178,13 +1181,7 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
 /// departed from `a`, which it still runs.
 #[test]
 fn a_position_heard_as_from_another_robot_is_refused() {
-    let yaml = "start: root
-defaults: { terminate: term.local, sync: { protocol: sync.test-never, deadline: 60s } }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, until: a_done, next: [b] }
-  b: { team: true, until: never }";
-    let mut h = Harness::new(yaml, 3);
+    let mut h = Harness::new(A_THEN_WAIT, 3);
     h.tick(0, &[]);
     h.tick(100, &[]);
     h.tick_one(2, 200, &[("a_done", T)]);
