@@ -348,6 +348,13 @@ fn two_robots_per_process_complete_the_formation() {
                 .any(|e| e["event"] == "run_finished" && e["completed"] == true),
             "{name}"
         );
+        // Each robot of the shared session sends its own position under
+        // its own name: none is taken for another's.
+        assert!(
+            !log.iter()
+                .any(|e| e["event"] == "dropped" && e["reason"] == "misattributed"),
+            "{name}"
+        );
     }
     assert_eq!(s["disagreements"].as_array().unwrap().len(), 0, "{s:#}");
     assert_eq!(s["invariants"]["violations"], 0, "{s:#}");
