@@ -191,6 +191,27 @@ impl Body {
         Some(Assignment(sets))
     }
 
+    /// True when the message asks something of its recipient (a call, a
+    /// vote, a claim, a query...); false for an announcement (a decision,
+    /// an assignment, a release), an acknowledgement, a teammate's `Done`
+    /// and the kernel's own notices, which ask for nothing. A robot answers
+    /// nothing for an instance it has no part in (see `Kernel::route`) and
+    /// a forgotten instance answers nothing, unless the message asks:
+    /// answering a `Done` drew another, for ever (docs/reliability.md, "A
+    /// decision answered to a teammate that left").
+    pub fn asks(&self) -> bool {
+        !matches!(
+            self,
+            Body::Decision { .. }
+                | Body::Assignment { .. }
+                | Body::Release { .. }
+                | Body::Done
+                | Body::Ack
+                | Body::Missed { .. }
+                | Body::Reallocate { .. }
+        )
+    }
+
     /// A short name for logs and counters.
     pub fn name(&self) -> &'static str {
         match self {

@@ -535,14 +535,7 @@ fn same_kind(a: &Body, b: &Body) -> bool {
 /// docs/reliability.md, "A decision answered to a teammate that left").
 pub(crate) fn late_reply(closed: &bite_core::interaction::Closed, body: &Body) -> Option<Body> {
     use bite_core::interaction::Closed;
-    if matches!(
-        body,
-        Body::Decision { .. }
-            | Body::Assignment { .. }
-            | Body::Release { .. }
-            | Body::Done
-            | Body::Ack
-    ) {
+    if !body.asks() {
         return None;
     }
     match closed {

@@ -215,9 +215,21 @@ impl Tokens {
         self.maybe_finish(cx);
     }
 
+    /// Finish once every place is claimed, or every live member holds one:
+    /// a member left out since the places were made (presumed lost, or
+    /// done with the behavior) leaves more places than members, and the
+    /// places over stay empty whoever the tokens reach (they went round
+    /// until the deadline: docs/reliability.md, "An allocation left
+    /// undecided").
     fn maybe_finish(&mut self, cx: &mut Cx<'_>) {
-        if self.coord.result.is_none() && !cx.is_aborted() && self.claims.len() >= self.slots.len()
-        {
+        if self.coord.result.is_some() || cx.is_aborted() {
+            return;
+        }
+        let placed = cx
+            .members()
+            .filter(|r| self.claims.values().any(|c| c == r))
+            .count();
+        if self.claims.len() >= self.slots.len() || (placed > 0 && placed >= cx.team_size()) {
             self.finish(cx);
         }
     }

@@ -465,3 +465,22 @@ fn generated_graphs_exercise_every_structure() {
         "alloc {alloc}, sync {sync}, cycles {cycles}"
     );
 }
+
+/// Cases the properties once failed, run on every test run whatever the
+/// sampled seeds (each names the section of docs/reliability.md that tells
+/// what failed and what changed).
+#[test]
+fn cases_that_failed_once() {
+    // "An allocation left undecided": a member done with an `alloc.token`
+    // behavior before its first round decided; the leader waited for it,
+    // then passed tokens for places nobody could take, until its deadline.
+    run_generated(7_844_512_826_741_064_117, 4, 0.0, 0.0, 3, true)
+        .unwrap_or_else(|e| panic!("{e}"));
+    // The same graph with five robots: a member that ended the individual
+    // behavior above its subteam dissolved the subteam; its teammate still
+    // in it asked it at the next synchronization, heard nothing (a dead
+    // team's messages were dropped as stale) and waited until its
+    // deadline.
+    run_generated(7_844_512_826_741_064_117, 5, 0.0, 0.0, 3, true)
+        .unwrap_or_else(|e| panic!("{e}"));
+}

@@ -121,7 +121,9 @@ impl Kernel {
         if self.lost.contains(from) && !self.stirring.contains(&from) {
             self.stirring.push(from);
         }
-        if key.kind == Kind::Allocate && key.round > 0 && !self.instances.contains_key(&key) {
+        if key.kind == Kind::Allocate
+            && ((key.round > 0 && !self.instances.contains_key(&key)) || self.left_instance(key))
+        {
             let frame = self
                 .stack
                 .iter()
@@ -144,6 +146,11 @@ impl Kernel {
                 // asks for nothing and gets no answer: two robots that had
                 // both left it answered each other's `Done` for ever
                 // (docs/reliability.md, "Two robots answering each other").
+                // So does a first round this robot left undecided (its
+                // own reason to end the behavior came first, say, under a
+                // termination that waits for every member): its
+                // coordinator, not told, waited for it until its deadline
+                // (docs/reliability.md, "An allocation left undecided").
                 None if self.org.runs(key.team, key.behavior) >= key.epoch
                     && self.org.team(key.team).is_some_and(|t| t.contains(from)) =>
                 {
@@ -183,7 +190,20 @@ impl Kernel {
                 return self.drop_msg(from, DropReason::SenderNotMember);
             }
             Some(_) => {}
-            None if self.org.is_dead(key.team) => return self.drop_msg(from, DropReason::Stale),
+            // A synchronization or an allocation of a team this robot has
+            // dissolved (it left the behavior that made the team) and whose
+            // instance it never had: it takes no part, and says so to a
+            // teammate that asks. That teammate heard its heartbeats only
+            // while they shared the team, and would wait for it until the
+            // instance's deadline (docs/reliability.md, "An allocation left
+            // undecided").
+            None if self.org.is_dead(key.team) => {
+                if key.kind != Kind::Terminate && env.body.asks() {
+                    self.stats.received += 1;
+                    return self.reply(key, from, Body::Done);
+                }
+                return self.drop_msg(from, DropReason::Stale);
+            }
             None => {}
         }
         if self
@@ -207,6 +227,15 @@ impl Kernel {
         }
         self.stats.received += 1;
         self.stats.buffered += 1;
+    }
+
+    /// True when this robot left instance `key` before it decided (it is
+    /// over here, undecided).
+    fn left_instance(&self, key: InstanceKey) -> bool {
+        match self.instances.get(&key) {
+            Some(inst) => inst.closed == Some(Closed::Left),
+            None => self.tombstones.get(&key) == Some(&Closed::Left),
+        }
     }
 
     /// Answer a teammate's late message for a forgotten instance, as its

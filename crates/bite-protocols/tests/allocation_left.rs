@@ -1,0 +1,170 @@
+//! A member that leaves an allocating behavior before the team's first
+//! allocation of it decided (its own reason to end the behavior came first,
+//! under a termination that waits for every member) says so when the
+//! coordinator's messages reach it, and the coordinator decides without it
+//! at once rather than at its deadline. Found by the property test
+//! `no_waiting_across_levels` (seed 7844512826741064117, four robots):
+//! `alloc.token`'s leader dealt tokens to such a member until its deadline,
+//! then, with the member left out, had more places than members and
+//! passed the tokens round until the deadline all the same. With five
+//! robots, a member that dissolved its subteam (it ended the behavior
+//! above it) dropped a teammate's question at the subteam's next
+//! synchronization as stale, and the teammate waited for it until its
+//! deadline (docs/reliability.md, "An allocation left undecided").
+
+use bite_core::event::Event;
+use bite_core::graph::load_str;
+use bite_core::interaction::Recipients;
+use bite_core::kernel::Output;
+use bite_core::msg::{Body, Envelope, InstanceKey};
+use bite_core::time::Time;
+use bite_core::{Kernel, Mission, RobotId, Value};
+use std::sync::Arc;
+
+/// Three robots run `p` until `stop`, its children allocated by tokens.
+const GRAPH: &str = "graph: left\nteam: { robots: 3 }\nstart: p\n\
+    defaults: { sync: sync.by-rule, allocate: alloc.token, terminate: term.wait-all }\n\
+    behaviors:\n  p: { team: true, children: [x, y], allocate: alloc.token, until: stop }\n\
+    \x20 x: { team: true, skill: w }\n  y: { team: true, skill: w }\n";
+
+#[derive(Default)]
+struct Drained {
+    sent: Vec<(Recipients, Body)>,
+    started: Vec<InstanceKey>,
+    decided: usize,
+}
+
+fn drain(k: &mut Kernel) -> Drained {
+    let mut d = Drained::default();
+    while let Some(o) = k.poll_output() {
+        match o {
+            Output::Send(s) => d.sent.push((s.to, s.envelope.body)),
+            Output::Event(Event::InteractionStarted { instance, .. }) => d.started.push(instance),
+            Output::Event(Event::InteractionDecided { .. }) => d.decided += 1,
+            Output::Event(_) => {}
+        }
+    }
+    d
+}
+
+fn from(r: u32, key: InstanceKey, seq: u64, body: Body) -> Envelope {
+    Envelope {
+        instance: key,
+        sender: RobotId(r),
+        seq,
+        body,
+    }
+}
+
+fn robot(me: u32) -> Kernel {
+    let g = load_str(&Arc::from("left.yaml"), GRAPH).expect("the test graph loads");
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    Kernel::new(mission, RobotId(me), u64::from(me) + 1)
+}
+
+/// The allocation of `p` this robot started on its first tick.
+fn start(k: &mut Kernel) -> InstanceKey {
+    let stop = k.mission().graph().symbols().get("stop").expect("belief");
+    k.tick(Time::ZERO, &[(stop, Value::Bool(false))]);
+    let d = drain(k);
+    let key = d.started.first().copied().expect("the allocation started");
+    assert_eq!(key.kind, bite_core::ids::Kind::Allocate);
+    key
+}
+
+#[test]
+fn a_member_that_left_the_first_round_answers_that_it_is_done() {
+    let mut r1 = robot(1);
+    let key = start(&mut r1);
+    // `p` ends for r1 before the tokens reach it: it waits at the barrier.
+    let stop = r1.mission().graph().symbols().get("stop").expect("belief");
+    r1.tick(Time::from_millis(100), &[(stop, Value::Bool(true))]);
+    drain(&mut r1);
+    let x = r1.mission().graph().find("x").expect("x");
+    let token = Body::Token {
+        slot: 1,
+        item: x,
+        hops: 0,
+        threshold: 0.0,
+    };
+    r1.message(Time::from_millis(200), from(0, key, 1, token));
+    let answered = drain(&mut r1);
+    assert_eq!(
+        answered.sent,
+        [(Recipients::One(RobotId(0)), Body::Done)],
+        "r1 tells the leader it is done with `p`"
+    );
+}
+
+#[test]
+fn the_token_leader_decides_once_every_live_member_holds_a_place() {
+    let mut r0 = robot(0);
+    let key = start(&mut r0);
+    // r0 dealt three places: kept one, sent one token to r1 and one to r2.
+    r0.message(
+        Time::from_millis(100),
+        from(1, key, 1, Body::Claim { slot: 1 }),
+    );
+    assert_eq!(drain(&mut r0).decided, 0, "r2 has not claimed yet");
+    // r2 is done with `p`: two members, two places held.
+    r0.message(Time::from_millis(200), from(2, key, 1, Body::Done));
+    let d = drain(&mut r0);
+    assert_eq!(d.decided, 1, "decided at once, not at its deadline");
+    assert!(
+        d.sent
+            .iter()
+            .any(|(_, m)| matches!(m, Body::Assignment { .. })),
+        "the assignment announced: {:?}",
+        d.sent
+    );
+}
+
+/// A member that ended the behavior whose allocation made its subteam
+/// (its own `until`) dissolved the subteam; a teammate still in it, which
+/// heard its heartbeats only while they shared the subteam, asks it at the
+/// subteam's next synchronization: it answers that it is done, instead of
+/// dropping the question as stale (the teammate waited until its deadline:
+/// the same property test, five robots).
+#[test]
+fn a_member_that_dissolved_the_team_answers_that_it_is_done() {
+    const TEAM: &str = "graph: dead\nteam: { robots: 3 }\nstart: m\n\
+        defaults: { sync: sync.elected-leader, allocate: alloc.by-id, terminate: term.local }\n\
+        behaviors:\n  m: { team: true, children: [p] }\n\
+        \x20 p: { team: true, children: [q, y], allocate: alloc.by-id, until: stop, next: [z] }\n\
+        \x20 q: { team: true, skill: w, until: qd, next: [a, b], members: \"2\" }\n\
+        \x20 y: { team: true, skill: w, members: \"1\" }\n\
+        \x20 a: { team: true, skill: w }\n  b: { team: true, skill: w }\n  z: { team: true, skill: w }\n";
+    let g = load_str(&Arc::from("dead.yaml"), TEAM).expect("the test graph loads");
+    let q = g.find("q").expect("q");
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r1 = Kernel::new(mission, RobotId(1), 2);
+    let stop = r1.mission().graph().symbols().get("stop").expect("belief");
+    r1.tick(Time::ZERO, &[(stop, Value::Bool(false))]);
+    let mut subteam = None;
+    while let Some(o) = r1.poll_output() {
+        if let Output::Event(Event::Selected { behavior, team, .. }) = o
+            && behavior == q
+        {
+            subteam = Some(team);
+        }
+    }
+    let team = subteam.expect("r1 runs `q` in the subteam");
+    assert_ne!(team, bite_core::ids::TeamId::ROOT, "a subteam of two");
+    // `p` ends for r1: the subteam is dissolved here.
+    r1.tick(Time::from_millis(100), &[(stop, Value::Bool(true))]);
+    drain(&mut r1);
+    // r0, still in the subteam, ended `q` and asks at its sync point.
+    let key = InstanceKey {
+        team,
+        behavior: q,
+        kind: bite_core::ids::Kind::Sync,
+        epoch: 1,
+        round: 0,
+    };
+    r1.message(Time::from_millis(200), from(0, key, 1, Body::Query));
+    assert_eq!(
+        drain(&mut r1).sent,
+        [(Recipients::One(RobotId(0)), Body::Done)],
+        "r1 tells r0 it takes no part"
+    );
+}
