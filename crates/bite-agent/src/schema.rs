@@ -598,6 +598,10 @@ pub struct State {
     /// walls and obstacles (see [`push_way`]), since the object made no
     /// headway for [`TRAPPED_AFTER`].
     pushing: bool,
+    /// Push: it needs the arena's map, to tell whether a wall or an
+    /// obstacle hides its object from it (the object is not in view where
+    /// it was last seen, close by).
+    sighting: bool,
 }
 
 /// What a search's moves keep of the way they go (see [`command`]): a
@@ -614,12 +618,15 @@ struct Moves {
 impl State {
     /// True when this schema needs the arena's map at skill time `now`:
     /// pushing an object that makes no headway (its way round obstacles
-    /// is planned on it), trapped (its detour is planned on it), its
+    /// is planned on it) or that is out of sight close by (whether a wall
+    /// or an obstacle hides it is read on it), trapped (its detour is
+    /// planned on it), its
     /// search pinned, or
     /// searching for its object for [`EXPLORE_AFTER`] s (it explores the
     /// open floor on it).
     pub fn needs_map(&self, now: f64) -> bool {
         self.pushing
+            || self.sighting
             || self.trapped.is_some()
             || self.search_moves.trapped.is_some()
             || self.lost.is_some_and(|since| now - since >= EXPLORE_AFTER)
@@ -1298,14 +1305,30 @@ pub fn evaluate(
                 if state.gone {
                     return None;
                 }
-                // Unless a lost teammate's body stands between: it hides
-                // the object, which may well be there.
-                let hidden = view.bodies.iter().any(|b| {
+                // Unless a lost teammate's body stands between, or a wall
+                // or an obstacle of the map: it hides the object, which may
+                // well be there (a pusher going round a chair to get behind
+                // its object lost it behind the chair, looked round, saw it
+                // again from the same spot and headed back into the chair,
+                // for good: docs/reliability.md, "An object behind a
+                // chair").
+                let behind_body = view.bodies.iter().any(|b| {
                     b.distance(pose.pos) < to.length()
                         && crate::plan::segment_distance(pose.pos, o, *b) < view.radius * 1.5
                 });
-                if state.search.is_none() && facing && to.length() < offset * 2.0 && !hidden {
+                let behind_wall = view.map.as_deref().is_some_and(|m| m.hides(pose.pos, o));
+                if behind_wall {
+                    // A look round begun before the map was made to tell.
+                    state.search = None;
+                } else if state.search.is_none()
+                    && facing
+                    && to.length() < offset * 2.0
+                    && !behind_body
+                {
                     state.search = Some(view.skill_time);
+                    // Made for the next tick, to tell whether a wall or an
+                    // obstacle hides it.
+                    state.sighting |= view.map.is_none();
                 }
             }
             // A full turn at most; then it is lost.
@@ -2544,6 +2567,44 @@ mod tests {
         );
         assert!(c.v.length() > 0.0, "{c:?}");
         assert!(states.iter().all(|s| !s.gone && s.lost.is_none()));
+    }
+
+    /// The same, but a chair of the map stands between the robot and where
+    /// it saw the crate: the crate may well be there, hidden. No look
+    /// round (one begun before the map was made is given up): it heads on
+    /// for the place behind the crate. With nothing between, it looks.
+    #[test]
+    fn an_object_behind_a_chair_is_hidden_not_gone() {
+        let crate_at = DVec2::new(3.561, 0.893);
+        let skill = vec![
+            weighted(push_box(DVec2::new(1.76, 1.62)), 2),
+            weighted(Schema::AvoidObstacle { range: 0.15 }, 1),
+        ];
+        let mut view = View::default();
+        view.pose.pos = DVec2::new(2.888, 1.131);
+        let to = crate_at - view.pose.pos;
+        view.pose.heading = to.y.atan2(to.x);
+        view.objects.insert("box".into(), crate_at);
+        let mut states = Vec::new();
+        // No map yet: a look round begins, and the map is asked for.
+        let c = command_at(&skill, &mut view, &mut states, 0.0);
+        assert!(c.face.is_some() && states[0].search.is_some(), "{c:?}");
+        assert!(states[0].needs_map(0.0));
+        // With the map: the chair hides the crate; the look round is given
+        // up and the robot drives on.
+        view.map = Some(std::sync::Arc::new(crate::plan::Map::new(
+            &crate::plan::tests::hidden_hall(),
+        )));
+        let c = command_at(&skill, &mut view, &mut states, 0.1);
+        assert!(states[0].search.is_none() && !states[0].gone, "{c:?}");
+        assert!(c.v.length() > 0.0, "{c:?}");
+        // From a place with nothing between, the same: it looks round.
+        let mut states = Vec::new();
+        view.pose.pos = DVec2::new(2.9, 0.6);
+        let to = crate_at - view.pose.pos;
+        view.pose.heading = to.y.atan2(to.x);
+        let c = command_at(&skill, &mut view, &mut states, 0.0);
+        assert!(c.face.is_some() && states[0].search.is_some(), "{c:?}");
     }
 
     /// A push of the object `box` to (-3, 0), standing 0.4 m behind it, at
