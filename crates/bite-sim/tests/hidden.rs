@@ -6,12 +6,11 @@
 
 use bite_core::event::Event;
 use bite_core::graph::BehaviorGraph;
+use bite_sim::Scenario;
 use bite_sim::physics::World;
-use bite_sim::{MissionParts, Scenario};
-use std::sync::Arc;
 
 mod missions;
-use missions::{assert_clean, graph, scenario, simulate};
+use missions::{assert_clean, compiled, graph, scenario, simulate};
 
 const SEARCH_RESCUE: &str = include_str!("../../../examples/search-rescue.rtcl");
 const SEARCH_RESCUE_HIDDEN: &str =
@@ -23,36 +22,13 @@ const BOX_PUSH_HIDDEN: &str =
 /// `search-rescue.rtcl` compiled against `sc` and bound to it, as `bite
 /// run` does: the mission's origin and team size from the scenario.
 fn search_rescue(sc: &Scenario) -> (BehaviorGraph, Scenario) {
-    let spec = sc.physics.as_ref().expect("a physical scenario");
-    let out = bite_rtcl::compile(
-        "search-rescue.rtcl",
-        SEARCH_RESCUE,
-        &bite_rtcl::Library::builtin(),
-        &bite_rtcl::CompileOptions {
-            origin: spec.mission_origin().to_array(),
-            robots: spec.start.len(),
-        },
-    )
-    .unwrap_or_else(|d| panic!("{d}"));
-    let g = graph("search-rescue.rtcl (compiled)", &out.graph());
-    let parts = MissionParts {
-        file: Arc::from("search-rescue.rtcl"),
-        skills: out.skills_json(),
-        beliefs: out.beliefs.clone(),
-        targets: (out.targets.iter())
-            .map(|(k, t)| {
-                (
-                    k.clone(),
-                    bite_agent::spec::TargetSpec {
-                        colour: t.colour.clone(),
-                        size: t.size.unwrap_or([None; 3]),
-                    },
-                )
-            })
-            .collect(),
-    };
-    let sc = sc.with_mission(&parts).unwrap_or_else(|d| panic!("{d}"));
-    (g, sc)
+    let robots = sc
+        .physics
+        .as_ref()
+        .expect("a physical scenario")
+        .start
+        .len();
+    compiled("search-rescue.rtcl", SEARCH_RESCUE, sc, robots)
 }
 
 /// Run `g` on `sc` with `seed` and check the hidden `object`: nobody saw it

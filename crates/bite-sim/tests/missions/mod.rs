@@ -43,6 +43,43 @@ pub fn scenario(name: &str, text: &str) -> Scenario {
     Scenario::load_str(&Arc::from(name), text).unwrap_or_else(|d| panic!("{d}"))
 }
 
+/// A mission in the command language (`text`, from file `name`) compiled
+/// for a team of `robots` in physical scenario `sc` and bound to it, as
+/// `bite run` does: the mission's origin from the scenario, its skills,
+/// beliefs and targets added to it.
+pub fn compiled(name: &str, text: &str, sc: &Scenario, robots: usize) -> (BehaviorGraph, Scenario) {
+    let spec = sc.physics.as_ref().expect("a physical scenario");
+    let out = bite_rtcl::compile(
+        name,
+        text,
+        &bite_rtcl::Library::builtin(),
+        &bite_rtcl::CompileOptions {
+            origin: spec.mission_origin().to_array(),
+            robots,
+        },
+    )
+    .unwrap_or_else(|d| panic!("{d}\n{text}"));
+    let g = graph(&format!("{name} (compiled)"), &out.graph());
+    let parts = bite_sim::MissionParts {
+        file: Arc::from(name),
+        skills: out.skills_json(),
+        beliefs: out.beliefs.clone(),
+        targets: (out.targets.iter())
+            .map(|(k, t)| {
+                (
+                    k.clone(),
+                    bite_agent::spec::TargetSpec {
+                        colour: t.colour.clone(),
+                        size: t.size.unwrap_or([None; 3]),
+                    },
+                )
+            })
+            .collect(),
+    };
+    let sc = sc.with_mission(&parts).unwrap_or_else(|d| panic!("{d}"));
+    (g, sc)
+}
+
 pub struct Outcome {
     pub mission: Arc<Mission>,
     pub report: RunReport,
@@ -50,8 +87,19 @@ pub struct Outcome {
 }
 
 pub fn simulate(g: &BehaviorGraph, sc: &Scenario, seed: u64) -> Outcome {
+    simulate_team(g, sc, seed, None)
+}
+
+/// [`simulate`] with a team of `robots` (`bite run --robots`), or the
+/// scenario's.
+pub fn simulate_team(
+    g: &BehaviorGraph,
+    sc: &Scenario,
+    seed: u64,
+    robots: Option<usize>,
+) -> Outcome {
     let mission =
-        prepare(g, sc, None, &bite_protocols::registry()).unwrap_or_else(|d| panic!("{d}"));
+        prepare(g, sc, robots, &bite_protocols::registry()).unwrap_or_else(|d| panic!("{d}"));
     let mut log = Vec::new();
     let report = run(
         mission.clone(),
