@@ -16,10 +16,13 @@ use bite_core::event::Event;
 use bite_core::graph::load_str;
 use bite_core::interaction::Recipients;
 use bite_core::kernel::Output;
-use bite_core::msg::{Body, Envelope, InstanceKey};
+use bite_core::msg::{Body, InstanceKey};
 use bite_core::time::Time;
 use bite_core::{Kernel, Mission, RobotId, Value};
 use std::sync::Arc;
+
+mod common;
+use common::from;
 
 /// Three robots run `p` until `stop`, its children allocated by tokens.
 const GRAPH: &str = "graph: left\nteam: { robots: 3 }\nstart: p\n\
@@ -45,15 +48,6 @@ fn drain(k: &mut Kernel) -> Drained {
         }
     }
     d
-}
-
-fn from(r: u32, key: InstanceKey, seq: u64, body: Body) -> Envelope {
-    Envelope {
-        instance: key,
-        sender: RobotId(r),
-        seq,
-        body,
-    }
 }
 
 fn robot(me: u32) -> Kernel {

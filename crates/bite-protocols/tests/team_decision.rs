@@ -8,10 +8,13 @@ use bite_core::event::Event;
 use bite_core::graph::load_str;
 use bite_core::interaction::Recipients;
 use bite_core::kernel::Output;
-use bite_core::msg::{Body, Envelope, InstanceKey};
+use bite_core::msg::{Body, InstanceKey};
 use bite_core::time::Time;
 use bite_core::{BehaviorId, Kernel, Mission, RobotId, Value};
 use std::sync::Arc;
+
+mod common;
+use common::from;
 
 /// Three robots run `a` until `go`, then vote between `b` and `c`.
 const GRAPH: &str = "graph: notice\nteam: { robots: 3 }\nstart: a\n\
@@ -39,15 +42,6 @@ fn drain(k: &mut Kernel) -> Drained {
         }
     }
     d
-}
-
-fn from(r: u32, key: InstanceKey, seq: u64, body: Body) -> Envelope {
-    Envelope {
-        instance: key,
-        sender: RobotId(r),
-        seq,
-        body,
-    }
 }
 
 #[test]
