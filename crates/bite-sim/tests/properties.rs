@@ -483,4 +483,9 @@ fn cases_that_failed_once() {
     // deadline.
     run_generated(7_844_512_826_741_064_117, 5, 0.0, 0.0, 3, true)
         .unwrap_or_else(|e| panic!("{e}"));
+    // "A teammate behind in an individual behavior": a robot done with two
+    // individual behaviors while its teammates were still in the first
+    // took theirs for a diverged history and led the team back into it,
+    // for ever (no faults; NOT COMPLETED at the time limit).
+    run_case(17_943_441_955_658_021_061, 3, 0.0, 0.0, 3).unwrap_or_else(|e| panic!("{e}"));
 }

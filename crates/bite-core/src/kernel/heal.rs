@@ -422,6 +422,18 @@ impl Kernel {
         if k == 0 || g.id.team != here.team {
             return false;
         }
+        // An individual behavior (`team: false`) is no team execution: each
+        // member ends it on its own and goes on, so a teammate may be in one
+        // it ran long ago (the ends it remembers are bounded) without the
+        // histories having diverged. A member done with two individual
+        // behaviors before its teammates were done with the first took them
+        // for another history and led the team back into the first, for
+        // ever (docs/reliability.md, "A teammate behind in an individual
+        // behavior").
+        let individual = |b: BehaviorId| self.mission.graph().get(b).is_some_and(|x| !x.team);
+        if individual(g.id.behavior) || individual(here.behavior) {
+            return false;
+        }
         let Some((slot, id, mine)) = self.anchored_at(k) else {
             return false;
         };
