@@ -278,6 +278,12 @@ pub struct Checker {
     lost_during: FxHashMap<(InstanceKey, RobotId), BTreeSet<RobotId>>,
     open: FxHashMap<RobotId, BTreeSet<InstanceKey>>,
     timed_out_at: FxHashSet<InstanceKey>,
+    /// Who decided each instance by its deadline, and whose successor a
+    /// robot left behind took at an instance (`Event::LeftBehind`): a
+    /// robot that took the successor of a teammate that decided by its
+    /// deadline decided by that deadline too.
+    timed_out_by: FxHashSet<(InstanceKey, RobotId)>,
+    followed: FxHashMap<(InstanceKey, RobotId), RobotId>,
     selected: BTreeMap<Exec, BTreeSet<RobotId>>,
     /// Behaviors whose termination communicates in some version of the
     /// mission seen so far (by index): only their executions' starts and
@@ -321,6 +327,8 @@ impl Checker {
             lost_during: FxHashMap::default(),
             open: FxHashMap::default(),
             timed_out_at: FxHashSet::default(),
+            timed_out_by: FxHashSet::default(),
+            followed: FxHashMap::default(),
             selected: BTreeMap::new(),
             team_ended: Vec::new(),
             spans: FxHashMap::default(),
@@ -409,6 +417,9 @@ impl Checker {
             Event::MemberBack { member } => {
                 self.lost_now.entry(robot).or_default().remove(member);
             }
+            Event::LeftBehind { instance, member } => {
+                self.followed.insert((*instance, robot), *member);
+            }
             Event::LeftOut { instance, members } => {
                 self.lost_during
                     .entry((*instance, robot))
@@ -447,6 +458,7 @@ impl Checker {
             } if matches!(instance.kind, Kind::Sync | Kind::Allocate) => {
                 if *timed_out {
                     self.timed_out_at.insert(*instance);
+                    self.timed_out_by.insert((*instance, robot));
                 }
                 let key = (*instance, robot);
                 let mut view = self.lost_now.get(&robot).cloned().unwrap_or_default();
@@ -497,10 +509,17 @@ impl Checker {
                 ..
             } => match outcome {
                 OutcomeLog::Sync { choice } => {
-                    self.sync
-                        .entry(*instance)
-                        .or_default()
-                        .insert(robot, *choice);
+                    // Left behind, it took the successor a teammate ran
+                    // after the point: when that teammate decided by its
+                    // deadline, so did this robot.
+                    let by_deadline = (self.followed.remove(&(*instance, robot)))
+                        .is_some_and(|m| self.timed_out_by.contains(&(*instance, m)));
+                    if !by_deadline {
+                        self.sync
+                            .entry(*instance)
+                            .or_default()
+                            .insert(robot, *choice);
+                    }
                 }
                 OutcomeLog::Allocate { assignment } => {
                     let views = self.alloc.entry(*instance).or_default();
@@ -1123,6 +1142,56 @@ mod tests {
             );
             assert!((c.view_at.values()).all(|m| m.values().all(|v| !v.is_empty())));
             assert!(c.spans.keys().all(|(_, b, _)| c.team_ends(*b)));
+        }
+    }
+
+    /// A robot left behind at a synchronization takes the successor a
+    /// teammate ran after it. When that teammate decided by its deadline,
+    /// the robot's choice is that deadline's, not the team's agreement
+    /// (`bite sweep --robots 8`, Table II row 7, heavy loss, seed 1: r1
+    /// timed out on the fallback, r3 followed it, the others had agreed on
+    /// the other successor; the split then healed).
+    #[test]
+    fn a_choice_taken_from_a_teammate_that_timed_out_is_that_timeout() {
+        let (_, mission) = recorded(None, 1e6);
+        let g = mission.graph();
+        let (walk, search) = (g.find("linewalk"), g.find("search"));
+        let (Some(walk), Some(search)) = (walk, search) else {
+            panic!("the formation has `linewalk` and `search`");
+        };
+        let key = InstanceKey {
+            team: bite_core::ids::TeamId::ROOT,
+            behavior: walk,
+            kind: Kind::Sync,
+            epoch: 2,
+            round: 0,
+        };
+        let decided = |choice, timed_out| Event::InteractionDecided {
+            instance: key,
+            protocol: "sync.elected-leader",
+            outcome: OutcomeLog::Sync {
+                choice: Some(choice),
+            },
+            waited_us: 0,
+            sent: 0,
+            bytes: 0,
+            received: 0,
+            timed_out,
+        };
+        for followed_a_timeout in [true, false] {
+            let mut c = Checker::new(mission.clone());
+            let t = Time::from_millis(1000);
+            c.observe(t, RobotId(0), &decided(search, false));
+            c.observe(t, RobotId(1), &decided(walk, followed_a_timeout));
+            let behind = Event::LeftBehind {
+                instance: key,
+                member: RobotId(1),
+            };
+            c.observe(t, RobotId(2), &behind);
+            c.observe(t, RobotId(2), &decided(walk, false));
+            c.check_decisions();
+            let broken = c.v.iter().any(|v| v.invariant == "agreement");
+            assert_eq!(broken, !followed_a_timeout);
         }
     }
 

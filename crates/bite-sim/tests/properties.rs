@@ -488,4 +488,19 @@ fn cases_that_failed_once() {
     // took theirs for a diverged history and led the team back into it,
     // for ever (no faults; NOT COMPLETED at the time limit).
     run_case(17_943_441_955_658_021_061, 3, 0.0, 0.0, 3).unwrap_or_else(|e| panic!("{e}"));
+    // "A teammate nobody heard": a leader that left its subteam alone
+    // (six robots), members a lap behind that had not made the allocation
+    // their teammate waited in, and teammates that had ended the behavior
+    // a member waited below (five robots, the last): each waited out a
+    // deadline for a teammate that did not send it its heartbeats.
+    for (seed, robots) in [
+        (7_844_512_826_741_064_117, 6),
+        (8_549_300_477_484_552_168, 5),
+        (7_866_632_090_392_478_126, 8),
+        (9_518_102_418_678_138_062, 8),
+        (718_802_077_212_583_624, 7),
+        (16_977_040_845_566_393_922, 5),
+    ] {
+        run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
+    }
 }

@@ -165,6 +165,23 @@ impl Kernel {
     pub(super) fn end_frame(&mut self, i: usize, reason: EndReason) {
         self.abort_phase();
         let ended = self.stack[i].behavior;
+        // Subteams below an end this robot makes alone (an individual
+        // behavior, or one whose termination is silent: each member ends
+        // it on its own) are left while their teammates go on in them:
+        // it answers those that still send it heartbeats for a while
+        // (`Kernel::answer_strangers`). A team that ends together learns
+        // who ended from its termination protocol.
+        if self.stack[i + 1..].iter().any(|f| f.subteams.is_some())
+            || self.stack[i].subteams.is_some()
+        {
+            let b = self.graph().behavior(ended);
+            let together = b.team
+                && (self.mission.bound(ended, Kind::Terminate))
+                    .is_some_and(|x| x.protocol.communicates());
+            if !together {
+                self.left_at = Some(self.now);
+            }
+        }
         while self.stack.len() > i + 1 {
             if let Some(f) = self.stack.pop() {
                 self.abort(f.term_key());

@@ -494,6 +494,13 @@ pub struct Kernel {
     fence_wait: Option<(FrameId, Time, Time)>,
     /// What teammates' heartbeats said about versions.
     peer_versions: BTreeMap<RobotId, change::PeerVersion>,
+    /// When it last left subteams on its own (an end it made alone: see
+    /// `Kernel::end_frame`).
+    left_at: Option<Time>,
+    /// Teammates that send it heartbeats for a team it is not in (it left
+    /// it, or has yet to join it): its own heartbeats answer them (see
+    /// `Kernel::answer_strangers`).
+    answering: Option<MemberSet>,
 }
 
 impl Kernel {
@@ -551,6 +558,8 @@ impl Kernel {
             relayed: VecDeque::new(),
             fence_wait: None,
             peer_versions: BTreeMap::new(),
+            left_at: None,
+            answering: None,
         }
     }
 

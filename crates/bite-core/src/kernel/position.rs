@@ -96,6 +96,12 @@ pub const REJOIN_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
 /// what it said (that the teammate is still at work on a behavior).
 pub const FRESH: std::time::Duration = std::time::Duration::from_secs(3);
 
+/// How long after it left subteams on its own (an individual behavior
+/// above them ended, or one that each member ends alone) a robot answers
+/// the teammates that still send it heartbeats for one of them (see
+/// `Kernel::answer_strangers`).
+pub const ANSWER_LEFT: std::time::Duration = std::time::Duration::from_secs(6);
+
 /// Identity of one execution of a behavior by a team.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct FrameId {
@@ -611,6 +617,17 @@ impl Kernel {
         // the root any more, and the cost stays linear in the team (a
         // beacon to the whole team from every finished robot would be
         // quadratic).
+        if let Some(a) = &self.answering {
+            for r in a.iter() {
+                if self
+                    .peers
+                    .get(&r)
+                    .is_some_and(|p| self.now - p.heard <= FRESH)
+                {
+                    to.insert(r);
+                }
+            }
+        }
         if self.stack.is_empty() && matches!(self.phase, Phase::Finished) {
             for (r, p) in self.peers.iter() {
                 if self.now - p.heard <= FRESH {
@@ -719,6 +736,7 @@ impl Kernel {
                 );
             }
         }
+        self.answer_strangers(from, pos);
         self.apply_burns(pos);
         self.count_past(pos);
         self.catch_up(pos);
@@ -732,6 +750,100 @@ impl Kernel {
         self.take_back(from, pos);
         self.follow_past(from, pos);
         self.step();
+    }
+
+    /// A teammate sends this robot its heartbeats for a team the robot is
+    /// not in: the teammate counts it a member there (it leads the team,
+    /// or it is the leader the teammate computes), but the robot left the
+    /// team, or has not joined it yet. Its own heartbeats go to the teams
+    /// it is in, so the teammate does not hear where it is:
+    ///
+    /// - **left**: the behavior above the team ended for this robot alone
+    ///   (an individual behavior, or one each member ends on its own). Its
+    ///   teammates do not learn it left; when it was the team's leader,
+    ///   the members keep sending their heartbeats to it, no member hears
+    ///   another, and a teammate a lap behind on its way to a point is
+    ///   taken for silent: the point's deadline decides;
+    /// - **not yet joined**: the teammate went through an allocation this
+    ///   robot, a lap behind, has yet to make, and waits for it at the new
+    ///   team's first point without hearing it on its way;
+    /// - **ended**: the teammate waits at a point below an execution this
+    ///   robot has ended (its own condition, under a termination each
+    ///   member makes alone); the team's leader, past it too, does not
+    ///   report that this robot left it, and the teammate waits for it.
+    ///
+    /// So it answers such a teammate with its own heartbeats
+    /// (`beacon_audience`) while the teammate goes on sending them: the
+    /// teammate marks it departed, or waits on for it while it is on its
+    /// way (`awaited_at_work`). A team it left is answered for
+    /// [`ANSWER_LEFT`] only (a leader that learnt of the departure still
+    /// sends its heartbeats to every member, and an answer must not go on
+    /// for ever); a team it has yet to join, or an execution it ended,
+    /// only while the teammate waits at a point. A team that ends a
+    /// behavior together learns who ended it from its termination
+    /// protocol, and a teammate at work waits for nobody: neither is
+    /// answered, so a team in step sends nothing more.
+    fn answer_strangers(&mut self, from: RobotId, pos: &Position) {
+        // Only a teammate waiting at a point waits for this robot: it
+        // ended its last frame, or that frame is an allocation point not
+        // allocated yet.
+        let waits = || {
+            let g = self.graph();
+            pos.frames.last().is_some_and(|f| {
+                f.state != FrameState::Running
+                    || (f.alloc.is_none()
+                        && f.id.behavior.index() < g.len()
+                        && g.is_alloc_point(f.id.behavior))
+            })
+        };
+        // Read along the sender's frames beside this robot's, root first;
+        // most heartbeats run where this robot does, and only compare ids.
+        // - The first execution the two do not share: one this robot ended
+        //   (the sender waits below it, behind this robot, and may wait
+        //   for it there: its team's leader, past it too, does not tell).
+        // - The first frame in a team this robot's organization does not
+        //   hold (deeper frames run under it): one it left, or has yet to
+        //   join. A frame in the team of this robot's frame at the same
+        //   depth is not looked up.
+        let mut mine = self
+            .stack
+            .iter()
+            .chain(self.popped().map(|(f, _)| f))
+            .map(Frame::id);
+        let mut shared = true;
+        let mut stranger = false;
+        for f in &pos.frames {
+            let m = mine.next();
+            if m == Some(f.id) {
+                continue;
+            }
+            if std::mem::take(&mut shared) && self.recent_ended.contains(&f.id) && waits() {
+                stranger = true;
+                break;
+            }
+            if m.is_some_and(|m| m.team == f.id.team) || self.org.team(f.id.team).is_some() {
+                continue;
+            }
+            stranger = if self.org.is_dead(f.id.team) {
+                self.left_at.is_some_and(|at| self.now - at <= ANSWER_LEFT)
+            } else {
+                waits()
+            };
+            break;
+        }
+        if stranger {
+            let n = self.org.roster_len();
+            self.answering
+                .get_or_insert_with(|| MemberSet::empty(n))
+                .insert(from);
+        } else if let Some(a) = &mut self.answering
+            && a.contains(from)
+        {
+            a.remove(from);
+            if a.is_empty() {
+                self.answering = None;
+            }
+        }
     }
 
     /// Left behind: a robot that has waited at a point for longer than a

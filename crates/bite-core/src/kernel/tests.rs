@@ -881,6 +881,25 @@ fn a_robot_done_with_a_behavior_answers_a_call_but_not_an_answer() {
 }
 
 impl Harness {
+    /// One round of heartbeats as the runtimes send them: each robot's
+    /// position to its `beacon_audience`.
+    fn heartbeats(&mut self) {
+        let sent: Vec<(Position, MemberSet)> = self
+            .kernels
+            .iter()
+            .map(|k| (k.position(), k.beacon_audience()))
+            .collect();
+        for (j, (p, to)) in sent.iter().enumerate() {
+            for r in to.iter() {
+                self.kernels[r.index()].peer(self.now, RobotId(j as u32), p);
+            }
+        }
+        for i in 0..self.kernels.len() {
+            self.drain(i);
+        }
+        self.pump();
+    }
+
     /// Every robot hears every other's heartbeat (its position).
     fn beacons(&mut self) {
         let positions: Vec<Position> = self.kernels.iter().map(Kernel::position).collect();
@@ -1030,20 +1049,9 @@ fn members_keep_the_leaders_departure_report_itself() {
         h.tick_one(r, 200, &[("a_done", T)]);
     }
     let a = h.kernels[0].mission().graph().find("a").expect("a");
-    // Heartbeats as the runtimes send them (to `beacon_audience`): the
-    // leader hears who ended, then tells the team.
-    for _ in 0..2 {
-        let sent: Vec<(Position, MemberSet)> = h
-            .kernels
-            .iter()
-            .map(|k| (k.position(), k.beacon_audience()))
-            .collect();
-        for (j, (p, to)) in sent.iter().enumerate() {
-            for r in to.iter() {
-                h.kernels[r.index()].peer(h.now, RobotId(j as u32), p);
-            }
-        }
-    }
+    // The leader hears who ended, then tells the team.
+    h.heartbeats();
+    h.heartbeats();
     let pos = h.kernels[0].position();
     let ended = pos.frames.last().expect("a frame");
     assert_eq!(ended.id.behavior, a);
@@ -1482,4 +1490,127 @@ proptest::proptest! {
             proptest::prop_assert!(k.recent_ended.filter().count_ones() as usize <= 2 * position::RECENT + 1);
         }
     }
+}
+
+/// The individual behavior `p` ends for r1 alone: r1 leaves the subteam it
+/// led (`q`: r1, r2, r3) while r2 and r3 go on in it.
+const LEADER_LEAVES: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [p] }
+  p: { team: false, children: [y, q], until: stop, next: [z] }
+  y: { skill: w, members: 1 }
+  q: { skill: w }
+  z: { team: false, skill: w }";
+
+fn audience(h: &Harness, r: usize) -> Vec<u32> {
+    h.kernels[r].beacon_audience().iter().map(|x| x.0).collect()
+}
+
+/// A leader that leaves its team (the individual behavior above it ended
+/// for it alone) answers the members that still send it their heartbeats,
+/// so that they learn it left and hear each other through the next leader;
+/// and only for a while (found by `no_waiting_across_levels`: a member a
+/// lap behind, heard by nobody, was taken for silent at the next point).
+#[test]
+fn a_leader_that_left_answers_its_members_for_a_while() {
+    let mut h = Harness::new(LEADER_LEAVES, 4);
+    h.tick(0, &[("stop", F)]);
+    assert_eq!(h.stack(1), ["root", "p", "q"]);
+    assert_eq!(
+        audience(&h, 3),
+        [0, 1],
+        "r3 sends to the root's leader and to q's"
+    );
+    h.tick_one(1, 100, &[("stop", T)]);
+    assert_eq!(h.stack(1), ["root", "z"]);
+    // r2 and r3 still send to r1; r1 answers them.
+    h.heartbeats();
+    assert_eq!(audience(&h, 1), [0, 2, 3]);
+    // They learn that r1 left: r2 leads q now, and r3 sends to it.
+    h.heartbeats();
+    assert_eq!(audience(&h, 3), [0, 2]);
+    assert_eq!(audience(&h, 2), [0, 1, 3], "a leader sends to every member");
+    // r1 answers no more once the window has passed, though r2, q's
+    // leader, still sends it heartbeats.
+    h.now = h.now + position::ANSWER_LEFT + std::time::Duration::from_millis(100);
+    h.heartbeats();
+    assert_eq!(audience(&h, 1), [0]);
+}
+
+/// A member a lap behind answers a teammate that went through an
+/// allocation it has yet to make, counts it a member of the new team and
+/// waits for it at a point there: the teammate hears it on its way.
+/// Teammates in step, or at work, are not answered.
+#[test]
+fn a_member_behind_answers_the_team_it_has_yet_to_join() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b] }
+  b: { team: true, children: [y, q] }
+  y: { skill: w, members: 1 }
+  q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }",
+        3,
+    );
+    h.tick(0, &[("a_done", F), ("q_done", F)]);
+    h.heartbeats();
+    assert!(h.kernels.iter().all(|k| k.answering.is_none()), "in step");
+    // r1 ends `a` and leads q (r1, r2); r2 is still in `a`.
+    h.tick_one(1, 100, &[("a_done", T)]);
+    assert_eq!(h.stack(1), ["root", "b", "q"]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0], "r1 at work in q waits for nobody");
+    // r1 ends q and waits at its barrier: r2 answers it.
+    h.tick_one(1, 150, &[("q_done", T)]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0, 1], "r2 answers q's leader");
+    // Once r2 is in q too, it sends to its leader as a member, and answers
+    // nobody.
+    h.tick_one(2, 200, &[("a_done", T)]);
+    assert_eq!(h.stack(2), ["root", "b", "q"]);
+    h.heartbeats();
+    assert!(h.kernels[2].answering.is_none());
+    assert_eq!(audience(&h, 2), [0, 1]);
+}
+
+/// A member waiting at a point below an execution its teammates ended
+/// (each ends `b` on its own: a silent termination) answers nobody, but
+/// a teammate that ended it answers the member's heartbeats: the team's
+/// leader, past `b` too, does not report who left it, and the member
+/// would wait for it until its deadline (found by
+/// `no_waiting_across_levels`, graph seed 16977040845566393922).
+#[test]
+fn a_teammate_that_ended_the_execution_answers_one_waiting_below_it() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [b] }
+  b: { team: true, children: [c], until: b_done, next: [d] }
+  c: { team: true, skill: w, until: c_done, terminate: term.test-barrier }
+  d: { team: true, skill: w }",
+        3,
+    );
+    h.tick(0, &[("b_done", F), ("c_done", F)]);
+    // r0, the root team's leader, then r2 end `b`; r1 ends `c` and waits
+    // at its barrier.
+    h.tick_one(0, 100, &[("b_done", T)]);
+    h.tick_one(2, 100, &[("b_done", T)]);
+    h.tick_one(1, 100, &[("c_done", T)]);
+    assert_eq!(h.stack(2), ["root", "d"]);
+    // r1 learns from r0's heartbeat that r0 ended `b`: r1 leads the team
+    // below `b` now, and sends its heartbeats to r2, which answers.
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0, 1], "r2 answers r1");
+    h.heartbeats();
+    let left_out = h
+        .events_of(1)
+        .into_iter()
+        .any(|e| matches!(e, Event::LeftOut { members, .. } if members.contains(&RobotId(2))));
+    assert!(left_out, "r1 no longer waits for r2");
 }
