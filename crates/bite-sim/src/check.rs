@@ -390,6 +390,13 @@ impl Checker {
         &self.v
     }
 
+    /// Whether `b` is a team behavior (one the checker does not know, of a
+    /// version it has not seen, is taken for one).
+    fn is_team(&self, b: BehaviorId) -> bool {
+        let g = self.mission.graph();
+        b.index() >= g.len() || g.behavior(b).team
+    }
+
     fn name(&self, b: BehaviorId) -> String {
         self.mission.graph().name_of(b).to_string()
     }
@@ -902,7 +909,15 @@ impl Checker {
                     }
                     for la in &members[a] {
                         for lb in &members[b] {
-                            if la.behavior == lb.behavior {
+                            // A robot in an individual behavior runs it at
+                            // its own pace, in no team execution: beside a
+                            // teammate's team successor it is no split (a
+                            // point with one team successor synchronizes
+                            // nobody).
+                            if la.behavior == lb.behavior
+                                || !self.is_team(la.behavior)
+                                || !self.is_team(lb.behavior)
+                            {
                                 continue;
                             }
                             let from = la.from.max(lb.from);
