@@ -22,7 +22,8 @@
 //! assignment asks for it with exponential backoff. When a member is
 //! presumed lost, its place (claimed or not) is dealt again as a token; a
 //! member that becomes leader because the leader was lost deals all places
-//! anew. At its deadline the leader deals the unclaimed places by id among
+//! anew, and a token from a teammate a member has left out (its deal
+//! numbered the places of another team) is dropped. At its deadline the leader deals the unclaimed places by id among
 //! the members without one.
 
 use crate::alloc::settle;
@@ -262,6 +263,14 @@ impl Interaction for Tokens {
         match body {
             Body::Token { item, .. } => {
                 if self.coord.idle(cx) {
+                    return;
+                }
+                if !cx.is_live(from) {
+                    // Dealt or passed by a teammate this robot has left
+                    // out (presumed lost, or done with the behavior): its
+                    // places were numbered for another team than the one
+                    // the leader deals to now, and a claim of one would
+                    // name a place the leader never made.
                     return;
                 }
                 if !cx.is_leader() {

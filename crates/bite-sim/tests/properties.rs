@@ -503,4 +503,14 @@ fn cases_that_failed_once() {
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
+    // "An individual successor is no split": after an individual behavior
+    // one robot, its perception differing, took an individual successor
+    // while its teammates took the team one; the checker took the two for
+    // a split that did not heal.
+    run_generated(15_873_932_308_788_952_267, 8, 0.0, 0.0, 3, true)
+        .unwrap_or_else(|e| panic!("{e}"));
+    // "A token from a teammate left out": a member claimed, from the
+    // leader, a place another leader's deal had numbered (a protocol
+    // violation reported, no faults).
+    run_case(12_281_959_434_284_252_109, 7, 0.0, 0.0, 3).unwrap_or_else(|e| panic!("{e}"));
 }
