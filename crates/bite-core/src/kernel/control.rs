@@ -171,9 +171,7 @@ impl Kernel {
         // it answers those that still send it heartbeats for a while
         // (`Kernel::answer_strangers`). A team that ends together learns
         // who ended from its termination protocol.
-        if self.stack[i + 1..].iter().any(|f| f.subteams.is_some())
-            || self.stack[i].subteams.is_some()
-        {
+        if self.stack[i..].iter().any(|f| f.subteams.is_some()) {
             let b = self.graph().behavior(ended);
             let together = b.team
                 && (self.mission.bound(ended, Kind::Terminate))

@@ -609,14 +609,8 @@ impl Kernel {
                 None => {}
             }
         }
-        // A robot that finished the mission tells that it did (its
-        // position lists the root behavior ended) to the root team's
-        // leader, which relays it to every member with its own heartbeats,
-        // and answers whoever still sends it heartbeats: a leader waiting
-        // for it, or a member whose leader it is. Nobody waits for it below
-        // the root any more, and the cost stays linear in the team (a
-        // beacon to the whole team from every finished robot would be
-        // quadratic).
+        // Teammates that count it in a team it is not in, while they
+        // still send to it (see `Kernel::answer_strangers`).
         if let Some(a) = &self.answering {
             for r in a.iter() {
                 if self
@@ -628,6 +622,14 @@ impl Kernel {
                 }
             }
         }
+        // A robot that finished the mission tells that it did (its
+        // position lists the root behavior ended) to the root team's
+        // leader, which relays it to every member with its own heartbeats,
+        // and answers whoever still sends it heartbeats: a leader waiting
+        // for it, or a member whose leader it is. Nobody waits for it below
+        // the root any more, and the cost stays linear in the team (a
+        // beacon to the whole team from every finished robot would be
+        // quadratic).
         if self.stack.is_empty() && matches!(self.phase, Phase::Finished) {
             for (r, p) in self.peers.iter() {
                 if self.now - p.heard <= FRESH {
@@ -1385,6 +1387,19 @@ impl Kernel {
             }
             fresh
         });
+        // Nobody is answered who no longer sends (the set is the roster's
+        // size: it is dropped once empty).
+        if let Some(a) = &self.answering {
+            let gone: Vec<RobotId> = a.iter().filter(|r| self.peers.get(r).is_none()).collect();
+            if let Some(a) = &mut self.answering {
+                for r in gone {
+                    a.remove(r);
+                }
+                if a.is_empty() {
+                    self.answering = None;
+                }
+            }
+        }
     }
 
     /// Record an execution this robot ended (for its heartbeats).
