@@ -23,8 +23,8 @@
 //! presumed lost, its place (claimed or not) is dealt again as a token; a
 //! member that becomes leader because the leader was lost deals all places
 //! anew, and a token from a teammate a member has left out (its deal
-//! numbered the places of another team) is dropped. At its deadline the leader deals the unclaimed places by id among
-//! the members without one.
+//! numbered the places of another team) is dropped. At its deadline the
+//! leader deals the unclaimed places by id among the members without one.
 
 use crate::alloc::settle;
 use crate::gather::{self, Coord};

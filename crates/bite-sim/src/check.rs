@@ -466,6 +466,7 @@ impl Checker {
                 if *timed_out {
                     self.timed_out_at.insert(*instance);
                     self.timed_out_by.insert((*instance, robot));
+                    self.followed.remove(&(*instance, robot));
                 }
                 let key = (*instance, robot);
                 let mut view = self.lost_now.get(&robot).cloned().unwrap_or_default();
@@ -494,6 +495,7 @@ impl Checker {
                 let key = (*instance, robot);
                 self.lost_during.remove(&key);
                 self.left_out_at.remove(&key);
+                self.followed.remove(&key);
             }
             _ => {}
         }
@@ -1152,6 +1154,7 @@ mod tests {
                 .flat_map(|(r, ks)| ks.iter().map(move |k| (*k, *r)))
                 .collect();
             assert!(c.lost_during.keys().all(|k| open.contains(k)));
+            assert!(c.followed.keys().all(|k| open.contains(k)));
             assert!(
                 (c.left_out_at.keys()).all(|k| open.contains(k) && !c.silent.contains_key(&k.0))
             );
