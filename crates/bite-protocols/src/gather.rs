@@ -184,9 +184,15 @@ impl Coord {
         }
     }
 
-    /// The instance starts: remember the leader.
+    /// The instance starts: remember the leader. A robot that leads only
+    /// because the teammates before it are left out (they left the
+    /// behavior, or are presumed lost) takes over from them: a decision
+    /// one of them made, which a member applied and tells it, is the
+    /// team's (docs/reliability.md, "A decision made before the late
+    /// arrivals came").
     pub(crate) fn start(&mut self, cx: &Cx<'_>) {
         self.known_leader = Some(cx.leader());
+        self.took_over = cx.is_leader() && cx.team().members.iter().next() != Some(cx.me());
     }
 
     /// Members changed: did the leader change? (Notes a takeover.)

@@ -18,9 +18,18 @@ impl Kernel {
     /// same round with different allocations both allocate again in the
     /// next round, with everyone they hear — the same rule on both sides,
     /// so they meet in one instance. Bounded by [`ALLOC_HEALS`] per
-    /// execution.
+    /// execution. A robot waiting at an allocation below heals too (that
+    /// allocation's own frame, at the top, holds none yet): two members
+    /// that took a subteam from different views of the allocation above
+    /// waited there for a leader a lap behind until a deadline
+    /// (docs/reliability.md, "A leader a lap behind").
     pub(super) fn reconcile_allocation(&mut self, from: RobotId, pos: &Position) {
-        if self.lost.contains(from) || !matches!(self.phase, Phase::Run | Phase::Idle { .. }) {
+        if self.lost.contains(from)
+            || !matches!(
+                self.phase,
+                Phase::Run | Phase::Idle { .. } | Phase::Allocating(_)
+            )
+        {
             return;
         }
         let idle_top = matches!(self.phase, Phase::Idle { .. }).then(|| self.stack.len() - 1);

@@ -102,6 +102,12 @@ pub const FRESH: std::time::Duration = std::time::Duration::from_secs(3);
 /// `Kernel::answer_strangers`).
 pub const ANSWER_LEFT: std::time::Duration = std::time::Duration::from_secs(6);
 
+/// How many members, in id order, a robot looks through for the one that
+/// relays a team's heartbeats while its leader is away
+/// (`Kernel::acting_leader`): a bound on the walk in a large team whose
+/// first members are all elsewhere.
+const ACTING_WALK: usize = 8;
+
 /// Identity of one execution of a behavior by a team.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct FrameId {
@@ -595,9 +601,12 @@ impl Kernel {
             .stack
             .iter()
             .enumerate()
-            .map(|(i, f)| (f.team, i))
-            .chain(self.popped().map(|(f, _)| (f.team, self.stack.len())));
-        for (t, depth) in teams {
+            .map(|(i, f)| (f.team, i, f.started))
+            .chain(
+                self.popped()
+                    .map(|(f, _)| (f.team, self.stack.len(), f.started)),
+            );
+        for (t, depth, since) in teams {
             let Some(team) = self.org.team(t) else {
                 continue;
             };
@@ -605,6 +614,15 @@ impl Kernel {
                 Some(l) if l == self.me => to.union_with(&team.members),
                 Some(l) => {
                     to.insert(l);
+                    if self.absent_from(l, t, since) {
+                        match self.acting_leader(t, depth, since) {
+                            Some(a) if a == self.me => to.union_with(&team.members),
+                            Some(a) => {
+                                to.insert(a);
+                            }
+                            None => {}
+                        }
+                    }
                 }
                 None => {}
             }
@@ -642,6 +660,45 @@ impl Kernel {
         }
         to.remove(self.me);
         to
+    }
+
+    /// True when teammate `r`, heard within [`FRESH`] and since `since`
+    /// (when this robot took up the behavior it runs in team `t`), runs
+    /// nothing in team `t`: it is a lap behind on its way there, or
+    /// elsewhere. (A heartbeat from before may predate its joining.)
+    fn absent_from(&self, r: RobotId, t: TeamId, since: Time) -> bool {
+        self.peers.get(&r).is_some_and(|p| {
+            p.heard >= since
+                && self.now - p.heard <= FRESH
+                && !p.frames.iter().any(|(f, _)| f.team == t)
+        })
+    }
+
+    /// The member of team `t` (at stack depth `depth`) that relays the
+    /// team's heartbeats while its leader is away ([`Kernel::absent_from`]):
+    /// the lowest-id member neither presumed lost, departed, nor itself
+    /// heard away, looked for among the first [`ACTING_WALK`] members
+    /// after the leader (`None` beyond). Its members' heartbeats go to the
+    /// leader and to it, and it sends its own to every member, as a leader
+    /// does: without it the members already there hear only the leader,
+    /// which is not, and not each other. Two of them that took the team
+    /// from different allocation views (two ids for one subteam) then
+    /// learnt of the split only from the leader's arrival, after a
+    /// deadline of theirs (docs/reliability.md, "A leader a lap behind").
+    fn acting_leader(&self, t: TeamId, depth: usize, since: Time) -> Option<RobotId> {
+        let team = self.org.team(t)?;
+        let above = &self.stack[..depth.min(self.stack.len())];
+        let gone = |r: RobotId| {
+            self.lost.contains(r)
+                || above
+                    .iter()
+                    .any(|f| f.departed.as_ref().is_some_and(|d| d.contains(r)))
+        };
+        team.members
+            .iter()
+            .filter(|r| !gone(*r))
+            .take(ACTING_WALK)
+            .find(|r| *r == self.me || !self.absent_from(*r, t, since))
     }
 
     /// The member of team `t` whose choice a split at stack depth `depth`

@@ -1576,6 +1576,49 @@ behaviors:
     assert_eq!(audience(&h, 2), [0, 1]);
 }
 
+/// While a team's leader is heard elsewhere (a lap behind, on its way),
+/// the lowest-id member there relays the team's heartbeats as a leader
+/// does, and the others send theirs to it too: two members that took one
+/// subteam from different views of the allocation above (two ids) heard
+/// only the absent leader, not each other, and saw the split only when it
+/// came, after a deadline (found by `no_waiting_across_levels`, graph
+/// seed 1189108377300224787). Once the leader is there, the members send
+/// to it alone again.
+#[test]
+fn a_member_relays_the_teams_heartbeats_while_its_leader_is_a_lap_behind() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b] }
+  b: { team: true, children: [y, q] }
+  y: { skill: w, members: 1 }
+  q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }",
+        4,
+    );
+    h.tick(0, &[("a_done", F), ("q_done", F)]);
+    h.heartbeats();
+    // r2 and r3 end `a` and take q (r1, r2, r3), led by r1, still in `a`;
+    // they wait at q's barrier.
+    for r in [2, 3] {
+        h.tick_one(r, 100, &[("a_done", T)]);
+        assert_eq!(h.stack(r), ["root", "b", "q"]);
+        h.tick_one(r, 150, &[("q_done", T)]);
+    }
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0, 1], "r1 not heard yet");
+    // r1 answers them (a team it has yet to join): heard away, r2 relays.
+    h.heartbeats();
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0, 1, 3], "r2 relays for q");
+    assert_eq!(audience(&h, 3), [0, 1, 2], "r3 sends to r2 too");
+    // r1 joins q: its members send to it alone.
+    h.tick_one(1, 200, &[("a_done", T)]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 3), [0, 1]);
+}
+
 /// A member waiting at a point below an execution its teammates ended
 /// (each ends `b` on its own: a silent termination) answers nobody, but
 /// a teammate that ended it answers the member's heartbeats: the team's
