@@ -44,15 +44,22 @@ fn drain(k: &mut Kernel) -> Drained {
     d
 }
 
-#[test]
-fn a_robot_that_applied_the_teams_decision_leads_with_it() {
+/// r1's kernel on `GRAPH`, ticked once in `a`: the kernel, the belief
+/// `go`, and the behaviors `b` and `c`.
+fn r1_of_three() -> (Kernel, bite_core::BeliefId, BehaviorId, BehaviorId) {
     let g = load_str(&Arc::from("notice.yaml"), GRAPH).expect("the test graph loads");
     let (b, c): (BehaviorId, BehaviorId) = (g.find("b").expect("b"), g.find("c").expect("c"));
     let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
     let mut r1 = Kernel::new(mission, RobotId(1), 2);
     let go = r1.mission().graph().symbols().get("go").expect("belief");
+    r1.tick(Time::ZERO, &[(go, Value::Bool(false))]);
+    (r1, go, b, c)
+}
+
+#[test]
+fn a_robot_that_applied_the_teams_decision_leads_with_it() {
+    let (mut r1, go, b, c) = r1_of_three();
     let t = Time::from_secs_f64;
-    r1.tick(t(0.0), &[(go, Value::Bool(false))]);
     // r0 presumed lost a while, then heard again.
     r1.member_lost(t(0.1), RobotId(0));
     r1.member_back(t(0.2), RobotId(0));
@@ -177,13 +184,8 @@ fn a_leader_that_applied_the_teams_end_releases_its_members_still_working() {
 /// came").
 #[test]
 fn a_robot_leading_because_its_leader_left_adopts_the_decision_a_member_applied() {
-    let g = load_str(&Arc::from("notice.yaml"), GRAPH).expect("the test graph loads");
-    let c = g.find("c").expect("c");
-    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
-    let mut r1 = Kernel::new(mission, RobotId(1), 2);
-    let go = r1.mission().graph().symbols().get("go").expect("belief");
+    let (mut r1, go, _, c) = r1_of_three();
     let t = Time::from_secs_f64;
-    r1.tick(t(0.0), &[(go, Value::Bool(false))]);
     r1.member_lost(t(0.1), RobotId(0));
     drain(&mut r1);
     // `a` ends: the vote starts with r0 left out, so r1 leads it.

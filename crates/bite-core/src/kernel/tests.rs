@@ -1538,23 +1538,24 @@ fn a_leader_that_left_answers_its_members_for_a_while() {
     assert_eq!(audience(&h, 1), [0]);
 }
 
-/// A member a lap behind answers a teammate that went through an
-/// allocation it has yet to make, counts it a member of the new team and
-/// waits for it at a point there: the teammate hears it on its way.
-/// Teammates in step, or at work, are not answered.
-#[test]
-fn a_member_behind_answers_the_team_it_has_yet_to_join() {
-    let mut h = Harness::new(
-        "start: root
+/// `a`, then an allocation under `b`: one robot to `y`, the others to the
+/// team behavior `q`, which ends at a barrier.
+const A_THEN_Q: &str = "start: root
 defaults: { terminate: term.local }
 behaviors:
   root: { team: true, children: [a] }
   a: { team: true, skill: w, until: a_done, next: [b] }
   b: { team: true, children: [y, q] }
   y: { skill: w, members: 1 }
-  q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }",
-        3,
-    );
+  q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }";
+
+/// A member a lap behind answers a teammate that went through an
+/// allocation it has yet to make, counts it a member of the new team and
+/// waits for it at a point there: the teammate hears it on its way.
+/// Teammates in step, or at work, are not answered.
+#[test]
+fn a_member_behind_answers_the_team_it_has_yet_to_join() {
+    let mut h = Harness::new(A_THEN_Q, 3);
     h.tick(0, &[("a_done", F), ("q_done", F)]);
     h.heartbeats();
     assert!(h.kernels.iter().all(|k| k.answering.is_none()), "in step");
@@ -1586,17 +1587,7 @@ behaviors:
 /// to it alone again.
 #[test]
 fn a_member_relays_the_teams_heartbeats_while_its_leader_is_a_lap_behind() {
-    let mut h = Harness::new(
-        "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, skill: w, until: a_done, next: [b] }
-  b: { team: true, children: [y, q] }
-  y: { skill: w, members: 1 }
-  q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }",
-        4,
-    );
+    let mut h = Harness::new(A_THEN_Q, 4);
     h.tick(0, &[("a_done", F), ("q_done", F)]);
     h.heartbeats();
     // r2 and r3 end `a` and take q (r1, r2, r3), led by r1, still in `a`;
