@@ -677,8 +677,8 @@ impl Kernel {
     /// The member of team `t` (at stack depth `depth`) that relays the
     /// team's heartbeats while its leader is away ([`Kernel::absent_from`]):
     /// the lowest-id member neither presumed lost, departed, nor itself
-    /// heard away, looked for among the first [`ACTING_WALK`] members
-    /// after the leader (`None` beyond). Its members' heartbeats go to the
+    /// heard away, looked for among the first [`ACTING_WALK`] members not
+    /// left out, the leader first (`None` beyond). Its members' heartbeats go to the
     /// leader and to it, and it sends its own to every member, as a leader
     /// does: without it the members already there hear only the leader,
     /// which is not, and not each other. Two of them that took the team
