@@ -511,6 +511,11 @@ fn cases_that_failed_once() {
         // different views of the allocation above and waited in it for
         // their leader, a lap behind, hearing only it.
         (1_189_108_377_300_224_787, 7),
+        // The same with the leader behind inside the team: at a point
+        // where a silent rule saw different options, one member took
+        // another successor than two others, and all three heard only
+        // the leader, still running the behavior before the point.
+        (17_570_084_640_527_683_413, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

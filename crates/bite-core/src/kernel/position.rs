@@ -594,19 +594,22 @@ impl Kernel {
     }
 
     /// Who this robot's heartbeats go to: every member of the teams it
-    /// leads, and the leader of each other team it is in.
+    /// leads, and the leader of each other team it is in (and, while that
+    /// leader is away from the team or behind the point this robot waits
+    /// at, the member that relays for it: `Kernel::acting_leader`).
     pub fn beacon_audience(&self) -> MemberSet {
         let mut to = MemberSet::empty(self.org.roster_len());
-        let teams = self
-            .stack
-            .iter()
-            .enumerate()
-            .map(|(i, f)| (f.team, i, f.started))
-            .chain(
-                self.popped()
-                    .map(|(f, _)| (f.team, self.stack.len(), f.started)),
-            );
-        for (t, depth, since) in teams {
+        let frames = (self.stack.iter().enumerate())
+            .chain(self.popped().map(|(f, _)| (self.stack.len(), f)));
+        // The frame this robot waits at, if any (its end, or its
+        // allocation).
+        let waiting = match self.phase {
+            Phase::Terminating { .. } | Phase::Selecting { .. } => Some(self.stack.len()),
+            Phase::Allocating(_) => self.stack.len().checked_sub(1),
+            _ => None,
+        };
+        for (depth, f) in frames {
+            let t = f.team;
             let Some(team) = self.org.team(t) else {
                 continue;
             };
@@ -614,8 +617,12 @@ impl Kernel {
                 Some(l) if l == self.me => to.union_with(&team.members),
                 Some(l) => {
                     to.insert(l);
-                    if self.absent_from(l, t, since) {
-                        match self.acting_leader(t, depth, since) {
+                    let away = |r: RobotId| {
+                        self.absent_from(r, t, f.started)
+                            || (waiting == Some(depth) && self.behind(r, f))
+                    };
+                    if away(l) {
+                        match self.acting_leader(t, depth, away) {
                             Some(a) if a == self.me => to.union_with(&team.members),
                             Some(a) => {
                                 to.insert(a);
@@ -674,18 +681,45 @@ impl Kernel {
         })
     }
 
+    /// True when teammate `r`, heard within [`FRESH`] since this robot
+    /// took up frame `f`, still runs the execution before `f` in its
+    /// team's sequence: it has not reached the point this robot waits at
+    /// past it.
+    fn behind(&self, r: RobotId, f: &Frame) -> bool {
+        let Some(a) = f.anchor.filter(|a| !a.first) else {
+            return false;
+        };
+        let before = FrameId {
+            team: f.team,
+            behavior: a.behavior,
+            epoch: a.epoch,
+        };
+        self.peers.get(&r).is_some_and(|p| {
+            p.heard >= f.started
+                && self.now - p.heard <= FRESH
+                && p.frames.iter().any(|(g, _)| *g == before)
+        })
+    }
+
     /// The member of team `t` (at stack depth `depth`) that relays the
-    /// team's heartbeats while its leader is away ([`Kernel::absent_from`]):
-    /// the lowest-id member neither presumed lost, departed, nor itself
-    /// heard away, looked for among the first [`ACTING_WALK`] members not
-    /// left out, the leader first (`None` beyond). Its members' heartbeats go to the
+    /// team's heartbeats while its leader is `away`
+    /// ([`Kernel::absent_from`], or, at the point this robot waits at,
+    /// [`Kernel::behind`]): the lowest-id member neither presumed lost,
+    /// departed, nor itself away, looked for among the first
+    /// [`ACTING_WALK`] members not left out, the leader first (`None`
+    /// beyond). Its members' heartbeats go to the
     /// leader and to it, and it sends its own to every member, as a leader
     /// does: without it the members already there hear only the leader,
     /// which is not, and not each other. Two of them that took the team
     /// from different allocation views (two ids for one subteam) then
     /// learnt of the split only from the leader's arrival, after a
     /// deadline of theirs (docs/reliability.md, "A leader a lap behind").
-    fn acting_leader(&self, t: TeamId, depth: usize, since: Time) -> Option<RobotId> {
+    fn acting_leader(
+        &self,
+        t: TeamId,
+        depth: usize,
+        away: impl Fn(RobotId) -> bool,
+    ) -> Option<RobotId> {
         let team = self.org.team(t)?;
         let above = &self.stack[..depth.min(self.stack.len())];
         let gone = |r: RobotId| {
@@ -698,7 +732,7 @@ impl Kernel {
             .iter()
             .filter(|r| !gone(*r))
             .take(ACTING_WALK)
-            .find(|r| *r == self.me || !self.absent_from(*r, t, since))
+            .find(|r| *r == self.me || !away(*r))
     }
 
     /// The member of team `t` whose choice a split at stack depth `depth`

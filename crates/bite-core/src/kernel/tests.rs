@@ -1610,6 +1610,43 @@ fn a_member_relays_the_teams_heartbeats_while_its_leader_is_a_lap_behind() {
     assert_eq!(audience(&h, 3), [0, 1]);
 }
 
+/// A member waiting at a point past one its leader has not reached yet
+/// (the leader still runs the execution before) relays the team's
+/// heartbeats too: members that took different successors at a point
+/// where nobody synchronizes heard only their leader, a lap behind, and
+/// never saw the split (found by `no_waiting_across_levels`, graph seed
+/// 17570084640527683413). At work, or once the leader is there, nothing
+/// changes.
+#[test]
+fn a_member_waiting_past_a_point_its_leader_has_not_reached_relays() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b] }
+  b: { team: true, skill: w, until: b_done, terminate: term.test-barrier }",
+        3,
+    );
+    h.tick(0, &[("a_done", F), ("b_done", F)]);
+    h.heartbeats();
+    for r in [1, 2] {
+        h.tick_one(r, 100, &[("a_done", T)]);
+        assert_eq!(h.stack(r), ["root", "b"]);
+    }
+    h.heartbeats();
+    assert_eq!(audience(&h, 1), [0], "at work in b, r1 sends to r0 alone");
+    for r in [1, 2] {
+        h.tick_one(r, 150, &[("b_done", T)]);
+    }
+    h.heartbeats();
+    assert_eq!(audience(&h, 1), [0, 2], "r1 relays while r0 is still in a");
+    assert_eq!(audience(&h, 2), [0, 1]);
+    h.tick_one(0, 200, &[("a_done", T)]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0]);
+}
+
 /// A member waiting at a point below an execution its teammates ended
 /// (each ends `b` on its own: a silent termination) answers nobody, but
 /// a teammate that ended it answers the member's heartbeats: the team's
