@@ -499,6 +499,19 @@ impl<R: Rule> Interaction for Gather<R> {
         let changed = self.coord.leader_changed(cx);
         if cx.is_leader() {
             if self.coord.result.is_none() && !cx.is_aborted() {
+                if changed && self.rule.gathers() && self.rule.call(cx).is_none() {
+                    // Taking over a rule without a call: a member that
+                    // sent its contribution to the leader before and left
+                    // the instance since will not send it again; asked, its
+                    // kernel says it left (docs/reliability.md, "A
+                    // contribution sent to the leader before").
+                    let missing: Vec<RobotId> = (cx.members())
+                        .filter(|m| *m != cx.me() && !self.got.contains_key(m))
+                        .collect();
+                    for m in missing {
+                        cx.send(m, Body::Query);
+                    }
+                }
                 // Leading now (or still): call if not done, count who is left.
                 self.lead(cx);
             }

@@ -162,3 +162,40 @@ fn a_member_that_dissolved_the_team_answers_that_it_is_done() {
         "r1 tells r0 it takes no part"
     );
 }
+
+/// A robot that takes over an allocation whose rule makes no call
+/// (`alloc.optimal`: members send their costs unprompted) asks
+/// the members it has no contribution from: one that sent its own to the
+/// leader before and left the allocation since will not send it again,
+/// and its kernel answers the question that it is done. Found by
+/// `no_waiting_across_levels` (RNG seed 13, graph seed
+/// 3090137497910363889, seven robots): two members ended the behavior
+/// 0.1 s into its allocation, after contributing to leaders that were
+/// leaving too; the robot that led next waited for them until its
+/// deadline (docs/reliability.md, "A contribution sent to the leader
+/// before").
+#[test]
+fn a_robot_taking_over_an_allocation_without_a_call_asks_who_it_has_not_heard() {
+    const VALUE: &str = "graph: value\nteam: { robots: 3 }\nstart: p\n\
+        defaults: { sync: sync.by-rule, allocate: alloc.optimal, terminate: term.wait-all }\n\
+        behaviors:\n  p: { team: true, children: [x, y], allocate: alloc.optimal, until: stop }\n\
+        \x20 x: { team: true, skill: w }\n  y: { team: true, skill: w }\n";
+    let g = load_str(&Arc::from("value.yaml"), VALUE).expect("the test graph loads");
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r1 = Kernel::new(mission, RobotId(1), 2);
+    let key = start(&mut r1);
+    // r0, the leader, is lost: r1 leads and has heard only itself.
+    r1.member_lost(Time::from_millis(100), RobotId(0));
+    let asked = drain(&mut r1);
+    assert!(
+        asked
+            .sent
+            .contains(&(Recipients::One(RobotId(2)), Body::Query)),
+        "r1 asks r2: {:?}",
+        asked.sent
+    );
+    assert_eq!(asked.decided, 0);
+    // r2 left `p` after sending its contribution to r0: it is done.
+    r1.message(Time::from_millis(150), from(2, key, 1, Body::Done));
+    assert_eq!(drain(&mut r1).decided, 1, "decided at once");
+}

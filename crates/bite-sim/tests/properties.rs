@@ -516,6 +516,10 @@ fn cases_that_failed_once() {
         // another successor than two others, and all three heard only
         // the leader, still running the behavior before the point.
         (17_570_084_640_527_683_413, 8),
+        // "A contribution sent to the leader before": two members ended
+        // the behavior just after contributing to leaders that were
+        // leaving too; the robot that led next waited for them.
+        (3_090_137_497_910_363_889, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
