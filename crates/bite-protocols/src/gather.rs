@@ -343,6 +343,15 @@ impl<R: Rule> Gather<R> {
         }
     }
 
+    /// The other members not left out whose contribution the leader has
+    /// not had (collected: the caller sends to them).
+    fn missing(&self, cx: &Cx<'_>) -> Vec<RobotId> {
+        let me = cx.me();
+        (cx.members())
+            .filter(|m| *m != me && !self.got.contains_key(m))
+            .collect()
+    }
+
     fn finish(&mut self, cx: &mut Cx<'_>) {
         let outcome = self.rule.decide(cx, &self.got);
         self.coord.adopt(cx, outcome, true);
@@ -469,9 +478,7 @@ impl<R: Rule> Interaction for Gather<R> {
             // Call again those not heard from (rules without a call wait
             // for the members' own resends).
             if let Some(call) = self.rule.call(cx) {
-                let missing: Vec<RobotId> =
-                    cx.members().filter(|m| !self.got.contains_key(m)).collect();
-                for m in missing {
+                for m in self.missing(cx) {
                     cx.send(m, call.clone());
                 }
             }
@@ -505,10 +512,7 @@ impl<R: Rule> Interaction for Gather<R> {
                     // the instance since will not send it again; asked, its
                     // kernel says it left (docs/reliability.md, "A
                     // contribution sent to the leader before").
-                    let missing: Vec<RobotId> = (cx.members())
-                        .filter(|m| *m != cx.me() && !self.got.contains_key(m))
-                        .collect();
-                    for m in missing {
+                    for m in self.missing(cx) {
                         cx.send(m, Body::Query);
                     }
                 }

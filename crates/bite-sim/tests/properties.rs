@@ -520,6 +520,10 @@ fn cases_that_failed_once() {
         // the behavior just after contributing to leaders that were
         // leaving too; the robot that led next waited for them.
         (3_090_137_497_910_363_889, 7),
+        // "A teammate that went past without running it": two members a
+        // lap behind converged on their leader's next execution, skipping
+        // the one a teammate waited in for them; nothing told it.
+        (16_356_430_973_488_520_355, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

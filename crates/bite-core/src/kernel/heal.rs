@@ -244,12 +244,13 @@ impl Kernel {
             };
             let id = f.id();
             let report = (pos.frames.iter().find(|g| g.id == id)).and_then(|g| g.departed.as_ref());
+            // It ended the execution, or runs its successor (it may have
+            // gone past it without running it, converging on teammates
+            // further on).
             let ended = pos.ended.iter().any(|e| e.id == id)
                 || pos.burned.contains(&id)
-                || pos
-                    .frames
-                    .iter()
-                    .any(|g| g.id == id && g.state != FrameState::Running);
+                || (pos.frames.iter())
+                    .any(|g| (g.id == id && g.state != FrameState::Running) || g.follows(id));
             // Nothing to learn: the team is not looked up (its split is
             // cold in a large team, and most heartbeats report nothing).
             if report.is_none() && !ended {

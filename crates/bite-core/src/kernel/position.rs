@@ -407,6 +407,23 @@ impl Position {
     }
 }
 
+impl Anchor {
+    /// True when a frame of team `team` with this anchor is the successor
+    /// of execution `id` in its chain: whoever runs it is done with `id`
+    /// (ran it, or went past it converging on teammates further on).
+    pub fn after(self, team: TeamId, id: FrameId) -> bool {
+        !self.first && team == id.team && self.behavior == id.behavior && self.epoch == id.epoch
+    }
+}
+
+impl PosFrame {
+    /// True when this frame is the successor of execution `id` (see
+    /// [`Anchor::after`]).
+    pub fn follows(&self, id: FrameId) -> bool {
+        self.anchor.is_some_and(|a| a.after(self.id.team, id))
+    }
+}
+
 impl Frame {
     /// The identity of this execution.
     pub fn id(&self) -> FrameId {
@@ -638,11 +655,7 @@ impl Kernel {
         // still send to it (see `Kernel::answer_strangers`).
         if let Some(a) = &self.answering {
             for r in a.iter() {
-                if self
-                    .peers
-                    .get(&r)
-                    .is_some_and(|p| self.now - p.heard <= FRESH)
-                {
+                if self.fresh_peer(r).is_some() {
                     to.insert(r);
                 }
             }
@@ -674,11 +687,13 @@ impl Kernel {
     /// nothing in team `t`: it is a lap behind on its way there, or
     /// elsewhere. (A heartbeat from before may predate its joining.)
     fn absent_from(&self, r: RobotId, t: TeamId, since: Time) -> bool {
-        self.peers.get(&r).is_some_and(|p| {
-            p.heard >= since
-                && self.now - p.heard <= FRESH
-                && !p.frames.iter().any(|(f, _)| f.team == t)
-        })
+        (self.fresh_peer(r))
+            .is_some_and(|p| p.heard >= since && !p.frames.iter().any(|(f, _)| f.team == t))
+    }
+
+    /// Teammate `r`'s entry, if it was heard within [`FRESH`].
+    pub(super) fn fresh_peer(&self, r: RobotId) -> Option<&Peer> {
+        self.peers.get(&r).filter(|p| self.now - p.heard <= FRESH)
     }
 
     /// True when teammate `r`, heard within [`FRESH`] since this robot
@@ -694,11 +709,8 @@ impl Kernel {
             behavior: a.behavior,
             epoch: a.epoch,
         };
-        self.peers.get(&r).is_some_and(|p| {
-            p.heard >= f.started
-                && self.now - p.heard <= FRESH
-                && p.frames.iter().any(|(g, _)| *g == before)
-        })
+        (self.fresh_peer(r))
+            .is_some_and(|p| p.heard >= f.started && p.frames.iter().any(|(g, _)| *g == before))
     }
 
     /// The member of team `t` (at stack depth `depth`) that relays the
@@ -1392,12 +1404,7 @@ impl Kernel {
         let counted = |r: RobotId| {
             !self.lost.contains(r) && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
         };
-        let heard = |r: RobotId| {
-            self.peers
-                .get(&r)
-                .filter(|p| self.now - p.heard <= FRESH)
-                .map(|p| &p.frames)
-        };
+        let heard = |r: RobotId| self.fresh_peer(r).map(|p| &p.frames);
         let leader = inst
             .team
             .members

@@ -1415,6 +1415,39 @@ fn a_frame_under_a_same_numbered_execution_under_another_parent_is_not_counted_p
     );
 }
 
+/// A teammate heard running the successor of an execution this robot runs
+/// is done with it, even when none of its recent ends names it: it may
+/// have gone past it without running it, converging on teammates further
+/// on (a lap behind, it took their epoch of the next behavior). Nothing
+/// else would tell this robot, which then waited for it below the
+/// execution until a deadline (docs/reliability.md, "A teammate that went
+/// past without running it").
+#[test]
+fn a_teammate_running_the_successor_of_an_execution_departed_from_it() {
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    let [_, first, ..] = twice_ids(&h);
+    let departed = |h: &Harness| {
+        let f = (h.kernels[1].stack().iter())
+            .find(|f| f.id() == first)
+            .expect("robot 1 runs `first`");
+        f.departed
+            .as_ref()
+            .map(|d| d.iter().collect::<Vec<_>>())
+            .unwrap_or_default()
+    };
+    let mut within = in_s_under(&h, "first");
+    within.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &within);
+    assert_eq!(departed(&h), [], "robot 2 still runs `first`");
+    let mut past = in_s_under(&h, "second");
+    past.robot = RobotId(2);
+    assert!(past.ended.is_empty() && past.burned.is_empty());
+    h.kernels[1].peer(Time::from_millis(300), RobotId(2), &past);
+    assert_eq!(departed(&h), [RobotId(2)]);
+}
+
 /// A member at a barrier whose leader's heartbeat shows the leader past
 /// it (the release lost) asks the leader, which answers with the release;
 /// but only once the leader has been seen past it for a retry, since the
