@@ -17,8 +17,11 @@
 //! leader itself are free). H is 0 when every member takes the first token
 //! it is dealt (no utilities, or utilities above the threshold) and at most
 //! 2n per token; rounds: 3 + the longest chain of passes. The leader deals
-//! unclaimed places again on its timer (a token lost on the way); a place
-//! claimed twice goes to the first claim; a member waiting for the
+//! unclaimed places again on its timer (a token lost on the way, or still
+//! travelling); a place claimed twice goes to the first claim, and the
+//! second claimant, which takes no more tokens once it has claimed, is
+//! given another unclaimed place (of the same child if there is one); a
+//! member waiting for the
 //! assignment asks for it with exponential backoff. When a member is
 //! presumed lost, its place (claimed or not) is dealt again as a token; a
 //! member that becomes leader because the leader was lost deals all places
@@ -208,10 +211,25 @@ impl Tokens {
             ));
             return;
         }
-        // First claim wins; one place per member.
-        if !self.claims.contains_key(&slot) && !self.claims.values().any(|r| *r == from) {
-            self.claims.insert(slot, from);
-            self.coord.progress(cx);
+        // One place per member; the first claim of a place wins it. The
+        // member that lost the race takes no more tokens (it holds a
+        // place, as far as it knows), so it is given another unclaimed
+        // place, of the same child if there is one: left without, it held
+        // the allocation up until the deadline (docs/reliability.md, "A
+        // place claimed twice").
+        if !self.claims.values().any(|r| *r == from) {
+            let free = |s: &u32| !self.claims.contains_key(s);
+            let child = self.slots[slot as usize];
+            let all = 0..self.slots.len() as u32;
+            let place = Some(slot).filter(free).or_else(|| {
+                (all.clone().filter(free))
+                    .find(|s| self.slots[*s as usize] == child)
+                    .or_else(|| all.clone().find(free))
+            });
+            if let Some(s) = place {
+                self.claims.insert(s, from);
+                self.coord.progress(cx);
+            }
         }
         self.maybe_finish(cx);
     }

@@ -113,6 +113,44 @@ fn the_token_leader_decides_once_every_live_member_holds_a_place() {
     );
 }
 
+/// Two members claim one place (the leader dealt the places again while
+/// the first tokens still travelled): the first claim wins it, and the
+/// second claimant, which takes no more tokens once it has claimed, is
+/// given the place left over, so the leader decides at once. Found by
+/// `no_waiting_across_levels` (RNG seed 20261204, graph seed
+/// 10877919030516264622, seven robots): two members lost such races and
+/// the leader waited for them until its deadline (docs/reliability.md, "A
+/// place claimed twice").
+#[test]
+fn a_member_that_lost_a_claim_race_is_given_the_place_left_over() {
+    let mut r0 = robot(0);
+    let key = start(&mut r0);
+    drain(&mut r0);
+    // r0 dealt three places and kept one.
+    r0.message(
+        Time::from_millis(100),
+        from(1, key, 1, Body::Claim { slot: 1 }),
+    );
+    assert_eq!(drain(&mut r0).decided, 0, "r2 has not claimed yet");
+    r0.message(
+        Time::from_millis(200),
+        from(2, key, 1, Body::Claim { slot: 1 }),
+    );
+    let d = drain(&mut r0);
+    assert_eq!(d.decided, 1, "decided at once, not at its deadline");
+    let placed: Vec<RobotId> = (d.sent.iter())
+        .find_map(|(_, m)| match m {
+            Body::Assignment { members, .. } => Some(members.iter().map(|(r, _)| *r).collect()),
+            _ => None,
+        })
+        .expect("the assignment announced");
+    assert_eq!(
+        placed,
+        [RobotId(0), RobotId(1), RobotId(2)],
+        "every member placed"
+    );
+}
+
 /// A member that ended the behavior whose allocation made its subteam
 /// (its own `until`) dissolved the subteam; a teammate still in it, which
 /// heard its heartbeats only while they shared the subteam, asks it at the

@@ -524,6 +524,10 @@ fn cases_that_failed_once() {
         // lap behind converged on their leader's next execution, skipping
         // the one a teammate waited in for them; nothing told it.
         (16_356_430_973_488_520_355, 6),
+        // "A place claimed twice": two members lost a race for a place
+        // (`alloc.token`) and took no more tokens; the leader waited for
+        // them.
+        (10_877_919_030_516_264_622, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
