@@ -528,6 +528,12 @@ fn cases_that_failed_once() {
         // (`alloc.token`) and took no more tokens; the leader waited for
         // them.
         (10_877_919_030_516_264_622, 7),
+        // "A deadline just after the leader changed": a member waited
+        // out leaders heard at work on the way to the point; its deadline
+        // fell a few milliseconds after the last of them left, before the
+        // next one could gather the team (seven robots, then eight).
+        (14_359_459_491_020_814_629, 7),
+        (4_884_531_164_592_028_632, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -75,9 +75,17 @@ impl Kernel {
     }
 
     /// Instance `k` decides without `who` from now on.
+    ///
+    /// An instance whose coordinator this changes does not reach its
+    /// deadline within a retry from now: the new coordinator has had no
+    /// time to gather the team (a member waited out a leader that was
+    /// still at work, and its deadline fell 0.01 s after that leader left
+    /// and the next one took over: docs/reliability.md, "A deadline just
+    /// after the leader changed").
     pub(super) fn exclude(&mut self, k: InstanceKey, who: &[RobotId]) {
         let n = self.org.roster_len();
         let mut new = Vec::new();
+        let before = self.coordinator_of(k);
         if let Some(inst) = self.instances.get_mut(&k) {
             let ex = inst.excluded.get_or_insert_with(|| MemberSet::empty(n));
             for r in who {
@@ -91,6 +99,12 @@ impl Kernel {
                     members: new,
                 }));
             }
+        }
+        if self.coordinator_of(k) != before
+            && let Some(inst) = self.instances.get_mut(&k)
+            && inst.state == State::Active
+        {
+            inst.deadline = inst.deadline.max(self.now + inst.retry);
         }
         self.call(k, |imp, cx| imp.on_members_changed(cx));
     }

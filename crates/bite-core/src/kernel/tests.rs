@@ -506,6 +506,47 @@ behaviors:
     assert_eq!(h.kernels[0].stats().timeouts, 1);
 }
 
+/// An instance whose coordinator changes just before its deadline does
+/// not reach the deadline within a retry from the change: the new
+/// coordinator has had no time to gather the team (a member's deadline
+/// fell 0.01 s after its leader, heard at work until then, left and the
+/// next took over: docs/reliability.md, "A deadline just after the leader
+/// changed").
+#[test]
+fn a_deadline_waits_a_retry_for_a_new_coordinator() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, until: a_done, next: [b, c], sync: { protocol: sync.test-never, deadline: 2s } }
+  b: { team: true, until: never }
+  c: { team: true, until: never }",
+        3,
+    );
+    h.tick(0, &[]);
+    h.tick_one(2, 100, &[("a_done", T)]);
+    assert_eq!(h.stack(2), ["root"], "robot 2 waits at the point");
+    assert_eq!(h.kernels[2].poll_timeout(), Some(Time::from_millis(2100)));
+    // Robot 1 leaving changes nothing: robot 0 still coordinates.
+    h.kernels[2].member_lost(Time::from_millis(2000), RobotId(1));
+    assert_eq!(h.kernels[2].poll_timeout(), Some(Time::from_millis(2100)));
+    // Robot 0, the coordinator, leaves 10 ms before the deadline.
+    h.kernels[2].member_lost(Time::from_millis(2090), RobotId(0));
+    let due = h.kernels[2].poll_timeout().expect("still waiting");
+    assert!(due > Time::from_millis(2100), "deadline kept at {due:?}");
+    h.kernels[2].timer(Time::from_millis(2100));
+    h.drain(2);
+    assert_eq!(h.kernels[2].stats().timeouts, 0, "not at the old deadline");
+    h.kernels[2].timer(due);
+    h.drain(2);
+    assert_eq!(
+        h.kernels[2].stats().timeouts,
+        1,
+        "a retry later, it decides"
+    );
+}
+
 #[test]
 fn a_behavior_without_enabled_children_waits_for_one() {
     let mut h = Harness::new(
