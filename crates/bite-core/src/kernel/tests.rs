@@ -468,18 +468,19 @@ behaviors:
     assert_eq!(h.terminated(2, "search"), [EndReason::Team]);
 }
 
-#[test]
-fn a_protocol_that_misses_its_deadline_is_replaced_by_the_silent_rule() {
-    let mut h = Harness::new(
-        "start: root
+/// `a`, then `b` or `c` by a synchronization that never decides by
+/// itself (deadline 2 s).
+const A_NEVER_2S: &str = "start: root
 defaults: { terminate: term.local }
 behaviors:
   root: { team: true, children: [a] }
   a: { team: true, until: a_done, next: [b, c], sync: { protocol: sync.test-never, deadline: 2s } }
   b: { team: true, until: never }
-  c: { team: true, until: never }",
-        2,
-    );
+  c: { team: true, until: never }";
+
+#[test]
+fn a_protocol_that_misses_its_deadline_is_replaced_by_the_silent_rule() {
+    let mut h = Harness::new(A_NEVER_2S, 2);
     h.tick(0, &[]);
     h.tick(100, &[("a_done", T)]);
     assert_eq!(h.stack(0), ["root"], "waiting for the decision");
@@ -514,16 +515,7 @@ behaviors:
 /// changed").
 #[test]
 fn a_deadline_waits_a_retry_for_a_new_coordinator() {
-    let mut h = Harness::new(
-        "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, until: a_done, next: [b, c], sync: { protocol: sync.test-never, deadline: 2s } }
-  b: { team: true, until: never }
-  c: { team: true, until: never }",
-        3,
-    );
+    let mut h = Harness::new(A_NEVER_2S, 3);
     h.tick(0, &[]);
     h.tick_one(2, 100, &[("a_done", T)]);
     assert_eq!(h.stack(2), ["root"], "robot 2 waits at the point");
