@@ -534,6 +534,10 @@ fn cases_that_failed_once() {
         // next one could gather the team (seven robots, then eight).
         (14_359_459_491_020_814_629, 7),
         (4_884_531_164_592_028_632, 8),
+        // "A teammate waiting past the execution a robot runs": a vote's
+        // coordinator waited out two members still in the individual
+        // behavior before it, whose heartbeats went to the team's leader.
+        (14_151_179_637_200_551_742, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

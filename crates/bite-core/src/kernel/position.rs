@@ -875,7 +875,12 @@ impl Kernel {
     /// - **ended**: the teammate waits at a point below an execution this
     ///   robot has ended (its own condition, under a termination each
     ///   member makes alone); the team's leader, past it too, does not
-    ///   report that this robot left it, and the teammate waits for it.
+    ///   report that this robot left it, and the teammate waits for it;
+    /// - **behind**: the teammate waits at a point after the execution
+    ///   this robot runs (its frame there is that execution's successor:
+    ///   this robot is slower in an individual behavior, or was cut off),
+    ///   and may wait for it; its heartbeats go to the team's leader, which
+    ///   may be elsewhere, and the teammate took it for silent.
     ///
     /// So it answers such a teammate with its own heartbeats
     /// (`beacon_audience`) while the teammate goes on sending them: the
@@ -922,7 +927,13 @@ impl Kernel {
             if m == Some(f.id) {
                 continue;
             }
-            if std::mem::take(&mut shared) && self.recent_ended.contains(&f.id) && waits() {
+            // - Or the successor of the execution this robot runs there:
+            //   the sender went on (this robot is behind, in an individual
+            //   behavior, or was cut off), and may wait for it further on.
+            if std::mem::take(&mut shared)
+                && (self.recent_ended.contains(&f.id) || m.is_some_and(|m| f.follows(m)))
+                && waits()
+            {
                 stranger = true;
                 break;
             }

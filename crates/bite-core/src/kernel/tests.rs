@@ -1481,6 +1481,35 @@ fn a_teammate_running_the_successor_of_an_execution_departed_from_it() {
     assert_eq!(departed(&h), [RobotId(2)]);
 }
 
+/// A robot still in an execution answers, with its own heartbeats, a
+/// teammate that went on to its successor and waits at a point there: the
+/// teammate may wait for it (it is on its way), and without its
+/// heartbeats took it for silent, its own going to the team's leader only
+/// (found by `no_waiting_across_levels`, RNG seed 60, graph seed
+/// 14151179637200551742: a vote's coordinator waited out two members
+/// still in the individual behavior before it).
+#[test]
+fn a_robot_answers_a_teammate_waiting_past_the_execution_it_runs() {
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    let [root, first, second, _] = twice_ids(&h);
+    assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
+    // Robot 2 went on to `second` and waits there at a point.
+    let mut waiting = running(&[(root, None), (second, Some((first, false)))]);
+    waiting.robot = RobotId(2);
+    if let Some(f) = waiting.frames.last_mut() {
+        f.state = FrameState::Ended;
+    }
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &waiting);
+    assert_eq!(audience(&h, 1), [0, 2], "robot 2 is answered");
+    // At work in `second`, robot 2 waits for nobody: no answer.
+    let mut working = running(&[(root, None), (second, Some((first, false)))]);
+    working.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(300), RobotId(2), &working);
+    assert_eq!(audience(&h, 1), [0]);
+}
+
 /// A member at a barrier whose leader's heartbeat shows the leader past
 /// it (the release lost) asks the leader, which answers with the release;
 /// but only once the leader has been seen past it for a retry, since the
