@@ -263,13 +263,7 @@ impl Coord {
             if self.took_over {
                 self.adopt(cx, outcome, true);
             }
-        } else if from == cx.leader() || (from < cx.leader() && !cx.is_live(from)) {
-            // From the leader, or from one before it that this robot
-            // leaves out: it led, decided, and left the behavior because
-            // it applied its decision (its message waited while this robot
-            // was still on its way to the point). Every member that heard
-            // it applied it; deciding anew here broke agreement
-            // (docs/reliability.md, "A decision from a leader that left").
+        } else if from == cx.leader() {
             self.adopt(cx, outcome, false);
         }
         true

@@ -215,37 +215,3 @@ fn a_robot_leading_because_its_leader_left_adopts_the_decision_a_member_applied(
         adopted.sent
     );
 }
-
-/// A member whose instance leaves out a teammate before its leader (here
-/// presumed lost; in the case found, it had led the point, decided, and
-/// left the behavior by applying its decision) adopts that teammate's
-/// decision when it reaches it, instead of waiting for the next leader,
-/// which decided anew when it was left alone. Found by
-/// `no_waiting_across_levels` (RNG seed 75, graph seed
-/// 10533492770770632144, seven robots, no faults): the decision to end
-/// the chain waited in r4's buffer while r4 was still on its way; r4 then
-/// led alone and chose a successor, breaking agreement
-/// (docs/reliability.md, "A decision from a leader that left").
-#[test]
-fn a_member_adopts_the_decision_of_a_leader_it_leaves_out() {
-    let g = load_str(&Arc::from("notice.yaml"), GRAPH).expect("the test graph loads");
-    let c = g.find("c").expect("c");
-    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
-    let mut r2 = Kernel::new(mission, RobotId(2), 3);
-    let go = r2.mission().graph().symbols().get("go").expect("belief");
-    let t = Time::from_secs_f64;
-    r2.tick(Time::ZERO, &[(go, Value::Bool(false))]);
-    r2.member_lost(t(0.1), RobotId(0));
-    drain(&mut r2);
-    // `a` ends: the vote starts with r0 left out; r1 leads it.
-    r2.tick(t(0.3), &[(go, Value::Bool(true))]);
-    let key = drain(&mut r2).started.expect("the vote started");
-    r2.message(t(0.31), from(0, key, 1, Body::Decision { choice: Some(c) }));
-    let adopted = drain(&mut r2);
-    assert_eq!(adopted.decided.len(), 1, "r2 decides: {:?}", adopted.sent);
-    assert!(
-        adopted.decided[0].contains(&format!("choice: Some({c:?})")),
-        "r2 adopts r0's decision: {:?}",
-        adopted.decided
-    );
-}
