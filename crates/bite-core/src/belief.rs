@@ -250,14 +250,14 @@ impl BeliefStore {
 }
 
 /// How many times each behavior was started directly under one execution
-/// of its parent (what `runs` reads in conditions): a few entries, sorted
-/// by behavior, kept in place.
+/// of its parent (what `runs` reads in conditions), and the epoch of its
+/// latest start there: a few entries, sorted by behavior, kept in place.
 ///
 /// Every frame on a robot's stack holds one: a B-tree allocated a node at
 /// the first start under each frame, an allocation per decision and a
 /// node per frame of every robot of a large team.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct RunCounts(smallvec::SmallVec<[(crate::ids::BehaviorId, u32); 2]>);
+pub struct RunCounts(smallvec::SmallVec<[(crate::ids::BehaviorId, u32, u32); 2]>);
 
 impl RunCounts {
     /// No behavior started yet.
@@ -267,24 +267,35 @@ impl RunCounts {
     /// How many times `b` was started (0 when never).
     #[inline]
     pub fn get(&self, b: crate::ids::BehaviorId) -> u32 {
-        self.0.iter().find(|(x, _)| *x == b).map_or(0, |(_, n)| *n)
+        self.0.iter().find(|(x, _, _)| *x == b).map_or(0, |(_, n, _)| *n)
     }
-    /// Count one more start of `b`.
-    pub fn bump(&mut self, b: crate::ids::BehaviorId) {
-        match self.0.binary_search_by_key(&b, |(x, _)| *x) {
-            Ok(i) => self.0[i].1 += 1,
-            Err(i) => self.0.insert(i, (b, 1)),
+    /// Count one more start of `b`, its execution numbered `epoch`.
+    pub fn bump(&mut self, b: crate::ids::BehaviorId, epoch: u32) {
+        match self.0.binary_search_by_key(&b, |(x, _, _)| *x) {
+            Ok(i) => {
+                self.0[i].1 += 1;
+                self.0[i].2 = self.0[i].2.max(epoch);
+            }
+            Err(i) => self.0.insert(i, (b, 1, epoch)),
         }
     }
-    /// Forget one start of `b` (a start abandoned); never below zero.
+    /// Forget one start of `b` (a start abandoned); never below zero. The
+    /// latest epoch stays: the abandoned execution is numbered all the same.
     pub fn unbump(&mut self, b: crate::ids::BehaviorId) {
-        if let Ok(i) = self.0.binary_search_by_key(&b, |(x, _)| *x) {
+        if let Ok(i) = self.0.binary_search_by_key(&b, |(x, _, _)| *x) {
             self.0[i].1 = self.0[i].1.saturating_sub(1);
         }
     }
+    /// The highest epoch at which `b` was started here (0 when never).
+    /// Epochs count a team's executions of a behavior, so an execution of
+    /// `b` by the same team under the same parent execution with an epoch
+    /// up to this one came no later than this start.
+    pub fn latest_epoch(&self, b: crate::ids::BehaviorId) -> u32 {
+        self.0.iter().find(|(x, _, _)| *x == b).map_or(0, |(_, _, e)| *e)
+    }
     /// Every behavior started, with its count, in behavior order.
     pub fn iter(&self) -> impl Iterator<Item = (crate::ids::BehaviorId, u32)> + '_ {
-        self.0.iter().copied()
+        self.0.iter().map(|&(b, n, _)| (b, n))
     }
 }
 
@@ -348,17 +359,21 @@ mod tests {
 
     proptest::proptest! {
         /// The same counts as the B-tree it replaces, whatever the starts
-        /// and abandoned starts, past the few kept in place.
+        /// and abandoned starts, past the few kept in place; and the
+        /// highest epoch started of each behavior.
         #[test]
-        fn run_counts_count_as_a_map(ops in proptest::collection::vec((0u32..6, proptest::bool::ANY), 0..60)) {
+        fn run_counts_count_as_a_map(ops in proptest::collection::vec((0u32..6, proptest::bool::ANY, 1u32..50), 0..60)) {
             use crate::ids::BehaviorId;
             let mut counts = RunCounts::new();
             let mut map: BTreeMap<BehaviorId, u32> = BTreeMap::new();
-            for (b, start) in ops {
+            let mut latest: BTreeMap<BehaviorId, u32> = BTreeMap::new();
+            for (b, start, epoch) in ops {
                 let b = BehaviorId(b);
                 if start {
-                    counts.bump(b);
+                    counts.bump(b, epoch);
                     *map.entry(b).or_insert(0) += 1;
+                    let e = latest.entry(b).or_insert(0);
+                    *e = (*e).max(epoch);
                 } else {
                     counts.unbump(b);
                     if let Some(n) = map.get_mut(&b) {
@@ -368,6 +383,7 @@ mod tests {
                 for x in 0..6 {
                     let x = BehaviorId(x);
                     proptest::prop_assert_eq!(counts.get(x), map.get(&x).copied().unwrap_or(0));
+                    proptest::prop_assert_eq!(counts.latest_epoch(x), latest.get(&x).copied().unwrap_or(0));
                 }
                 let listed: Vec<(BehaviorId, u32)> = counts.iter().collect();
                 let expected: Vec<(BehaviorId, u32)> = map.iter().map(|(b, n)| (*b, *n)).collect();

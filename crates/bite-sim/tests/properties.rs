@@ -547,6 +547,12 @@ fn cases_that_failed_once() {
     // a split that did not heal.
     run_generated(15_873_932_308_788_952_267, 8, 0.0, 0.0, 3, true)
         .unwrap_or_else(|e| panic!("{e}"));
+    // "A teammate many behaviors behind": a member done with a
+    // `term.local` decomposition went on alone through more than eight
+    // behaviors, took its leader, still in the decomposition, for a
+    // diverged history and went back into it, and the two restarted the
+    // decomposition every lap (no faults; NOT COMPLETED at the time limit).
+    run_case(9_820_052_158_066_147_912, 6, 0.0, 0.0, 0).unwrap_or_else(|e| panic!("{e}"));
     // "A token from a teammate left out": a member claimed, from the
     // leader, a place another leader's deal had numbered (a protocol
     // violation reported, no faults).

@@ -346,8 +346,8 @@ impl Kernel {
             Some(p) => &mut p.runs,
             None => &mut self.root_runs,
         };
-        parent_runs.bump(b);
         let epoch = self.org.start_run(team, b);
+        parent_runs.bump(b, epoch);
         self.org.link(b, team);
         let depth = self.stack.len() as u32;
         self.stack.push(Frame {

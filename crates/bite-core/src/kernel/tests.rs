@@ -1780,3 +1780,65 @@ behaviors:
         .any(|e| matches!(e, Event::LeftOut { members, .. } if members.contains(&RobotId(2))));
     assert!(left_out, "r1 no longer waits for r2");
 }
+
+/// A team that loops `a`, `b`, `a`, ... and ends each behavior on its own
+/// (`term.local`): a member may run ahead of its teammates by any number
+/// of executions.
+const LOOP_LOCAL: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: step, next: [b] }
+  b: { team: true, skill: w, until: step, next: [a] }";
+
+/// A teammate many executions behind, in one this robot ran under the
+/// same parent execution, is on this robot's way, not on a diverged
+/// history, even once the ends the robot remembers (`RECENT`) no longer
+/// name it. Found by `random_teams_survive_network_faults` (RNG seed 112,
+/// graph seed 9820052158066147912, no faults): a member done with a
+/// `term.local` decomposition went on alone through more than eight
+/// behaviors, then took its leader, still in the decomposition, for
+/// another history and went back into it; the leader followed it into a
+/// new execution of the decomposition, and the two did so every lap
+/// until the time limit.
+#[test]
+fn a_teammate_many_executions_behind_is_not_a_diverged_history() {
+    let mut h = Harness::new(LOOP_LOCAL, 2);
+    h.tick(0, &[("step", Value::Bool(false))]);
+    // Robot 1 alone ends an execution every other tick: 20 of them, far
+    // more than the ends it remembers.
+    for n in 1..=40 {
+        h.tick_one(1, 100 * n, &[("step", Value::Bool(n % 2 == 1))]);
+    }
+    let g = h.kernels[1].mission().graph();
+    let a = g.find("a").expect("a");
+    let root = g.find("root").expect("root");
+    let top = h.kernels[1].stack().last().map(|f| f.id()).expect("running");
+    assert!(top.epoch > position::RECENT as u32, "robot 1 ran ahead: {top:?}");
+    assert!(
+        !h.kernels[1]
+            .recent_ended
+            .iter()
+            .any(|e| e.id.behavior == a && e.id.epoch == 1),
+        "robot 1 no longer remembers ending a@1"
+    );
+    // Robot 0, the team's lowest id, is still in the first `a`.
+    let id = |behavior, epoch| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch,
+    };
+    let mut behind = running(&[(id(root, 1), None), (id(a, 1), Some((id(root, 1), true)))]);
+    behind.robot = RobotId(0);
+    h.kernels[1].peer(Time::from_millis(4_100), RobotId(0), &behind);
+    h.drain(1);
+    assert_eq!(
+        h.kernels[1].stack().last().map(|f| f.id()),
+        Some(top),
+        "robot 1 stays where it is"
+    );
+    assert!(
+        !h.events_of(1).iter().any(|e| matches!(e, Event::Split { .. })),
+        "no split"
+    );
+}
