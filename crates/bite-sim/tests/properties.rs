@@ -538,6 +538,10 @@ fn cases_that_failed_once() {
         // coordinator waited out two members still in the individual
         // behavior before it, whose heartbeats went to the team's leader.
         (14_151_179_637_200_551_742, 6),
+        // "A teammate many behaviors behind": a leader counted a teammate
+        // two behaviors behind as silent, having ended more than eight
+        // executions since the one the teammate ran.
+        (16_216_504_317_419_966_665, 5),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

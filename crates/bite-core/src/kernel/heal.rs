@@ -333,7 +333,7 @@ impl Kernel {
 
     /// The `k`-th frame of this robot's chain, root first: the stack's,
     /// then the one it ended (as its position lists them).
-    fn slot_at(&self, k: usize) -> Option<(Slot, &Frame)> {
+    pub(super) fn slot_at(&self, k: usize) -> Option<(Slot, &Frame)> {
         match self.stack.get(k) {
             Some(f) => Some((Slot::Stack(k), f)),
             None if k == self.stack.len() => Some((Slot::Popped, self.popped()?.0)),
@@ -456,17 +456,10 @@ impl Kernel {
         }
         let came_from =
             |a: Anchor, f: FrameId| !a.first && a.behavior == f.behavior && a.epoch == f.epoch;
-        // Behind on this robot's way: an execution it started under the
-        // same parent execution, or one the team numbered before such a
-        // start (the ends it remembers are bounded; a teammate may be
-        // many behaviors behind, under `term.local`, without the
-        // histories having diverged), unless it abandoned it.
-        let behind = self.stack[k - 1].runs.latest_epoch(g.id.behavior) >= g.id.epoch
-            && !self.recent_burned.contains(&g.id);
         let on_the_way = came_from(theirs, id)
             || came_from(mine, g.id)
             || ran(id, parent)
-            || behind
+            || self.passed(k, parent, g.id)
             || self.recent_ended.contains_ended(&Ended {
                 id: g.id,
                 parent: Some(parent),

@@ -691,6 +691,26 @@ impl Kernel {
             .is_some_and(|p| p.heard >= since && !p.frames.iter().any(|(f, _)| f.team == t))
     }
 
+    /// True when a teammate's execution `g`, at depth `k` under execution
+    /// `parent`, is behind on this robot's way: this robot runs `parent`
+    /// at depth `k - 1` and, under it, started `g` or a later execution of
+    /// the same behavior in the same team (epochs count a team's
+    /// executions of a behavior), and neither runs `g` at depth `k` nor
+    /// abandoned it. The ends a robot remembers are bounded ([`RECENT`]);
+    /// under `term.local` a teammate may be any number of behaviors
+    /// behind.
+    pub(super) fn passed(&self, k: usize, parent: FrameId, g: FrameId) -> bool {
+        let Some(p) = k.checked_sub(1).and_then(|i| self.stack.get(i)) else {
+            return false;
+        };
+        p.id() == parent
+            && p.runs.latest_epoch(g.behavior) >= g.epoch
+            && self
+                .slot_at(k)
+                .is_some_and(|(_, f)| f.team == g.team && f.id() != g)
+            && !self.recent_burned.contains(&g)
+    }
+
     /// Teammate `r`'s entry, if it was heard within [`FRESH`].
     pub(super) fn fresh_peer(&self, r: RobotId) -> Option<&Peer> {
         self.peers.get(&r).filter(|p| self.now - p.heard <= FRESH)
@@ -1451,10 +1471,11 @@ impl Kernel {
         // Whether a teammate's frame `k` (its frames are a chain, root
         // first: frame `k` runs under frame `k - 1`) is one of those.
         let is_behind = |frames: &[(FrameId, FrameState)], k: usize| {
+            let parent = k.checked_sub(1).map(|p| frames[p].0);
             behind.contains(&Ended {
                 id: frames[k].0,
-                parent: k.checked_sub(1).map(|p| frames[p].0),
-            })
+                parent,
+            }) || parent.is_some_and(|p| frames[k].0 != id && self.passed(k, p, frames[k].0))
         };
         if leader != Some(self.me) {
             return leader.and_then(heard).is_some_and(|frames| {

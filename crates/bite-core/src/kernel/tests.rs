@@ -1842,3 +1842,66 @@ fn a_teammate_many_executions_behind_is_not_a_diverged_history() {
         "no split"
     );
 }
+
+/// A loop like [`LOOP_LOCAL`]'s, left after four laps for `z`, whose end
+/// is a barrier.
+const LOOP_TO_BARRIER: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: step, next: [b], pre: 'runs < 4' }
+  b: { team: true, skill: w, until: step, next: [c] }
+  c: { team: true, skill: w, until: step, next: [a, z] }
+  z: { team: true, skill: w, until: step, terminate: term.test-barrier }";
+
+/// A leader at a barrier waits for a teammate many behaviors behind on its
+/// way, heard at work: slow, not silent, even once the ends the leader
+/// remembers (`RECENT`) no longer name the teammate's execution. Found by
+/// `no_waiting_across_levels` (RNG seed 20, graph seed
+/// 16216504317419966665): a leader waited out its deadline for a teammate
+/// two behaviors behind, having ended more than eight executions since.
+#[test]
+fn a_leader_waits_for_a_teammate_many_behaviors_behind() {
+    let mut h = Harness::new(LOOP_TO_BARRIER, 2);
+    h.tick(0, &[("step", Value::Bool(false))]);
+    let g = h.kernels[0].mission().graph();
+    let [root, a, b, z] = ["root", "a", "b", "z"].map(|n| g.find(n).expect("behavior"));
+    // Robot 0 alone runs on until it waits at `z`'s barrier.
+    let mut n = 0;
+    while h.kernels[0].popped().is_none() {
+        n += 1;
+        assert!(n < 400, "robot 0 never reached z: {:?}", h.stack(0));
+        h.tick_one(0, 100 * n, &[("step", Value::Bool(n % 2 == 1))]);
+    }
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: z,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert!(h.kernels[0].instances.get(&key).is_some(), "waits at z");
+    let id = |behavior, epoch| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch,
+    };
+    assert!(!h.kernels[0].recent_ended.contains(&id(a, 1)));
+    // Robot 1, heard at work in the first `a`, then in the first `b`.
+    let now = |k: u64| Time::from_millis(100 * n + 100 * k);
+    let mut first = running(&[(id(root, 1), None), (id(a, 1), Some((id(root, 1), true)))]);
+    first.robot = RobotId(1);
+    h.kernels[0].peer(now(1), RobotId(1), &first);
+    let mut next = running(&[(id(root, 1), None), (id(b, 1), Some((id(a, 1), false)))]);
+    next.robot = RobotId(1);
+    h.kernels[0].peer(now(2), RobotId(1), &next);
+    assert!(
+        h.kernels[0].awaited_at_work(key),
+        "a teammate at work many behaviors behind is awaited"
+    );
+    // Heard in an execution of `b` robot 0 never started: not behind.
+    let mut beyond = running(&[(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))]);
+    beyond.robot = RobotId(1);
+    h.kernels[0].peer(now(3), RobotId(1), &beyond);
+    assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
+}
