@@ -267,7 +267,10 @@ impl RunCounts {
     /// How many times `b` was started (0 when never).
     #[inline]
     pub fn get(&self, b: crate::ids::BehaviorId) -> u32 {
-        self.0.iter().find(|(x, _, _)| *x == b).map_or(0, |(_, n, _)| *n)
+        self.0
+            .iter()
+            .find(|(x, _, _)| *x == b)
+            .map_or(0, |(_, n, _)| *n)
     }
     /// Count one more start of `b`, its execution numbered `epoch`.
     pub fn bump(&mut self, b: crate::ids::BehaviorId, epoch: u32) {
@@ -291,7 +294,10 @@ impl RunCounts {
     /// `b` by the same team under the same parent execution with an epoch
     /// up to this one came no later than this start.
     pub fn latest_epoch(&self, b: crate::ids::BehaviorId) -> u32 {
-        self.0.iter().find(|(x, _, _)| *x == b).map_or(0, |(_, _, e)| *e)
+        self.0
+            .iter()
+            .find(|(x, _, _)| *x == b)
+            .map_or(0, |(_, _, e)| *e)
     }
     /// Every behavior started, with its count, in behavior order.
     pub fn iter(&self) -> impl Iterator<Item = (crate::ids::BehaviorId, u32)> + '_ {

@@ -122,6 +122,11 @@ pub(crate) struct Coord {
     /// This robot became the leader after the instance started (its
     /// leader was lost).
     took_over: bool,
+    /// A decision announced by a teammate before this robot's leader that
+    /// has left the behavior since (left out here, not presumed lost),
+    /// heard while this robot was a member: adopted if this robot comes
+    /// to lead (see [`Coord::members_changed`]).
+    departed_decision: Option<(RobotId, Outcome)>,
     resends: u32,
     /// When the instance last made progress (see [`Coord::progress`]).
     progress_at: Option<bite_core::time::Time>,
@@ -218,7 +223,26 @@ impl Coord {
             }
             return None;
         }
-        (!cx.is_aborted()).then_some(changed)
+        if cx.is_aborted() || self.adopt_departed(cx) {
+            return None;
+        }
+        Some(changed)
+    }
+
+    /// Leading now, with the decision a teammate before this robot
+    /// applied and left with (kept by [`Coord::on_announcement`]): adopt
+    /// and announce it, the team's decision. True when it did.
+    pub(crate) fn adopt_departed(&mut self, cx: &mut Cx<'_>) -> bool {
+        if self.result.is_some() || !cx.is_leader() {
+            return false;
+        }
+        match self.departed_decision.take() {
+            Some((_, o)) => {
+                self.adopt(cx, o, true);
+                true
+            }
+            None => false,
+        }
     }
 
     /// The deadline passed: true when this robot leads (`leading`) and has
@@ -259,12 +283,32 @@ impl Coord {
         if self.result.is_some() || cx.is_aborted() {
             return true;
         }
+        // From a teammate before this robot that left the behavior (left
+        // out, not presumed lost): it coordinated the point, decided,
+        // applied its decision and went on, and the message waited while
+        // this robot was on its way. A leader adopts (and announces) it;
+        // a member keeps it in case it comes to lead, and follows its
+        // leader meanwhile: under loss the leader may not have heard it,
+        // and members that applied it while their leader decided anew
+        // parted from it (docs/reliability.md, "A decision from a leader
+        // that left").
+        let departed = from < cx.me()
+            && cx.team().contains(from)
+            && !cx.is_live(from)
+            && !cx.is_presumed_lost(from);
         if cx.is_leader() {
-            if self.took_over {
+            if self.took_over || departed {
                 self.adopt(cx, outcome, true);
             }
         } else if from == cx.leader() {
             self.adopt(cx, outcome, false);
+        } else if departed
+            && self
+                .departed_decision
+                .as_ref()
+                .is_none_or(|(r, _)| from < *r)
+        {
+            self.departed_decision = Some((from, outcome));
         }
         true
     }
@@ -505,6 +549,9 @@ impl<R: Rule> Interaction for Gather<R> {
     fn on_members_changed(&mut self, cx: &mut Cx<'_>) {
         let changed = self.coord.leader_changed(cx);
         if cx.is_leader() {
+            if !cx.is_aborted() && self.coord.adopt_departed(cx) {
+                return;
+            }
             if self.coord.result.is_none() && !cx.is_aborted() {
                 if changed && self.rule.gathers() && self.rule.call(cx).is_none() {
                     // Taking over a rule without a call: a member that

@@ -28,6 +28,8 @@ const GRAPH: &str = "graph: notice\nteam: { robots: 3 }\nstart: a\n\
 struct Drained {
     sent: Vec<(Recipients, Body)>,
     started: Option<InstanceKey>,
+    /// Who the last instance started left out.
+    left_out: Vec<RobotId>,
     decided: Vec<String>,
 }
 
@@ -36,7 +38,12 @@ fn drain(k: &mut Kernel) -> Drained {
     while let Some(o) = k.poll_output() {
         match o {
             Output::Send(s) => d.sent.push((s.to, s.envelope.body)),
-            Output::Event(Event::InteractionStarted { instance, .. }) => d.started = Some(instance),
+            Output::Event(Event::InteractionStarted {
+                instance, excluded, ..
+            }) => {
+                d.started = Some(instance);
+                d.left_out = excluded;
+            }
             Output::Event(e @ Event::InteractionDecided { .. }) => d.decided.push(format!("{e:?}")),
             Output::Event(_) => {}
         }
@@ -213,5 +220,126 @@ fn a_robot_leading_because_its_leader_left_adopts_the_decision_a_member_applied(
         (adopted.sent.iter()).any(|(_, m)| *m == Body::Decision { choice: Some(c) }),
         "r1 announces it: {:?}",
         adopted.sent
+    );
+}
+
+/// [`GRAPH`] under a root behavior: the vote after `a` runs under `root`.
+const UNDER_ROOT: &str = "graph: left\nteam: { robots: 3 }\nstart: root\n\
+    defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
+    behaviors:\n  root: { team: true, children: [a] }\n\
+    \x20 a: { team: true, skill: w, until: go, next: [b, c] }\n\
+    \x20 b: { team: true, skill: w }\n  c: { team: true, skill: w }\n";
+
+/// Robot `me` of [`UNDER_ROOT`]'s three, ticked once in `a`, that then
+/// heard its teammate r0 decide the vote after `a` for `c` (the message
+/// waits: the vote has not started here) and then finish the mission (so
+/// r0 left `root`: it is left out of the vote here, not presumed lost).
+/// Returns the kernel, the belief `go`, `c`, and the vote's key.
+fn after_r0_decided_and_left(me: u32) -> (Kernel, bite_core::BeliefId, BehaviorId, InstanceKey) {
+    use bite_core::TeamId;
+    use bite_core::kernel::{Ended, FrameId, Position};
+    use bite_core::msg::Kind;
+    let g = load_str(&Arc::from("left.yaml"), UNDER_ROOT).expect("the test graph loads");
+    let [root, a, c] = ["root", "a", "c"].map(|n| g.find(n).expect("behavior"));
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut k = Kernel::new(mission, RobotId(me), u64::from(me) + 1);
+    let go = k.mission().graph().symbols().get("go").expect("belief");
+    let t = Time::from_secs_f64;
+    k.tick(Time::ZERO, &[(go, Value::Bool(false))]);
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: a,
+        kind: Kind::Sync,
+        epoch: 1,
+        round: 0,
+    };
+    k.message(t(0.1), from(0, key, 1, Body::Decision { choice: Some(c) }));
+    let id = |behavior| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch: 1,
+    };
+    let done = Position {
+        robot: RobotId(0),
+        ended: vec![
+            Ended {
+                id: id(c),
+                parent: Some(id(root)),
+            },
+            Ended {
+                id: id(root),
+                parent: None,
+            },
+        ],
+        ..Position::default()
+    };
+    k.peer(t(0.2), RobotId(0), &done);
+    drain(&mut k);
+    (k, go, c, key)
+}
+
+/// A robot that reaches a point its coordinator decided before leaving the
+/// behavior, and coordinates it now (the one before it left), applies the
+/// decision that waited for it instead of deciding anew. Found by
+/// `no_waiting_across_levels` (RNG seed 169, graph seed
+/// 15129041871835573196, eight robots, no faults): the new coordinator
+/// chose to end the chain while the members the old one had told went to
+/// its successor (docs/reliability.md, "A decision from a leader that
+/// left").
+#[test]
+fn a_coordinator_applies_the_decision_its_predecessor_made_and_left_with() {
+    let (mut r1, go, c, key) = after_r0_decided_and_left(1);
+    r1.tick(Time::from_secs_f64(0.3), &[(go, Value::Bool(true))]);
+    let mut d = drain(&mut r1);
+    assert_eq!(d.started, Some(key), "the vote started");
+    assert_eq!(d.left_out, [RobotId(0)], "r0 left: r1 coordinates");
+    d.decided.retain(|e| e.contains("kind: Sync"));
+    assert_eq!(d.decided.len(), 1, "decided at once: {:?}", d.sent);
+    assert!(
+        d.decided[0].contains(&format!("choice: Some({c:?})")),
+        "r1 applies r0's decision: {:?}",
+        d.decided
+    );
+    assert!(
+        d.sent.iter().all(|(_, m)| match m {
+            Body::Propose { .. } => false,
+            Body::Decision { choice } => *choice == Some(c),
+            _ => true,
+        }),
+        "no vote of its own: {:?}",
+        d.sent
+    );
+}
+
+/// A member that heard the decision of a teammate before its coordinator,
+/// which left the behavior with it, follows its coordinator; if it comes
+/// to coordinate (the coordinator presumed lost), it adopts and announces
+/// that decision instead of deciding anew. Found by
+/// `no_waiting_across_levels` (RNG seed 75, graph seed
+/// 10533492770770632144, seven robots, no faults). A member does not adopt
+/// it while it has a coordinator: under loss that coordinator may not have
+/// heard it, and decided anew (seed 113, 27 % loss).
+#[test]
+fn a_member_adopts_the_decision_of_a_leader_that_left_once_it_leads() {
+    let (mut r2, go, c, key) = after_r0_decided_and_left(2);
+    let t = Time::from_secs_f64;
+    r2.tick(t(0.3), &[(go, Value::Bool(true))]);
+    let mut d = drain(&mut r2);
+    assert_eq!(d.started, Some(key), "the vote started");
+    assert_eq!(d.left_out, [RobotId(0)], "r0 left: r1 coordinates");
+    d.decided.retain(|e| e.contains("kind: Sync"));
+    assert!(d.decided.is_empty(), "r1 coordinates: {:?}", d.decided);
+    r2.member_lost(t(0.4), RobotId(1));
+    let led = drain(&mut r2);
+    assert_eq!(led.decided.len(), 1, "r2 decides: {:?}", led.sent);
+    assert!(
+        led.decided[0].contains(&format!("choice: Some({c:?})")),
+        "r2 adopts r0's decision: {:?}",
+        led.decided
+    );
+    assert!(
+        (led.sent.iter()).any(|(_, m)| *m == Body::Decision { choice: Some(c) }),
+        "and announces it: {:?}",
+        led.sent
     );
 }

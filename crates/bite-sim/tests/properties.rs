@@ -542,6 +542,12 @@ fn cases_that_failed_once() {
         // two behaviors behind as silent, having ended more than eight
         // executions since the one the teammate ran.
         (16_216_504_317_419_966_665, 5),
+        // "A decision from a leader that left": the coordinator of a
+        // synchronization decided, applied and left; a member on its way
+        // found the decision waiting, then led without it and chose
+        // another successor (seven robots, then eight).
+        (10_533_492_770_770_632_144, 7),
+        (15_129_041_871_835_573_196, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
@@ -557,6 +563,17 @@ fn cases_that_failed_once() {
     // diverged history and went back into it, and the two restarted the
     // decomposition every lap (no faults; NOT COMPLETED at the time limit).
     run_case(9_820_052_158_066_147_912, 6, 0.0, 0.0, 0).unwrap_or_else(|e| panic!("{e}"));
+    // The same, under 27 % loss: members that adopted the decision of a
+    // coordinator that had left, while their new coordinator, which had
+    // not heard it, decided anew, held another allocation than it.
+    run_case(
+        29_773_664_256_678_449,
+        11,
+        0.269_041_931_899_805_63,
+        0.0,
+        20,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     // "A token from a teammate left out": a member claimed, from the
     // leader, a place another leader's deal had numbered (a protocol
     // violation reported, no faults).

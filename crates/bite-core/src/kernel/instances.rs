@@ -180,19 +180,78 @@ impl Kernel {
                 options,
             });
         }
-        // Started before it is put in the table: absent meanwhile, as an
-        // instance is during every call into it.
-        self.call_with(key, inst, |imp, cx| imp.start(cx));
+        let mut waiting = self.inbox.take(key);
+        match self.decided_by_departed(key, &inst, &waiting) {
+            // The team decided before this robot came: it applies that
+            // decision, and its protocol instance, never started, answers
+            // teammates with it.
+            Some(o) => {
+                self.instances.insert(key, inst);
+                self.force(key, o);
+            }
+            // Started before it is put in the table: absent meanwhile, as
+            // an instance is during every call into it.
+            None => self.call_with(key, inst, |imp, cx| imp.start(cx)),
+        }
         self.refresh_due();
         // A teammate's word on how the instance was decided without this
         // robot (`Missed`) comes before the protocol's messages that
         // waited with it: answering the coordinator's call first would
         // hand it a contribution (a vote, a bid) from a robot that then
         // applies the other decision, and the two would part.
-        let mut waiting = self.inbox.take(key);
         waiting.sort_by_key(|m| !matches!(m.body, Body::Missed { .. }));
         for m in waiting {
             self.deliver(key, m.from, m.body);
+        }
+    }
+
+    /// The decision of a synchronization or an allocation that a teammate
+    /// coordinating it before this robot announced, applied, and left the
+    /// behavior with (so it is left out here, not presumed lost), found
+    /// among the messages that waited for the instance while this robot
+    /// was on its way; `None` unless this robot now coordinates it. Without
+    /// this, the new coordinator decided anew, and the team applied two
+    /// decisions with no faults (docs/reliability.md, "A decision from a
+    /// leader that left"). A member follows its coordinator instead: under
+    /// loss the coordinator may not have heard the decision, and members
+    /// that applied it while their coordinator decided anew parted from it.
+    /// Only the library's announcements are read (`Decision`,
+    /// `Assignment`); a graph-defined protocol's are its own.
+    fn decided_by_departed(
+        &self,
+        key: InstanceKey,
+        inst: &Instance,
+        waiting: &[inbox::Pending],
+    ) -> Option<Outcome> {
+        if waiting.is_empty() || self.coordinator(key, inst) != Some(self.me) {
+            return None;
+        }
+        let departed = |r: RobotId| {
+            r < self.me
+                && inst.team.contains(r)
+                && inst.excluded.as_ref().is_some_and(|x| x.contains(r))
+                && !self.lost.contains(r)
+                && !self.ever_lost.contains(r)
+        };
+        let m = waiting
+            .iter()
+            .filter(|m| departed(m.from))
+            .filter(|m| match (&inst.input, &m.body) {
+                (PointInput::Sync { successors, .. }, Body::Decision { choice }) => {
+                    choice.is_none_or(|c| successors.contains(&c))
+                }
+                (PointInput::Allocate { .. }, Body::Assignment { .. }) => true,
+                _ => false,
+            })
+            .min_by_key(|m| m.from)?;
+        match (&inst.input, &m.body) {
+            (PointInput::Sync { .. }, Body::Decision { choice }) => {
+                Some(Outcome::Sync(choice.to_owned()))
+            }
+            (PointInput::Allocate { .. }, b) => b
+                .to_assignment(self.org.roster_len())
+                .map(|a| Outcome::Allocate(Arc::new(a))),
+            _ => None,
         }
     }
 

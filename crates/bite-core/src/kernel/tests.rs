@@ -1813,8 +1813,15 @@ fn a_teammate_many_executions_behind_is_not_a_diverged_history() {
     let g = h.kernels[1].mission().graph();
     let a = g.find("a").expect("a");
     let root = g.find("root").expect("root");
-    let top = h.kernels[1].stack().last().map(|f| f.id()).expect("running");
-    assert!(top.epoch > position::RECENT as u32, "robot 1 ran ahead: {top:?}");
+    let top = h.kernels[1]
+        .stack()
+        .last()
+        .map(|f| f.id())
+        .expect("running");
+    assert!(
+        top.epoch > position::RECENT as u32,
+        "robot 1 ran ahead: {top:?}"
+    );
     assert!(
         !h.kernels[1]
             .recent_ended
@@ -1838,7 +1845,9 @@ fn a_teammate_many_executions_behind_is_not_a_diverged_history() {
         "robot 1 stays where it is"
     );
     assert!(
-        !h.events_of(1).iter().any(|e| matches!(e, Event::Split { .. })),
+        !h.events_of(1)
+            .iter()
+            .any(|e| matches!(e, Event::Split { .. })),
         "no split"
     );
 }
