@@ -451,7 +451,11 @@ impl Interaction for Market {
     }
 
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
-        if cx.is_leader() && self.leading && self.coord.result.is_none() {
+        if cx.is_leader()
+            && self.leading
+            && self.coord.result.is_none()
+            && !self.coord.after_departed(cx)
+        {
             // Leaving: the others go on with the awards made and the rest
             // dealt by id (this robot's own decision is ignored: it left).
             self.finish(cx);

@@ -229,6 +229,22 @@ impl Coord {
         Some(changed)
     }
 
+    /// True when this robot leads only because teammates before it left
+    /// the behavior (left out, not presumed lost): the first of them may
+    /// have decided and left with its decision, which has yet to reach
+    /// this robot. Leaving the point then, it decides nothing: a decision
+    /// of its own, announced, parted the members that applied it from
+    /// those that had the old one (docs/reliability.md, "A coordinator
+    /// that took over and left"); the members' next coordinator adopts
+    /// the old one if it reached it ([`Coord::on_announcement`]).
+    pub(crate) fn after_departed(&self, cx: &Cx<'_>) -> bool {
+        cx.team()
+            .members
+            .iter()
+            .take_while(|r| *r != cx.me())
+            .any(|r| !cx.is_live(r) && !cx.is_presumed_lost(r))
+    }
+
     /// Leading now, with the decision a teammate before this robot
     /// applied and left with (kept by [`Coord::on_announcement`]): adopt
     /// and announce it, the team's decision. True when it did.
@@ -580,7 +596,7 @@ impl<R: Rule> Interaction for Gather<R> {
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
         if cx.is_leader() {
             // Leaving: the others go on with what was gathered so far.
-            if self.coord.result.is_none() {
+            if self.coord.result.is_none() && !self.coord.after_departed(cx) {
                 self.finish(cx);
             }
         } else if self.sent.is_none()

@@ -385,7 +385,11 @@ impl Interaction for Tokens {
     }
 
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
-        if cx.is_leader() && self.leading && self.coord.result.is_none() {
+        if cx.is_leader()
+            && self.leading
+            && self.coord.result.is_none()
+            && !self.coord.after_departed(cx)
+        {
             self.finish(cx);
         }
     }

@@ -236,10 +236,20 @@ const UNDER_ROOT: &str = "graph: left\nteam: { robots: 3 }\nstart: root\n\
 /// r0 left `root`: it is left out of the vote here, not presumed lost).
 /// Returns the kernel, the belief `go`, `c`, and the vote's key.
 fn after_r0_decided_and_left(me: u32) -> (Kernel, bite_core::BeliefId, BehaviorId, InstanceKey) {
+    after_r0_left(UNDER_ROOT, me, true)
+}
+
+/// As [`after_r0_decided_and_left`], on `graph` (which has [`UNDER_ROOT`]'s
+/// behaviors), the decision heard only if `told`.
+fn after_r0_left(
+    graph: &str,
+    me: u32,
+    told: bool,
+) -> (Kernel, bite_core::BeliefId, BehaviorId, InstanceKey) {
     use bite_core::TeamId;
     use bite_core::kernel::{Ended, FrameId, Position};
     use bite_core::msg::Kind;
-    let g = load_str(&Arc::from("left.yaml"), UNDER_ROOT).expect("the test graph loads");
+    let g = load_str(&Arc::from("left.yaml"), graph).expect("the test graph loads");
     let [root, a, c] = ["root", "a", "c"].map(|n| g.find(n).expect("behavior"));
     let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
     let mut k = Kernel::new(mission, RobotId(me), u64::from(me) + 1);
@@ -253,7 +263,9 @@ fn after_r0_decided_and_left(me: u32) -> (Kernel, bite_core::BeliefId, BehaviorI
         epoch: 1,
         round: 0,
     };
-    k.message(t(0.1), from(0, key, 1, Body::Decision { choice: Some(c) }));
+    if told {
+        k.message(t(0.1), from(0, key, 1, Body::Decision { choice: Some(c) }));
+    }
     let id = |behavior| FrameId {
         team: TeamId::ROOT,
         behavior,
@@ -341,5 +353,49 @@ fn a_member_adopts_the_decision_of_a_leader_that_left_once_it_leads() {
         (led.sent.iter()).any(|(_, m)| *m == Body::Decision { choice: Some(c) }),
         "and announces it: {:?}",
         led.sent
+    );
+}
+
+/// A robot that coordinates a point only because the teammate before it
+/// left the behavior, and has not heard that teammate's decision, leaves
+/// the point itself (its `root` ends) without deciding: a decision of its
+/// own, announced as it left, parted the members that applied it from
+/// those that had the old one. Found by `random_teams_survive_network_faults`
+/// (RNG seed 196, graph seed 12199998743731976875, five robots, 2.5 %
+/// loss, 126 ms jitter): the old coordinator's heartbeat overtook its
+/// announcement (docs/reliability.md, "A coordinator that took over and
+/// left").
+#[test]
+fn a_coordinator_after_one_that_left_leaves_without_deciding() {
+    const ROOT_ENDS: &str = "graph: left\nteam: { robots: 3 }\nstart: root\n\
+        defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
+        behaviors:\n  root: { team: true, children: [a], until: stop }\n\
+        \x20 a: { team: true, skill: w, until: go, next: [b, c] }\n\
+        \x20 b: { team: true, skill: w }\n  c: { team: true, skill: w }\n";
+    let (mut r1, go, _, key) = after_r0_left(ROOT_ENDS, 1, false);
+    let stop = r1.mission().graph().symbols().get("stop").expect("belief");
+    let t = Time::from_secs_f64;
+    r1.tick(
+        t(0.3),
+        &[(go, Value::Bool(true)), (stop, Value::Bool(false))],
+    );
+    let mut d = drain(&mut r1);
+    assert_eq!(d.started, Some(key), "the vote started");
+    assert_eq!(d.left_out, [RobotId(0)], "r0 left: r1 coordinates");
+    d.decided.retain(|e| e.contains("kind: Sync"));
+    assert!(
+        d.decided.is_empty(),
+        "r1 waits for r2's vote: {:?}",
+        d.decided
+    );
+    // `root` ends for r1: it leaves the vote.
+    r1.tick(t(0.4), &[(stop, Value::Bool(true))]);
+    let left = drain(&mut r1);
+    assert!(
+        left.sent
+            .iter()
+            .all(|(_, m)| !matches!(m, Body::Decision { .. })),
+        "r1 announced a decision of its own: {:?}",
+        left.sent
     );
 }
