@@ -454,7 +454,7 @@ impl Interaction for Market {
         if cx.is_leader()
             && self.leading
             && self.coord.result.is_none()
-            && !self.coord.after_departed(cx)
+            && !self.coord.after_departed()
         {
             // Leaving: the others go on with the awards made and the rest
             // dealt by id (this robot's own decision is ignored: it left).

@@ -127,6 +127,9 @@ pub(crate) struct Coord {
     /// heard while this robot was a member: adopted if this robot comes
     /// to lead (see [`Coord::members_changed`]).
     departed_decision: Option<(RobotId, Outcome)>,
+    /// This robot took the lead after the instance started from a
+    /// coordinator that left the behavior (see [`Coord::after_departed`]).
+    heir_of_departed: bool,
     resends: u32,
     /// When the instance last made progress (see [`Coord::progress`]).
     progress_at: Option<bite_core::time::Time>,
@@ -203,10 +206,14 @@ impl Coord {
     /// Members changed: did the leader change? (Notes a takeover.)
     pub(crate) fn leader_changed(&mut self, cx: &Cx<'_>) -> bool {
         let leader = cx.leader();
-        let changed = self.known_leader != Some(leader);
+        let before = self.known_leader;
+        let changed = before != Some(leader);
         self.known_leader = Some(leader);
         if changed && cx.is_leader() {
             self.took_over = true;
+            if before.is_some_and(|b| b != cx.me() && !cx.is_live(b) && !cx.is_presumed_lost(b)) {
+                self.heir_of_departed = true;
+            }
         }
         changed
     }
@@ -229,20 +236,19 @@ impl Coord {
         Some(changed)
     }
 
-    /// True when this robot leads only because teammates before it left
-    /// the behavior (left out, not presumed lost): the first of them may
-    /// have decided and left with its decision, which has yet to reach
-    /// this robot. Leaving the point then, it decides nothing: a decision
-    /// of its own, announced, parted the members that applied it from
-    /// those that had the old one (docs/reliability.md, "A coordinator
-    /// that took over and left"); the members' next coordinator adopts
-    /// the old one if it reached it ([`Coord::on_announcement`]).
-    pub(crate) fn after_departed(&self, cx: &Cx<'_>) -> bool {
-        cx.team()
-            .members
-            .iter()
-            .take_while(|r| *r != cx.me())
-            .any(|r| !cx.is_live(r) && !cx.is_presumed_lost(r))
+    /// True when this robot took the lead during the instance from a
+    /// coordinator that left the behavior (left out, not presumed lost):
+    /// that coordinator may have decided and left with its decision, which
+    /// has yet to reach this robot. Leaving the point then, it decides
+    /// nothing: a decision of its own, announced, parted the members that
+    /// applied it from those that had the old one (docs/reliability.md, "A
+    /// coordinator that took over and left"); the members' next
+    /// coordinator adopts the old one if it reached it
+    /// ([`Coord::on_announcement`]). A robot that led from the start
+    /// decides as it leaves, as before: without it, members that reached
+    /// the point later waited for a coordinator that had gone.
+    pub(crate) fn after_departed(&self) -> bool {
+        self.heir_of_departed
     }
 
     /// Leading now, with the decision a teammate before this robot
@@ -596,7 +602,7 @@ impl<R: Rule> Interaction for Gather<R> {
     fn on_abort(&mut self, cx: &mut Cx<'_>) {
         if cx.is_leader() {
             // Leaving: the others go on with what was gathered so far.
-            if self.coord.result.is_none() && !self.coord.after_departed(cx) {
+            if self.coord.result.is_none() && !self.coord.after_departed() {
                 self.finish(cx);
             }
         } else if self.sent.is_none()

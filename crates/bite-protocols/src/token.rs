@@ -388,7 +388,7 @@ impl Interaction for Tokens {
         if cx.is_leader()
             && self.leading
             && self.coord.result.is_none()
-            && !self.coord.after_departed(cx)
+            && !self.coord.after_departed()
         {
             self.finish(cx);
         }

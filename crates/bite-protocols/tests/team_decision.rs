@@ -236,16 +236,26 @@ const UNDER_ROOT: &str = "graph: left\nteam: { robots: 3 }\nstart: root\n\
 /// r0 left `root`: it is left out of the vote here, not presumed lost).
 /// Returns the kernel, the belief `go`, `c`, and the vote's key.
 fn after_r0_decided_and_left(me: u32) -> (Kernel, bite_core::BeliefId, BehaviorId, InstanceKey) {
-    after_r0_left(UNDER_ROOT, me, true)
+    let (mut k, go, c, key, done) = after_r0_left(UNDER_ROOT, me, true);
+    k.peer(Time::from_secs_f64(0.2), RobotId(0), &done);
+    drain(&mut k);
+    (k, go, c, key)
 }
 
 /// As [`after_r0_decided_and_left`], on `graph` (which has [`UNDER_ROOT`]'s
-/// behaviors), the decision heard only if `told`.
+/// behaviors), the decision heard only if `told`, and r0's heartbeat
+/// that shows it done with the mission returned, not heard yet.
 fn after_r0_left(
     graph: &str,
     me: u32,
     told: bool,
-) -> (Kernel, bite_core::BeliefId, BehaviorId, InstanceKey) {
+) -> (
+    Kernel,
+    bite_core::BeliefId,
+    BehaviorId,
+    InstanceKey,
+    bite_core::kernel::Position,
+) {
     use bite_core::TeamId;
     use bite_core::kernel::{Ended, FrameId, Position};
     use bite_core::msg::Kind;
@@ -285,9 +295,8 @@ fn after_r0_left(
         ],
         ..Position::default()
     };
-    k.peer(t(0.2), RobotId(0), &done);
     drain(&mut k);
-    (k, go, c, key)
+    (k, go, c, key, done)
 }
 
 /// A robot that reaches a point its coordinator decided before leaving the
@@ -356,15 +365,17 @@ fn a_member_adopts_the_decision_of_a_leader_that_left_once_it_leads() {
     );
 }
 
-/// A robot that coordinates a point only because the teammate before it
-/// left the behavior, and has not heard that teammate's decision, leaves
-/// the point itself (its `root` ends) without deciding: a decision of its
-/// own, announced as it left, parted the members that applied it from
-/// those that had the old one. Found by `random_teams_survive_network_faults`
-/// (RNG seed 196, graph seed 12199998743731976875, five robots, 2.5 %
-/// loss, 126 ms jitter): the old coordinator's heartbeat overtook its
-/// announcement (docs/reliability.md, "A coordinator that took over and
-/// left").
+/// A robot that took the lead of a point from the teammate before it,
+/// which left the behavior once the point had started here, leaves the
+/// point itself (its `root` ends) without deciding if it has not heard
+/// that teammate's decision: a decision of its own, announced as it left,
+/// parted the members that applied it from those that had the old one.
+/// Found by `random_teams_survive_network_faults` (RNG seed 196, graph
+/// seed 12199998743731976875, five robots, 2.5 % loss, 126 ms jitter): the
+/// old coordinator's heartbeat overtook its announcement
+/// (docs/reliability.md, "A coordinator that took over and left"). A
+/// robot that led the point from the start decides as it leaves: without
+/// that, members that came later waited for a coordinator that had gone.
 #[test]
 fn a_coordinator_after_one_that_left_leaves_without_deciding() {
     const ROOT_ENDS: &str = "graph: left\nteam: { robots: 3 }\nstart: root\n\
@@ -372,30 +383,37 @@ fn a_coordinator_after_one_that_left_leaves_without_deciding() {
         behaviors:\n  root: { team: true, children: [a], until: stop }\n\
         \x20 a: { team: true, skill: w, until: go, next: [b, c] }\n\
         \x20 b: { team: true, skill: w }\n  c: { team: true, skill: w }\n";
-    let (mut r1, go, _, key) = after_r0_left(ROOT_ENDS, 1, false);
-    let stop = r1.mission().graph().symbols().get("stop").expect("belief");
     let t = Time::from_secs_f64;
-    r1.tick(
-        t(0.3),
-        &[(go, Value::Bool(true)), (stop, Value::Bool(false))],
-    );
-    let mut d = drain(&mut r1);
-    assert_eq!(d.started, Some(key), "the vote started");
-    assert_eq!(d.left_out, [RobotId(0)], "r0 left: r1 coordinates");
-    d.decided.retain(|e| e.contains("kind: Sync"));
-    assert!(
-        d.decided.is_empty(),
-        "r1 waits for r2's vote: {:?}",
-        d.decided
-    );
-    // `root` ends for r1: it leaves the vote.
-    r1.tick(t(0.4), &[(stop, Value::Bool(true))]);
-    let left = drain(&mut r1);
-    assert!(
-        left.sent
-            .iter()
-            .all(|(_, m)| !matches!(m, Body::Decision { .. })),
-        "r1 announced a decision of its own: {:?}",
-        left.sent
-    );
+    // r0 heard done before the vote starts (r1 leads from the start), or
+    // after (r1 takes over).
+    for left_before in [true, false] {
+        let (mut r1, go, _, key, done) = after_r0_left(ROOT_ENDS, 1, false);
+        let stop = r1.mission().graph().symbols().get("stop").expect("belief");
+        if left_before {
+            r1.peer(t(0.2), RobotId(0), &done);
+        }
+        let go_on = [(go, Value::Bool(true)), (stop, Value::Bool(false))];
+        r1.tick(t(0.3), &go_on);
+        let mut d = drain(&mut r1);
+        assert_eq!(d.started, Some(key), "the vote started");
+        if !left_before {
+            r1.peer(t(0.35), RobotId(0), &done);
+            d.decided.extend(drain(&mut r1).decided);
+        }
+        d.decided.retain(|e| e.contains("kind: Sync"));
+        assert!(
+            d.decided.is_empty(),
+            "r1 waits for r2's vote: {:?}",
+            d.decided
+        );
+        // `root` ends for r1: it leaves the vote.
+        r1.tick(t(0.4), &[(stop, Value::Bool(true))]);
+        let left = drain(&mut r1);
+        let announced = (left.sent.iter()).any(|(_, m)| matches!(m, Body::Decision { .. }));
+        assert_eq!(
+            announced, left_before,
+            "r0 left before the vote: {left_before}; r1 sent {:?}",
+            left.sent
+        );
+    }
 }
