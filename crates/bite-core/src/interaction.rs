@@ -626,6 +626,12 @@ impl<'a> Cx<'a> {
             && self.excluded.is_some_and(|x| x.contains(r))
             && self.lost.is_none_or(|l| l.contains(r))
     }
+    /// True when member `r` is left out because it left the behavior (it
+    /// ended an ancestor, or went on past the point), not because it is
+    /// presumed lost.
+    pub fn has_left(&self, r: RobotId) -> bool {
+        self.team.contains(r) && !self.is_live(r) && !self.is_presumed_lost(r)
+    }
     /// True when `r` is a member not presumed lost.
     pub fn is_live(&self, r: RobotId) -> bool {
         self.team.contains(r) && self.excluded.is_none_or(|x| !x.contains(r))

@@ -258,9 +258,7 @@ impl Barrier {
                     .team()
                     .members
                     .iter()
-                    .filter(|m| {
-                        arrived.contains(*m) || (!cx.is_live(*m) && !cx.is_presumed_lost(*m))
-                    })
+                    .filter(|m| arrived.contains(*m) || cx.has_left(*m))
                     .count();
                 all_arrived > whole / 2
             }

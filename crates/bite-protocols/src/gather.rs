@@ -211,7 +211,7 @@ impl Coord {
         self.known_leader = Some(leader);
         if changed && cx.is_leader() {
             self.took_over = true;
-            if before.is_some_and(|b| b != cx.me() && !cx.is_live(b) && !cx.is_presumed_lost(b)) {
+            if before.is_some_and(|b| b != cx.me() && cx.has_left(b)) {
                 self.heir_of_departed = true;
             }
         }
@@ -314,10 +314,7 @@ impl Coord {
         // and members that applied it while their leader decided anew
         // parted from it (docs/reliability.md, "A decision from a leader
         // that left").
-        let departed = from < cx.me()
-            && cx.team().contains(from)
-            && !cx.is_live(from)
-            && !cx.is_presumed_lost(from);
+        let departed = from < cx.me() && cx.has_left(from);
         if cx.is_leader() {
             if self.took_over || departed {
                 self.adopt(cx, outcome, true);

@@ -299,6 +299,14 @@ fn after_r0_left(
     (k, go, c, key, done)
 }
 
+/// The vote `key` started with r0 left out (it left: this robot's
+/// instance does not count it), and the synchronizations decided with it.
+fn started_without_r0(d: &mut Drained, key: InstanceKey) {
+    assert_eq!(d.started, Some(key), "the vote started");
+    assert_eq!(d.left_out, [RobotId(0)], "r0 left: it is left out");
+    d.decided.retain(|e| e.contains("kind: Sync"));
+}
+
 /// A robot that reaches a point its coordinator decided before leaving the
 /// behavior, and coordinates it now (the one before it left), applies the
 /// decision that waited for it instead of deciding anew. Found by
@@ -312,9 +320,7 @@ fn a_coordinator_applies_the_decision_its_predecessor_made_and_left_with() {
     let (mut r1, go, c, key) = after_r0_decided_and_left(1);
     r1.tick(Time::from_secs_f64(0.3), &[(go, Value::Bool(true))]);
     let mut d = drain(&mut r1);
-    assert_eq!(d.started, Some(key), "the vote started");
-    assert_eq!(d.left_out, [RobotId(0)], "r0 left: r1 coordinates");
-    d.decided.retain(|e| e.contains("kind: Sync"));
+    started_without_r0(&mut d, key);
     assert_eq!(d.decided.len(), 1, "decided at once: {:?}", d.sent);
     assert!(
         d.decided[0].contains(&format!("choice: Some({c:?})")),
@@ -346,9 +352,7 @@ fn a_member_adopts_the_decision_of_a_leader_that_left_once_it_leads() {
     let t = Time::from_secs_f64;
     r2.tick(t(0.3), &[(go, Value::Bool(true))]);
     let mut d = drain(&mut r2);
-    assert_eq!(d.started, Some(key), "the vote started");
-    assert_eq!(d.left_out, [RobotId(0)], "r0 left: r1 coordinates");
-    d.decided.retain(|e| e.contains("kind: Sync"));
+    started_without_r0(&mut d, key);
     assert!(d.decided.is_empty(), "r1 coordinates: {:?}", d.decided);
     r2.member_lost(t(0.4), RobotId(1));
     let led = drain(&mut r2);
