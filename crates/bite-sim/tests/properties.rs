@@ -548,6 +548,16 @@ fn cases_that_failed_once() {
         // another successor (seven robots, then eight).
         (10_533_492_770_770_632_144, 7),
         (15_129_041_871_835_573_196, 8),
+        // "A root leader that finished": the root team's leader finished
+        // the mission and relayed nothing more; members that had heard of
+        // different finished teammates made different silent allocations,
+        // round after round, and waited for each other's subteams.
+        (14_038_951_268_081_933_415, 8),
+        // The same section, what the relay brought out: a member a lap
+        // behind allocated knowing that a teammate had finished since its
+        // leader allocated; the leader's deadline fell before the split
+        // was seen.
+        (3_675_743_155_736_443_249, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

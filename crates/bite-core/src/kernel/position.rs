@@ -576,7 +576,7 @@ impl Kernel {
     }
 
     pub(super) fn pos_frame(&self, f: &Frame, depth: usize, state: FrameState) -> PosFrame {
-        let leads = self.heal_leader(f.team, depth) == Some(self.me);
+        let leads = self.heal_leader(f.team, depth) == Some(self.me) || self.relays_root(f, depth);
         PosFrame {
             id: f.id(),
             anchor: f.anchor,
@@ -632,6 +632,7 @@ impl Kernel {
             };
             match self.heal_leader(t, depth) {
                 Some(l) if l == self.me => to.union_with(&team.members),
+                Some(_) if self.relays_root(f, depth) => to.union_with(&team.members),
                 Some(l) => {
                     to.insert(l);
                     let away = |r: RobotId| {
@@ -776,6 +777,40 @@ impl Kernel {
         team.members.first_not_in(self.me, || {
             std::iter::once(&self.lost).chain(above.iter().filter_map(|f| f.departed.as_ref()))
         })
+    }
+
+    /// True when this robot relays the root team's departures (frame `f`
+    /// at depth `depth`, the root) in place of its leader, which finished
+    /// the mission (it left the root and is heard with no frame): the
+    /// lowest-id member neither presumed lost nor departed from the root.
+    /// A robot that finished runs no frame and relays nothing, so members
+    /// learnt of teammates that finished after it only if those sent to
+    /// them; members that knew different finished teammates left different
+    /// ones out of their silent allocations, round after round
+    /// (docs/reliability.md, "A root leader that finished"). Its members
+    /// still send to the leader (see [`Kernel::heal_leader`]); a leader
+    /// waiting at the root's end still relays itself.
+    fn relays_root(&self, f: &Frame, depth: usize) -> bool {
+        if depth != 0 || f.team != TeamId::ROOT {
+            return false;
+        }
+        let Some(departed) = &f.departed else {
+            return false;
+        };
+        let Some(team) = self.org.team(f.team) else {
+            return false;
+        };
+        let finished = |r: RobotId| {
+            departed.contains(r) && self.fresh_peer(r).is_some_and(|p| p.frames.is_empty())
+        };
+        match self.heal_leader(f.team, depth) {
+            Some(l) if l != self.me && finished(l) => {
+                team.members
+                    .first_not_in(self.me, || [&self.lost, departed].into_iter())
+                    == Some(self.me)
+            }
+            _ => false,
+        }
     }
 
     /// A teammate's position, heard with its heartbeat: learn who departed
@@ -1477,6 +1512,26 @@ impl Kernel {
                 parent,
             }) || parent.is_some_and(|p| frames[k].0 != id && self.passed(k, p, frames[k].0))
         };
+        // A teammate in the execution above the point's, in another of its
+        // subteams (or in none): the two took that allocation from
+        // different views (one had heard that a teammate finished, the
+        // other not yet), and the split heals within a heartbeat or two
+        // (`Kernel::reconcile_allocation`): it is on its way, as one behind
+        // is (docs/reliability.md, "A root leader that finished").
+        let above = match self.stack.iter().position(|f| f.id() == id) {
+            Some(i) => i.checked_sub(1).map(|p| self.stack[p].id()),
+            // Its end or its synchronization: the frame is popped.
+            None => (self.popped())
+                .filter(|(f, _)| f.id() == id)
+                .and_then(|_| self.stack.last())
+                .map(Frame::id),
+        };
+        let split_off = |frames: &[(FrameId, FrameState)]| {
+            above.is_some_and(|a| {
+                (frames.iter().position(|(f, _)| *f == a))
+                    .is_some_and(|k| frames.get(k + 1).is_none_or(|(g, _)| g.team != key.team))
+            })
+        };
         if leader != Some(self.me) {
             return leader.and_then(heard).is_some_and(|frames| {
                 frames.iter().enumerate().any(|(k, (f, _))| {
@@ -1493,11 +1548,11 @@ impl Kernel {
         {
             match heard(r) {
                 Some(frames) => {
-                    running |= frames.iter().enumerate().any(|(k, (f, st))| {
-                        ((at_point_counts && *f == id && *st == FrameState::Running)
-                            || is_behind(frames, k))
-                            && progressing(r)
-                    });
+                    running |= (frames.iter().enumerate().any(|(k, (f, st))| {
+                        (at_point_counts && *f == id && *st == FrameState::Running)
+                            || is_behind(frames, k)
+                    }) || split_off(frames))
+                        && progressing(r);
                 }
                 None => return false,
             }

@@ -1633,6 +1633,55 @@ fn a_leader_that_left_answers_its_members_for_a_while() {
     assert_eq!(audience(&h, 1), [0]);
 }
 
+/// A root team's leader that finished the mission runs no frame and
+/// relays nobody's departures: the next member relays them then, so
+/// that every member learns of the teammates that finish after it and
+/// leaves them out alike. Members that had heard of different finished
+/// teammates made different silent allocations, round after round, and
+/// waited for each other's subteams until their deadlines (found by
+/// `no_waiting_across_levels`, graph seed 14038951268081933415).
+#[test]
+fn the_next_member_relays_the_root_once_its_leader_finished() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { children: [a], until: done }
+  a: { team: true, skill: w, until: a_done }",
+        4,
+    );
+    h.tick(0, &[("done", F), ("a_done", F)]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 3), [0], "r0 leads the root and `a`");
+    h.tick_one(0, 100, &[("done", T)]);
+    assert!(h.stack(0).is_empty(), "r0 finished");
+    h.heartbeats();
+    h.heartbeats();
+    assert_eq!(
+        audience(&h, 1),
+        [0, 2, 3],
+        "r1 leads `a` and relays the root"
+    );
+    assert_eq!(
+        audience(&h, 3),
+        [0, 1],
+        "r3 still sends to the root's leader"
+    );
+    // r2 finishes: r1 hears it and tells r3, which r2 never sent to.
+    h.tick_one(2, 200, &[("done", T)]);
+    assert!(h.stack(2).is_empty(), "r2 finished");
+    for _ in 0..3 {
+        h.heartbeats();
+    }
+    let root = &h.kernels[3].stack()[0];
+    assert!(
+        root.departed
+            .as_ref()
+            .is_some_and(|d| d.contains(RobotId(2))),
+        "r3 learnt that r2 left the root"
+    );
+}
+
 /// `a`, then an allocation under `b`: one robot to `y`, the others to the
 /// team behavior `q`, which ends at a barrier.
 const A_THEN_Q: &str = "start: root
@@ -1643,6 +1692,78 @@ behaviors:
   b: { team: true, children: [y, q] }
   y: { skill: w, members: 1 }
   q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }";
+
+/// A leader waiting at a point in a subteam waits on for a teammate it
+/// counts there but hears in the execution above, in another subteam (or
+/// in none): the two took that allocation from different views, and the
+/// split heals within a heartbeat or two. Found by
+/// `no_waiting_across_levels` (RNG seed 51, graph seed
+/// 3675743155736443249): a member a lap behind allocated knowing that a
+/// teammate had finished since its leader allocated; the leader's
+/// deadline fell in the 60 ms before the split was seen.
+#[test]
+fn a_leader_waits_for_a_teammate_split_off_in_the_execution_above() {
+    let mut h = Harness::new(A_THEN_Q, 3);
+    h.tick(0, &[("a_done", F), ("q_done", F)]);
+    h.heartbeats();
+    for r in [1, 2] {
+        h.tick_one(r, 100, &[("a_done", T)]);
+        assert_eq!(h.stack(r), ["root", "b", "q"]);
+    }
+    h.tick_one(1, 150, &[("q_done", T)]);
+    let g = h.kernels[1].mission().graph();
+    let [root, a, b, y] = ["root", "a", "b", "y"].map(|n| g.find(n).expect("behavior"));
+    let q_team = h.kernels[1].popped().map(|(f, _)| f.team).expect("q ended");
+    let key = InstanceKey {
+        team: q_team,
+        behavior: g.find("q").expect("q"),
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert!(h.kernels[1].instances.get(&key).is_some(), "r1 waits at q");
+    let root_id = FrameId {
+        team: TeamId::ROOT,
+        behavior: root,
+        epoch: 1,
+    };
+    let b_id = FrameId {
+        team: TeamId::ROOT,
+        behavior: b,
+        epoch: 1,
+    };
+    let a_id = FrameId {
+        behavior: a,
+        ..b_id
+    };
+    let elsewhere = FrameId {
+        team: TeamId(0xfeed),
+        behavior: y,
+        epoch: 1,
+    };
+    let mut split = running(&[
+        (root_id, None),
+        (b_id, Some((a_id, false))),
+        (elsewhere, Some((b_id, true))),
+    ]);
+    split.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &split);
+    assert!(
+        h.kernels[1].awaited_at_work(key),
+        "a teammate in another subteam of `b` is on its way"
+    );
+    // Heard in a later execution of `b`: not in the one above the point.
+    let mut later = running(&[
+        (root_id, None),
+        (FrameId { epoch: 2, ..b_id }, Some((a_id, false))),
+    ]);
+    later.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(250), RobotId(2), &later);
+    assert!(
+        !h.kernels[1].awaited_at_work(key),
+        "not split off: {later:?}"
+    );
+}
 
 /// A member a lap behind answers a teammate that went through an
 /// allocation it has yet to make, counts it a member of the new team and
