@@ -1512,6 +1512,13 @@ impl Kernel {
                 parent,
             }) || parent.is_some_and(|p| frames[k].0 != id && self.passed(k, p, frames[k].0))
         };
+        if leader != Some(self.me) {
+            return leader.and_then(heard).is_some_and(|frames| {
+                frames.iter().enumerate().any(|(k, (f, _))| {
+                    *f == id || (is_behind(frames, k) && leader.is_some_and(progressing))
+                })
+            });
+        }
         // A teammate in the execution above the point's, in another of its
         // subteams (or in none): the two took that allocation from
         // different views (one had heard that a teammate finished, the
@@ -1532,13 +1539,6 @@ impl Kernel {
                     .is_some_and(|k| frames.get(k + 1).is_none_or(|(g, _)| g.team != key.team))
             })
         };
-        if leader != Some(self.me) {
-            return leader.and_then(heard).is_some_and(|frames| {
-                frames.iter().enumerate().any(|(k, (f, _))| {
-                    *f == id || (is_behind(frames, k) && leader.is_some_and(progressing))
-                })
-            });
-        }
         let mut running = false;
         for r in inst
             .team
