@@ -512,7 +512,19 @@ impl<R: Rule> Interaction for Gather<R> {
                     cx.send(from, call);
                 }
             }
-            Body::Query => {}
+            Body::Query => {
+                // A leader that took over asks for what it has not had: the
+                // contribution this robot sent it when its own view made it
+                // the leader first, dropped because it did not know yet that
+                // it led (the resend backs off for seconds by then).
+                if from == leader
+                    && self.sent.is_some()
+                    && self.coord.result.is_none()
+                    && !cx.is_aborted()
+                {
+                    self.contribute(cx);
+                }
+            }
             _ if self
                 .rule
                 .call(cx)

@@ -237,3 +237,43 @@ fn a_robot_taking_over_an_allocation_without_a_call_asks_who_it_has_not_heard() 
     r1.message(Time::from_millis(150), from(2, key, 1, Body::Done));
     assert_eq!(drain(&mut r1).decided, 1, "decided at once");
 }
+
+/// A member whose coordinator changed sends its contribution to the new
+/// one at once; that one may not know yet that it leads (it has not heard
+/// yet that the teammate before it left) and drops it, and the member's
+/// next resend has backed off for seconds by then. The new coordinator
+/// asks the members it has not heard from (`Query`) when it takes over: a
+/// member answers with its contribution again. Found by
+/// `no_waiting_across_levels` (RNG seed 244, graph seed
+/// 7180224004388772354): the coordinator waited 3.3 s for a contribution
+/// it had dropped and decided at its deadline.
+#[test]
+fn a_member_asked_by_its_coordinator_sends_its_contribution_again() {
+    const OPTIMAL: &str = "graph: asked\nteam: { robots: 3 }\nstart: p\n\
+        defaults: { sync: sync.by-rule, allocate: alloc.optimal, terminate: term.wait-all }\n\
+        behaviors:\n  p: { team: true, children: [x, y], until: stop }\n\
+        \x20 x: { team: true, skill: w }\n  y: { team: true, skill: w }\n";
+    let g = load_str(&Arc::from("asked.yaml"), OPTIMAL).expect("the test graph loads");
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r2 = Kernel::new(mission, RobotId(2), 3);
+    let key = start(&mut r2);
+    let contributions = |d: &Drained| -> Vec<Body> {
+        (d.sent.iter())
+            .filter(|(to, m)| *to == Recipients::One(RobotId(0)) && *m != Body::Query)
+            .map(|(_, m)| m.clone())
+            .collect()
+    };
+    // Its first tick sent the contribution to r0, the coordinator (drained
+    // by `start`); r0 asks for it.
+    r2.message(Time::from_millis(50), from(0, key, 1, Body::Query));
+    let answered = drain(&mut r2);
+    assert_eq!(
+        contributions(&answered).len(),
+        1,
+        "r2 answers the query: {:?}",
+        answered.sent
+    );
+    // A robot that is not its coordinator asks nothing of it.
+    r2.message(Time::from_millis(60), from(1, key, 1, Body::Query));
+    assert!(drain(&mut r2).sent.is_empty());
+}

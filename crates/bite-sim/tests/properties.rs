@@ -558,6 +558,25 @@ fn cases_that_failed_once() {
         // leader allocated; the leader's deadline fell before the split
         // was seen.
         (3_675_743_155_736_443_249, 7),
+        // "Teammates gone another way": a robot a lap ahead waited at an
+        // allocation for a teammate it never heard (it answers now); a
+        // teammate on another way into the point's execution (awaited); a
+        // contribution dropped by a coordinator that did not know yet that
+        // it led (asked again); teammates that went past an execution
+        // without running it, or ended it before its allocation (left out
+        // of its points); members late into an execution whose leaders had
+        // left it, sending to one that did not answer (answered).
+        (1_730_459_986_348_358_178, 4),
+        (2_090_918_748_688_623_487, 5),
+        (7_180_224_004_388_772_354, 8),
+        (9_461_620_870_857_060_531, 6),
+        (2_527_497_076_677_607_155, 6),
+        (15_863_011_668_451_335_064, 5),
+        (5_261_739_610_812_070_048, 7),
+        // The same section, a first form that took a teammate in the
+        // execution before this robot's (which it had converged past) for
+        // one that went past its execution.
+        (16_540_400_953_571_571_815, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -4,7 +4,7 @@
 use super::position::{
     ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, Position, RECENT, Slot, push_recent,
 };
-use super::{Frame, Kernel, Phase};
+use super::{Frame, Kernel, Phase, State};
 use crate::event::{EndReason, Event, FrameRef, Via};
 use crate::ids::{BehaviorId, RobotId};
 use crate::ids::{InstanceKey, Kind};
@@ -233,6 +233,7 @@ impl Kernel {
         // collected per heartbeat); their number is taken once.
         let popped = self.popped().map(|(f, _)| f.term_key());
         let depth = self.stack.len();
+        let mut skipped = None;
         for k in 0..depth + usize::from(popped.is_some()) {
             let slot = (k < depth).then_some(k);
             let f = match slot {
@@ -247,10 +248,26 @@ impl Kernel {
             // It ended the execution, or runs its successor (it may have
             // gone past it without running it, converging on teammates
             // further on).
-            let ended = pos.ended.iter().any(|e| e.id == id)
+            let ran = pos.ended.iter().any(|e| e.id == id)
                 || pos.burned.contains(&id)
                 || (pos.frames.iter())
                     .any(|g| (g.id == id && g.state != FrameState::Running) || g.follows(id));
+            // Or it went past without running it: it never took part in
+            // the execution's allocation either (see below).
+            let went_past = !ran && self.went_past(k, id, pos);
+            // One that ended it before any allocation of it (its end, heard
+            // with no allocation applied) neither decided one.
+            let unallocated = || {
+                (pos.frames.iter())
+                    .any(|g| g.id == id && g.state != FrameState::Running && g.alloc.is_none())
+                    && self.graph().is_alloc_point(id.behavior)
+            };
+            if went_past {
+                skipped = Some((id, false));
+            } else if slot.is_some() && ran && unallocated() {
+                skipped = Some((id, true));
+            }
+            let ended = ran || went_past;
             // Nothing to learn: the team is not looked up (its split is
             // cold in a large team, and most heartbeats report nothing).
             if report.is_none() && !ended {
@@ -315,6 +332,65 @@ impl Kernel {
                 }
             }
         }
+        // A departed teammate stays in the allocation of the execution it
+        // left (it may have led it and decided: `depart`); one that ended it
+        // before it was allocated decided none. One that went past it
+        // without running it takes part in none of its points: it sends no
+        // `Done` to its end either.
+        if let Some((id, allocation_only)) = skipped {
+            self.skip_execution(id, from, allocation_only);
+        }
+    }
+
+    /// Leave teammate `from` out of the points of execution `id` (only its
+    /// allocation when `allocation_only`): it went past the execution
+    /// without running it (`Kernel::went_past`), or ended it before it was
+    /// allocated.
+    fn skip_execution(&mut self, id: FrameId, from: RobotId, allocation_only: bool) {
+        let keys: SmallVec<[InstanceKey; 2]> = (self.instances.iter())
+            .filter(|(k, i)| {
+                (k.kind == Kind::Allocate || !allocation_only)
+                    && (k.team, k.behavior, k.epoch) == (id.team, id.behavior, id.epoch)
+                    && matches!(i.state, State::Armed | State::Active)
+                    && i.team.contains(from)
+                    && !i.excluded.as_ref().is_some_and(|x| x.contains(from))
+            })
+            .map(|(k, _)| k)
+            .collect();
+        if keys.is_empty() {
+            return;
+        }
+        for k in keys {
+            self.exclude(k, &[from]);
+        }
+        self.refresh_due();
+    }
+
+    /// True when a teammate runs, beside this robot's execution `id` at
+    /// depth `k` (under the same parent execution, in the same team), an
+    /// execution of one of `id`'s successors that this robot has yet to
+    /// start: it reached the point after `id` by another way (a precondition
+    /// that held for it alone chose another successor before, or it
+    /// converged on teammates further on) and will not come to `id`
+    /// (docs/reliability.md, "Teammates gone another way").
+    fn went_past(&self, k: usize, id: FrameId, pos: &Position) -> bool {
+        let (Some(p), Some(up), Some(g)) = (
+            k.checked_sub(1).and_then(|i| self.stack.get(i)),
+            k.checked_sub(1).and_then(|i| pos.frames.get(i)),
+            pos.frames.get(k),
+        ) else {
+            return false;
+        };
+        // Not one before it: the execution this robot came from (it may
+        // have converged on it without running it) or any it knows of.
+        let before = |a: Anchor| !a.first && a.behavior == g.id.behavior && a.epoch >= g.id.epoch;
+        g.id.team == id.team
+            && g.id.behavior != id.behavior
+            && up.id == p.id()
+            && g.id.epoch > p.runs.latest_epoch(g.id.behavior)
+            && g.id.epoch > self.org.runs(id.team, g.id.behavior)
+            && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))
+            && (self.graph().get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
     }
 
     /// This robot's anchored frames, root first (read in place: a team

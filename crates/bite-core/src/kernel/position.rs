@@ -712,6 +712,39 @@ impl Kernel {
             && !self.recent_burned.contains(&g)
     }
 
+    /// True when a teammate's execution `g` at depth `k`, beside this
+    /// robot's execution `m` there in the same team and under the same
+    /// parent execution, is one this robot has yet to start: its epoch is
+    /// past the latest this robot started of that behavior under the
+    /// parent (the mirror of [`Kernel::passed`]).
+    fn ahead(&self, k: usize, m: FrameId, g: FrameId) -> bool {
+        m.team == g.team
+            && k.checked_sub(1)
+                .and_then(|i| self.stack.get(i))
+                .is_some_and(|p| p.runs.latest_epoch(g.behavior) < g.epoch)
+    }
+
+    /// True when a teammate's execution `g`, at depth `k` under execution
+    /// `parent`, leads into the execution this robot runs there: this
+    /// robot runs `parent` at depth `k - 1` and, under it in `g`'s team,
+    /// another execution of a behavior `g`'s behavior is followed by (a
+    /// sequential edge). The two took different successors of a point
+    /// where each decides alone (`sync.by-rule`, a precondition that held
+    /// for one of them), and the teammate is on its way. A teammate that
+    /// went through this robot's execution is departed from it and not
+    /// waited for.
+    fn leads_into(&self, k: usize, parent: FrameId, g: FrameId) -> bool {
+        let graph = self.graph();
+        k.checked_sub(1)
+            .and_then(|i| self.stack.get(i))
+            .is_some_and(|p| p.id() == parent)
+            && graph.get(g.behavior).is_some_and(|b| {
+                self.slot_at(k).is_some_and(|(_, f)| {
+                    f.team == g.team && f.id() != g && b.next.contains(&f.behavior)
+                })
+            })
+    }
+
     /// Teammate `r`'s entry, if it was heard within [`FRESH`].
     pub(super) fn fresh_peer(&self, r: RobotId) -> Option<&Peer> {
         self.peers.get(&r).filter(|p| self.now - p.heard <= FRESH)
@@ -935,7 +968,13 @@ impl Kernel {
     ///   this robot runs (its frame there is that execution's successor:
     ///   this robot is slower in an individual behavior, or was cut off),
     ///   and may wait for it; its heartbeats go to the team's leader, which
-    ///   may be elsewhere, and the teammate took it for silent.
+    ///   may be elsewhere, and the teammate took it for silent;
+    /// - **laps behind**: the same, with the teammate's execution there
+    ///   any number of behaviors ahead (an execution of the team this
+    ///   robot has yet to start: under `term.local` a robot may go round a
+    ///   cycle again while a teammate still runs a long chain of the lap
+    ///   before). Once the team's leader has gone by too, the teammate
+    ///   leads the point and waits for this robot without hearing it.
     ///
     /// So it answers such a teammate with its own heartbeats
     /// (`beacon_audience`) while the teammate goes on sending them: the
@@ -977,16 +1016,30 @@ impl Kernel {
             .map(Frame::id);
         let mut shared = true;
         let mut stranger = false;
-        for f in &pos.frames {
+        for (k, f) in pos.frames.iter().enumerate() {
             let m = mine.next();
             if m == Some(f.id) {
+                // - Or the execution this robot runs, which the sender ended
+                //   and leads the end of, not being the leader this robot
+                //   sends to there: the two counted different teammates
+                //   departed above it, and the sender waits for it unheard.
+                if f.state != FrameState::Running
+                    && k < self.stack.len()
+                    && self.heal_leader(f.id.team, k) != Some(from)
+                    && f.departed.is_some()
+                {
+                    stranger = true;
+                    break;
+                }
                 continue;
             }
-            // - Or the successor of the execution this robot runs there:
+            // - Or the successor of the execution this robot runs there, or
+            //   a later execution in the same team under the same parent:
             //   the sender went on (this robot is behind, in an individual
             //   behavior, or was cut off), and may wait for it further on.
             if std::mem::take(&mut shared)
-                && (self.recent_ended.contains(&f.id) || m.is_some_and(|m| f.follows(m)))
+                && (self.recent_ended.contains(&f.id)
+                    || m.is_some_and(|m| f.follows(m) || self.ahead(k, m, f.id)))
                 && waits()
             {
                 stranger = true;
@@ -1510,7 +1563,10 @@ impl Kernel {
             behind.contains(&Ended {
                 id: frames[k].0,
                 parent,
-            }) || parent.is_some_and(|p| frames[k].0 != id && self.passed(k, p, frames[k].0))
+            }) || parent.is_some_and(|p| {
+                frames[k].0 != id
+                    && (self.passed(k, p, frames[k].0) || self.leads_into(k, p, frames[k].0))
+            })
         };
         if leader != Some(self.me) {
             return leader.and_then(heard).is_some_and(|frames| {

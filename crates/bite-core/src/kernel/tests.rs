@@ -2035,3 +2035,189 @@ fn a_leader_waits_for_a_teammate_many_behaviors_behind() {
     h.kernels[0].peer(now(3), RobotId(1), &beyond);
     assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
 }
+
+/// A robot answers a teammate waiting at a point in an execution of its
+/// team it has yet to start, any number of behaviors ahead (not only the
+/// successor of its own): once the team's leader has gone by too, the
+/// teammate leads the point and waits for it without hearing it. Found by
+/// `no_waiting_across_levels` (RNG seed 243, graph seed
+/// 1730459986348358178): under `term.local` a robot went round the root's
+/// cycle a lap ahead and waited 90 s at an allocation for a teammate it
+/// never heard, then decided without it at its deadline.
+#[test]
+fn a_robot_answers_a_teammate_waiting_laps_ahead() {
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    let [root, first, second, _] = twice_ids(&h);
+    assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
+    // Robot 2 waits at the end of the team's second `first`, which robot 1
+    // has yet to start (it came after `second`, not after robot 1's `first`).
+    let ahead = FrameId { epoch: 2, ..first };
+    let mut waiting = running(&[(root, None), (ahead, Some((second, false)))]);
+    waiting.robot = RobotId(2);
+    if let Some(f) = waiting.frames.last_mut() {
+        f.state = FrameState::Ended;
+    }
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &waiting);
+    assert_eq!(audience(&h, 1), [0, 2], "robot 2 is answered");
+    // At work there, robot 2 waits for nobody: no answer.
+    let mut working = running(&[(root, None), (ahead, Some((second, false)))]);
+    working.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(300), RobotId(2), &working);
+    assert_eq!(audience(&h, 1), [0]);
+}
+
+/// A robot still in an execution answers a teammate that ended it and
+/// leads its end (its heartbeat reports who departed) when that teammate is
+/// not the leader this robot sends to there: the two counted different
+/// teammates departed above it, and the teammate waits at the barrier for
+/// it without hearing it. Found by `no_waiting_across_levels` (RNG seed
+/// 281, graph seed 5261739610812070048): the team's two lowest ids had
+/// left an individual behavior; members late into it did not know, sent
+/// their heartbeats to the second, which did not answer, and the robot
+/// leading the barrier of a team behavior under it waited out its deadline.
+#[test]
+fn a_robot_answers_a_teammate_leading_the_end_of_the_execution_it_runs() {
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    let [root, first, ..] = twice_ids(&h);
+    assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
+    let at_the_end = |r: u32| {
+        let mut p = running(&[(root, None), (first, Some((root, true)))]);
+        p.robot = RobotId(r);
+        if let Some(f) = p.frames.last_mut() {
+            f.state = FrameState::Ended;
+            let mut d = MemberSet::empty(3);
+            d.insert(RobotId(0));
+            d.insert(RobotId(r));
+            f.departed = Some(d);
+        }
+        p
+    };
+    let answers = |h: &Harness, r: u32| {
+        (h.kernels[1].answering.as_ref()).is_some_and(|a| a.contains(RobotId(r)))
+    };
+    // Robot 2 leads the end (robot 0 departed, as robot 1 does not know):
+    // answered.
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &at_the_end(2));
+    assert!(answers(&h, 2), "{:?}", audience(&h, 1));
+    assert!(audience(&h, 1).contains(&2), "{:?}", audience(&h, 1));
+    // Robot 1's leader there, at the end: robot 1 sends to it anyway.
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(0), &at_the_end(0));
+    assert!(!answers(&h, 0));
+}
+
+/// Two robots take different successors of a point each decides alone (a
+/// precondition held for one of them only); both lead into the same
+/// behavior. A robot waiting at a point there waits on for a teammate heard
+/// at work in the other successor: it is on its way. Found by
+/// `no_waiting_across_levels` (RNG seed 245, graph seed
+/// 2090918748688623487).
+#[test]
+fn a_robot_waits_for_a_teammate_on_another_way_into_its_execution() {
+    const FORK: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b, c] }
+  b: { team: true, skill: w, until: b_done, pre: 'pb', next: [d] }
+  c: { team: true, skill: w, until: c_done, pre: 'not pb', next: [d] }
+  d: { team: true, skill: w, until: d_done, terminate: term.test-barrier }";
+    let mut h = Harness::new(FORK, 2);
+    let off = [("a_done", F), ("b_done", F), ("c_done", F), ("d_done", F)];
+    h.tick(0, &off);
+    h.tick_one(0, 100, &[("pb", T), ("a_done", T)]);
+    h.tick_one(0, 200, &[("b_done", T)]);
+    h.tick_one(0, 300, &[("d_done", T)]);
+    let g = h.kernels[0].mission().graph();
+    let [root, a, c, d] = ["root", "a", "c", "d"].map(|n| g.find(n).expect("behavior"));
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: d,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert!(
+        h.kernels[0].instances.get(&key).is_some(),
+        "robot 0 waits at d"
+    );
+    let id = |team, behavior| FrameId {
+        team,
+        behavior,
+        epoch: 1,
+    };
+    let heard = |h: &mut Harness, ms: u64, team: TeamId, behavior| {
+        let mut p = running(&[
+            (id(TeamId::ROOT, root), None),
+            (id(team, behavior), Some((id(team, a), false))),
+        ]);
+        p.robot = RobotId(1);
+        h.kernels[0].peer(Time::from_millis(ms), RobotId(1), &p);
+    };
+    heard(&mut h, 350, TeamId::ROOT, a);
+    heard(&mut h, 400, TeamId::ROOT, c);
+    assert!(
+        h.kernels[0].awaited_at_work(key),
+        "a teammate in `c` is on its way to `d`"
+    );
+    // In a later execution of `d`: not on its way to this one.
+    let mut later = running(&[
+        (id(TeamId::ROOT, root), None),
+        (
+            FrameId {
+                epoch: 2,
+                ..id(TeamId::ROOT, d)
+            },
+            Some((id(TeamId::ROOT, c), false)),
+        ),
+    ]);
+    later.robot = RobotId(1);
+    h.kernels[0].peer(Time::from_millis(450), RobotId(1), &later);
+    assert!(!h.kernels[0].awaited_at_work(key), "{later:?}");
+}
+
+/// A teammate heard in an execution of a successor of this robot's
+/// execution that this robot has yet to start went past that execution
+/// without running it (it took another way, or converged on teammates
+/// further on): it is marked departed from it and left out of its points,
+/// its end's barrier included (it sends no `Done` there). Found by
+/// `no_waiting_across_levels` (RNG seeds 323 and 384, graph seeds
+/// 9461620870857060531 and 2527497076677607155).
+#[test]
+fn a_teammate_that_went_past_an_execution_without_running_it_is_left_out_of_it() {
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    let [root, first, second, _] = twice_ids(&h);
+    let barrier = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: first.behavior,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    let left_out = |h: &Harness| {
+        (h.kernels[1].instances.get(&barrier))
+            .and_then(|i| i.excluded.as_ref())
+            .is_some_and(|x| x.contains(RobotId(2)))
+    };
+    assert!(h.kernels[1].instances.get(&barrier).is_some(), "armed");
+    assert!(!left_out(&h));
+    // Robot 2 runs `second` but did not come from robot 1's `first` (its
+    // anchor is the root: it converged there).
+    let mut past = running(&[(root, None), (second, Some((root, true)))]);
+    past.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &past);
+    let departed = (h.kernels[1].stack().iter())
+        .find(|f| f.id() == first)
+        .and_then(|f| f.departed.as_ref())
+        .is_some_and(|d| d.contains(RobotId(2)));
+    assert!(departed, "robot 2 is done with `first`");
+    assert!(left_out(&h), "and left out of its barrier");
+}
