@@ -1024,9 +1024,9 @@ impl Kernel {
                 //   sends to there: the two counted different teammates
                 //   departed above it, and the sender waits for it unheard.
                 if f.state != FrameState::Running
+                    && f.departed.is_some()
                     && k < self.stack.len()
                     && self.heal_leader(f.id.team, k) != Some(from)
-                    && f.departed.is_some()
                 {
                     stranger = true;
                     break;
