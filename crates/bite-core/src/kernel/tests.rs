@@ -1490,21 +1490,29 @@ fn a_teammate_running_the_successor_of_an_execution_departed_from_it() {
 /// still in the individual behavior before it).
 #[test]
 fn a_robot_answers_a_teammate_waiting_past_the_execution_it_runs() {
+    // Robot 2 went on to `second` and waits there at a point.
+    robot_1_answers_robot_2_waiting_at(|[_, first, second, _]| (second, first));
+}
+
+/// In [`TWICE`] with three robots, robot 1 runs `first`, and tells its
+/// leader only. Robot 2, heard waiting at the end of the execution `at`
+/// picks (after the one it also gives), is answered; heard at work there,
+/// it waits for nobody and is not.
+fn robot_1_answers_robot_2_waiting_at(at: impl Fn([FrameId; 4]) -> (FrameId, FrameId)) {
     let mut h = Harness::new(TWICE, 3);
     h.tick(0, &[]);
     h.tick(100, &[]);
-    let [root, first, second, _] = twice_ids(&h);
+    let ids = twice_ids(&h);
+    let (exec, after) = at(ids);
     assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
-    // Robot 2 went on to `second` and waits there at a point.
-    let mut waiting = running(&[(root, None), (second, Some((first, false)))]);
+    let mut waiting = running(&[(ids[0], None), (exec, Some((after, false)))]);
     waiting.robot = RobotId(2);
     if let Some(f) = waiting.frames.last_mut() {
         f.state = FrameState::Ended;
     }
     h.kernels[1].peer(Time::from_millis(200), RobotId(2), &waiting);
     assert_eq!(audience(&h, 1), [0, 2], "robot 2 is answered");
-    // At work in `second`, robot 2 waits for nobody: no answer.
-    let mut working = running(&[(root, None), (second, Some((first, false)))]);
+    let mut working = running(&[(ids[0], None), (exec, Some((after, false)))]);
     working.robot = RobotId(2);
     h.kernels[1].peer(Time::from_millis(300), RobotId(2), &working);
     assert_eq!(audience(&h, 1), [0]);
@@ -2046,26 +2054,11 @@ fn a_leader_waits_for_a_teammate_many_behaviors_behind() {
 /// never heard, then decided without it at its deadline.
 #[test]
 fn a_robot_answers_a_teammate_waiting_laps_ahead() {
-    let mut h = Harness::new(TWICE, 3);
-    h.tick(0, &[]);
-    h.tick(100, &[]);
-    let [root, first, second, _] = twice_ids(&h);
-    assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
     // Robot 2 waits at the end of the team's second `first`, which robot 1
     // has yet to start (it came after `second`, not after robot 1's `first`).
-    let ahead = FrameId { epoch: 2, ..first };
-    let mut waiting = running(&[(root, None), (ahead, Some((second, false)))]);
-    waiting.robot = RobotId(2);
-    if let Some(f) = waiting.frames.last_mut() {
-        f.state = FrameState::Ended;
-    }
-    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &waiting);
-    assert_eq!(audience(&h, 1), [0, 2], "robot 2 is answered");
-    // At work there, robot 2 waits for nobody: no answer.
-    let mut working = running(&[(root, None), (ahead, Some((second, false)))]);
-    working.robot = RobotId(2);
-    h.kernels[1].peer(Time::from_millis(300), RobotId(2), &working);
-    assert_eq!(audience(&h, 1), [0]);
+    robot_1_answers_robot_2_waiting_at(|[_, first, second, _]| {
+        (FrameId { epoch: 2, ..first }, second)
+    });
 }
 
 /// A robot still in an execution answers a teammate that ended it and
