@@ -577,6 +577,15 @@ fn cases_that_failed_once() {
         // execution before this robot's (which it had converged past) for
         // one that went past its execution.
         (16_540_400_953_571_571_815, 8),
+        // And one that took a teammate in another successor of this
+        // robot's behavior's earlier execution, on its way round a cycle
+        // back, for one past it.
+        (15_465_759_569_787_062_651, 5),
+        // A deadline falling with counted teammates never heard: their
+        // heartbeats went to a leader that had left (called now).
+        (12_254_330_314_479_522_449, 6),
+        (12_254_330_325_892_256_918, 6),
+        (14_026_682_046_967_156_622, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -11,6 +11,10 @@ use crate::ids::{InstanceKey, Kind};
 use crate::org::MemberSet;
 use smallvec::SmallVec;
 
+/// How many behaviors `Kernel::leads_back` walks before it gives up (and
+/// takes the way for one that leads back).
+const LEADS_BACK_WALK: usize = 64;
+
 impl Kernel {
     /// Allocation splits: a teammate under the same execution of an
     /// allocation point holds another allocation of it. The newest round
@@ -384,6 +388,12 @@ impl Kernel {
         // Not one before it: the execution this robot came from (it may
         // have converged on it without running it) or any it knows of.
         let before = |a: Anchor| !a.first && a.behavior == g.id.behavior && a.epoch >= g.id.epoch;
+        // Nor one it reached from an earlier execution of this robot's
+        // behavior, by another successor, unless that way never leads back
+        // here (its successors' runs are not this robot's to count).
+        let from_earlier = g
+            .anchor
+            .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch < id.epoch);
         g.id.team == id.team
             && g.id.behavior != id.behavior
             && up.id == p.id()
@@ -391,6 +401,28 @@ impl Kernel {
             && g.id.epoch > self.org.runs(id.team, g.id.behavior)
             && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))
             && (self.graph().get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
+            && !(from_earlier && self.leads_back(g.id.behavior, id.behavior))
+    }
+
+    /// True when behavior `to` may follow `from` along sequential edges
+    /// (looked for among the first [`LEADS_BACK_WALK`] behaviors reached;
+    /// beyond, taken as yes).
+    fn leads_back(&self, from: BehaviorId, to: BehaviorId) -> bool {
+        let g = self.graph();
+        let mut seen: SmallVec<[BehaviorId; 16]> = SmallVec::new();
+        let mut next: SmallVec<[BehaviorId; 16]> = SmallVec::from_elem(from, 1);
+        while let Some(b) = next.pop() {
+            for &n in g.get(b).map_or(&[][..], |x| &x.next[..]) {
+                if n == to || seen.len() >= LEADS_BACK_WALK {
+                    return true;
+                }
+                if !seen.contains(&n) {
+                    seen.push(n);
+                    next.push(n);
+                }
+            }
+        }
+        false
     }
 
     /// This robot's anchored frames, root first (read in place: a team

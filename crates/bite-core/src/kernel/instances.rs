@@ -147,6 +147,7 @@ impl Kernel {
             wake: None,
             outcome: None,
             timed_out: false,
+            called: false,
             sent: 0,
             bytes: 0,
             received: 0,
@@ -572,6 +573,10 @@ impl Kernel {
                 self.stats.deadlines_rearmed += 1;
                 continue;
             }
+            if self.call_unheard(k) {
+                self.stats.deadlines_rearmed += 1;
+                continue;
+            }
             if let Some(i) = self.instances.get_mut(&k) {
                 i.timed_out = true;
             }
@@ -595,6 +600,50 @@ impl Kernel {
             });
         }
         self.refresh_due();
+    }
+
+    /// The deadline of instance `k` fell, and teammates it counts have
+    /// never been heard (within [`position::FRESH`]): their heartbeats go
+    /// to a leader elsewhere (one that left the execution, and that they
+    /// do not know left), so this robot cannot tell one on its way from one
+    /// gone or silent. Once per instance it sends them its own heartbeats
+    /// for two retries and waits that long: one on its way answers
+    /// (`Kernel::answer_strangers`) and is waited for at the next deadline
+    /// if heard at work (`Kernel::awaited_at_work`), one that went past is
+    /// left out (`Kernel::learn_departures`), and a silent one is decided
+    /// without then. True when it called.
+    pub(super) fn call_unheard(&mut self, k: InstanceKey) -> bool {
+        let Some(inst) = self.instances.get(&k) else {
+            return false;
+        };
+        if inst.called {
+            return false;
+        }
+        let mut unheard: Option<MemberSet> = None;
+        for r in inst.team.members.iter() {
+            if r != self.me
+                && !self.lost.contains(r)
+                && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
+                && self.fresh_peer(r).is_none()
+            {
+                (unheard.get_or_insert_with(|| MemberSet::empty(self.org.roster_len()))).insert(r);
+            }
+        }
+        let now = self.now;
+        let (Some(unheard), Some(inst)) = (unheard, self.instances.get_mut(&k)) else {
+            return false;
+        };
+        inst.called = true;
+        let until = now + inst.retry * 2;
+        inst.deadline = until;
+        match &mut self.calling {
+            Some((set, t)) if *t > now => {
+                set.union_with(&unheard);
+                *t = (*t).max(until);
+            }
+            c => *c = Some((unheard, until)),
+        }
+        true
     }
 
     /// An instance starts waiting, and will have waited a retry at

@@ -331,6 +331,9 @@ struct Instance {
     wake: Option<Time>,
     outcome: Option<Outcome>,
     timed_out: bool,
+    /// Its deadline fell once with counted teammates never heard, and this
+    /// robot called them (`Kernel::call_unheard`).
+    called: bool,
     sent: u32,
     bytes: u64,
     received: u32,
@@ -501,6 +504,10 @@ pub struct Kernel {
     /// it, or has yet to join it): its own heartbeats answer them (see
     /// `Kernel::answer_strangers`).
     answering: Option<MemberSet>,
+    /// Teammates counted at a point whose deadline fell without this robot
+    /// ever hearing them, and until when its heartbeats go to them (see
+    /// `Kernel::call_unheard`).
+    calling: Option<(MemberSet, Time)>,
 }
 
 impl Kernel {
@@ -560,6 +567,7 @@ impl Kernel {
             peer_versions: BTreeMap::new(),
             left_at: None,
             answering: None,
+            calling: None,
         }
     }
 

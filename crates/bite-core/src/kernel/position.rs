@@ -652,6 +652,13 @@ impl Kernel {
                 None => {}
             }
         }
+        // Teammates counted at a point whose deadline fell unheard (see
+        // `Kernel::call_unheard`).
+        if let Some((set, until)) = &self.calling
+            && self.now < *until
+        {
+            to.union_with(set);
+        }
         // Teammates that count it in a team it is not in, while they
         // still send to it (see `Kernel::answer_strangers`).
         if let Some(a) = &self.answering {

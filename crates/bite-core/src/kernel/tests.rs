@@ -483,6 +483,9 @@ fn a_protocol_that_misses_its_deadline_is_replaced_by_the_silent_rule() {
     let mut h = Harness::new(A_NEVER_2S, 2);
     h.tick(0, &[]);
     h.tick(100, &[("a_done", T)]);
+    // Each hears the other (one never heard would be called first: see
+    // `a_robot_calls_the_teammates_it_never_heard_when_its_deadline_falls`).
+    h.heartbeats();
     assert_eq!(h.stack(0), ["root"], "waiting for the decision");
     assert!(h.kernels[0].is_interacting());
     assert_eq!(h.kernels[0].poll_timeout(), Some(Time::from_millis(2100)));
@@ -2213,4 +2216,37 @@ fn a_teammate_that_went_past_an_execution_without_running_it_is_left_out_of_it()
         .is_some_and(|d| d.contains(RobotId(2)));
     assert!(departed, "robot 2 is done with `first`");
     assert!(left_out(&h), "and left out of its barrier");
+}
+
+/// A robot whose deadline falls at a point with counted teammates it has
+/// never heard (their heartbeats go to a leader elsewhere) calls them once:
+/// its heartbeats go to them for two retries, and the deadline waits that
+/// long; then it decides without them as before. Found by
+/// `no_waiting_across_levels` (RNG seeds 461 and 477, graph seeds
+/// 12254330314479522449 and 12254330325892256918).
+#[test]
+fn a_robot_calls_the_teammates_it_never_heard_when_its_deadline_falls() {
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[("first_done", F)]);
+    h.tick_one(1, 100, &[("first_done", T)]);
+    let [_, first, ..] = twice_ids(&h);
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: first.behavior,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    let deadline = |h: &Harness| h.kernels[1].instances.get(&key).map(|i| i.deadline);
+    let due = deadline(&h).expect("robot 1 waits at `first`'s barrier");
+    assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
+    // The deadline falls; robot 1 has heard nobody: it calls both.
+    h.tick_one(1, due.as_micros().div_ceil(1000), &[("first_done", T)]);
+    assert_eq!(h.kernels[1].stats().timeouts, 0);
+    assert_eq!(audience(&h, 1), [0, 2], "robot 1 calls robots 0 and 2");
+    let later = deadline(&h).expect("still waiting");
+    assert!(later > due, "{later:?} after {due:?}");
+    // Still unheard two retries on: it decides without them, once.
+    h.tick_one(1, later.as_micros().div_ceil(1000), &[("first_done", T)]);
+    assert_eq!(h.kernels[1].stats().timeouts, 1);
 }
