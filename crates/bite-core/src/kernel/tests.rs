@@ -1261,6 +1261,15 @@ behaviors:
   second: { team: true, children: [s], until: never }
   s: { team: true, until: never }";
 
+/// [`TWICE`] with three robots, each ticked twice: all run `s` under
+/// `first`.
+fn twice_of_three() -> Harness {
+    let mut h = Harness::new(TWICE, 3);
+    h.tick(0, &[]);
+    h.tick(100, &[]);
+    h
+}
+
 /// The executions of [`TWICE`]: root, first, second and s, each the
 /// team's first.
 fn twice_ids(h: &Harness) -> [FrameId; 4] {
@@ -1460,9 +1469,7 @@ fn a_frame_under_a_same_numbered_execution_under_another_parent_is_not_counted_p
 /// past without running it").
 #[test]
 fn a_teammate_running_the_successor_of_an_execution_departed_from_it() {
-    let mut h = Harness::new(TWICE, 3);
-    h.tick(0, &[]);
-    h.tick(100, &[]);
+    let mut h = twice_of_three();
     let [_, first, ..] = twice_ids(&h);
     let departed = |h: &Harness| {
         let f = (h.kernels[1].stack().iter())
@@ -1502,9 +1509,7 @@ fn a_robot_answers_a_teammate_waiting_past_the_execution_it_runs() {
 /// picks (after the one it also gives), is answered; heard at work there,
 /// it waits for nobody and is not.
 fn robot_1_answers_robot_2_waiting_at(at: impl Fn([FrameId; 4]) -> (FrameId, FrameId)) {
-    let mut h = Harness::new(TWICE, 3);
-    h.tick(0, &[]);
-    h.tick(100, &[]);
+    let mut h = twice_of_three();
     let ids = twice_ids(&h);
     let (exec, after) = at(ids);
     assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
@@ -2075,9 +2080,7 @@ fn a_robot_answers_a_teammate_waiting_laps_ahead() {
 /// leading the barrier of a team behavior under it waited out its deadline.
 #[test]
 fn a_robot_answers_a_teammate_leading_the_end_of_the_execution_it_runs() {
-    let mut h = Harness::new(TWICE, 3);
-    h.tick(0, &[]);
-    h.tick(100, &[]);
+    let mut h = twice_of_three();
     let [root, first, ..] = twice_ids(&h);
     assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
     let at_the_end = |r: u32| {
@@ -2101,9 +2104,7 @@ fn a_robot_answers_a_teammate_leading_the_end_of_the_execution_it_runs() {
     assert!(answers(&h, 2), "{:?}", audience(&h, 1));
     assert!(audience(&h, 1).contains(&2), "{:?}", audience(&h, 1));
     // Robot 1's leader there, at the end: robot 1 sends to it anyway.
-    let mut h = Harness::new(TWICE, 3);
-    h.tick(0, &[]);
-    h.tick(100, &[]);
+    let mut h = twice_of_three();
     h.kernels[1].peer(Time::from_millis(200), RobotId(0), &at_the_end(0));
     assert!(!answers(&h, 0));
 }
@@ -2187,23 +2188,14 @@ behaviors:
 /// 9461620870857060531 and 2527497076677607155).
 #[test]
 fn a_teammate_that_went_past_an_execution_without_running_it_is_left_out_of_it() {
-    let mut h = Harness::new(TWICE, 3);
-    h.tick(0, &[]);
-    h.tick(100, &[]);
+    let mut h = twice_of_three();
     let [root, first, second, _] = twice_ids(&h);
-    let barrier = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: first.behavior,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let barrier = waiting_at_first(&h, 1);
     let left_out = |h: &Harness| {
         (h.kernels[1].instances.get(&barrier))
             .and_then(|i| i.excluded.as_ref())
             .is_some_and(|x| x.contains(RobotId(2)))
     };
-    assert!(h.kernels[1].instances.get(&barrier).is_some(), "armed");
     assert!(!left_out(&h));
     // Robot 2 runs `second` but did not come from robot 1's `first` (its
     // anchor is the root: it converged there).
@@ -2229,14 +2221,7 @@ fn a_robot_calls_the_teammates_it_never_heard_when_its_deadline_falls() {
     let mut h = Harness::new(TWICE, 3);
     h.tick(0, &[("first_done", F)]);
     h.tick_one(1, 100, &[("first_done", T)]);
-    let [_, first, ..] = twice_ids(&h);
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: first.behavior,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let key = waiting_at_first(&h, 1);
     let deadline = |h: &Harness| h.kernels[1].instances.get(&key).map(|i| i.deadline);
     let due = deadline(&h).expect("robot 1 waits at `first`'s barrier");
     assert_eq!(audience(&h, 1), [0], "robot 1 tells its leader only");
