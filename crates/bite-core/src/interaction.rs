@@ -452,6 +452,7 @@ pub struct Cx<'a> {
     team: &'a Team,
     excluded: Option<&'a MemberSet>,
     lost: Option<&'a MemberSet>,
+    left_ran: &'a [(RobotId, crate::kernel::FrameId)],
     live: u32,
     org: &'a Organization,
     runs: &'a crate::belief::RunCounts,
@@ -484,6 +485,10 @@ pub struct CxParts<'a> {
     /// Of those, the teammates this robot presumes lost now (the others
     /// left on their own: they are done with the behavior).
     pub lost: Option<&'a MemberSet>,
+    /// Executions teammates had ended when this robot learnt they left
+    /// the behavior above (see [`Cx::left_after_running`]; empty: none
+    /// known).
+    pub left_ran: &'a [(RobotId, crate::kernel::FrameId)],
     /// This robot's organization hierarchy.
     pub org: &'a Organization,
     /// Run counts of the candidates' parent execution (what `runs` reads).
@@ -523,6 +528,7 @@ impl<'a> Cx<'a> {
             team: p.team,
             excluded: p.excluded,
             lost: p.lost,
+            left_ran: p.left_ran,
             live: match p.excluded {
                 // Word by word: a context is made for every message.
                 Some(x) => (p.team.members.len() - p.team.members.count_common(x)) as u32,
@@ -561,6 +567,7 @@ impl<'a> Cx<'a> {
             team: self.team,
             excluded: self.excluded,
             lost: self.lost,
+            left_ran: self.left_ran,
             live: self.live,
             org: self.org,
             runs: self.runs,
@@ -631,6 +638,14 @@ impl<'a> Cx<'a> {
     /// presumed lost.
     pub fn has_left(&self, r: RobotId) -> bool {
         self.team.contains(r) && !self.is_live(r) && !self.is_presumed_lost(r)
+    }
+    /// True when member `r` left the behavior after it ran this instance's
+    /// execution (its heartbeat listed the execution as ended when this
+    /// robot learnt it left): coordinating it, `r` may have decided, and
+    /// its decision may still be on its way here.
+    pub fn left_after_running(&self, r: RobotId) -> bool {
+        let here = crate::kernel::FrameId::of(self.key);
+        self.has_left(r) && self.left_ran.iter().any(|(x, id)| *x == r && *id == here)
     }
     /// True when `r` is a member not presumed lost.
     pub fn is_live(&self, r: RobotId) -> bool {

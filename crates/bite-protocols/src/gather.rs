@@ -127,9 +127,13 @@ pub(crate) struct Coord {
     /// heard while this robot was a member: adopted if this robot comes
     /// to lead (see [`Coord::members_changed`]).
     departed_decision: Option<(RobotId, Outcome)>,
-    /// This robot took the lead after the instance started from a
-    /// coordinator that left the behavior (see [`Coord::after_departed`]).
+    /// This robot leads after a coordinator that left the behavior, from
+    /// the instance's start or since (see [`Coord::after_departed`]).
     heir_of_departed: bool,
+    /// This robot led from the start only because teammates before it had
+    /// left the behavior, and has yet to ask the members it has not heard
+    /// (see [`Coord::ask_after_departed`]).
+    ask_missing: bool,
     resends: u32,
     /// When the instance last made progress (see [`Coord::progress`]).
     progress_at: Option<bite_core::time::Time>,
@@ -201,14 +205,49 @@ impl Coord {
     pub(crate) fn start(&mut self, cx: &Cx<'_>) {
         self.known_leader = Some(cx.leader());
         self.took_over = cx.is_leader() && cx.team().members.iter().next() != Some(cx.me());
+        let me = cx.me();
+        self.ask_missing = self.took_over
+            && (cx.team().members.iter())
+                .take_while(|r| *r < me)
+                .any(|r| cx.has_left(r));
+        // One before it ran the point and left: it may have decided, and
+        // left with its decision.
+        self.heir_of_departed = self.took_over
+            && (cx.team().members.iter())
+                .take_while(|r| *r < me)
+                .any(|r| cx.left_after_running(r));
     }
 
-    /// Members changed: did the leader change? (Notes a takeover.)
-    pub(crate) fn leader_changed(&mut self, cx: &Cx<'_>) -> bool {
+    /// True once, for a robot that has led from the start only because
+    /// teammates before it left the behavior: a member may have sent its
+    /// contribution to one of them and left the point since, and will not
+    /// send it again. Asked, its kernel says it left, and the coordinator
+    /// decides without it instead of waiting for its deadline
+    /// (docs/reliability.md, "A contribution sent to a coordinator that
+    /// left"). A robot that took over during the instance asks at once
+    /// (`on_members_changed`).
+    pub(crate) fn ask_after_departed(&mut self) -> bool {
+        std::mem::take(&mut self.ask_missing)
+    }
+
+    /// Members changed: did the leader change? (Notes a takeover.) When
+    /// it did, the resend backoff starts over, a retry from now: a new
+    /// leader calls again the members it has not heard, and a member asks
+    /// a new leader it has not heard from, then, not on the schedule their
+    /// resends to the old leader had backed off to (seconds by then). A
+    /// member that has yet to learn of the change drops the new leader's
+    /// first call, and a new leader may itself have left the point: both
+    /// cost a deadline (docs/reliability.md, "A call dropped at a
+    /// takeover").
+    pub(crate) fn leader_changed(&mut self, cx: &mut Cx<'_>) -> bool {
         let leader = cx.leader();
         let before = self.known_leader;
         let changed = before != Some(leader);
         self.known_leader = Some(leader);
+        if changed && !self.idle(cx) {
+            self.resends = 0;
+            cx.wake_after_retry();
+        }
         if changed && cx.is_leader() {
             self.took_over = true;
             if before.is_some_and(|b| b != cx.me() && cx.has_left(b)) {
@@ -236,17 +275,19 @@ impl Coord {
         Some(changed)
     }
 
-    /// True when this robot took the lead during the instance from a
-    /// coordinator that left the behavior (left out, not presumed lost):
-    /// that coordinator may have decided and left with its decision, which
-    /// has yet to reach this robot. Leaving the point then, it decides
-    /// nothing: a decision of its own, announced, parted the members that
-    /// applied it from those that had the old one (docs/reliability.md, "A
-    /// coordinator that took over and left"); the members' next
-    /// coordinator adopts the old one if it reached it
-    /// ([`Coord::on_announcement`]). A robot that led from the start
-    /// decides as it leaves, as before: without it, members that reached
-    /// the point later waited for a coordinator that had gone.
+    /// True when this robot leads after a coordinator that left the
+    /// behavior (left out, not presumed lost), from the instance's start
+    /// or since: that coordinator may have decided and left with its
+    /// decision, which has yet to reach this robot. Leaving the point
+    /// then, it decides nothing: a decision of its own, announced, parted
+    /// the members that applied it from those that had the old one
+    /// (docs/reliability.md, "A coordinator that took over and left" and
+    /// "A coordinator after one that left, from the start"); the members'
+    /// next coordinator adopts the old one if it reached it
+    /// ([`Coord::on_announcement`]). A robot that leads from the start as
+    /// the team's first member, or after teammates presumed lost, decides
+    /// as it leaves: nobody before it decided, and members that reached
+    /// the point later would wait for a coordinator that had gone.
     pub(crate) fn after_departed(&self) -> bool {
         self.heir_of_departed
     }
@@ -551,10 +592,15 @@ impl<R: Rule> Interaction for Gather<R> {
         }
         if cx.is_leader() {
             // Call again those not heard from (rules without a call wait
-            // for the members' own resends).
+            // for the members' own resends, but ask once those that may
+            // have sent theirs to a coordinator that left).
             if let Some(call) = self.rule.call(cx) {
                 for m in self.missing(cx) {
                     cx.send(m, call.clone());
+                }
+            } else if self.coord.ask_after_departed() {
+                for m in self.missing(cx) {
+                    cx.send(m, Body::Query);
                 }
             }
         } else if self.sent.is_some() {

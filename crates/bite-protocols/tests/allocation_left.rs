@@ -277,3 +277,142 @@ fn a_member_asked_by_its_coordinator_sends_its_contribution_again() {
     r2.message(Time::from_millis(60), from(1, key, 1, Body::Query));
     assert!(drain(&mut r2).sent.is_empty());
 }
+
+/// A robot that leads an allocation whose rule makes no call from its
+/// start, only because the teammate before it left the behavior above,
+/// asks once the members it has not heard: one may have sent its
+/// contribution to the teammate that left, and left the allocation since.
+/// A robot that leads because the teammate before it is presumed lost
+/// asks nothing (every member learns of a loss and sends to it). Found by
+/// `no_waiting_across_levels` (RNG seed 461, graph seed
+/// 4293902327213708843, seven robots): the member had sent its value to
+/// a coordinator that then completed the mission, and left the allocation;
+/// the robot that led next waited for it until its deadline
+/// (docs/reliability.md, "A contribution sent to a coordinator that
+/// left").
+#[test]
+fn a_robot_leading_after_one_that_left_asks_who_it_has_not_heard() {
+    use bite_core::TeamId;
+    use bite_core::kernel::{Ended, FrameId, Position};
+    const AFTER: &str = "graph: after\nteam: { robots: 3 }\nstart: root\n\
+        defaults: { sync: sync.by-rule, allocate: alloc.by-id, terminate: term.local }\n\
+        behaviors:\n  root: { team: true, children: [a], until: stop }\n\
+        \x20 a: { team: true, skill: w, until: go, next: [p] }\n\
+        \x20 p: { team: true, children: [x, y], allocate: alloc.optimal }\n\
+        \x20 x: { team: true, skill: w }\n  y: { team: true, skill: w }\n";
+    let t = Time::from_secs_f64;
+    for r0_left in [true, false] {
+        let g = load_str(&Arc::from("after.yaml"), AFTER).expect("the test graph loads");
+        let root = g.find("root").expect("behavior");
+        let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+        let mut r1 = Kernel::new(mission, RobotId(1), 2);
+        let sym = r1.mission().graph().symbols().clone();
+        let [go, stop] = ["go", "stop"].map(|n| sym.get(n).expect("belief"));
+        r1.tick(
+            Time::ZERO,
+            &[(go, Value::Bool(false)), (stop, Value::Bool(false))],
+        );
+        if r0_left {
+            // r0 is done with the mission (it left `root`).
+            let root_ended = Ended {
+                id: FrameId {
+                    team: TeamId::ROOT,
+                    behavior: root,
+                    epoch: 1,
+                },
+                parent: None,
+            };
+            let done = Position {
+                robot: RobotId(0),
+                ended: vec![root_ended],
+                ..Position::default()
+            };
+            r1.peer(t(0.2), RobotId(0), &done);
+        } else {
+            r1.member_lost(t(0.2), RobotId(0));
+        }
+        drain(&mut r1);
+        r1.tick(t(0.3), &[(go, Value::Bool(true))]);
+        let key = (drain(&mut r1).started.into_iter())
+            .find(|k| k.kind == bite_core::ids::Kind::Allocate)
+            .expect("p's allocation started");
+        // Its retry interval later, it has heard no member.
+        r1.tick(t(1.5), &[]);
+        let asked = drain(&mut r1);
+        let queried = (asked.sent.iter())
+            .any(|(to, m)| *to == Recipients::One(RobotId(2)) && *m == Body::Query);
+        assert_eq!(
+            queried, r0_left,
+            "r0 left: {r0_left}; sent {:?}",
+            asked.sent
+        );
+        assert_eq!(asked.decided, 0, "it waits for r2");
+        if r0_left {
+            // Asked once only.
+            r1.tick(t(3.5), &[]);
+            let again = drain(&mut r1);
+            assert!(!(again.sent.iter()).any(|(_, m)| *m == Body::Query));
+            // r2 left `p` after sending its contribution to r0: it is done.
+            r1.message(t(3.6), from(2, key, 1, Body::Done));
+            assert_eq!(drain(&mut r1).decided, 1, "decided at once");
+        }
+    }
+}
+
+/// When the coordinator changes, the resend backoff starts over: a member
+/// asks its new coordinator a retry later if no call came, and a robot
+/// that takes over calls again, a retry later, the members it has not
+/// heard, instead of waiting out the backoff its resends to the old
+/// coordinator had reached (seconds by then). A member that had yet to
+/// learn of the change dropped the new coordinator's first call, and the
+/// coordinator waited for its deadline. Found by `no_waiting_across_levels`
+/// (RNG seed 779, graph seed 8753189644158184162, eight robots:
+/// `alloc.auction`) (docs/reliability.md, "A call dropped at a takeover").
+#[test]
+fn a_new_coordinator_and_its_members_talk_a_retry_after_the_change() {
+    const AUCTION: &str = "graph: auction\nteam: { robots: 3 }\nstart: p\n\
+        defaults: { sync: sync.by-rule, allocate: alloc.auction, terminate: term.wait-all }\n\
+        behaviors:\n  p: { team: true, children: [x, y], until: stop }\n\
+        \x20 x: { team: true, skill: w }\n  y: { team: true, skill: w }\n";
+    let t = Time::from_secs_f64;
+    let to = |d: &Drained, r: u32, what: fn(&Body) -> bool| {
+        (d.sent.iter()).any(|(rcpt, m)| {
+            let reaches = match rcpt {
+                Recipients::One(x) => *x == RobotId(r),
+                Recipients::Team(set) => set.contains(RobotId(r)),
+            };
+            reaches && what(m)
+        })
+    };
+    for me in [1, 2] {
+        let g = load_str(&Arc::from("auction.yaml"), AUCTION).expect("the test graph loads");
+        let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+        let mut k = Kernel::new(mission, RobotId(me), u64::from(me) + 1);
+        start(&mut k);
+        // r0 coordinates and says nothing: the robot's questions to it back
+        // off (0.5, 1.5, 3.5 s...).
+        for s in [0.5, 1.5, 3.5] {
+            k.tick(t(s), &[]);
+        }
+        drain(&mut k);
+        // r0 is lost at 3.6 s: r1 leads. Its call (r1), or the call r2
+        // dropped (r2), leaves nothing to do until a retry later.
+        k.member_lost(t(3.6), RobotId(0));
+        drain(&mut k);
+        k.tick(t(4.15), &[]);
+        let after = drain(&mut k);
+        if me == 1 {
+            assert!(
+                to(&after, 2, |m| matches!(m, Body::Call { .. })),
+                "r1 calls r2 again: {:?}",
+                after.sent
+            );
+        } else {
+            assert!(
+                to(&after, 1, |m| *m == Body::Query),
+                "r2 asks r1: {:?}",
+                after.sent
+            );
+        }
+    }
+}

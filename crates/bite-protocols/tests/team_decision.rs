@@ -369,38 +369,69 @@ fn a_member_adopts_the_decision_of_a_leader_that_left_once_it_leads() {
     );
 }
 
-/// A robot that took the lead of a point from the teammate before it,
-/// which left the behavior once the point had started here, leaves the
+/// A robot that leads a point after the teammate before it left the
+/// behavior, that teammate having run the point's execution, leaves the
 /// point itself (its `root` ends) without deciding if it has not heard
 /// that teammate's decision: a decision of its own, announced as it left,
 /// parted the members that applied it from those that had the old one.
 /// Found by `random_teams_survive_network_faults` (RNG seed 196, graph
-/// seed 12199998743731976875, five robots, 2.5 % loss, 126 ms jitter): the
-/// old coordinator's heartbeat overtook its announcement
-/// (docs/reliability.md, "A coordinator that took over and left"). A
-/// robot that led the point from the start decides as it leaves: without
-/// that, members that came later waited for a coordinator that had gone.
+/// seed 12199998743731976875, five robots, 2.5 % loss, 126 ms jitter) for
+/// a robot that took the lead once the point had started: the old
+/// coordinator's heartbeat overtook its announcement (docs/reliability.md,
+/// "A coordinator that took over and left"); and again (RNG seeds 686, 718
+/// and 748) for a robot that led from the start, the teammate before it
+/// having left after running the point, with its announcement still on
+/// the way (docs/reliability.md, "A coordinator after one that left, from
+/// the start"). A robot that leads because the teammate before it is
+/// presumed lost, or left without running the point, decides as it
+/// leaves: nobody before it decided, and members that came later waited
+/// for a coordinator that had gone (RNG seed 76).
 #[test]
 fn a_coordinator_after_one_that_left_leaves_without_deciding() {
+    use bite_core::kernel::{Ended, FrameId};
     const ROOT_ENDS: &str = "graph: left\nteam: { robots: 3 }\nstart: root\n\
         defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
         behaviors:\n  root: { team: true, children: [a], until: stop }\n\
         \x20 a: { team: true, skill: w, until: go, next: [b, c] }\n\
         \x20 b: { team: true, skill: w }\n  c: { team: true, skill: w }\n";
     let t = Time::from_secs_f64;
-    // r0 heard done before the vote starts (r1 leads from the start), or
-    // after (r1 takes over).
-    for left_before in [true, false] {
-        let (mut r1, go, _, key, done) = after_r0_left(ROOT_ENDS, 1, false);
+    #[derive(Clone, Copy, Debug, PartialEq)]
+    enum R0 {
+        /// Ran `a` (and decided its vote), then left: heard before the
+        /// vote starts here (r1 leads from the start) or after (r1 takes
+        /// over).
+        LeftBefore,
+        LeftAfter,
+        /// Left without running `a` (its heartbeat lists only `root`).
+        LeftWithoutRunning,
+        LostBefore,
+    }
+    for r0 in [
+        R0::LeftBefore,
+        R0::LeftAfter,
+        R0::LeftWithoutRunning,
+        R0::LostBefore,
+    ] {
+        let (mut r1, go, _, key, mut done) = after_r0_left(ROOT_ENDS, 1, false);
         let stop = r1.mission().graph().symbols().get("stop").expect("belief");
-        if left_before {
-            r1.peer(t(0.2), RobotId(0), &done);
+        let ran_a = Ended {
+            id: FrameId::of(key),
+            parent: done.ended.last().map(|e| e.id),
+        };
+        match r0 {
+            R0::LeftWithoutRunning => done.ended.retain(|e| e.parent.is_none()),
+            _ => done.ended.insert(0, ran_a),
+        }
+        match r0 {
+            R0::LeftBefore | R0::LeftWithoutRunning => r1.peer(t(0.2), RobotId(0), &done),
+            R0::LostBefore => r1.member_lost(t(0.2), RobotId(0)),
+            R0::LeftAfter => {}
         }
         let go_on = [(go, Value::Bool(true)), (stop, Value::Bool(false))];
         r1.tick(t(0.3), &go_on);
         let mut d = drain(&mut r1);
         assert_eq!(d.started, Some(key), "the vote started");
-        if !left_before {
+        if r0 == R0::LeftAfter {
             r1.peer(t(0.35), RobotId(0), &done);
             d.decided.extend(drain(&mut r1).decided);
         }
@@ -415,8 +446,9 @@ fn a_coordinator_after_one_that_left_leaves_without_deciding() {
         let left = drain(&mut r1);
         let announced = (left.sent.iter()).any(|(_, m)| matches!(m, Body::Decision { .. }));
         assert_eq!(
-            announced, left_before,
-            "r0 left before the vote: {left_before}; r1 sent {:?}",
+            announced,
+            matches!(r0, R0::LostBefore | R0::LeftWithoutRunning),
+            "r0 {r0:?}; r1 sent {:?}",
             left.sent
         );
     }

@@ -586,6 +586,24 @@ fn cases_that_failed_once() {
         (12_254_330_314_479_522_449, 6),
         (12_254_330_325_892_256_918, 6),
         (14_026_682_046_967_156_622, 7),
+        // "A contribution sent to a coordinator that left": a member sent
+        // its value to a coordinator that then finished the mission, and
+        // left the allocation; the robot that led from the start waited
+        // for it (asked now).
+        (4_293_902_327_213_708_843, 7),
+        // "A call dropped at a takeover": members that dropped a new
+        // coordinator's first call, or asked a coordinator that had left
+        // the point, on a schedule backed off to seconds (six robots,
+        // then eight, twice).
+        (1_069_055_035_715_906_447, 6),
+        (8_753_189_644_158_184_162, 8),
+        (15_927_605_051_834_793_304, 8),
+        // "A coordinator after one that left, from the start": a first
+        // form had every robot that led after a teammate that left decide
+        // nothing as it left the point, also when that teammate had left
+        // long before without running it; members waited for a
+        // coordinator that had gone.
+        (13_855_237_196_121_962_963, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
@@ -622,6 +640,28 @@ fn cases_that_failed_once() {
         0.025_405_893_691_245_112,
         0.0,
         126,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    // "A coordinator after one that left, from the start": the robot
+    // that led an allocation from its start, the teammate before it
+    // having run it and left (its announcement delayed by 188 ms of
+    // jitter, or lost under 18 % loss), left the point too and announced
+    // an allocation of its own, which parted the members.
+    run_case(5_998_380_625_315_892_372, 8, 0.0, 0.0, 188).unwrap_or_else(|e| panic!("{e}"));
+    run_case(
+        14_989_542_626_833_434_280,
+        9,
+        0.182_607_040_968_245_12,
+        0.0,
+        34,
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    run_case(
+        10_325_446_998_601_771_183,
+        10,
+        0.180_472_260_260_426_2,
+        0.0,
+        84,
     )
     .unwrap_or_else(|e| panic!("{e}"));
     // "A token from a teammate left out": a member claimed, from the

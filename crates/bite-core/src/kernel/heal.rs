@@ -238,6 +238,7 @@ impl Kernel {
         let popped = self.popped().map(|(f, _)| f.term_key());
         let depth = self.stack.len();
         let mut skipped = None;
+        let mut newly_departed = false;
         for k in 0..depth + usize::from(popped.is_some()) {
             let slot = (k < depth).then_some(k);
             let f = match slot {
@@ -292,6 +293,7 @@ impl Kernel {
                 who.get_or_insert_with(|| MemberSet::empty(self.org.roster_len()))
                     .insert(from);
                 adds_sender = true;
+                newly_departed = true;
             }
             let Some(mut who) = who else {
                 continue;
@@ -343,6 +345,39 @@ impl Kernel {
         // `Done` to its end either.
         if let Some((id, allocation_only)) = skipped {
             self.skip_execution(id, from, allocation_only);
+        }
+        if newly_departed {
+            self.note_left_ran(from, pos);
+        }
+    }
+
+    /// Teammate `from` is newly known to have left a behavior of this
+    /// robot's: keep the executions of points that its heartbeat lists as
+    /// ended (of a team this robot is in, and that this robot has not
+    /// ended). Coordinating one, it may have decided and left with its
+    /// decision, which may not have reached this robot yet: a robot that
+    /// comes to lead such a point after it decides nothing as it leaves
+    /// the point ([`crate::interaction::Cx::left_after_running`];
+    /// docs/reliability.md, "A coordinator after one that left, from the
+    /// start").
+    fn note_left_ran(&mut self, from: RobotId, pos: &Position) {
+        for e in &pos.ended {
+            let id = e.id;
+            let point = || {
+                let g = self.graph();
+                g.is_alloc_point(id.behavior) || g.is_point(id.behavior, Kind::Sync)
+            };
+            let ours = || {
+                !self.recent_ended.contains(&id)
+                    && self.org.team(id.team).is_some_and(|t| t.contains(self.me))
+            };
+            if !point() || self.left_ran.contains(&(from, id)) || !ours() {
+                continue;
+            }
+            if self.left_ran.len() >= super::LEFT_RAN {
+                self.left_ran.remove(0);
+            }
+            self.left_ran.push((from, id));
         }
     }
 

@@ -315,6 +315,7 @@ impl Kernel {
                 team: self.org.team(key.team).unwrap_or(&inst.team),
                 excluded: inst.excluded.as_ref(),
                 lost: Some(&self.lost),
+                left_ran: &self.left_ran,
                 org: &self.org,
                 runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
                 graph: self.mission.graph(),

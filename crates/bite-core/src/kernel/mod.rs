@@ -508,7 +508,16 @@ pub struct Kernel {
     /// ever hearing them, and until when its heartbeats go to them (see
     /// `Kernel::call_unheard`).
     calling: Option<(MemberSet, Time)>,
+    /// Executions of points ahead of this robot that teammates had ended
+    /// when it learnt they left the behavior above (newest last, at most
+    /// [`LEFT_RAN`]): one that coordinated such a point may have decided
+    /// it and left with its decision (see `Kernel::note_left_ran`).
+    left_ran: Vec<(RobotId, FrameId)>,
 }
+
+/// How many executions [`Kernel`] keeps that teammates ended before it
+/// learnt they left.
+const LEFT_RAN: usize = 16;
 
 impl Kernel {
     /// A kernel for robot `me` of the mission's roster, seeded with `seed`.
@@ -568,6 +577,7 @@ impl Kernel {
             left_at: None,
             answering: None,
             calling: None,
+            left_ran: Vec::new(),
         }
     }
 
