@@ -351,29 +351,41 @@ impl Kernel {
         }
     }
 
-    /// Teammate `from` is newly known to have left a behavior of this
-    /// robot's: keep the executions of points that its heartbeat lists as
-    /// ended (of a team this robot is in, and that this robot has not
-    /// ended). Coordinating one, it may have decided and left with its
+    /// Teammate `from`, before this robot in id order (only such a
+    /// teammate coordinates ahead of it), is newly known to have left a
+    /// behavior of this robot's: keep the executions of points that its
+    /// heartbeat lists as ended (of a team this robot is in, and that this
+    /// robot has not ended). Coordinating one, it may have decided and left with its
     /// decision, which may not have reached this robot yet: a robot that
     /// comes to lead such a point after it decides nothing as it leaves
     /// the point ([`crate::interaction::Cx::left_after_running`];
     /// docs/reliability.md, "A coordinator after one that left, from the
     /// start").
     fn note_left_ran(&mut self, from: RobotId, pos: &Position) {
+        if from > self.me {
+            return;
+        }
+        // An execution still to come here, or under way: of a live team
+        // of this robot's, not ended here, and not older than the latest
+        // this robot started.
+        let open = |k: &Kernel, id: FrameId| {
+            k.org.team(id.team).is_some_and(|t| t.contains(k.me))
+                && k.org.runs(id.team, id.behavior) <= id.epoch
+                && !k.recent_ended.contains(&id)
+        };
         for e in &pos.ended {
             let id = e.id;
             let point = || {
                 let g = self.graph();
                 g.is_alloc_point(id.behavior) || g.is_point(id.behavior, Kind::Sync)
             };
-            let ours = || {
-                !self.recent_ended.contains(&id)
-                    && self.org.team(id.team).is_some_and(|t| t.contains(self.me))
-            };
-            if !point() || self.left_ran.contains(&(from, id)) || !ours() {
+            if !point() || self.left_ran.contains(&(from, id)) || !open(self, id) {
                 continue;
             }
+            // What can no longer matter makes room first.
+            let mut kept = std::mem::take(&mut self.left_ran);
+            kept.retain(|(_, id)| open(self, *id));
+            self.left_ran = kept;
             if self.left_ran.len() >= super::LEFT_RAN {
                 self.left_ran.remove(0);
             }

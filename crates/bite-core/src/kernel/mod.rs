@@ -510,14 +510,15 @@ pub struct Kernel {
     calling: Option<(MemberSet, Time)>,
     /// Executions of points ahead of this robot that teammates had ended
     /// when it learnt they left the behavior above (newest last, at most
-    /// [`LEFT_RAN`]): one that coordinated such a point may have decided
-    /// it and left with its decision (see `Kernel::note_left_ran`).
+    /// [`LEFT_RAN`], those no longer to come here dropped first): one that
+    /// coordinated such a point may have decided it and left with its
+    /// decision (see `Kernel::note_left_ran`).
     left_ran: Vec<(RobotId, FrameId)>,
 }
 
 /// How many executions [`Kernel`] keeps that teammates ended before it
 /// learnt they left.
-const LEFT_RAN: usize = 16;
+const LEFT_RAN: usize = 4;
 
 impl Kernel {
     /// A kernel for robot `me` of the mission's roster, seeded with `seed`.
