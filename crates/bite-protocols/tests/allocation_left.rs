@@ -56,6 +56,20 @@ fn robot(me: u32) -> Kernel {
     Kernel::new(mission, RobotId(me), u64::from(me) + 1)
 }
 
+/// Robot `me` of three that run `p` until `stop`, its children allocated
+/// by `protocol` (bound as the default).
+fn robot_allocating_by(protocol: &str, me: u32) -> Kernel {
+    let graph = format!(
+        "graph: by\nteam: {{ robots: 3 }}\nstart: p\n\
+         defaults: {{ sync: sync.by-rule, allocate: {protocol}, terminate: term.wait-all }}\n\
+         behaviors:\n  p: {{ team: true, children: [x, y], until: stop }}\n\
+         \x20 x: {{ team: true, skill: w }}\n  y: {{ team: true, skill: w }}\n"
+    );
+    let g = load_str(&Arc::from("by.yaml"), &graph).expect("the test graph loads");
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    Kernel::new(mission, RobotId(me), u64::from(me) + 1)
+}
+
 /// The allocation of `p` this robot started on its first tick.
 fn start(k: &mut Kernel) -> InstanceKey {
     let stop = k.mission().graph().symbols().get("stop").expect("belief");
@@ -249,13 +263,7 @@ fn a_robot_taking_over_an_allocation_without_a_call_asks_who_it_has_not_heard() 
 /// it had dropped and decided at its deadline.
 #[test]
 fn a_member_asked_by_its_coordinator_sends_its_contribution_again() {
-    const OPTIMAL: &str = "graph: asked\nteam: { robots: 3 }\nstart: p\n\
-        defaults: { sync: sync.by-rule, allocate: alloc.optimal, terminate: term.wait-all }\n\
-        behaviors:\n  p: { team: true, children: [x, y], until: stop }\n\
-        \x20 x: { team: true, skill: w }\n  y: { team: true, skill: w }\n";
-    let g = load_str(&Arc::from("asked.yaml"), OPTIMAL).expect("the test graph loads");
-    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
-    let mut r2 = Kernel::new(mission, RobotId(2), 3);
+    let mut r2 = robot_allocating_by("alloc.optimal", 2);
     let key = start(&mut r2);
     let contributions = |d: &Drained| -> Vec<Body> {
         (d.sent.iter())
@@ -370,10 +378,6 @@ fn a_robot_leading_after_one_that_left_asks_who_it_has_not_heard() {
 /// `alloc.auction`) (docs/reliability.md, "A call dropped at a takeover").
 #[test]
 fn a_new_coordinator_and_its_members_talk_a_retry_after_the_change() {
-    const AUCTION: &str = "graph: auction\nteam: { robots: 3 }\nstart: p\n\
-        defaults: { sync: sync.by-rule, allocate: alloc.auction, terminate: term.wait-all }\n\
-        behaviors:\n  p: { team: true, children: [x, y], until: stop }\n\
-        \x20 x: { team: true, skill: w }\n  y: { team: true, skill: w }\n";
     let t = Time::from_secs_f64;
     let to = |d: &Drained, r: u32, what: fn(&Body) -> bool| {
         (d.sent.iter()).any(|(rcpt, m)| {
@@ -385,9 +389,7 @@ fn a_new_coordinator_and_its_members_talk_a_retry_after_the_change() {
         })
     };
     for me in [1, 2] {
-        let g = load_str(&Arc::from("auction.yaml"), AUCTION).expect("the test graph loads");
-        let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
-        let mut k = Kernel::new(mission, RobotId(me), u64::from(me) + 1);
+        let mut k = robot_allocating_by("alloc.auction", me);
         start(&mut k);
         // r0 coordinates and says nothing: the robot's questions to it back
         // off (0.5, 1.5, 3.5 s...).
