@@ -285,9 +285,11 @@ impl Coord {
     /// "A coordinator after one that left, from the start"); the members'
     /// next coordinator adopts the old one if it reached it
     /// ([`Coord::on_announcement`]). A robot that leads from the start as
-    /// the team's first member, or after teammates presumed lost, decides
-    /// as it leaves: nobody before it decided, and members that reached
-    /// the point later would wait for a coordinator that had gone.
+    /// the team's first member, after teammates presumed lost, or after
+    /// ones that left without running the point
+    /// ([`Cx::left_after_running`]), decides as it leaves: nobody before
+    /// it decided, and members that reached the point later would wait
+    /// for a coordinator that had gone.
     pub(crate) fn after_departed(&self) -> bool {
         self.heir_of_departed
     }

@@ -355,10 +355,10 @@ impl Kernel {
     /// teammate coordinates ahead of it), is newly known to have left a
     /// behavior of this robot's: keep the executions of points that its
     /// heartbeat lists as ended (of a team this robot is in, and that this
-    /// robot has not ended). Coordinating one, it may have decided and left with its
-    /// decision, which may not have reached this robot yet: a robot that
-    /// comes to lead such a point after it decides nothing as it leaves
-    /// the point ([`crate::interaction::Cx::left_after_running`];
+    /// robot has not ended). Coordinating one, it may have decided and
+    /// left with its decision, which may not have reached this robot yet:
+    /// a robot that comes to lead such a point after it decides nothing as
+    /// it leaves the point ([`crate::interaction::Cx::left_after_running`];
     /// docs/reliability.md, "A coordinator after one that left, from the
     /// start").
     fn note_left_ran(&mut self, from: RobotId, pos: &Position) {

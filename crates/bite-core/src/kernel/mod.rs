@@ -508,11 +508,11 @@ pub struct Kernel {
     /// ever hearing them, and until when its heartbeats go to them (see
     /// `Kernel::call_unheard`).
     calling: Option<(MemberSet, Time)>,
-    /// Executions of points ahead of this robot that teammates had ended
-    /// when it learnt they left the behavior above (newest last, at most
-    /// [`LEFT_RAN`], those no longer to come here dropped first): one that
-    /// coordinated such a point may have decided it and left with its
-    /// decision (see `Kernel::note_left_ran`).
+    /// Executions of points that teammates before this robot had ended
+    /// when it learnt they left a behavior of its own, and that it has not
+    /// ended (newest last, at most [`LEFT_RAN`], those it can no longer
+    /// come to dropped first): one that coordinated such a point may have
+    /// decided it and left with its decision (see `Kernel::note_left_ran`).
     left_ran: Vec<(RobotId, FrameId)>,
 }
 
