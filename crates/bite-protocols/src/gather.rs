@@ -206,16 +206,11 @@ impl Coord {
         self.known_leader = Some(cx.leader());
         self.took_over = cx.is_leader() && cx.team().members.iter().next() != Some(cx.me());
         let me = cx.me();
-        self.ask_missing = self.took_over
-            && (cx.team().members.iter())
-                .take_while(|r| *r < me)
-                .any(|r| cx.has_left(r));
+        let before = || (cx.team().members.iter()).take_while(move |r| *r < me);
+        self.ask_missing = self.took_over && before().any(|r| cx.has_left(r));
         // One before it ran the point and left: it may have decided, and
         // left with its decision.
-        self.heir_of_departed = self.took_over
-            && (cx.team().members.iter())
-                .take_while(|r| *r < me)
-                .any(|r| cx.left_after_running(r));
+        self.heir_of_departed = self.ask_missing && before().any(|r| cx.left_after_running(r));
     }
 
     /// True once, for a robot that has led from the start only because
