@@ -452,7 +452,7 @@ pub struct Cx<'a> {
     team: &'a Team,
     excluded: Option<&'a MemberSet>,
     lost: Option<&'a MemberSet>,
-    left_ran: &'a [(RobotId, crate::kernel::FrameId)],
+    left_ran: &'a [LeftRan],
     live: u32,
     org: &'a Organization,
     runs: &'a crate::belief::RunCounts,
@@ -468,6 +468,11 @@ pub struct Cx<'a> {
     aborted: bool,
     fx: &'a mut Effects,
 }
+
+/// An execution of a point (its team, behavior and epoch) that teammate
+/// `.0` had ended when this robot learnt it left a behavior of its own
+/// (see [`Cx::left_after_running`]).
+pub type LeftRan = (RobotId, crate::ids::TeamId, BehaviorId, u32);
 
 /// Everything needed to build a [`Cx`] (for runtimes and protocol tests).
 pub struct CxParts<'a> {
@@ -488,7 +493,7 @@ pub struct CxParts<'a> {
     /// Executions teammates had ended when this robot learnt they left
     /// the behavior above (see [`Cx::left_after_running`]; empty: none
     /// known).
-    pub left_ran: &'a [(RobotId, crate::kernel::FrameId)],
+    pub left_ran: &'a [LeftRan],
     /// This robot's organization hierarchy.
     pub org: &'a Organization,
     /// Run counts of the candidates' parent execution (what `runs` reads).
@@ -644,8 +649,10 @@ impl<'a> Cx<'a> {
     /// robot learnt it left): coordinating it, `r` may have decided, and
     /// its decision may still be on its way here.
     pub fn left_after_running(&self, r: RobotId) -> bool {
-        let here = crate::kernel::FrameId::of(self.key);
-        self.has_left(r) && self.left_ran.iter().any(|(x, id)| *x == r && *id == here)
+        let k = self.key;
+        self.has_left(r)
+            && (self.left_ran.iter())
+                .any(|&(x, t, b, e)| x == r && (t, b, e) == (k.team, k.behavior, k.epoch))
     }
     /// True when `r` is a member not presumed lost.
     pub fn is_live(&self, r: RobotId) -> bool {

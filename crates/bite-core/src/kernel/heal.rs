@@ -379,17 +379,27 @@ impl Kernel {
                 let g = self.graph();
                 g.is_alloc_point(id.behavior) || g.is_point(id.behavior, Kind::Sync)
             };
-            if !point() || self.left_ran.contains(&(from, id)) || !open(self, id) {
+            let entry = (from, id.team, id.behavior, id.epoch);
+            if !point() || self.left_ran.contains(&entry) || !open(self, id) {
                 continue;
             }
             // What can no longer matter makes room first.
             let mut kept = std::mem::take(&mut self.left_ran);
-            kept.retain(|(_, id)| open(self, *id));
+            kept.retain(|&(_, team, behavior, epoch)| {
+                open(
+                    self,
+                    FrameId {
+                        team,
+                        behavior,
+                        epoch,
+                    },
+                )
+            });
             self.left_ran = kept;
             if self.left_ran.len() >= super::LEFT_RAN {
                 self.left_ran.remove(0);
             }
-            self.left_ran.push((from, id));
+            self.left_ran.push(entry);
         }
     }
 

@@ -513,7 +513,7 @@ pub struct Kernel {
     /// ended (newest last, at most [`LEFT_RAN`], those it can no longer
     /// come to dropped first): one that coordinated such a point may have
     /// decided it and left with its decision (see `Kernel::note_left_ran`).
-    left_ran: Vec<(RobotId, FrameId)>,
+    left_ran: Vec<crate::interaction::LeftRan>,
 }
 
 /// How many executions [`Kernel`] keeps that teammates ended before it
