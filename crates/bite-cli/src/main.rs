@@ -786,6 +786,7 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
             ),
             pool: None,
             batch_from: None,
+            batch_most: None,
             log_messages: a.log_messages,
         },
     )

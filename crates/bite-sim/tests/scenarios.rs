@@ -672,7 +672,11 @@ fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
     )
     .unwrap_or_else(|d| panic!("{d}"));
     let eager = g.with_config(&eager).unwrap_or_else(|d| panic!("{d}"));
-    let on = |g: &bite_core::BehaviorGraph, sc: &Scenario, threads: usize, seed: u64| {
+    let on = |g: &bite_core::BehaviorGraph,
+              sc: &Scenario,
+              threads: usize,
+              seed: u64,
+              most: Option<usize>| {
         let mission = prepare(g, sc, Some(120), &bite_protocols::registry()).expect("prepares");
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -689,6 +693,7 @@ fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
                 pool: Some(Arc::new(pool)),
                 // Side by side from 64 robots (5,000 by default).
                 batch_from: Some(64),
+                batch_most: most,
                 ..RunOptions::default()
             },
         )
@@ -701,8 +706,10 @@ fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
         (&g, &slow, 3),
         (&eager, &slow, 4),
     ] {
-        let (one, r1) = on(g, sc, 1, seed);
-        let (two, r2) = on(g, sc, 2, seed);
+        let (one, r1) = on(g, sc, 1, seed, None);
+        let (two, r2) = on(g, sc, 2, seed, None);
+        // Windows cut short at a few events: the rest begin the next.
+        let (cut, r3) = on(g, sc, 2, seed, Some(5));
         let s = &r1.summary;
         assert!(
             s.network.lost > 0 && s.network.duplicated > 0,
@@ -729,11 +736,24 @@ fn a_large_team_handles_its_robots_events_side_by_side_and_runs_the_same() {
         if seed == 4 {
             assert!(b.later > 0 && b.between > 0, "seed {seed}: {b:?}");
         }
-        assert!(one == two, "seed {seed}: the logs differ on two threads");
-        assert_eq!(r1.end, r2.end);
-        assert_eq!(
-            serde_json::to_string(&r1.summary).expect("json"),
-            serde_json::to_string(&r2.summary).expect("json")
+        assert_eq!(b.cut, 0, "seed {seed}: no window reaches the default most");
+        assert!(
+            r3.batched.cut > 0 && r3.batched.windows > b.windows,
+            "seed {seed}: {:?}",
+            r3.batched
         );
+        assert!(one == two, "seed {seed}: the logs differ on two threads");
+        assert!(
+            one == cut,
+            "seed {seed}: the logs differ with windows cut short"
+        );
+        assert_eq!(r1.end, r2.end);
+        assert_eq!(r1.end, r3.end);
+        for r in [&r2, &r3] {
+            assert_eq!(
+                serde_json::to_string(&r1.summary).expect("json"),
+                serde_json::to_string(&r.summary).expect("json")
+            );
+        }
     }
 }

@@ -629,6 +629,7 @@ fn run_mission(
                 }),
                 pool: None,
                 batch_from: None,
+                batch_most: None,
                 log_messages: false,
             },
         )
