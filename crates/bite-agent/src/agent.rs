@@ -598,7 +598,7 @@ impl Agent {
     /// The next output.
     pub fn poll(&mut self) -> Option<AgentOutput> {
         if self.out.is_empty() {
-            if self.out.capacity() > 0 {
+            if self.out.capacity() > 0 || self.kernel.output_room() > 0 {
                 self.drained();
             }
             return None;
@@ -606,23 +606,27 @@ impl Agent {
         self.out.pop_front()
     }
 
-    /// Room the output queue holds, in outputs (to check that a robot's
-    /// memory stays small between decisions).
+    /// Room the output queues hold, this agent's and its kernel's, in
+    /// outputs (to check that a robot's memory stays small between
+    /// decisions).
     pub fn output_room(&self) -> usize {
-        self.out.capacity()
+        self.out.capacity() + self.kernel.output_room()
     }
 
     /// The runtimes drain after every input. The drained queue gives back
     /// its room once the mission is over, as the kernel's does, and while
-    /// it runs at most once every [`ROOM_KEPT`]: a decision's burst leaves
-    /// room for eight outputs that a robot then mostly does not use (at
-    /// 100,000 robots, 96 MB; docs/performance.md, "2026-11-28, late"), and a
-    /// robot deciding often allocates again at most once a second.
+    /// it runs at most once every [`ROOM_KEPT`], with the kernel's (which
+    /// [`Agent::take`] drained into it): a decision's burst leaves room for
+    /// eight outputs that a robot then mostly does not use (at 100,000
+    /// robots, 96 MB each; docs/performance.md, "2026-11-28, late" and
+    /// "2026-12-04, late"), and a robot deciding often allocates again at
+    /// most once a second.
     #[inline(never)]
     fn drained(&mut self) {
         let now = self.kernel.now();
         if self.kernel.is_finished() || now >= self.room_until {
             bite_core::kernel::give_back_room(&mut self.out);
+            self.kernel.give_back_output_room();
             self.room_until = now + ROOM_KEPT;
         }
     }

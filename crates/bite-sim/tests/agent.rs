@@ -251,10 +251,11 @@ fn the_drive_comes_out_of_a_tick_first_and_the_rest_stays_in_order() {
     );
 }
 
-/// A drained output queue keeps its room while the mission runs for at
-/// most a second after it last gave it back (a robot deciding often does
-/// not allocate at every decision), then gives it back at its next drain
-/// (a large team's robots mostly do not use it between decisions).
+/// The drained output queues (the agent's and its kernel's) keep their
+/// room while the mission runs for at most a second after they last gave
+/// it back (a robot deciding often does not allocate at every decision),
+/// then give it back at the next drain (a large team's robots mostly do
+/// not use it between decisions).
 #[test]
 fn a_drained_output_queue_gives_back_its_room_at_most_once_a_second() {
     let (sc, mission) = formation_on("formation.yaml", FORMATION_TIMED);

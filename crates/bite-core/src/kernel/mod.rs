@@ -73,9 +73,10 @@ const DEDUP_PER_SENDER: usize = 4096;
 /// "2026-11-28, evening"; even room for eight outputs was a fifteenth of
 /// a 10,000-robot run's memory, "2026-11-28, late"). A finished robot outputs
 /// rarely (an answer to a late teammate), so the room is not kept for it.
-/// The kernel's not while the mission runs: a decision's burst would then
-/// allocate again every cycle (the agent's, at most once a second: see
-/// `bite_agent::agent::Agent::poll`).
+/// While the mission runs the kernel keeps its own (a decision's burst
+/// would allocate again every cycle): the runtime that drains it after
+/// every input gives it back with its own, at most once a second (see
+/// `bite_agent::agent::Agent::poll` and [`Kernel::give_back_output_room`]).
 pub fn give_back_room<T>(queue: &mut VecDeque<T>) {
     if queue.is_empty() && queue.capacity() > 0 {
         *queue = VecDeque::new();
@@ -709,6 +710,18 @@ impl Kernel {
             return None;
         }
         self.out.pop_front()
+    }
+    /// Room the output queue holds, in outputs.
+    pub fn output_room(&self) -> usize {
+        self.out.capacity()
+    }
+    /// Give back the output queue's room if it is drained (see
+    /// [`give_back_room`]): for a runtime that drains the kernel after
+    /// every input and keeps the room at most for a while. Room for eight
+    /// outputs, kept by every robot between its decisions, was 96 MB of a
+    /// 100,000-robot run's peak (docs/performance.md, "2026-12-04, late").
+    pub fn give_back_output_room(&mut self) {
+        give_back_room(&mut self.out);
     }
     /// The outputs are drained: once the mission is over, give back their
     /// room, and the emptied stack's (a large team's robots all finish at
