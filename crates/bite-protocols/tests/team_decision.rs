@@ -402,17 +402,27 @@ fn a_coordinator_after_one_that_left_leaves_without_deciding() {
         /// over).
         LeftBefore,
         LeftAfter,
+        /// Ran `a` and left, heard after r1 ended `a` but before the vote
+        /// starts (r1 waits for the team's end of `a`, under
+        /// `term.wait-all`): the vote starts only once `a` has ended here.
+        LeftWhileEnding,
         /// Left without running `a` (its heartbeat lists only `root`).
         LeftWithoutRunning,
         LostBefore,
     }
+    let waiting_end = ROOT_ENDS.replace("until: go,", "until: go, terminate: term.wait-all,");
     for r0 in [
         R0::LeftBefore,
         R0::LeftAfter,
+        R0::LeftWhileEnding,
         R0::LeftWithoutRunning,
         R0::LostBefore,
     ] {
-        let (mut r1, go, _, key, mut done) = after_r0_left(ROOT_ENDS, 1, false);
+        let graph = match r0 {
+            R0::LeftWhileEnding => waiting_end.as_str(),
+            _ => ROOT_ENDS,
+        };
+        let (mut r1, go, _, key, mut done) = after_r0_left(graph, 1, false);
         let stop = r1.mission().graph().symbols().get("stop").expect("belief");
         let ran_a = Ended {
             id: FrameId::of(key),
@@ -425,11 +435,21 @@ fn a_coordinator_after_one_that_left_leaves_without_deciding() {
         match r0 {
             R0::LeftBefore | R0::LeftWithoutRunning => r1.peer(t(0.2), RobotId(0), &done),
             R0::LostBefore => r1.member_lost(t(0.2), RobotId(0)),
-            R0::LeftAfter => {}
+            R0::LeftAfter | R0::LeftWhileEnding => {}
         }
         let go_on = [(go, Value::Bool(true)), (stop, Value::Bool(false))];
         r1.tick(t(0.3), &go_on);
         let mut d = drain(&mut r1);
+        if r0 == R0::LeftWhileEnding {
+            let end = InstanceKey {
+                kind: bite_core::msg::Kind::Terminate,
+                ..key
+            };
+            assert_eq!(d.started, Some(end), "r1 waits for the team to end `a`");
+            r1.peer(t(0.32), RobotId(0), &done);
+            r1.message(t(0.34), from(2, end, 1, Body::Done));
+            d = drain(&mut r1);
+        }
         assert_eq!(d.started, Some(key), "the vote started");
         if r0 == R0::LeftAfter {
             r1.peer(t(0.35), RobotId(0), &done);

@@ -365,13 +365,16 @@ impl Kernel {
         if from > self.me {
             return;
         }
-        // An execution still to come here, or under way: of a live team
-        // of this robot's, not ended here, and not older than the latest
-        // this robot started.
+        // An execution whose point is still to come here, or under way:
+        // of a live team of this robot's, not older than the latest this
+        // robot started, and not ended here — or ended here and waiting
+        // for its termination or choosing its successor: a
+        // synchronization point's instance starts only once its execution
+        // has ended, and reads the entry then.
         let open = |k: &Kernel, id: FrameId| {
             k.org.team(id.team).is_some_and(|t| t.contains(k.me))
                 && k.org.runs(id.team, id.behavior) <= id.epoch
-                && !k.recent_ended.contains(&id)
+                && (!k.recent_ended.contains(&id) || k.popped().is_some_and(|(f, _)| f.id() == id))
         };
         for e in &pos.ended {
             let id = e.id;
