@@ -360,7 +360,8 @@ impl Kernel {
     /// a robot that comes to lead such a point after it decides nothing as
     /// it leaves the point ([`crate::interaction::Cx::left_after_running`];
     /// docs/reliability.md, "A coordinator after one that left, from the
-    /// start").
+    /// start" and "A synchronization's coordinator after one that left,
+    /// heard while ending").
     fn note_left_ran(&mut self, from: RobotId, pos: &Position) {
         if from > self.me {
             return;
