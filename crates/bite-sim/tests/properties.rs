@@ -604,6 +604,12 @@ fn cases_that_failed_once() {
         // long before without running it; members waited for a
         // coordinator that had gone.
         (13_855_237_196_121_962_963, 8),
+        // "A coordinator still on its way to the allocation above": a
+        // member waited for its leader, heard in the execution above the
+        // point's without a place in the point's team yet (a lap behind,
+        // it had not made that allocation); the member's deadline fell
+        // while the leader was on its way.
+        (1_198_008_881_174_613_944, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

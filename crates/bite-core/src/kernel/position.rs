@@ -1497,7 +1497,9 @@ impl Kernel {
     ///   robot is in (it is behind on the same path).
     /// - A member waits on its leader: it waits on while the leader was
     ///   heard within [`FRESH`] engaged in the execution (running it, or
-    ///   waiting at its point).
+    ///   waiting at its point), or, making progress, behind on the same
+    ///   path or in the execution above the point's without a place in
+    ///   the point's team yet (on its way to the allocation there).
     ///
     /// At an allocation only a teammate behind on the path counts (a team
     /// at the point reaches it together, and a protocol may count on its
@@ -1575,19 +1577,14 @@ impl Kernel {
                     && (self.passed(k, p, frames[k].0) || self.leads_into(k, p, frames[k].0))
             })
         };
-        if leader != Some(self.me) {
-            return leader.and_then(heard).is_some_and(|frames| {
-                frames.iter().enumerate().any(|(k, (f, _))| {
-                    *f == id || (is_behind(frames, k) && leader.is_some_and(progressing))
-                })
-            });
-        }
         // A teammate in the execution above the point's, in another of its
         // subteams (or in none): the two took that allocation from
         // different views (one had heard that a teammate finished, the
         // other not yet), and the split heals within a heartbeat or two
-        // (`Kernel::reconcile_allocation`): it is on its way, as one behind
-        // is (docs/reliability.md, "A root leader that finished").
+        // (`Kernel::reconcile_allocation`), or it has yet to make that
+        // allocation (a lap behind): it is on its way, as one behind is
+        // (docs/reliability.md, "A root leader that finished", "A
+        // coordinator still on its way to the allocation above").
         let above = match self.stack.iter().position(|f| f.id() == id) {
             Some(i) => i.checked_sub(1).map(|p| self.stack[p].id()),
             // Its end or its synchronization: the frame is popped.
@@ -1602,6 +1599,13 @@ impl Kernel {
                     .is_some_and(|k| frames.get(k + 1).is_none_or(|(g, _)| g.team != key.team))
             })
         };
+        if leader != Some(self.me) {
+            return leader.and_then(heard).is_some_and(|frames| {
+                frames.iter().enumerate().any(|(k, (f, _))| {
+                    *f == id || (is_behind(frames, k) && leader.is_some_and(progressing))
+                }) || (split_off(frames) && leader.is_some_and(progressing))
+            });
+        }
         let mut running = false;
         for r in inst
             .team
