@@ -613,6 +613,11 @@ fn cases_that_failed_once() {
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
+    // The same section, its first form: a member waited on its leader in
+    // the execution above in another of its subteams; after a crash two
+    // members, each in a subteam the other had not taken, waited for
+    // each other for ever (NOT COMPLETED at the time limit).
+    run_case(11_211_088_363_829_428_195, 5, 0.0, 0.0, 3).unwrap_or_else(|e| panic!("{e}"));
     // "An individual successor is no split": after an individual behavior
     // one robot, its perception differing, took an individual successor
     // while its teammates took the team one; the checker took the two for

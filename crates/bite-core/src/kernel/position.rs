@@ -1498,8 +1498,8 @@ impl Kernel {
     /// - A member waits on its leader: it waits on while the leader was
     ///   heard within [`FRESH`] engaged in the execution (running it, or
     ///   waiting at its point), or, making progress, behind on the same
-    ///   path or in the execution above the point's without a place in
-    ///   the point's team yet (on its way to the allocation there).
+    ///   path or still making the allocation above the point (in the
+    ///   execution above, with nothing below it yet).
     ///
     /// At an allocation only a teammate behind on the path counts (a team
     /// at the point reaches it together, and a protocol may count on its
@@ -1599,11 +1599,20 @@ impl Kernel {
                     .is_some_and(|k| frames.get(k + 1).is_none_or(|(g, _)| g.team != key.team))
             })
         };
+        // A leader still making the allocation above (a lap behind): it
+        // runs the execution above the point's with nothing below it yet.
+        // Not one in another of its subteams: two members each in a
+        // subteam the other did not take waited for each other for ever
+        // (docs/reliability.md, "A coordinator still on its way to the
+        // allocation above").
+        let allocating_above = |frames: &[(FrameId, FrameState)]| {
+            above.is_some_and(|a| frames.last() == Some(&(a, FrameState::Running)))
+        };
         if leader != Some(self.me) {
             return leader.and_then(heard).is_some_and(|frames| {
                 frames.iter().enumerate().any(|(k, (f, _))| {
                     *f == id || (is_behind(frames, k) && leader.is_some_and(progressing))
-                }) || (split_off(frames) && leader.is_some_and(progressing))
+                }) || (allocating_above(frames) && leader.is_some_and(progressing))
             });
         }
         let mut running = false;
