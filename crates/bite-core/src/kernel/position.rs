@@ -1601,7 +1601,7 @@ impl Kernel {
         };
         // A leader still making the allocation above (a lap behind): it
         // runs the execution above the point's with nothing below it yet.
-        // Not one in another of its subteams: two members each in a
+        // Not one in another of its subteams: two robots each in a
         // subteam the other did not take waited for each other for ever
         // (docs/reliability.md, "A coordinator still on its way to the
         // allocation above").
