@@ -615,8 +615,9 @@ fn cases_that_failed_once() {
     }
     // The same section, its first form: a member waited on its leader in
     // the execution above in another of its subteams; after a crash two
-    // members, each in a subteam the other had not taken, waited for
-    // each other for ever (NOT COMPLETED at the time limit).
+    // robots, each in a subteam the other had not taken (one leading its
+    // own, the other a member of the other's), waited for each other for
+    // ever (NOT COMPLETED at the time limit).
     run_case(11_211_088_363_829_428_195, 5, 0.0, 0.0, 3).unwrap_or_else(|e| panic!("{e}"));
     // "An individual successor is no split": after an individual behavior
     // one robot, its perception differing, took an individual successor

@@ -1577,14 +1577,7 @@ impl Kernel {
                     && (self.passed(k, p, frames[k].0) || self.leads_into(k, p, frames[k].0))
             })
         };
-        // A teammate in the execution above the point's, in another of its
-        // subteams (or in none): the two took that allocation from
-        // different views (one had heard that a teammate finished, the
-        // other not yet), and the split heals within a heartbeat or two
-        // (`Kernel::reconcile_allocation`), or it has yet to make that
-        // allocation (a lap behind): it is on its way, as one behind is
-        // (docs/reliability.md, "A root leader that finished", "A
-        // coordinator still on its way to the allocation above").
+        // The execution above the point's, here.
         let above = match self.stack.iter().position(|f| f.id() == id) {
             Some(i) => i.checked_sub(1).map(|p| self.stack[p].id()),
             // Its end or its synchronization: the frame is popped.
@@ -1593,28 +1586,35 @@ impl Kernel {
                 .and_then(|_| self.stack.last())
                 .map(Frame::id),
         };
+        if leader != Some(self.me) {
+            // A leader still making the allocation above (a lap behind)
+            // runs the execution above the point's with nothing below it
+            // yet: it is on its way. Not one in another of its subteams:
+            // two robots each in a subteam the other did not take waited
+            // for each other for ever (docs/reliability.md, "A coordinator
+            // still on its way to the allocation above").
+            let allocating_above = |frames: &[(FrameId, FrameState)]| {
+                above.is_some_and(|a| frames.last() == Some(&(a, FrameState::Running)))
+            };
+            return leader.and_then(heard).is_some_and(|frames| {
+                frames.iter().any(|(f, _)| *f == id)
+                    || (leader.is_some_and(progressing)
+                        && ((0..frames.len()).any(|k| is_behind(frames, k))
+                            || allocating_above(frames)))
+            });
+        }
+        // A teammate in the execution above the point's, in another of its
+        // subteams (or in none): the two took that allocation from
+        // different views (one had heard that a teammate finished, the
+        // other not yet), and the split heals within a heartbeat or two
+        // (`Kernel::reconcile_allocation`): it is on its way, as one behind
+        // is (docs/reliability.md, "A root leader that finished").
         let split_off = |frames: &[(FrameId, FrameState)]| {
             above.is_some_and(|a| {
                 (frames.iter().position(|(f, _)| *f == a))
                     .is_some_and(|k| frames.get(k + 1).is_none_or(|(g, _)| g.team != key.team))
             })
         };
-        // A leader still making the allocation above (a lap behind): it
-        // runs the execution above the point's with nothing below it yet.
-        // Not one in another of its subteams: two robots each in a
-        // subteam the other did not take waited for each other for ever
-        // (docs/reliability.md, "A coordinator still on its way to the
-        // allocation above").
-        let allocating_above = |frames: &[(FrameId, FrameState)]| {
-            above.is_some_and(|a| frames.last() == Some(&(a, FrameState::Running)))
-        };
-        if leader != Some(self.me) {
-            return leader.and_then(heard).is_some_and(|frames| {
-                frames.iter().enumerate().any(|(k, (f, _))| {
-                    *f == id || (is_behind(frames, k) && leader.is_some_and(progressing))
-                }) || (allocating_above(frames) && leader.is_some_and(progressing))
-            });
-        }
         let mut running = false;
         for r in inst
             .team
