@@ -610,6 +610,11 @@ fn cases_that_failed_once() {
         // it had not made that allocation); the member's deadline fell
         // while the leader was on its way.
         (1_198_008_881_174_613_944, 6),
+        // "A teammate gone round past the execution": a robot a lap behind
+        // in `b1`#2 waited at an allocation below it for teammates in
+        // `b3`#2 (which it came to `b1`#2 after `b3`#1), taken for ones on
+        // their way into it, and the run stalled.
+        (5_857_852_094_645_335_443, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -260,6 +260,11 @@ impl Kernel {
             // Or it went past without running it: it never took part in
             // the execution's allocation either (see below).
             let went_past = !ran && self.went_past(k, id, pos);
+            // Or it went round past it: it runs a later execution of the
+            // behavior this one came after, which leads only here. It may
+            // have run it (and decided its allocation), so it stays in that
+            // allocation, as a teammate that ran it does.
+            let went_round = !ran && !went_past && self.went_round(k, id, pos);
             // One that ended it before any allocation of it (its end, heard
             // with no allocation applied) neither decided one.
             let unallocated = || {
@@ -272,7 +277,7 @@ impl Kernel {
             } else if slot.is_some() && ran && unallocated() {
                 skipped = Some((id, true));
             }
-            let ended = ran || went_past;
+            let ended = ran || went_past || went_round;
             // Nothing to learn: the team is not looked up (its split is
             // cold in a large team, and most heartbeats report nothing).
             if report.is_none() && !ended {
@@ -463,6 +468,28 @@ impl Kernel {
             && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))
             && (self.graph().get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
             && !(from_earlier && self.leads_back(g.id.behavior, id.behavior))
+    }
+
+    /// True when a teammate runs, beside this robot's execution `id` at
+    /// depth `k` (under the same parent execution, in the same team), a
+    /// later execution of the behavior `id` came after, whose only
+    /// successor is `id`'s behavior, and that this robot has yet to start
+    /// (`Kernel::round_past`): the teammate is past `id` (it ran it, or
+    /// converged past it on teammates further on) and will not come back
+    /// to it (docs/reliability.md, "A teammate gone round past the
+    /// execution").
+    fn went_round(&self, k: usize, id: FrameId, pos: &Position) -> bool {
+        let (Some(p), Some(up), Some(g)) = (
+            k.checked_sub(1).and_then(|i| self.stack.get(i)),
+            k.checked_sub(1).and_then(|i| pos.frames.get(i)),
+            pos.frames.get(k),
+        ) else {
+            return false;
+        };
+        g.id.team == id.team
+            && up.id == p.id()
+            && g.id.epoch > p.runs.latest_epoch(g.id.behavior)
+            && self.round_past(k, g.id)
     }
 
     /// True when behavior `to` may follow `from` along sequential edges

@@ -740,6 +740,9 @@ impl Kernel {
     /// for one of them), and the teammate is on its way. A teammate that
     /// went through this robot's execution is departed from it and not
     /// waited for.
+    ///
+    /// Not a later execution of the behavior this robot's execution came
+    /// after ([`Kernel::round_past`]): that teammate went round past it.
     fn leads_into(&self, k: usize, parent: FrameId, g: FrameId) -> bool {
         let graph = self.graph();
         k.checked_sub(1)
@@ -750,6 +753,26 @@ impl Kernel {
                     f.team == g.team && f.id() != g && b.next.contains(&f.behavior)
                 })
             })
+            && !self.round_past(k, g)
+    }
+
+    /// True when a teammate's execution `g` at depth `k` is a later
+    /// execution of the behavior this robot's execution there came after
+    /// (its anchor: `b3`#2 beside this robot's `b1`#2, which came after
+    /// `b3`#1), a behavior whose only successor is this robot's. Every way
+    /// from that behavior's executions leads into this robot's behavior,
+    /// so the teammate went round past this robot's execution, running it
+    /// or converging past it, and is not on its way into it
+    /// (docs/reliability.md, "A teammate gone round past the execution").
+    /// With another successor it might be: it may have gone round another
+    /// way and come to this execution's epoch later.
+    pub(super) fn round_past(&self, k: usize, g: FrameId) -> bool {
+        self.slot_at(k).is_some_and(|(_, f)| {
+            f.team == g.team
+                && f.anchor
+                    .is_some_and(|a| !a.first && a.behavior == g.behavior && a.epoch < g.epoch)
+                && (self.graph().get(g.behavior)).is_some_and(|b| b.next[..] == [f.behavior])
+        })
     }
 
     /// Teammate `r`'s entry, if it was heard within [`FRESH`].

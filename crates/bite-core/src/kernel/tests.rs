@@ -2235,3 +2235,65 @@ fn a_robot_calls_the_teammates_it_never_heard_when_its_deadline_falls() {
     h.tick_one(1, later.as_micros().div_ceil(1000), &[("first_done", T)]);
     assert_eq!(h.kernels[1].stats().timeouts, 1);
 }
+
+/// A teammate heard in a later execution of the behavior this robot's
+/// execution came after, a behavior whose only successor is this robot's
+/// (`c`#2 beside `a`#2, which came after `c`#1), went round past this
+/// robot's execution (it ran it, or converged past it): it is marked
+/// departed from it and left out of the points below it. Found by
+/// `no_waiting_across_levels` (RNG seed 167, graph seed
+/// 5857852094645335443): the robot waited at an allocation below `b1`#2
+/// for a teammate in `b3`#2, taken for one on its way, until the run
+/// stalled.
+#[test]
+fn a_teammate_gone_round_past_an_execution_is_departed_from_it() {
+    const ROUND: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, children: [s], until: a_done, next: [b] }
+  b: { team: true, skill: w, until: b_done, next: [c] }
+  c: { team: true, skill: w, until: c_done, next: [a] }
+  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
+    let mut h = Harness::new(ROUND, 3);
+    let off = [("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)];
+    h.tick(0, &off);
+    // Robot 1 goes round alone: `a`#1, `b`#1, `c`#1, then `a`#2, and ends
+    // `s` there, waiting at its barrier for robots 0 and 2.
+    h.tick_one(1, 100, &[("a_done", T)]);
+    h.tick_one(1, 200, &[("a_done", F), ("b_done", T)]);
+    h.tick_one(1, 300, &[("b_done", F), ("c_done", T)]);
+    h.tick_one(1, 400, &[("c_done", F), ("s_done", T)]);
+    let g = h.kernels[1].mission().graph().clone();
+    let [root, a, b, c, s] = ["root", "a", "b", "c", "s"].map(|n| g.find(n).expect("behavior"));
+    let id = |behavior, epoch| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch,
+    };
+    assert!(
+        h.kernels[1].stack().iter().any(|f| f.id() == id(a, 2)),
+        "robot 1 runs `a`#2: {:?}",
+        h.stack(1)
+    );
+    let barrier = (h.kernels[1].instances.iter())
+        .find(|(k, i)| k.behavior == s && k.kind == Kind::Terminate && i.state == State::Active)
+        .map(|(k, _)| k)
+        .expect("robot 1 waits at `s`'s barrier");
+    let left_out = |h: &Harness| {
+        (h.kernels[1].instances.get(&barrier))
+            .and_then(|i| i.excluded.as_ref())
+            .is_some_and(|x| x.contains(RobotId(2)))
+    };
+    assert!(!left_out(&h));
+    // Robot 2 runs `c`#2, after `b`#2: it is past `a`#2.
+    let mut past = running(&[(id(root, 1), None), (id(c, 2), Some((id(b, 2), false)))]);
+    past.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(450), RobotId(2), &past);
+    let departed = (h.kernels[1].stack().iter())
+        .find(|f| f.id() == id(a, 2))
+        .and_then(|f| f.departed.as_ref())
+        .is_some_and(|d| d.contains(RobotId(2)));
+    assert!(departed, "robot 2 is past `a`#2");
+    assert!(left_out(&h), "and left out of `s`'s barrier below it");
+}
