@@ -2,7 +2,7 @@
 //! rules): departures, splits, allocation splits, burns and catching up.
 
 use super::position::{
-    ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, Position, RECENT, Slot, push_recent,
+    ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position, RECENT, Slot, push_recent,
 };
 use super::{Frame, Kernel, Phase, State};
 use crate::event::{EndReason, Event, FrameRef, Via};
@@ -444,11 +444,7 @@ impl Kernel {
     /// converged on teammates further on) and will not come to `id`
     /// (docs/reliability.md, "Teammates gone another way").
     fn went_past(&self, k: usize, id: FrameId, pos: &Position) -> bool {
-        let (Some(p), Some(up), Some(g)) = (
-            k.checked_sub(1).and_then(|i| self.stack.get(i)),
-            k.checked_sub(1).and_then(|i| pos.frames.get(i)),
-            pos.frames.get(k),
-        ) else {
+        let Some(g) = self.yet_to_start(k, id, pos) else {
             return false;
         };
         // Not one before it: the execution this robot came from (it may
@@ -460,10 +456,7 @@ impl Kernel {
         let from_earlier = g
             .anchor
             .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch < id.epoch);
-        g.id.team == id.team
-            && g.id.behavior != id.behavior
-            && up.id == p.id()
-            && g.id.epoch > p.runs.latest_epoch(g.id.behavior)
+        g.id.behavior != id.behavior
             && g.id.epoch > self.org.runs(id.team, g.id.behavior)
             && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))
             && (self.graph().get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
@@ -479,17 +472,21 @@ impl Kernel {
     /// to it (docs/reliability.md, "A teammate gone round past the
     /// execution").
     fn went_round(&self, k: usize, id: FrameId, pos: &Position) -> bool {
-        let (Some(p), Some(up), Some(g)) = (
-            k.checked_sub(1).and_then(|i| self.stack.get(i)),
-            k.checked_sub(1).and_then(|i| pos.frames.get(i)),
-            pos.frames.get(k),
-        ) else {
-            return false;
-        };
-        g.id.team == id.team
-            && up.id == p.id()
-            && g.id.epoch > p.runs.latest_epoch(g.id.behavior)
-            && self.round_past(k, g.id)
+        self.yet_to_start(k, id, pos)
+            .is_some_and(|g| self.round_past(k, g.id))
+    }
+
+    /// The teammate's frame at depth `k` of `pos`, if it runs, beside this
+    /// robot's execution `id` there (under the same parent execution, in
+    /// the same team), an execution this robot has yet to start: its epoch
+    /// is past the latest this robot started of its behavior under that
+    /// parent.
+    fn yet_to_start<'p>(&self, k: usize, id: FrameId, pos: &'p Position) -> Option<&'p PosFrame> {
+        let p = k.checked_sub(1).and_then(|i| self.stack.get(i))?;
+        let up = k.checked_sub(1).and_then(|i| pos.frames.get(i))?;
+        let g = pos.frames.get(k)?;
+        (g.id.team == id.team && up.id == p.id() && g.id.epoch > p.runs.latest_epoch(g.id.behavior))
+            .then_some(g)
     }
 
     /// True when behavior `to` may follow `from` along sequential edges
