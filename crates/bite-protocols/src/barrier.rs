@@ -343,7 +343,17 @@ impl Interaction for Barrier {
                 // The leader is alive and knows we are here: keep waiting.
                 cx.postpone_deadline();
             }
-            Body::Release { next } if self.mode == Mode::FirstWins || from == leader => {
+            // A member also takes one from a teammate that left the
+            // behavior (left out, not presumed lost): it led the end in its
+            // view and released the team, which went on with it; this robot
+            // came to the point late and counts it out, so its leader here
+            // is another (docs/reliability.md, "A release from a teammate
+            // that left"). A leader adopts it below, and tells its members.
+            Body::Release { next }
+                if self.mode == Mode::FirstWins
+                    || from == leader
+                    || (!cx.is_leader() && cx.has_left(from)) =>
+            {
                 if self.mode == Mode::FirstWins || !self.me_done {
                     // Released while still working (first-wins, majority,
                     // the leader's deadline): confirm, or the releaser

@@ -473,3 +473,74 @@ fn a_coordinator_after_one_that_left_leaves_without_deciding() {
         );
     }
 }
+
+/// A member that counts out a teammate that left the behavior (here it
+/// finished the mission) takes that teammate's release of the behavior's
+/// end, and confirms it: the teammate led the end in its view and the team
+/// went on with it, while this robot's leader at the point is another.
+/// Found by `no_waiting_across_levels` (RNG seed 1008, graph seed
+/// 16345115294303735707, eight robots, no faults): r5 came to `b3`#3 0.8 s
+/// after r1 released the team (`term.majority`), counted r1 out, ignored
+/// its release 40 times and ran `b3`#3 85 s after its team had ended it
+/// (docs/reliability.md, "A release from a teammate that left").
+#[test]
+fn a_member_takes_the_release_of_a_teammate_that_left() {
+    use bite_core::TeamId;
+    use bite_core::kernel::{Ended, FrameId, Position};
+    use bite_core::msg::Kind;
+    const MAJORITY: &str = "graph: majority\nteam: { robots: 3 }\nstart: root\n\
+        defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
+        behaviors:\n  root: { team: true, children: [a] }\n\
+        \x20 a: { team: true, skill: w, until: go, terminate: term.majority }\n";
+    let g = load_str(&Arc::from("majority.yaml"), MAJORITY).expect("the test graph loads");
+    let [root, a] = ["root", "a"].map(|n| g.find(n).expect("behavior"));
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r2 = Kernel::new(mission, RobotId(2), 3);
+    let go = r2.mission().graph().symbols().get("go").expect("belief");
+    let t = Time::from_secs_f64;
+    r2.tick(Time::ZERO, &[(go, Value::Bool(false))]);
+    drain(&mut r2);
+    // r0 ended `a` with the team and finished the mission: it left.
+    let id = |behavior| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch: 1,
+    };
+    let done = Position {
+        robot: RobotId(0),
+        ended: vec![
+            Ended {
+                id: id(a),
+                parent: Some(id(root)),
+            },
+            Ended {
+                id: id(root),
+                parent: None,
+            },
+        ],
+        ..Position::default()
+    };
+    r2.peer(t(0.1), RobotId(0), &done);
+    drain(&mut r2);
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: a,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    r2.message(t(0.2), from(0, key, 1, Body::Release { next: None }));
+    let d = drain(&mut r2);
+    assert!(
+        (d.decided.iter()).any(|e| e.contains("term.majority") && e.contains("Terminate")),
+        "r2 ends `a`: {:?}",
+        d.decided
+    );
+    assert!(
+        d.sent
+            .iter()
+            .any(|(to, m)| *m == Body::Ack && *to == Recipients::One(RobotId(0))),
+        "and confirms to r0: {:?}",
+        d.sent
+    );
+}

@@ -615,6 +615,11 @@ fn cases_that_failed_once() {
         // `b3`#2 (which it came to `b1`#2 after `b3`#1), taken for ones on
         // their way into it, and the run stalled.
         (5_857_852_094_645_335_443, 6),
+        // "A release from a teammate that left": a robot came to a
+        // `term.majority` point just after its team had ended it, counted
+        // the teammate that released the team out, ignored its release and
+        // ran the behavior 85 s after its team had ended it.
+        (16_345_115_294_303_735_707, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
