@@ -257,7 +257,6 @@ fn after_r0_left(
     bite_core::kernel::Position,
 ) {
     use bite_core::TeamId;
-    use bite_core::kernel::{Ended, FrameId, Position};
     use bite_core::msg::Kind;
     let g = load_str(&Arc::from("left.yaml"), graph).expect("the test graph loads");
     let [root, a, c] = ["root", "a", "c"].map(|n| g.find(n).expect("behavior"));
@@ -276,16 +275,27 @@ fn after_r0_left(
     if told {
         k.message(t(0.1), from(0, key, 1, Body::Decision { choice: Some(c) }));
     }
+    let done = finished(root, c);
+    drain(&mut k);
+    (k, go, c, key, done)
+}
+
+/// r0's heartbeat once it ended `last` (the first execution of a behavior
+/// under the root) and then `root`: it finished the mission, so it left
+/// every behavior.
+fn finished(root: BehaviorId, last: BehaviorId) -> bite_core::kernel::Position {
+    use bite_core::TeamId;
+    use bite_core::kernel::{Ended, FrameId, Position};
     let id = |behavior| FrameId {
         team: TeamId::ROOT,
         behavior,
         epoch: 1,
     };
-    let done = Position {
+    Position {
         robot: RobotId(0),
         ended: vec![
             Ended {
-                id: id(c),
+                id: id(last),
                 parent: Some(id(root)),
             },
             Ended {
@@ -294,9 +304,7 @@ fn after_r0_left(
             },
         ],
         ..Position::default()
-    };
-    drain(&mut k);
-    (k, go, c, key, done)
+    }
 }
 
 /// The vote `key` started with r0 left out (it left: this robot's
@@ -486,7 +494,6 @@ fn a_coordinator_after_one_that_left_leaves_without_deciding() {
 #[test]
 fn a_member_takes_the_release_of_a_teammate_that_left() {
     use bite_core::TeamId;
-    use bite_core::kernel::{Ended, FrameId, Position};
     use bite_core::msg::Kind;
     const MAJORITY: &str = "graph: majority\nteam: { robots: 3 }\nstart: root\n\
         defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
@@ -501,26 +508,7 @@ fn a_member_takes_the_release_of_a_teammate_that_left() {
     r2.tick(Time::ZERO, &[(go, Value::Bool(false))]);
     drain(&mut r2);
     // r0 ended `a` with the team and finished the mission: it left.
-    let id = |behavior| FrameId {
-        team: TeamId::ROOT,
-        behavior,
-        epoch: 1,
-    };
-    let done = Position {
-        robot: RobotId(0),
-        ended: vec![
-            Ended {
-                id: id(a),
-                parent: Some(id(root)),
-            },
-            Ended {
-                id: id(root),
-                parent: None,
-            },
-        ],
-        ..Position::default()
-    };
-    r2.peer(t(0.1), RobotId(0), &done);
+    r2.peer(t(0.1), RobotId(0), &finished(root, a));
     drain(&mut r2);
     let key = InstanceKey {
         team: TeamId::ROOT,
