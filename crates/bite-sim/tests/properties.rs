@@ -620,6 +620,17 @@ fn cases_that_failed_once() {
         // the teammate that released the team out, ignored its release and
         // ran the behavior 85 s after its team had ended it.
         (16_345_115_294_303_735_707, 8),
+        // "Members ahead of their leader": two members past their leader
+        // chose `alt4` and `b2` after the individual `b1`#3, each heard
+        // only the leader, a lap behind, and ran apart for 6.5 s.
+        (15_725_357_882_910_428_641, 6),
+        // "A split the other side went through": r1 took `b2` after `b1`#1,
+        // its team `alt4`, which r0 passed at once on its teammates'
+        // releases; r1 waited alone in `b2` for 121 s, r0 at four points
+        // for it.
+        (5_063_174_684_227_258_361, 5),
+        (10_981_569_113_438_498_380, 6),
+        (13_945_246_781_331_279_317, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

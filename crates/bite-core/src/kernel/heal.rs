@@ -537,22 +537,27 @@ impl Kernel {
     /// Compare this robot's frames with a teammate's after the same
     /// predecessor; converge on one execution (at most one change per
     /// heartbeat: what lies below a changed frame is gone). True when it
-    /// converged.
-    pub(super) fn reconcile(&mut self, from: RobotId, pos: &Position) -> bool {
+    /// converged. With `through`, the teammate's ended executions are
+    /// compared instead of its frames ([`Kernel::ran_another_successor`]).
+    pub(super) fn reconcile(&mut self, from: RobotId, pos: &Position, through: bool) -> bool {
         // By index, nothing collected: until it converges (and returns),
         // the loop changes neither the stack nor the frame it ended.
         for k in 0..=self.stack.len() {
             let Some((slot, id, prev)) = self.anchored_at(k) else {
                 continue;
             };
-            let Some(g) = pos
-                .frames
-                .iter()
-                .find(|g| g.id.team == id.team && g.anchor == Some(prev))
-            else {
+            let found = if through {
+                self.ran_another_successor(k, id, prev, pos)
+            } else {
+                pos.frames
+                    .iter()
+                    .find(|g| g.id.team == id.team && g.anchor == Some(prev))
+                    .map(|g| g.id)
+            };
+            let Some(theirs) = found else {
                 continue;
             };
-            if g.id == id {
+            if theirs == id {
                 continue;
             }
             let depth = match slot {
@@ -560,10 +565,10 @@ impl Kernel {
                 Slot::Popped => self.stack.len(),
             };
             let leader = self.heal_leader(id.team, depth);
-            let follow = if g.id.behavior == id.behavior {
+            let follow = if theirs.behavior == id.behavior {
                 // The same successor, counted differently (an earlier split
                 // burned an epoch on one side): the higher epoch wins.
-                g.id.epoch > id.epoch
+                theirs.epoch > id.epoch
             } else {
                 // The healing leader's choice; when the leader is on
                 // neither side (elsewhere, or not heard yet), the lowest-id
@@ -572,15 +577,67 @@ impl Kernel {
                 leader == Some(from) || (leader != Some(self.me) && from < self.me)
             };
             if !follow {
-                if leader == Some(self.me) && g.id.behavior != id.behavior {
-                    self.split_seen(from, id, g.id, prev);
+                if leader == Some(self.me) && theirs.behavior != id.behavior {
+                    self.split_seen(from, id, theirs, prev);
                 }
                 continue;
             }
-            self.converge(slot, from, id, g.id, prev);
+            self.converge(slot, from, id, theirs, prev);
             return true;
         }
         false
+    }
+
+    /// The execution a teammate ran and ended after `prev`, the execution
+    /// this robot's execution `id` at depth `k` came after, when it is
+    /// another successor than `id`'s: the teammate ended `prev` under the
+    /// same parent execution, did not run `id`, and ended (without burning
+    /// it) the next execution of a successor of `prev`'s behavior, the one
+    /// this robot would have started in `id`'s place. The two chose apart
+    /// at a point where each decides alone, and the teammate went through
+    /// its side before this robot heard it there: its teammates had ended
+    /// it already, and their releases let it pass at once. Without this
+    /// the split was never seen; this robot waited in `id` for teammates
+    /// that had gone on, at every point a deadline
+    /// (docs/reliability.md, "A split the other side went through"). Only
+    /// when neither a frame after `prev` nor a diverged history
+    /// ([`Kernel::meet`]) told the split.
+    fn ran_another_successor(
+        &self,
+        k: usize,
+        id: FrameId,
+        prev: Anchor,
+        pos: &Position,
+    ) -> Option<FrameId> {
+        if prev.first {
+            return None;
+        }
+        let parent = self.stack.get(k.checked_sub(1)?)?;
+        let pid = parent.id();
+        let before = FrameId {
+            team: id.team,
+            behavior: prev.behavior,
+            epoch: prev.epoch,
+        };
+        let ended = |f: FrameId| pos.ended.iter().any(|e| e.id == f && e.parent == Some(pid));
+        if !ended(before) || ended(id) || pos.frames.iter().any(|g| g.id == id) {
+            return None;
+        }
+        let next = &self.graph().get(prev.behavior)?.next;
+        pos.ended
+            .iter()
+            .rev()
+            .map(|e| (e.id, e.parent))
+            .find(|&(e, p)| {
+                p == Some(pid)
+                    && e.team == id.team
+                    && e.behavior != id.behavior
+                    && next.contains(&e.behavior)
+                    && parent.runs.latest_epoch(e.behavior).checked_add(1) == Some(e.epoch)
+                    && !pos.burned.contains(&e)
+                    && !self.recent_burned.contains(&e)
+            })
+            .map(|(e, _)| e)
     }
 
     /// Histories that diverged while the team was cut apart (a partition,

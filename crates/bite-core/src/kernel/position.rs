@@ -638,6 +638,7 @@ impl Kernel {
                     let away = |r: RobotId| {
                         self.absent_from(r, t, f.started)
                             || (waiting == Some(depth) && self.behind(r, f))
+                            || self.passed_by(r, depth, f)
                     };
                     if away(l) {
                         match self.acting_leader(t, depth, away) {
@@ -772,6 +773,41 @@ impl Kernel {
                 && f.anchor
                     .is_some_and(|a| !a.first && a.behavior == g.behavior && a.epoch < g.epoch)
                 && (self.graph().get(g.behavior)).is_some_and(|b| b.next[..] == [f.behavior])
+        })
+    }
+
+    /// True when frame `f` (at depth `depth`) came after a point with
+    /// several successors, and teammate `r`, heard within [`FRESH`] since
+    /// this robot took `f` up, runs under the same parent execution an
+    /// execution of `f`'s team this robot went past ([`Kernel::passed`]):
+    /// it is behind on this robot's way, however many behaviors back.
+    /// Members that went on past such a leader and chose apart there (each
+    /// alone: a silent rule, a precondition that held for some of them, an
+    /// individual behavior) heard only the leader, not each other, and
+    /// the split stayed unseen until the leader came (docs/reliability.md,
+    /// "Members ahead of their leader"). After a point with one successor
+    /// nobody chooses, and a team in step sends nothing more.
+    fn passed_by(&self, r: RobotId, depth: usize, f: &Frame) -> bool {
+        let Some(a) = f.anchor.filter(|a| !a.first) else {
+            return false;
+        };
+        if self
+            .graph()
+            .get(a.behavior)
+            .is_none_or(|b| b.next.len() < 2)
+        {
+            return false;
+        }
+        let Some(parent) = depth.checked_sub(1).and_then(|i| self.stack.get(i)) else {
+            return false;
+        };
+        let parent = parent.id();
+        self.fresh_peer(r).is_some_and(|p| {
+            p.heard >= f.started
+                && p.frames.get(depth - 1).is_some_and(|(g, _)| *g == parent)
+                && p.frames
+                    .get(depth)
+                    .is_some_and(|(g, _)| g.team == f.team && self.passed(depth, parent, *g))
         })
     }
 
@@ -964,8 +1000,8 @@ impl Kernel {
         self.count_past(pos);
         self.catch_up(pos);
         self.learn_departures(from, pos);
-        if !self.reconcile(from, pos) {
-            self.meet(from, pos);
+        if !self.reconcile(from, pos, false) && !self.meet(from, pos) {
+            self.reconcile(from, pos, true);
         }
         self.reconcile_allocation(from, pos);
         self.ask_past_point(from, pos);

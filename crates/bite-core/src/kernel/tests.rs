@@ -2297,3 +2297,111 @@ behaviors:
     assert!(departed, "robot 2 is past `a`#2");
     assert!(left_out(&h), "and left out of `s`'s barrier below it");
 }
+
+/// A team whose members choose `b` or `c` after `a` each by its own
+/// preconditions (one option each: no protocol runs), and go on from
+/// either to `d`.
+const CHOOSE: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b, c] }
+  b: { team: true, skill: w, pre: want_b, until: b_done, next: [d] }
+  c: { team: true, skill: w, pre: want_c, until: c_done, next: [d] }
+  d: { team: true, skill: w, until: d_done }";
+
+const CHOOSE_OFF: [(&str, Value); 6] = [
+    ("a_done", F),
+    ("b_done", F),
+    ("c_done", F),
+    ("d_done", F),
+    ("want_b", F),
+    ("want_c", F),
+];
+
+/// Members that went on past their leader and chose apart at a point with
+/// several successors hear each other: the lowest-id one relays the
+/// team's heartbeats while the leader is behind on its way, at work as
+/// well as at a point, and the split heals. Before, each sent its
+/// heartbeats to the leader alone and the split stayed unseen until the
+/// leader came (found by `no_waiting_across_levels`, graph seed
+/// 15725357882910428641: r1 and r5 ran `alt4` and `b2` side by side for
+/// 6.5 s, breaking `splits-healed`).
+#[test]
+fn members_ahead_of_their_leader_that_chose_apart_hear_each_other() {
+    let mut h = Harness::new(CHOOSE, 3);
+    h.tick(0, &CHOOSE_OFF);
+    h.heartbeats();
+    h.tick_one(1, 100, &[("a_done", T), ("want_b", T)]);
+    h.tick_one(2, 100, &[("a_done", T), ("want_c", T)]);
+    assert_eq!(h.stack(1), ["root", "b"]);
+    assert_eq!(h.stack(2), ["root", "c"]);
+    assert_eq!(h.stack(0), ["root", "a"], "r0, the leader, is behind");
+    h.heartbeats();
+    assert_eq!(audience(&h, 1), [0, 2], "r1 relays while r0 is in `a`");
+    assert_eq!(audience(&h, 2), [0, 1], "r2 sends to r1 too");
+    h.heartbeats();
+    assert_eq!(h.stack(2), ["root", "b"], "r2 follows r1, the lower id");
+    // Once the leader comes, the members send to it alone again.
+    h.tick_one(0, 200, &[("a_done", T), ("want_b", T)]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0]);
+}
+
+/// A teammate that ended the execution this robot's execution came after
+/// and went through another successor of it, ahead of this robot: the
+/// split is seen from the executions the teammate ended, and this robot
+/// follows it there (the healing leader's choice). Before, only a
+/// teammate's running frames were compared: a member whose teammates had
+/// already ended the other side passed it at once on their releases, was
+/// never heard in it, and the robot waited on its own side for teammates
+/// gone on, at every point a deadline (found by `no_waiting_across_levels`,
+/// graph seed 5063174684227258361).
+#[test]
+fn a_split_the_other_side_went_through_is_seen_and_healed() {
+    // `d` individual, as `b1` in that graph: the two histories are not
+    // compared as diverged ones (`Kernel::meet`).
+    let start = || {
+        let mut h = Harness::new(&CHOOSE.replace("d: { team: true", "d: { team: false"), 2);
+        h.tick(0, &CHOOSE_OFF);
+        h.tick_one(1, 100, &[("a_done", T), ("want_c", T)]);
+        assert_eq!(h.stack(1), ["root", "c"]);
+        let g = h.kernels[1].mission().graph().clone();
+        let [root, a, b, d] = ["root", "a", "b", "d"].map(|n| g.find(n).expect("behavior"));
+        let id = |behavior, epoch| FrameId {
+            team: TeamId::ROOT,
+            behavior,
+            epoch,
+        };
+        // Robot 0 ran `b`#1 after `a`#1 and is in `d`#1 already, which it
+        // runs alone.
+        let mut theirs = running(&[(id(root, 1), None), (id(d, 1), Some((id(b, 1), false)))]);
+        theirs.robot = RobotId(0);
+        theirs.ended = [a, b]
+            .map(|x| position::Ended {
+                id: id(x, 1),
+                parent: Some(id(root, 1)),
+            })
+            .to_vec();
+        (h, theirs, id(b, 1))
+    };
+    // Ended, but burned (it converged away from it): not followed.
+    let (mut h, mut burned, b1) = start();
+    burned.burned = vec![b1];
+    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &burned);
+    assert_eq!(h.stack(1), ["root", "c"]);
+    let (mut h, theirs, _) = start();
+    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &theirs);
+    h.drain(1);
+    assert_eq!(
+        h.stack(1),
+        ["root", "b"],
+        "robot 1 follows robot 0 into `b`"
+    );
+    assert!(
+        h.events_of(1).into_iter().any(
+            |e| matches!(e, Event::Split { follows: true, member, .. } if *member == RobotId(0))
+        ),
+        "and says it followed"
+    );
+}
