@@ -532,3 +532,83 @@ fn a_member_takes_the_release_of_a_teammate_that_left() {
         d.sent
     );
 }
+
+/// A barrier's leader whose deadline falls while a member it counts was
+/// last heard waiting at the barrier counts it arrived and releases the
+/// team: the member is not silent, its report went elsewhere (to a leader
+/// it did not know had left) or was lost. Before, the barrier timed out
+/// (found by `no_waiting_across_levels`, RNG seed 1016, graph seed
+/// 10985443681506886131: the deadline fell 30 ms before the member found
+/// its leader). Heard waiting for less than a retry, the member is not
+/// counted before the deadline: its report, not its heartbeat, is read
+/// first in a run without faults.
+#[test]
+fn a_member_heard_waiting_at_the_barrier_when_the_deadline_falls_has_arrived() {
+    use bite_core::TeamId;
+    use bite_core::kernel::{FrameId, FrameState, PosFrame, Position};
+    use bite_core::msg::Kind;
+    const WAIT_ALL: &str = "graph: wait-all\nteam: { robots: 2 }\nstart: root\n\
+        defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
+        behaviors:\n  root: { team: true, children: [a] }\n\
+        \x20 a: { team: true, skill: w, until: go, terminate: term.wait-all }\n";
+    let g = load_str(&Arc::from("wait-all.yaml"), WAIT_ALL).expect("the test graph loads");
+    let [root, a] = ["root", "a"].map(|n| g.find(n).expect("behavior"));
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r0 = Kernel::new(mission, RobotId(0), 1);
+    let go = r0.mission().graph().symbols().get("go").expect("belief");
+    let t = Time::from_secs_f64;
+    r0.tick(Time::ZERO, &[(go, Value::Bool(false))]);
+    r0.tick(t(0.1), &[(go, Value::Bool(true))]);
+    let d = drain(&mut r0);
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: a,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert_eq!(d.started, Some(key), "r0 waits at `a`'s barrier");
+    // `term.wait-all`'s deadline: 30 s from the start.
+    let deadline = t(30.1);
+    // r1 is heard once, just before the deadline, waiting at the barrier.
+    let id = |behavior| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch: 1,
+    };
+    let frame = |behavior, state, anchor| PosFrame {
+        id: id(behavior),
+        anchor,
+        state,
+        alloc: None,
+        departed: None,
+    };
+    let waiting = Position {
+        robot: RobotId(1),
+        frames: vec![
+            frame(root, FrameState::Running, None),
+            frame(
+                a,
+                FrameState::Ending,
+                Some(bite_core::kernel::Anchor {
+                    behavior: root,
+                    epoch: 1,
+                    first: true,
+                }),
+            ),
+        ],
+        ..Position::default()
+    };
+    r0.peer(t(30.0), RobotId(1), &waiting);
+    assert!(
+        drain(&mut r0).decided.is_empty(),
+        "not counted before the deadline"
+    );
+    r0.timer(deadline);
+    let d = drain(&mut r0);
+    assert!(
+        (d.decided.iter()).any(|e| e.contains("term.wait-all") && e.contains("timed_out: false")),
+        "r0 releases the team without a timeout: {:?}",
+        d.decided
+    );
+}

@@ -631,6 +631,11 @@ fn cases_that_failed_once() {
         (5_063_174_684_227_258_361, 5),
         (10_981_569_113_438_498_380, 6),
         (13_945_246_781_331_279_317, 7),
+        // "Heard at the barrier when the deadline fell": r7 reached `b45`'s
+        // barrier and reported to teammates that had left; r3, leading
+        // it, had heard r7 waiting there but timed out 30 ms before r7
+        // found it.
+        (10_985_443_681_506_886_131, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

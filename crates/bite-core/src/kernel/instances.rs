@@ -578,6 +578,9 @@ impl Kernel {
                 self.stats.deadlines_rearmed += 1;
                 continue;
             }
+            if self.heard_at_the_barrier(k) {
+                continue;
+            }
             if let Some(i) = self.instances.get_mut(&k) {
                 i.timed_out = true;
             }
@@ -645,6 +648,49 @@ impl Kernel {
             c => *c = Some((unheard, until)),
         }
         true
+    }
+
+    /// The deadline of termination `k`, which this robot coordinates,
+    /// fell while teammates it counts were last heard waiting at the
+    /// barrier (their last frame is its execution, ended): they are not
+    /// silent, they have arrived, whether their reports came or not. A
+    /// member's heartbeats count it arrived once they have shown it
+    /// waiting for a retry (`Kernel::heard_waiting`), so that a run
+    /// without faults reads its report first; at the deadline there is
+    /// nothing to wait for. A member that came to the point a moment
+    /// before, and sent its report to a leader it did not know had left,
+    /// was decided without: the barrier timed out 30 ms before the member
+    /// found this robot (docs/reliability.md, "Heard at the barrier when
+    /// the deadline fell"). True when the barrier then decided.
+    fn heard_at_the_barrier(&mut self, k: InstanceKey) -> bool {
+        if k.kind != Kind::Terminate {
+            return false;
+        }
+        let Some(inst) = self.instances.get(&k) else {
+            return false;
+        };
+        if self.coordinator(k, inst) != Some(self.me) {
+            return false;
+        }
+        let id = FrameId::of(k);
+        let waiting: Vec<RobotId> = (inst.team.members.iter())
+            .filter(|r| {
+                *r != self.me
+                    && !self.lost.contains(*r)
+                    && !inst.excluded.as_ref().is_some_and(|x| x.contains(*r))
+            })
+            .filter(|r| {
+                self.fresh_peer(*r)
+                    .and_then(|p| p.frames.last())
+                    .is_some_and(|(f, s)| *f == id && *s == FrameState::Ending)
+            })
+            .collect();
+        for r in waiting {
+            self.call(k, |imp, cx| imp.on_member_waiting(cx, r));
+        }
+        self.instances
+            .get(&k)
+            .is_some_and(|i| i.state == State::Decided)
     }
 
     /// An instance starts waiting, and will have waited a retry at
