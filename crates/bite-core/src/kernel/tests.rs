@@ -2405,3 +2405,61 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
         "and says it followed"
     );
 }
+
+/// A robot that converged past a teammate's predecessor on a diverged
+/// history (`Kernel::meet`) counts that execution as one it went past: a
+/// teammate still in it is behind on the robot's way (`Kernel::passed`),
+/// waited for as one on its way, not taken for silent. Before, only the
+/// team's count knew of it, and a robot that followed its leader a lap on
+/// timed out at an allocation waiting for a teammate still in the
+/// execution it had converged past (found by `no_waiting_across_levels`,
+/// RNG seed 1047, graph seed 12862965036356564799).
+#[test]
+fn an_execution_converged_past_counts_as_passed() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b, c] }
+  b: { team: true, skill: w, pre: want_b, until: b_done, next: [a] }
+  c: { team: true, skill: w, pre: want_c, until: c_done, next: [a] }",
+        3,
+    );
+    h.tick(
+        0,
+        &[
+            ("a_done", F),
+            ("b_done", F),
+            ("c_done", F),
+            ("want_b", F),
+            ("want_c", F),
+        ],
+    );
+    h.tick_one(1, 100, &[("a_done", T), ("want_b", T)]);
+    assert_eq!(h.stack(1), ["root", "b"]);
+    let g = h.kernels[1].mission().graph().clone();
+    let [root, a, c] = ["root", "a", "c"].map(|n| g.find(n).expect("behavior"));
+    let id = |behavior, epoch| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch,
+    };
+    assert!(!h.kernels[1].passed(1, id(root, 1), id(c, 1)));
+    // Robot 0, the healing leader, went `a`#1, `c`#1, and runs `a`#2.
+    let mut theirs = running(&[(id(root, 1), None), (id(a, 2), Some((id(c, 1), false)))]);
+    theirs.robot = RobotId(0);
+    theirs.ended = [a, c]
+        .map(|x| position::Ended {
+            id: id(x, 1),
+            parent: Some(id(root, 1)),
+        })
+        .to_vec();
+    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &theirs);
+    h.drain(1);
+    assert_eq!(h.stack(1), ["root", "a"], "robot 1 met robot 0 in `a`#2");
+    assert!(
+        h.kernels[1].passed(1, id(root, 1), id(c, 1)),
+        "a teammate in `c`#1 is behind on robot 1's way"
+    );
+}
