@@ -491,32 +491,49 @@ fn a_coordinator_after_one_that_left_leaves_without_deciding() {
 /// after r1 released the team (`term.majority`), counted r1 out, ignored
 /// its release 40 times and ran `b3`#3 85 s after its team had ended it
 /// (docs/reliability.md, "A release from a teammate that left").
-#[test]
-fn a_member_takes_the_release_of_a_teammate_that_left() {
-    use bite_core::TeamId;
-    use bite_core::msg::Kind;
-    const MAJORITY: &str = "graph: majority\nteam: { robots: 3 }\nstart: root\n\
-        defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
-        behaviors:\n  root: { team: true, children: [a] }\n\
-        \x20 a: { team: true, skill: w, until: go, terminate: term.majority }\n";
-    let g = load_str(&Arc::from("majority.yaml"), MAJORITY).expect("the test graph loads");
+/// Robot `me`'s kernel on a team of `robots` that runs `a` under `root`
+/// until `go`, `a` ended by `terminate`, ticked once with `go` false: the
+/// kernel, the belief `go`, and the behaviors `root` and `a`.
+fn one_barrier(
+    robots: usize,
+    terminate: &str,
+    me: u32,
+) -> (Kernel, bite_core::BeliefId, BehaviorId, BehaviorId) {
+    let text = format!(
+        "graph: barrier\nteam: {{ robots: {robots} }}\nstart: root\n\
+        defaults: {{ sync: sync.vote, allocate: alloc.by-id, terminate: term.local }}\n\
+        behaviors:\n  root: {{ team: true, children: [a] }}\n\
+        \x20 a: {{ team: true, skill: w, until: go, terminate: {terminate} }}\n"
+    );
+    let g = load_str(&Arc::from("barrier.yaml"), &text).expect("the test graph loads");
     let [root, a] = ["root", "a"].map(|n| g.find(n).expect("behavior"));
     let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
-    let mut r2 = Kernel::new(mission, RobotId(2), 3);
-    let go = r2.mission().graph().symbols().get("go").expect("belief");
+    let mut k = Kernel::new(mission, RobotId(me), u64::from(me) + 1);
+    let go = k.mission().graph().symbols().get("go").expect("belief");
+    k.tick(Time::ZERO, &[(go, Value::Bool(false))]);
+    drain(&mut k);
+    (k, go, root, a)
+}
+
+/// The termination of behavior `a`'s first execution by the root team.
+fn end_of(a: BehaviorId) -> InstanceKey {
+    InstanceKey {
+        team: bite_core::TeamId::ROOT,
+        behavior: a,
+        kind: bite_core::msg::Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    }
+}
+
+#[test]
+fn a_member_takes_the_release_of_a_teammate_that_left() {
+    let (mut r2, _, root, a) = one_barrier(3, "term.majority", 2);
     let t = Time::from_secs_f64;
-    r2.tick(Time::ZERO, &[(go, Value::Bool(false))]);
-    drain(&mut r2);
     // r0 ended `a` with the team and finished the mission: it left.
     r2.peer(t(0.1), RobotId(0), &finished(root, a));
     drain(&mut r2);
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: a,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let key = end_of(a);
     r2.message(t(0.2), from(0, key, 1, Body::Release { next: None }));
     let d = drain(&mut r2);
     assert!(
@@ -546,27 +563,11 @@ fn a_member_takes_the_release_of_a_teammate_that_left() {
 fn a_member_heard_waiting_at_the_barrier_when_the_deadline_falls_has_arrived() {
     use bite_core::TeamId;
     use bite_core::kernel::{FrameId, FrameState, PosFrame, Position};
-    use bite_core::msg::Kind;
-    const WAIT_ALL: &str = "graph: wait-all\nteam: { robots: 2 }\nstart: root\n\
-        defaults: { sync: sync.vote, allocate: alloc.by-id, terminate: term.local }\n\
-        behaviors:\n  root: { team: true, children: [a] }\n\
-        \x20 a: { team: true, skill: w, until: go, terminate: term.wait-all }\n";
-    let g = load_str(&Arc::from("wait-all.yaml"), WAIT_ALL).expect("the test graph loads");
-    let [root, a] = ["root", "a"].map(|n| g.find(n).expect("behavior"));
-    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
-    let mut r0 = Kernel::new(mission, RobotId(0), 1);
-    let go = r0.mission().graph().symbols().get("go").expect("belief");
+    let (mut r0, go, root, a) = one_barrier(2, "term.wait-all", 0);
     let t = Time::from_secs_f64;
-    r0.tick(Time::ZERO, &[(go, Value::Bool(false))]);
     r0.tick(t(0.1), &[(go, Value::Bool(true))]);
     let d = drain(&mut r0);
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: a,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let key = end_of(a);
     assert_eq!(d.started, Some(key), "r0 waits at `a`'s barrier");
     // `term.wait-all`'s deadline: 30 s from the start.
     let deadline = t(30.1);

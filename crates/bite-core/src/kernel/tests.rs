@@ -2416,26 +2416,9 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
 /// RNG seed 1047, graph seed 12862965036356564799).
 #[test]
 fn an_execution_converged_past_counts_as_passed() {
-    let mut h = Harness::new(
-        "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, skill: w, until: a_done, next: [b, c] }
-  b: { team: true, skill: w, pre: want_b, until: b_done, next: [a] }
-  c: { team: true, skill: w, pre: want_c, until: c_done, next: [a] }",
-        3,
-    );
-    h.tick(
-        0,
-        &[
-            ("a_done", F),
-            ("b_done", F),
-            ("c_done", F),
-            ("want_b", F),
-            ("want_c", F),
-        ],
-    );
+    // `b` and `c` lead back to `a`.
+    let mut h = Harness::new(&CHOOSE.replace("next: [d]", "next: [a]"), 3);
+    h.tick(0, &CHOOSE_OFF);
     h.tick_one(1, 100, &[("a_done", T), ("want_b", T)]);
     assert_eq!(h.stack(1), ["root", "b"]);
     let g = h.kernels[1].mission().graph().clone();
