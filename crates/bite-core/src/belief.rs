@@ -289,15 +289,6 @@ impl RunCounts {
             self.0[i].1 = self.0[i].1.saturating_sub(1);
         }
     }
-    /// The execution of `b` numbered `epoch` came before this robot's
-    /// position here though it did not start it (it converged past it, on
-    /// a teammate's side): raise the latest epoch, not the count.
-    pub fn went_past(&mut self, b: crate::ids::BehaviorId, epoch: u32) {
-        match self.0.binary_search_by_key(&b, |(x, _, _)| *x) {
-            Ok(i) => self.0[i].2 = self.0[i].2.max(epoch),
-            Err(i) => self.0.insert(i, (b, 0, epoch)),
-        }
-    }
     /// The highest epoch at which `b` was started here (0 when never).
     /// Epochs count a team's executions of a behavior, so an execution of
     /// `b` by the same team under the same parent execution with an epoch

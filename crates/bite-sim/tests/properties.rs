@@ -636,10 +636,6 @@ fn cases_that_failed_once() {
         // it, had heard r7 waiting there but timed out 30 ms before r7
         // found it.
         (10_985_443_681_506_886_131, 8),
-        // "A teammate in the execution a robot converged past": r3 met its
-        // leader a lap on, then waited at an allocation for r2, still in
-        // the execution r3 had converged past, and timed out.
-        (12_862_965_036_356_564_799, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

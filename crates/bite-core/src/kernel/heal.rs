@@ -764,16 +764,6 @@ impl Kernel {
                 .runs_at_least(id.team, theirs.behavior, theirs.epoch);
         }
         self.converge(slot, from, id, g.id, theirs);
-        // The teammate's predecessor came before this robot's position
-        // now: a teammate still in it is behind on this robot's way
-        // (`Kernel::passed`), not silent, and not another history
-        // (docs/reliability.md, "A teammate in the execution a robot
-        // converged past").
-        if !theirs.first
-            && let Some(p) = self.stack.get_mut(k - 1)
-        {
-            p.runs.went_past(theirs.behavior, theirs.epoch);
-        }
         true
     }
 
