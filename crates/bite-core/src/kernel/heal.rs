@@ -423,7 +423,7 @@ impl Kernel {
                     && (k.team, k.behavior, k.epoch) == (id.team, id.behavior, id.epoch)
                     && matches!(i.state, State::Armed | State::Active)
                     && i.team.contains(from)
-                    && !i.excluded.as_ref().is_some_and(|x| x.contains(from))
+                    && !i.excludes(from)
             })
             .map(|(k, _)| k)
             .collect();

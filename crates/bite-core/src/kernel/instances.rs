@@ -230,7 +230,7 @@ impl Kernel {
         let departed = |r: RobotId| {
             r < self.me
                 && inst.team.contains(r)
-                && inst.excluded.as_ref().is_some_and(|x| x.contains(r))
+                && inst.excludes(r)
                 && !self.lost.contains(r)
                 && !self.ever_lost.contains(r)
         };
@@ -625,11 +625,7 @@ impl Kernel {
         }
         let mut unheard: Option<MemberSet> = None;
         for r in inst.team.members.iter() {
-            if r != self.me
-                && !self.lost.contains(r)
-                && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
-                && self.fresh_peer(r).is_none()
-            {
+            if r != self.me && self.counted(inst, r) && self.fresh_peer(r).is_none() {
                 (unheard.get_or_insert_with(|| MemberSet::empty(self.org.roster_len()))).insert(r);
             }
         }
@@ -674,11 +670,7 @@ impl Kernel {
         }
         let id = FrameId::of(k);
         let waiting: Vec<RobotId> = (inst.team.members.iter())
-            .filter(|r| {
-                *r != self.me
-                    && !self.lost.contains(*r)
-                    && !inst.excluded.as_ref().is_some_and(|x| x.contains(*r))
-            })
+            .filter(|r| *r != self.me && self.counted(inst, *r))
             .filter(|r| {
                 self.fresh_peer(*r)
                     .and_then(|p| p.frames.last())

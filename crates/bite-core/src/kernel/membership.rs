@@ -145,8 +145,14 @@ impl Kernel {
     /// [`Kernel::coordinator_of`], for an instance already in hand.
     pub(super) fn coordinator(&self, key: InstanceKey, inst: &Instance) -> Option<RobotId> {
         let team = self.org.team(key.team).unwrap_or(&inst.team);
-        let live = |r: RobotId| inst.excluded.as_ref().is_none_or(|x| !x.contains(r));
-        team.members.iter().find(|r| live(*r))
+        team.members.iter().find(|r| !inst.excludes(*r))
+    }
+
+    /// True when instance `inst` still counts teammate `r`: neither
+    /// presumed lost nor left out of it. The members a coordinator waits
+    /// for, calls, or counts as arrived.
+    pub(super) fn counted(&self, inst: &Instance, r: RobotId) -> bool {
+        !self.lost.contains(r) && !inst.excludes(r)
     }
 
     /// Teammates done with the behavior of stack frame `i` (they arrived at

@@ -341,6 +341,12 @@ struct Instance {
 }
 
 impl Instance {
+    /// True when this instance decides without `r` (it learnt that `r`
+    /// left the execution, or the protocol excluded it).
+    fn excludes(&self, r: RobotId) -> bool {
+        self.excluded.as_ref().is_some_and(|x| x.contains(r))
+    }
+
     /// True when this instance decides without `from` and with at least
     /// one teammate besides `me`: `from` and this side of the team decide
     /// apart.

@@ -1172,10 +1172,7 @@ impl Kernel {
         let now = self.now;
         let mut past = None;
         for (key, inst) in self.instances.iter() {
-            if !inst.waited_a_retry(now)
-                || !inst.team.contains(from)
-                || inst.excluded.as_ref().is_some_and(|x| x.contains(from))
-            {
+            if !inst.waited_a_retry(now) || !inst.team.contains(from) || inst.excludes(from) {
                 continue;
             }
             let outcome = match (key.kind, &inst.input) {
@@ -1236,8 +1233,7 @@ impl Kernel {
         let waits_here = |r: RobotId| {
             r != self.me
                 && r != from
-                && !self.lost.contains(r)
-                && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
+                && self.counted(inst, r)
                 && self
                     .peers
                     .get(&r)
@@ -1286,7 +1282,7 @@ impl Kernel {
             // robot that leads).
             if inst.state != super::State::Active
                 || !matches!(key.kind, Kind::Sync | Kind::Allocate)
-                || !inst.excluded.as_ref().is_some_and(|x| x.contains(from))
+                || !inst.excludes(from)
                 || !inst.team.contains(from)
                 || self.coordinator(key, inst) == Some(self.me)
             {
@@ -1588,15 +1584,12 @@ impl Kernel {
                 .is_some_and(|t| self.now - t < limit)
         };
         let id = FrameId::of(key);
-        let counted = |r: RobotId| {
-            !self.lost.contains(r) && !inst.excluded.as_ref().is_some_and(|x| x.contains(r))
-        };
         let heard = |r: RobotId| self.fresh_peer(r).map(|p| &p.frames);
         let leader = inst
             .team
             .members
             .iter()
-            .find(|r| *r == self.me || counted(*r));
+            .find(|r| *r == self.me || self.counted(inst, *r));
         // A teammate still running the execution before one this robot is
         // in (in the same team) is behind on the same path: slow, not
         // silent, it is on its way to the point.
@@ -1679,7 +1672,7 @@ impl Kernel {
             .team
             .members
             .iter()
-            .filter(|r| *r != self.me && counted(*r))
+            .filter(|r| *r != self.me && self.counted(inst, *r))
         {
             match heard(r) {
                 Some(frames) => {
