@@ -337,6 +337,18 @@ impl Mission {
     ) -> Option<Arc<Split>> {
         self.splits.lock().find(parent, point, stamp, assignment)
     }
+    /// The longest a robot of this mission waits at a point with nothing
+    /// to show for it before the point's deadline decides: a teammate
+    /// heard working whose position does not change is waited for
+    /// ([`crate::kernel::slow_wait`]), checked at each deadline, so up to
+    /// one deadline more. Zero when no point is bound.
+    pub fn longest_wait(&self) -> Duration {
+        (self.bound.iter().flatten().flatten())
+            .map(|b| crate::kernel::slow_wait(b.deadline) + b.deadline)
+            .max()
+            .unwrap_or(Duration::ZERO)
+    }
+
     /// Every point with its bound protocol, in graph order.
     pub fn points(&self) -> Vec<(crate::graph::Point, &Bound)> {
         self.graph

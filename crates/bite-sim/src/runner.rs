@@ -1899,7 +1899,9 @@ pub fn run(
         .flat_map(|(_, at, until)| std::iter::once(*at).chain(*until))
         .collect();
     sim.crash_times.sort_unstable();
+    sim.stall.waits_at_least(mission.longest_wait());
     for c in opts.changes {
+        sim.stall.waits_at_least(c.mission.longest_wait());
         let shared = Shared::new(c.mission.clone(), scenario)?;
         sim.changes.push((c, shared));
     }

@@ -42,6 +42,12 @@ use std::collections::BTreeMap;
 /// (dithering in place does not count), m.
 pub const STEP: f64 = 0.25;
 
+/// How much longer than the robots' own longest wait the watch waits
+/// before it calls a run stalled (see [`StallWatch::waits_at_least`]): the
+/// teammate's last change reaches the waiting robot with its heartbeats,
+/// a few of which a lossy network may drop.
+pub const WAIT_MARGIN: std::time::Duration = std::time::Duration::from_secs(10);
+
 pub use bite_agent::scenario::StallLimits;
 
 /// One frame of a robot's stack as the watch sees it: the behavior and how
@@ -82,6 +88,25 @@ impl StallWatch {
             goal_nearest: None,
             skills_seen: false,
         }
+    }
+
+    /// The robots may wait up to `wait` at a point with nothing to show
+    /// for it before the point's deadline decides
+    /// ([`bite_core::mission::Mission::longest_wait`]): the no-progress and
+    /// standstill windows become at least that plus [`WAIT_MARGIN`], so
+    /// that a run whose robots still have a timeout and a decision to come
+    /// is not called stalled first. A binding with a deadline of 40 s
+    /// waits a teammate stuck at work for 160 s, and the default window of
+    /// 120 s called such runs stalled.
+    pub fn waits_at_least(&mut self, wait: std::time::Duration) {
+        if let Some(after) = &mut self.limits.after {
+            *after = (*after).max(wait + WAIT_MARGIN);
+        }
+    }
+
+    /// The no-progress window in force (`None`: never).
+    pub fn after(&self) -> Option<std::time::Duration> {
+        self.limits.after
     }
 
     /// One event of `robot` at `t`.

@@ -253,6 +253,44 @@ fn scenario_errors_name_the_file_and_place() {
     assert!(err.to_string().starts_with("bad.yaml:2:"), "{err}");
 }
 
+/// A teammate heard working whose position never changes is waited for up
+/// to four deadlines (at least 120 s), checked at each deadline, and then
+/// decided without. With a 40 s deadline that is 165 s after its last
+/// change, and the stall watch's default 120 s called the run stalled
+/// first, though the robots still had their timeout and decision to come.
+/// The watch now waits at least the mission's longest own wait
+/// (`Mission::longest_wait`) and 10 s more.
+#[test]
+fn a_teammate_stuck_at_work_is_a_timeout_and_a_decision_not_a_stall() {
+    let text = |deadline: &str| {
+        format!(
+            "graph: stuck\nteam: {{ robots: 2 }}\nstart: work\n\
+             defaults: {{ terminate: {{ protocol: term.wait-all, deadline: {deadline} }} }}\n\
+             behaviors:\n  work: {{ team: true, skill: hold, until: done, next: [after] }}\n  \
+             after: {{ team: true, skill: short, until: short_done }}\n"
+        )
+    };
+    let sc = scenario(
+        "stuck.yaml",
+        "scenario: stuck\nseed: 1\ncontrol_hz: 10\ntime_limit: 600s\nskills:\n  hold: {}\n  \
+         short: { duration: [1, 1], done: { short_done: true } }\n\
+         events:\n  - { at: 5s, robots: [r0], set: { done: true } }\n",
+    );
+    for (deadline, waited) in [("30s", 120.0), ("40s", 160.0), ("60s", 240.0)] {
+        let g = graph("stuck.yaml", &text(deadline));
+        let o = simulate(&g, &sc, 1);
+        let s = &o.report.summary;
+        assert!(s.completed, "deadline {deadline}: {s}\n{}", replay(&o));
+        assert_eq!(s.timeouts, 1, "deadline {deadline}: {s}");
+        // r0 arrived at 5 s and waited for r1 (last changed at 0 s) up to
+        // its limit, then to the next deadline.
+        assert!(
+            s.task_time > waited && s.task_time < waited + 15.0,
+            "deadline {deadline}: {s}"
+        );
+    }
+}
+
 #[test]
 fn a_crashed_robot_does_not_hang_the_team() {
     let g = graph("formation.yaml", FORMATION);

@@ -79,6 +79,13 @@ pub const SLOW_WAITS: u32 = 4;
 /// not change, whatever the deadline.
 pub const SLOW_WAIT_MIN: std::time::Duration = std::time::Duration::from_secs(120);
 
+/// How long a robot waits for a teammate heard working whose position does
+/// not change, at a point whose protocol has deadline `deadline`:
+/// [`SLOW_WAITS`] deadlines, at least [`SLOW_WAIT_MIN`].
+pub fn slow_wait(deadline: std::time::Duration) -> std::time::Duration {
+    (deadline * SLOW_WAITS).max(SLOW_WAIT_MIN)
+}
+
 /// How many times one execution of an allocation point is allocated again
 /// to converge with teammates that hold another allocation of it (a
 /// teammate that keeps a different view of who is alive would otherwise
@@ -1576,7 +1583,7 @@ impl Kernel {
         let Some(inst) = self.instances.get(&key) else {
             return false;
         };
-        let limit = (inst.deadline_len * SLOW_WAITS).max(SLOW_WAIT_MIN);
+        let limit = slow_wait(inst.deadline_len);
         let progressing = |r: RobotId| {
             self.peers
                 .get(&r)
