@@ -452,6 +452,7 @@ pub struct Cx<'a> {
     team: &'a Team,
     excluded: Option<&'a MemberSet>,
     lost: Option<&'a MemberSet>,
+    given_up: Option<&'a MemberSet>,
     left_ran: &'a [LeftRan],
     live: u32,
     org: &'a Organization,
@@ -490,6 +491,9 @@ pub struct CxParts<'a> {
     /// Of those, the teammates this robot presumes lost now (the others
     /// left on their own: they are done with the behavior).
     pub lost: Option<&'a MemberSet>,
+    /// Of those, the ones a deadline of this robot has already decided
+    /// without since it presumed them lost (see [`Cx::is_given_up`]).
+    pub given_up: Option<&'a MemberSet>,
     /// Executions teammates had ended when this robot learnt they left
     /// the behavior above (see [`Cx::left_after_running`]; empty: none
     /// known).
@@ -533,6 +537,7 @@ impl<'a> Cx<'a> {
             team: p.team,
             excluded: p.excluded,
             lost: p.lost,
+            given_up: p.given_up,
             left_ran: p.left_ran,
             live: match p.excluded {
                 // Word by word: a context is made for every message.
@@ -572,6 +577,7 @@ impl<'a> Cx<'a> {
             team: self.team,
             excluded: self.excluded,
             lost: self.lost,
+            given_up: self.given_up,
             left_ran: self.left_ran,
             live: self.live,
             org: self.org,
@@ -637,6 +643,16 @@ impl<'a> Cx<'a> {
         self.team.contains(r)
             && self.excluded.is_some_and(|x| x.contains(r))
             && self.lost.is_none_or(|l| l.contains(r))
+    }
+    /// True when member `r` is presumed lost and a deadline of this robot
+    /// (in a team `r` is in) has already decided without it since: the
+    /// team went on without it once, as it will at every deadline while
+    /// `r` stays silent. `term.majority` counts the majority of the
+    /// members not given up, so that a robot that lost half its subteam
+    /// (a crash, or a partition that lasts) pays one deadline, not one at
+    /// every barrier. Heard again, `r` counts again.
+    pub fn is_given_up(&self, r: RobotId) -> bool {
+        self.is_presumed_lost(r) && self.given_up.is_some_and(|g| g.contains(r))
     }
     /// True when member `r` is left out because it left the behavior (it
     /// ended an ancestor, or went on past the point), not because it is

@@ -9,7 +9,10 @@
 //!   the whole subteam: teammates presumed lost count as not arrived, so a
 //!   minority cut off by a partition (an isolated leader: a "majority of
 //!   one") never decides; it ends the behavior only at its deadline, and the
-//!   kernel reports the timeout. Teammates that left the behavior by ending
+//!   kernel reports the timeout. A teammate presumed lost that a deadline of
+//!   this robot has already decided without is given up
+//!   (`Cx::is_given_up`): out of the whole until heard again, so a survivor
+//!   of a crash pays one deadline, not one at every barrier. Teammates that left the behavior by ending
 //!   an ancestor (the kernel learns it from their heartbeats) are done with
 //!   it and count as arrived.
 //! - `term.first-wins`: the first member whose termination condition holds
@@ -252,14 +255,19 @@ impl Barrier {
             // the behavior at its deadline, reported as a timeout.
             // Teammates that left it by ending an ancestor are done with
             // it: they count as arrived.
+            // Teammates given up (a deadline of this robot already decided
+            // without them: crashed, most likely) are out of the whole.
             Mode::Majority => {
-                let whole = cx.team().size as usize;
-                let all_arrived = cx
-                    .team()
-                    .members
-                    .iter()
-                    .filter(|m| arrived.contains(*m) || cx.has_left(*m))
-                    .count();
+                let (mut whole, mut all_arrived) = (0, 0);
+                for m in cx.team().members.iter() {
+                    if cx.is_given_up(m) {
+                        continue;
+                    }
+                    whole += 1;
+                    if arrived.contains(m) || cx.has_left(m) {
+                        all_arrived += 1;
+                    }
+                }
                 all_arrived > whole / 2
             }
         };

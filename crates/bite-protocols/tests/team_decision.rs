@@ -613,3 +613,55 @@ fn a_member_heard_waiting_at_the_barrier_when_the_deadline_falls_has_arrived() {
         d.decided
     );
 }
+
+/// Two robots loop through `a`, whose ends are decided by `term.majority`;
+/// r0's kernel alone, with r1 presumed lost. A majority of the pair is
+/// both, so the first barrier waits for its deadline. That deadline
+/// decided without r1, which is then given up (`Cx::is_given_up`): the
+/// next barrier is a majority of the one robot not given up, decided at
+/// once. Heard again, r1 counts again and the barrier after waits for it.
+#[test]
+fn a_teammate_a_deadline_decided_without_is_out_of_the_majority_until_heard_again() {
+    let text = "graph: pair\nteam: { robots: 2 }\nstart: root\n\
+        defaults: { sync: sync.leader, allocate: alloc.by-id, terminate: term.majority }\n\
+        behaviors:\n  root: { team: true, children: [a] }\n\
+        \x20 a: { team: true, skill: w, until: go, next: [a] }\n";
+    let g = load_str(&Arc::from("pair.yaml"), text).expect("the test graph loads");
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut r0 = Kernel::new(mission, RobotId(0), 1);
+    let go = r0.mission().graph().symbols().get("go").expect("belief");
+    let t = Time::from_secs_f64;
+    // Events since the last call: terminations decided, deadlines fallen.
+    let ends = |k: &mut Kernel| {
+        let (mut decided, mut timed_out) = (0, 0);
+        while let Some(o) = k.poll_output() {
+            match o {
+                Output::Event(Event::InteractionDecided { instance, .. })
+                    if instance.kind == bite_core::msg::Kind::Terminate =>
+                {
+                    decided += 1
+                }
+                Output::Event(Event::InteractionTimedOut { .. }) => timed_out += 1,
+                _ => {}
+            }
+        }
+        (decided, timed_out)
+    };
+    // One lap: `a` runs, then its end.
+    let lap = |k: &mut Kernel, at: f64| {
+        k.tick(t(at), &[(go, Value::Bool(false))]);
+        k.tick(t(at + 1.0), &[(go, Value::Bool(true))]);
+    };
+    r0.tick(t(0.0), &[(go, Value::Bool(false))]);
+    r0.member_lost(t(0.5), RobotId(1));
+    ends(&mut r0);
+    lap(&mut r0, 1.0);
+    assert_eq!(ends(&mut r0), (0, 0), "a minority of the pair waits");
+    r0.timer(t(40.0));
+    assert_eq!(ends(&mut r0), (1, 1), "its deadline decides");
+    lap(&mut r0, 41.0);
+    assert_eq!(ends(&mut r0), (1, 0), "r1 given up: decided at once");
+    r0.member_back(t(45.0), RobotId(1));
+    lap(&mut r0, 46.0);
+    assert_eq!(ends(&mut r0), (0, 0), "r1 heard again: waited for");
+}

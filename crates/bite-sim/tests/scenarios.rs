@@ -291,6 +291,57 @@ fn a_teammate_stuck_at_work_is_a_timeout_and_a_decision_not_a_stall() {
     }
 }
 
+/// Two robots whose legs end by `term.majority`, one of them crashed: a
+/// majority of the whole pair is both, and the survivor alone is a
+/// minority, so the first barrier after the crash ends at its deadline
+/// (a minority cut off by a partition must not decide sooner). From then
+/// on the crashed teammate, silent for a whole deadline, is given up
+/// (`Cx::is_given_up`) and out of the whole: the survivor decides each
+/// later barrier at once. It paid the 30 s deadline at every barrier
+/// before (fresh property seed 1209: 56 deadlines, 2,004 s).
+#[test]
+fn a_teammate_lost_for_good_costs_a_majority_one_deadline_not_one_per_barrier() {
+    let g = graph(
+        "pair.yaml",
+        "graph: pair\nteam: { robots: 2 }\nstart: mission\n\
+         defaults: { sync: sync.leader, terminate: term.majority }\nbehaviors:\n  \
+         mission: { team: true, children: [leg] }\n  \
+         leg: { team: true, skill: walk, until: walked, next: [leg, home] }\n  \
+         home: { team: true, skill: walk, until: walked, pre: 'runs(leg) >= 8' }\n",
+    );
+    let sc = |extra: &str| {
+        scenario(
+            "pair-sc.yaml",
+            &format!(
+                "scenario: pair\nseed: 1\ncontrol_hz: 10\ntime_limit: 900s\nskills:\n  \
+                 walk: {{ duration: [2, 4], start: {{ walked: false }}, done: {{ walked: true }} }}\n{extra}"
+            ),
+        )
+    };
+    let o = simulate(&g, &sc("crashes:\n  - { robot: r1, at: 5s }\n"), 1);
+    let s = &o.report.summary;
+    assert!(s.completed, "{s}\n{}", replay(&o));
+    assert_eq!(
+        s.timeouts, 1,
+        "one deadline, then the survivor decides: {s}"
+    );
+    let legs = selections(&o, 0).iter().filter(|b| *b == "leg").count();
+    assert_eq!(legs, 8, "{:?}", selections(&o, 0));
+    assert!(s.task_time < 80.0, "{s}");
+    assert_clean(&o, "a pair with a crash");
+
+    // Heard again, the teammate counts again: r1 paused past a deadline
+    // and back, the pair's later barriers need both.
+    let o = simulate(
+        &g,
+        &sc("crashes:\n  - { robot: r1, at: 5s, until: 45s }\n"),
+        1,
+    );
+    let s = &o.report.summary;
+    assert!(s.completed, "{s}\n{}", replay(&o));
+    assert_clean(&o, "a pair with a pause");
+}
+
 #[test]
 fn a_crashed_robot_does_not_hang_the_team() {
     let g = graph("formation.yaml", FORMATION);

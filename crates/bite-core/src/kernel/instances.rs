@@ -315,6 +315,7 @@ impl Kernel {
                 team: self.org.team(key.team).unwrap_or(&inst.team),
                 excluded: inst.excluded.as_ref(),
                 lost: Some(&self.lost),
+                given_up: Some(&self.given_up),
                 left_ran: &self.left_ran,
                 org: &self.org,
                 runs: self.stack.last().map_or(&self.root_runs, |p| &p.runs),
@@ -583,6 +584,15 @@ impl Kernel {
             }
             if let Some(i) = self.instances.get_mut(&k) {
                 i.timed_out = true;
+                // The teammates presumed lost that it decides without (see
+                // `Cx::is_given_up`).
+                if !self.lost.is_empty() {
+                    for r in i.team.members.iter() {
+                        if self.lost.contains(r) {
+                            self.given_up.insert(r);
+                        }
+                    }
+                }
             }
             self.stats.timeouts += 1;
             self.call(k, |imp, cx| imp.on_deadline(cx));

@@ -43,6 +43,7 @@ impl Kernel {
         self.set_now(now);
         if self.lost.contains(r) {
             self.lost.remove(r);
+            self.given_up.remove(r);
             self.stirring.retain(|x| *x != r);
             self.emit(Event::MemberBack { member: r });
             // Tell it how what it missed was decided: it may be waiting in

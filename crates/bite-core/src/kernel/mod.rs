@@ -442,6 +442,9 @@ pub struct Kernel {
     missed: BTreeMap<RobotId, VecDeque<InstanceKey>>,
     /// Teammates presumed lost at some point of the mission.
     ever_lost: MemberSet,
+    /// Of the teammates presumed lost now, those a deadline of this robot
+    /// has decided without since (see `Cx::is_given_up`).
+    given_up: MemberSet,
     /// Outcomes of forgotten instances, to answer late teammates.
     tombstones: tombs::Tombstones,
     /// Recently accepted `(sender, seq)` with when: a message is acted upon
@@ -556,6 +559,7 @@ impl Kernel {
             stirring: Vec::new(),
             missed: BTreeMap::new(),
             ever_lost: MemberSet::empty(n),
+            given_up: MemberSet::empty(n),
             tombstones: Default::default(),
             seen: dedup::Accepted::default(),
             next_seq: 1,
