@@ -224,6 +224,9 @@ impl Namer<'_> {
             "member_back" => Event::MemberBack {
                 member: field(&ev, "member")?,
             },
+            "member_given_up" => Event::MemberGivenUp {
+                member: field(&ev, "member")?,
+            },
             "mission_changed" => Event::MissionChanged {
                 version: field(&ev, "version")?,
                 team: field(&ev, "team")?,

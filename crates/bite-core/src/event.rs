@@ -518,6 +518,13 @@ pub enum Event {
         /// Who.
         member: RobotId,
     },
+    /// A teammate presumed lost that a deadline of this robot has just
+    /// decided without is given up: `term.majority` leaves it out of the
+    /// whole until it is heard again (`member_back`).
+    MemberGivenUp {
+        /// Who.
+        member: RobotId,
+    },
     /// Teammates lost left a child of this allocation without enough live
     /// members: the team allocates again, in a new round.
     Reallocating {

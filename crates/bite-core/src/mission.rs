@@ -17,6 +17,21 @@ use std::sync::Arc;
 use std::sync::{Mutex, Weak};
 use std::time::Duration;
 
+/// How many deadlines a robot waits for a teammate heard working whose
+/// position does not change (see `Kernel::awaited_at_work`).
+pub const SLOW_WAITS: u32 = 4;
+
+/// The least a robot waits for a teammate heard working whose position does
+/// not change, whatever the deadline.
+pub const SLOW_WAIT_MIN: Duration = Duration::from_secs(120);
+
+/// How long a robot waits for a teammate heard working whose position does
+/// not change, at a point whose protocol has deadline `deadline`:
+/// [`SLOW_WAITS`] deadlines, at least [`SLOW_WAIT_MIN`].
+pub fn slow_wait(deadline: Duration) -> Duration {
+    (deadline * SLOW_WAITS).max(SLOW_WAIT_MIN)
+}
+
 /// Retransmission interval when a binding does not give one.
 pub const DEFAULT_RETRY: Duration = Duration::from_millis(500);
 
@@ -340,11 +355,11 @@ impl Mission {
     /// The longest a robot of this mission waits at a point with nothing
     /// to show for it before the point's deadline decides: a teammate
     /// heard working whose position does not change is waited for
-    /// ([`crate::kernel::slow_wait`]), checked at each deadline, so up to
+    /// ([`slow_wait`]), checked at each deadline, so up to
     /// one deadline more. Zero when no point is bound.
     pub fn longest_wait(&self) -> Duration {
         (self.bound.iter().flatten().flatten())
-            .map(|b| crate::kernel::slow_wait(b.deadline) + b.deadline)
+            .map(|b| slow_wait(b.deadline) + b.deadline)
             .max()
             .unwrap_or(Duration::ZERO)
     }

@@ -118,6 +118,7 @@ const JSON_TOPICS: &[(&str, &str, &[&str])] = &[
         &[
             "member_lost",
             "member_back",
+            "member_given_up",
             "split",
             "allocation_split",
             "rejoined",

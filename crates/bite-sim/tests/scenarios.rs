@@ -328,6 +328,18 @@ fn a_teammate_lost_for_good_costs_a_majority_one_deadline_not_one_per_barrier() 
     let legs = selections(&o, 0).iter().filter(|b| *b == "leg").count();
     assert_eq!(legs, 8, "{:?}", selections(&o, 0));
     assert!(s.task_time < 80.0, "{s}");
+    // Said once, in the run log, by the survivor.
+    let given: Vec<_> = (o.report.history.iter())
+        .filter(|r| matches!(r.event, Event::MemberGivenUp { .. }))
+        .map(|r| (r.robot, format!("{:?}", r.event)))
+        .collect();
+    assert_eq!(
+        given,
+        [(
+            RobotId(0),
+            format!("{:?}", Event::MemberGivenUp { member: RobotId(1) })
+        )]
+    );
     assert_clean(&o, "a pair with a crash");
 
     // Heard again, the teammate counts again: r1 paused past a deadline

@@ -587,10 +587,12 @@ impl Kernel {
                 // The teammates presumed lost that it decides without (see
                 // `Cx::is_given_up`).
                 if !self.lost.is_empty() {
-                    for r in i.team.members.iter() {
-                        if self.lost.contains(r) {
-                            self.given_up.insert(r);
-                        }
+                    let given: smallvec::SmallVec<[RobotId; 2]> = (i.team.members.iter())
+                        .filter(|r| self.lost.contains(*r) && !self.given_up.contains(*r))
+                        .collect();
+                    for r in given {
+                        self.given_up.insert(r);
+                        self.emit(Event::MemberGivenUp { member: r });
                     }
                 }
             }

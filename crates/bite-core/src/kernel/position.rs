@@ -71,20 +71,7 @@ use crate::org::MemberSet;
 use crate::time::Time;
 use serde::{Deserialize, Serialize};
 
-/// How many deadlines a robot waits for a teammate heard working whose
-/// position does not change (see `Kernel::awaited_at_work`).
-pub const SLOW_WAITS: u32 = 4;
-
-/// The least a robot waits for a teammate heard working whose position does
-/// not change, whatever the deadline.
-pub const SLOW_WAIT_MIN: std::time::Duration = std::time::Duration::from_secs(120);
-
-/// How long a robot waits for a teammate heard working whose position does
-/// not change, at a point whose protocol has deadline `deadline`:
-/// [`SLOW_WAITS`] deadlines, at least [`SLOW_WAIT_MIN`].
-pub fn slow_wait(deadline: std::time::Duration) -> std::time::Duration {
-    (deadline * SLOW_WAITS).max(SLOW_WAIT_MIN)
-}
+pub use crate::mission::slow_wait;
 
 /// How many times one execution of an allocation point is allocated again
 /// to converge with teammates that hold another allocation of it (a
@@ -1569,7 +1556,8 @@ impl Kernel {
     ///
     /// A slow teammate is waited for while it makes progress: its position
     /// changed, or its skill made a step ([`Kernel::skill_progressed`]),
-    /// within [`SLOW_WAITS`] deadlines (and at least [`SLOW_WAIT_MIN`]).
+    /// within [`crate::mission::SLOW_WAITS`] deadlines (and at least
+    /// [`crate::mission::SLOW_WAIT_MIN`]).
     /// One whose condition never holds (it cannot see what it looks for)
     /// is then a timeout and a decision, not a team waiting forever. A
     /// member trusts a leader waiting at the point: the leader's own

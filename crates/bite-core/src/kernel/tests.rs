@@ -1384,7 +1384,7 @@ fn a_teammate_whose_skill_makes_steps_is_waited_for_however_long_it_works() {
         }
         h.kernels[0].instances.get(&key).is_some()
     };
-    let limit = super::position::SLOW_WAIT_MIN.as_secs();
+    let limit = crate::mission::SLOW_WAIT_MIN.as_secs();
     // No step: waited for the limit, then a timeout and a decision.
     assert!(waiting(0, limit - 10));
     assert!(!waiting(0, limit + 60));
