@@ -58,9 +58,7 @@ mod slots;
 mod tombs;
 pub use change::{FENCE_WAIT, Fence};
 use inbox::Inbox;
-pub use position::{
-    ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position, slow_wait,
-};
+pub use position::{ALLOC_HEALS, Anchor, Ended, FrameId, FrameState, PosFrame, Position};
 
 /// How long accepted `(sender, seq)` pairs are remembered to drop
 /// duplicates (far longer than any network delay; a copy older than this

@@ -71,7 +71,7 @@ use crate::org::MemberSet;
 use crate::time::Time;
 use serde::{Deserialize, Serialize};
 
-pub use crate::mission::slow_wait;
+use crate::mission::slow_wait;
 
 /// How many times one execution of an allocation point is allocated again
 /// to converge with teammates that hold another allocation of it (a
