@@ -652,7 +652,9 @@ impl<'a> Cx<'a> {
     /// (a crash, or a partition that lasts) pays one deadline, not one at
     /// every barrier. Heard again, `r` counts again.
     pub fn is_given_up(&self, r: RobotId) -> bool {
-        self.is_presumed_lost(r) && self.given_up.is_some_and(|g| g.contains(r))
+        // The set first: nearly always empty, and this is asked of every
+        // member at every arrival.
+        self.given_up.is_some_and(|g| g.contains(r)) && self.is_presumed_lost(r)
     }
     /// True when member `r` is left out because it left the behavior (it
     /// ended an ancestor, or went on past the point), not because it is
