@@ -196,8 +196,13 @@ impl Kernel {
     /// one.
     pub(super) fn catch_up(&mut self, pos: &Position) {
         let mut skip: Vec<FrameId> = Vec::new();
+        let graph = self.mission.graph();
         for (_, id, a) in self.anchored() {
-            if a.first {
+            // An individual behavior (`team: false`) is no team execution:
+            // each member numbers its runs of it at its own pace, so a
+            // teammate in the same id after a later predecessor ran another
+            // lap, not this one (as in `meet`).
+            if a.first || graph.get(id.behavior).is_some_and(|x| !x.team) {
                 continue;
             }
             // The same predecessor run more times, or another one this

@@ -2405,3 +2405,47 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
         "and says it followed"
     );
 }
+
+/// A lap of an individual behavior (`team: false`) is numbered by each
+/// member at its own pace: a teammate in the same execution id of it,
+/// after a later execution of the team behavior before it, ran another
+/// lap, not this one. Before, `catch_up` took it for the same execution
+/// reached by a history that ran the predecessor more times, and burned
+/// the predecessor's next execution: the robot, a lap behind, then
+/// numbered its next run of the predecessor past the one the team had
+/// run and ended, and waited alone at its barrier until the deadline
+/// (found by `no_waiting_across_levels`, graph seed 5046127393119846478:
+/// r2 alone at `b2`#4's `term.majority`, the team done with `b2`#3).
+#[test]
+fn a_teammate_a_lap_ahead_in_an_individual_behavior_burns_nothing() {
+    const LAPS: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [d] }
+  d: { team: false, skill: w, until: d_done, next: [a] }";
+    let mut h = Harness::new(LAPS, 2);
+    h.tick(0, &[("a_done", F), ("d_done", F)]);
+    h.tick_one(1, 100, &[("a_done", T)]);
+    h.tick_one(1, 200, &[("a_done", F)]);
+    assert_eq!(h.stack(1), ["root", "d"]);
+    let g = h.kernels[1].mission().graph().clone();
+    let [root, a, d] = ["root", "a", "d"].map(|n| g.find(n).expect("behavior"));
+    let id = |behavior, epoch| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch,
+    };
+    assert_eq!(h.kernels[1].org.runs(TeamId::ROOT, a), 1);
+    // Robot 0 is in its first lap of `d` too, but after `a`#2.
+    let mut theirs = running(&[(id(root, 1), None), (id(d, 1), Some((id(a, 2), false)))]);
+    theirs.robot = RobotId(0);
+    h.kernels[1].peer(Time::from_millis(250), RobotId(0), &theirs);
+    h.drain(1);
+    assert_eq!(h.stack(1), ["root", "d"]);
+    assert_eq!(
+        h.kernels[1].org.runs(TeamId::ROOT, a),
+        1,
+        "`a`#2 is the team's next run of `a`, not one to skip"
+    );
+}
