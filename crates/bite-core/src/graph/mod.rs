@@ -319,6 +319,26 @@ impl BehaviorGraph {
         false
     }
 
+    /// True when a way of one or more sequential edges leads from `from`
+    /// to `to` (along a cycle, `from` leads to itself).
+    pub fn leads_to(&self, from: BehaviorId, to: BehaviorId) -> bool {
+        let (Some(a), Some(_)) = (self.get(from), self.get(to)) else {
+            return false;
+        };
+        let mut seen = vec![false; self.behaviors.len()];
+        let mut todo: Vec<BehaviorId> = a.next.clone();
+        while let Some(x) = todo.pop() {
+            if x == to {
+                return true;
+            }
+            if std::mem::replace(&mut seen[x.index()], true) {
+                continue;
+            }
+            todo.extend(self.behavior(x).next.iter().copied());
+        }
+        false
+    }
+
     /// Synchronization point: two or more sequential successors are team
     /// behaviors.
     pub fn is_sync_point(&self, b: BehaviorId) -> bool {

@@ -736,6 +736,14 @@ impl Kernel {
     /// went through this robot's execution is departed from it and not
     /// waited for.
     ///
+    /// From an individual behavior (`team: false`) the way may be longer:
+    /// each member numbers its runs of it at its own pace, so a teammate's
+    /// epoch there says nothing of where it is beside this robot
+    /// ([`Kernel::passed`] cannot tell), and one still in it is on its way
+    /// into any behavior its sequential edges lead to (a robot that ran
+    /// it sooner went on through `b2` into `b3`, where it waits for a
+    /// teammate still in its run of `b1`).
+    ///
     /// Not a later execution of the behavior this robot's execution came
     /// after ([`Kernel::round_past`]): that teammate went round past it.
     fn leads_into(&self, k: usize, parent: FrameId, g: FrameId) -> bool {
@@ -745,7 +753,10 @@ impl Kernel {
             .is_some_and(|p| p.id() == parent)
             && graph.get(g.behavior).is_some_and(|b| {
                 self.slot_at(k).is_some_and(|(_, f)| {
-                    f.team == g.team && f.id() != g && b.next.contains(&f.behavior)
+                    f.team == g.team
+                        && f.id() != g
+                        && (b.next.contains(&f.behavior)
+                            || (!b.team && graph.leads_to(g.behavior, f.behavior)))
                 })
             })
             && !self.round_past(k, g)

@@ -2449,3 +2449,61 @@ behaviors:
         "`a`#2 is the team's next run of `a`, not one to skip"
     );
 }
+
+/// A robot at a barrier waits for a teammate heard at work in a run of an
+/// individual behavior (`team: false`) two sequential edges before its
+/// own, whatever epoch the teammate gave that run: each member numbers
+/// its runs of an individual behavior at its own pace, so the epoch says
+/// nothing of whether the teammate is behind ([`Kernel::passed`]), and
+/// its way leads into this robot's execution. Before, only a behavior
+/// followed directly by this robot's counted: found by
+/// `no_waiting_across_levels` (graph seed 10264868072022678513: r2 in
+/// `b3`#3, after `b2`#3 after its `b1`#2, waited out the auction's
+/// deadline for r3, still in its `b1`#3 on the way to `b2`#3).
+#[test]
+fn a_teammate_in_an_individual_behavior_two_edges_back_is_on_its_way() {
+    const WAY: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: false, skill: w, until: step, next: [b] }
+  b: { team: true, skill: w, until: step, next: [c] }
+  c: { team: true, skill: w, until: step, terminate: term.test-barrier }";
+    let mut h = Harness::new(WAY, 2);
+    h.tick(0, &[("step", Value::Bool(false))]);
+    let g = h.kernels[0].mission().graph();
+    let [root, a, b, c] = ["root", "a", "b", "c"].map(|n| g.find(n).expect("behavior"));
+    let mut n = 0;
+    while h.kernels[0].popped().is_none() {
+        n += 1;
+        assert!(n < 100, "robot 0 never reached c: {:?}", h.stack(0));
+        h.tick_one(0, 100 * n, &[("step", Value::Bool(n % 2 == 1))]);
+    }
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: c,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert!(h.kernels[0].instances.get(&key).is_some(), "waits at c");
+    let id = |behavior, epoch| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch,
+    };
+    let now = |k: u64| Time::from_millis(100 * n + 100 * k);
+    // Robot 1 at work in its second run of `a` (robot 0 ran `a` once).
+    let mut second = running(&[(id(root, 1), None), (id(a, 2), Some((id(root, 1), true)))]);
+    second.robot = RobotId(1);
+    h.kernels[0].peer(now(1), RobotId(1), &second);
+    assert!(
+        h.kernels[0].awaited_at_work(key),
+        "a teammate in an individual behavior leading into c is awaited"
+    );
+    // In an execution of `b` robot 0 never started: not on its way.
+    let mut beyond = running(&[(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))]);
+    beyond.robot = RobotId(1);
+    h.kernels[0].peer(now(2), RobotId(1), &beyond);
+    assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
+}
