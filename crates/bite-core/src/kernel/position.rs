@@ -1045,7 +1045,13 @@ impl Kernel {
     ///   robot has yet to start: under `term.local` a robot may go round a
     ///   cycle again while a teammate still runs a long chain of the lap
     ///   before). Once the team's leader has gone by too, the teammate
-    ///   leads the point and waits for this robot without hearing it.
+    ///   leads the point and waits for this robot without hearing it;
+    /// - **at work, its leader unheard**: the teammate waits at the point
+    ///   of an execution this robot still runs, and sends to it as its
+    ///   leader there, while this robot sends to a leader it does not hear
+    ///   (the two counted different teammates departed above: an
+    ///   individual behavior ended for the lowest ids, each heard by only
+    ///   some of the others).
     ///
     /// So it answers such a teammate with its own heartbeats
     /// (`beacon_audience`) while the teammate goes on sending them: the
@@ -1094,10 +1100,23 @@ impl Kernel {
                 //   and leads the end of, not being the leader this robot
                 //   sends to there: the two counted different teammates
                 //   departed above it, and the sender waits for it unheard.
-                if f.state != FrameState::Running
-                    && f.departed.is_some()
-                    && k < self.stack.len()
-                    && self.heal_leader(f.id.team, k) != Some(from)
+                // - Or the execution this robot still runs, whose point the
+                //   sender waits at (it ended it by its own condition, or
+                //   its chain, while this robot works on below), while
+                //   the leader this robot sends to there is not heard: the
+                //   two counted different teammates departed above it (an
+                //   individual behavior ended for some, each heard by only
+                //   some of the others), this robot's heartbeats go to a
+                //   teammate gone elsewhere, and the sender, sending to
+                //   this robot as its leader, took it for silent.
+                let here = f.state != FrameState::Running && k < self.stack.len();
+                let leader = || self.heal_leader(f.id.team, k);
+                if here
+                    && ((f.departed.is_some() && leader() != Some(from))
+                        || (k + 1 == pos.frames.len()
+                            && leader().is_some_and(|l| {
+                                l != self.me && l != from && self.fresh_peer(l).is_none()
+                            })))
                 {
                     stranger = true;
                     break;

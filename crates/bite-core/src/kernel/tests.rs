@@ -2507,3 +2507,48 @@ behaviors:
     h.kernels[0].peer(now(2), RobotId(1), &beyond);
     assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
 }
+
+/// A robot at work in an execution whose point a teammate waits at
+/// answers the teammate while the leader it sends to there is not heard:
+/// the two counted different teammates departed above (an individual
+/// behavior ended for the team's lowest ids, each heard by only some of
+/// the others), the teammate sends to this robot as its leader, and this
+/// robot's heartbeats go to one gone elsewhere. Found by
+/// `no_waiting_across_levels` (graph seed 5507922443524571597: r6 and
+/// r7, at `b4`#3's synchronization, waited out its deadline for r4 and
+/// r5 at work below `b4`#3, whose heartbeats went to r1, gone on to
+/// `b2`#3). While the leader is heard, nothing more is sent.
+#[test]
+fn a_robot_at_work_answers_a_teammate_at_the_point_while_its_leader_is_unheard() {
+    let [root, first, _, s] = twice_ids(&twice_of_three());
+    let at_the_end = |r: u32| {
+        let mut p = running(&[(root, None), (first, Some((root, true)))]);
+        p.robot = RobotId(r);
+        if let Some(f) = p.frames.last_mut() {
+            f.state = FrameState::Ended;
+        }
+        p
+    };
+    let answers = |h: &Harness, r: u32| {
+        (h.kernels[1].answering.as_ref()).is_some_and(|a| a.contains(RobotId(r)))
+    };
+    // Robot 1, at work in `s` under `first`, has not heard robot 0, its
+    // leader there.
+    let mut h = twice_of_three();
+    assert_eq!(h.stack(1), ["root", "first", "s"]);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &at_the_end(2));
+    assert!(answers(&h, 2), "{:?}", audience(&h, 1));
+    assert!(audience(&h, 1).contains(&2), "{:?}", audience(&h, 1));
+    // Its leader heard at work beside it: robot 2 hears robot 0, and robot
+    // 1 answers nobody.
+    let mut h = twice_of_three();
+    let mut leader = running(&[
+        (root, None),
+        (first, Some((root, true))),
+        (s, Some((first, true))),
+    ]);
+    leader.robot = RobotId(0);
+    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &leader);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &at_the_end(2));
+    assert!(!answers(&h, 2), "{:?}", audience(&h, 1));
+}
