@@ -305,28 +305,23 @@ impl BehaviorGraph {
     /// True when `b` can run directly under `parent`: it heads one of its
     /// execution chains, or follows one along sequential edges.
     pub fn runs_under(&self, parent: BehaviorId, b: BehaviorId) -> bool {
-        let mut seen = vec![false; self.behaviors.len()];
-        let mut todo: Vec<BehaviorId> = self.behavior(parent).children.clone();
-        while let Some(x) = todo.pop() {
-            if x == b {
-                return true;
-            }
-            if std::mem::replace(&mut seen[x.index()], true) {
-                continue;
-            }
-            todo.extend(self.behavior(x).next.iter().copied());
-        }
-        false
+        self.reached(&self.behavior(parent).children, b)
     }
 
     /// True when a way of one or more sequential edges leads from `from`
     /// to `to` (along a cycle, `from` leads to itself).
     pub fn leads_to(&self, from: BehaviorId, to: BehaviorId) -> bool {
-        let (Some(a), Some(_)) = (self.get(from), self.get(to)) else {
-            return false;
-        };
+        match (self.get(from), self.get(to)) {
+            (Some(a), Some(_)) => self.reached(&a.next, to),
+            _ => false,
+        }
+    }
+
+    /// True when `to` is one of `starts` or follows one of them along
+    /// sequential edges.
+    fn reached(&self, starts: &[BehaviorId], to: BehaviorId) -> bool {
         let mut seen = vec![false; self.behaviors.len()];
-        let mut todo: Vec<BehaviorId> = a.next.clone();
+        let mut todo: Vec<BehaviorId> = starts.to_vec();
         while let Some(x) = todo.pop() {
             if x == to {
                 return true;

@@ -2000,6 +2000,34 @@ behaviors:
   c: { team: true, skill: w, until: step, next: [a, z] }
   z: { team: true, skill: w, until: step, terminate: term.test-barrier }";
 
+/// Two robots on `graph` (whose skills end on `step`); robot 0 alone runs
+/// on, `step` held every other tick, until it waits at the barrier that
+/// ends `barrier`'s first execution. Returns the harness, the ticks it
+/// took (100 ms each) and the barrier's instance.
+fn alone_to_the_barrier(graph: &str, barrier: &str) -> (Harness, u64, InstanceKey) {
+    let mut h = Harness::new(graph, 2);
+    h.tick(0, &[("step", Value::Bool(false))]);
+    let behavior = (h.kernels[0].mission().graph().find(barrier)).expect("behavior");
+    let mut n = 0;
+    while h.kernels[0].popped().is_none() {
+        n += 1;
+        assert!(n < 400, "robot 0 never reached {barrier}: {:?}", h.stack(0));
+        h.tick_one(0, 100 * n, &[("step", Value::Bool(n % 2 == 1))]);
+    }
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert!(
+        h.kernels[0].instances.get(&key).is_some(),
+        "waits at {barrier}"
+    );
+    (h, n, key)
+}
+
 /// A leader at a barrier waits for a teammate many behaviors behind on its
 /// way, heard at work: slow, not silent, even once the ends the leader
 /// remembers (`RECENT`) no longer name the teammate's execution. Found by
@@ -2008,48 +2036,38 @@ behaviors:
 /// two behaviors behind, having ended more than eight executions since.
 #[test]
 fn a_leader_waits_for_a_teammate_many_behaviors_behind() {
-    let mut h = Harness::new(LOOP_TO_BARRIER, 2);
-    h.tick(0, &[("step", Value::Bool(false))]);
+    let (mut h, n, key) = alone_to_the_barrier(LOOP_TO_BARRIER, "z");
     let g = h.kernels[0].mission().graph();
-    let [root, a, b, z] = ["root", "a", "b", "z"].map(|n| g.find(n).expect("behavior"));
-    // Robot 0 alone runs on until it waits at `z`'s barrier.
-    let mut n = 0;
-    while h.kernels[0].popped().is_none() {
-        n += 1;
-        assert!(n < 400, "robot 0 never reached z: {:?}", h.stack(0));
-        h.tick_one(0, 100 * n, &[("step", Value::Bool(n % 2 == 1))]);
-    }
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: z,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
-    assert!(h.kernels[0].instances.get(&key).is_some(), "waits at z");
-    let id = |behavior, epoch| FrameId {
-        team: TeamId::ROOT,
-        behavior,
-        epoch,
-    };
+    let [root, a, b] = ["root", "a", "b"].map(|n| g.find(n).expect("behavior"));
+    let id = at_root;
     assert!(!h.kernels[0].recent_ended.contains(&id(a, 1)));
     // Robot 1, heard at work in the first `a`, then in the first `b`.
     let now = |k: u64| Time::from_millis(100 * n + 100 * k);
-    let mut first = running(&[(id(root, 1), None), (id(a, 1), Some((id(root, 1), true)))]);
-    first.robot = RobotId(1);
-    h.kernels[0].peer(now(1), RobotId(1), &first);
-    let mut next = running(&[(id(root, 1), None), (id(b, 1), Some((id(a, 1), false)))]);
-    next.robot = RobotId(1);
-    h.kernels[0].peer(now(2), RobotId(1), &next);
+    tell_robot_0(
+        &mut h,
+        now(1),
+        &[(id(root, 1), None), (id(a, 1), Some((id(root, 1), true)))],
+    );
+    tell_robot_0(
+        &mut h,
+        now(2),
+        &[(id(root, 1), None), (id(b, 1), Some((id(a, 1), false)))],
+    );
     assert!(
         h.kernels[0].awaited_at_work(key),
         "a teammate at work many behaviors behind is awaited"
     );
     // Heard in an execution of `b` robot 0 never started: not behind.
-    let mut beyond = running(&[(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))]);
-    beyond.robot = RobotId(1);
-    h.kernels[0].peer(now(3), RobotId(1), &beyond);
+    let beyond = [(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))];
+    tell_robot_0(&mut h, now(3), &beyond);
     assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
+}
+
+/// Robot 0 hears robot 1 at `now` running `chain` (as [`running`]).
+fn tell_robot_0(h: &mut Harness, now: Time, chain: &[(FrameId, Option<(FrameId, bool)>)]) {
+    let mut pos = running(chain);
+    pos.robot = RobotId(1);
+    h.kernels[0].peer(now, RobotId(1), &pos);
 }
 
 /// A robot answers a teammate waiting at a point in an execution of its
@@ -2431,11 +2449,7 @@ behaviors:
     assert_eq!(h.stack(1), ["root", "d"]);
     let g = h.kernels[1].mission().graph().clone();
     let [root, a, d] = ["root", "a", "d"].map(|n| g.find(n).expect("behavior"));
-    let id = |behavior, epoch| FrameId {
-        team: TeamId::ROOT,
-        behavior,
-        epoch,
-    };
+    let id = at_root;
     assert_eq!(h.kernels[1].org.runs(TeamId::ROOT, a), 1);
     // Robot 0 is in its first lap of `d` too, but after `a`#2.
     let mut theirs = running(&[(id(root, 1), None), (id(d, 1), Some((id(a, 2), false)))]);
@@ -2469,42 +2483,24 @@ behaviors:
   a: { team: false, skill: w, until: step, next: [b] }
   b: { team: true, skill: w, until: step, next: [c] }
   c: { team: true, skill: w, until: step, terminate: term.test-barrier }";
-    let mut h = Harness::new(WAY, 2);
-    h.tick(0, &[("step", Value::Bool(false))]);
+    let (mut h, n, key) = alone_to_the_barrier(WAY, "c");
     let g = h.kernels[0].mission().graph();
-    let [root, a, b, c] = ["root", "a", "b", "c"].map(|n| g.find(n).expect("behavior"));
-    let mut n = 0;
-    while h.kernels[0].popped().is_none() {
-        n += 1;
-        assert!(n < 100, "robot 0 never reached c: {:?}", h.stack(0));
-        h.tick_one(0, 100 * n, &[("step", Value::Bool(n % 2 == 1))]);
-    }
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: c,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
-    assert!(h.kernels[0].instances.get(&key).is_some(), "waits at c");
-    let id = |behavior, epoch| FrameId {
-        team: TeamId::ROOT,
-        behavior,
-        epoch,
-    };
+    let [root, a, b] = ["root", "a", "b"].map(|n| g.find(n).expect("behavior"));
+    let id = at_root;
     let now = |k: u64| Time::from_millis(100 * n + 100 * k);
     // Robot 1 at work in its second run of `a` (robot 0 ran `a` once).
-    let mut second = running(&[(id(root, 1), None), (id(a, 2), Some((id(root, 1), true)))]);
-    second.robot = RobotId(1);
-    h.kernels[0].peer(now(1), RobotId(1), &second);
+    tell_robot_0(
+        &mut h,
+        now(1),
+        &[(id(root, 1), None), (id(a, 2), Some((id(root, 1), true)))],
+    );
     assert!(
         h.kernels[0].awaited_at_work(key),
         "a teammate in an individual behavior leading into c is awaited"
     );
     // In an execution of `b` robot 0 never started: not on its way.
-    let mut beyond = running(&[(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))]);
-    beyond.robot = RobotId(1);
-    h.kernels[0].peer(now(2), RobotId(1), &beyond);
+    let beyond = [(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))];
+    tell_robot_0(&mut h, now(2), &beyond);
     assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
 }
 
@@ -2551,4 +2547,13 @@ fn a_robot_at_work_answers_a_teammate_at_the_point_while_its_leader_is_unheard()
     h.kernels[1].peer(Time::from_millis(150), RobotId(0), &leader);
     h.kernels[1].peer(Time::from_millis(200), RobotId(2), &at_the_end(2));
     assert!(!answers(&h, 2), "{:?}", audience(&h, 1));
+}
+
+/// Execution `epoch` of `behavior` by the root team.
+fn at_root(behavior: BehaviorId, epoch: u32) -> FrameId {
+    FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch,
+    }
 }
