@@ -636,6 +636,16 @@ fn cases_that_failed_once() {
         // it, had heard r7 waiting there but timed out 30 ms before r7
         // found it.
         (10_985_443_681_506_886_131, 8),
+        // "Laps of an individual behavior": a robot a lap behind burned
+        // its team's next run of a behavior for a teammate's lap of the
+        // individual one after it (r2 alone at `b2`#4's majority); a
+        // robot took a teammate two edges back in an individual behavior
+        // for one elsewhere (an auction's deadline); robots at work, whose
+        // heartbeats went to a leader gone elsewhere, were taken for
+        // silent at their execution's synchronization (three deadlines).
+        (5_046_127_393_119_846_478, 3),
+        (10_264_868_072_022_678_513, 5),
+        (5_507_922_443_524_571_597, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
