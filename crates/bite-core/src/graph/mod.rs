@@ -295,6 +295,15 @@ impl BehaviorGraph {
         &self.warnings
     }
 
+    /// True when `b` is an individual behavior (`team: false`): each
+    /// member ends it on its own and numbers its runs of it at its own
+    /// pace, so two members' executions of it with the same epoch need not
+    /// be the same lap. False for an id not in this graph (from the
+    /// network).
+    pub fn is_individual(&self, b: BehaviorId) -> bool {
+        self.get(b).is_some_and(|x| !x.team)
+    }
+
     /// The same graph for a team of `n` robots (extra robots anonymous).
     pub fn with_team_size(&self, n: usize) -> BehaviorGraph {
         let mut g = self.clone();

@@ -202,7 +202,7 @@ impl Kernel {
             // each member numbers its runs of it at its own pace, so a
             // teammate in the same id after a later predecessor ran another
             // lap, not this one (as in `meet`).
-            if a.first || graph.get(id.behavior).is_some_and(|x| !x.team) {
+            if a.first || graph.is_individual(id.behavior) {
                 continue;
             }
             // The same predecessor run more times, or another one this
@@ -695,8 +695,8 @@ impl Kernel {
         // for another history and led the team back into the first, for
         // ever (docs/reliability.md, "A teammate behind in an individual
         // behavior").
-        let individual = |b: BehaviorId| self.mission.graph().get(b).is_some_and(|x| !x.team);
-        if individual(g.id.behavior) || individual(here.behavior) {
+        let graph = self.mission.graph();
+        if graph.is_individual(g.id.behavior) || graph.is_individual(here.behavior) {
             return false;
         }
         let Some((slot, id, mine)) = self.anchored_at(k) else {

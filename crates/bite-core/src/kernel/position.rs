@@ -756,7 +756,8 @@ impl Kernel {
                     f.team == g.team
                         && f.id() != g
                         && (b.next.contains(&f.behavior)
-                            || (!b.team && graph.leads_to(g.behavior, f.behavior)))
+                            || (graph.is_individual(g.behavior)
+                                && graph.leads_to(g.behavior, f.behavior)))
                 })
             })
             && !self.round_past(k, g)
