@@ -269,7 +269,8 @@ impl Kernel {
             // behavior this one came after, which leads only here. It may
             // have run it (and decided its allocation), so it stays in that
             // allocation, as a teammate that ran it does.
-            let went_round = !ran && !went_past && self.went_round(k, id, pos);
+            let went_round =
+                !ran && !went_past && (self.went_round(k, id, pos) || self.went_beyond(k, id, pos));
             // One that ended it before any allocation of it (its end, heard
             // with no allocation applied) neither decided one.
             let unallocated = || {
@@ -479,6 +480,26 @@ impl Kernel {
     fn went_round(&self, k: usize, id: FrameId, pos: &Position) -> bool {
         self.yet_to_start(k, id, pos)
             .is_some_and(|g| self.round_past(k, g.id))
+    }
+
+    /// True when a teammate runs, beside this robot's execution `id` at
+    /// depth `k` (under the same parent execution, in the same team), an
+    /// execution this robot has yet to start of a behavior that `id`'s
+    /// leads to along sequential edges and that never leads back to it:
+    /// the teammate is further on this robot's way (it ran `id`, ended by
+    /// its own condition, and went on: `term.local`) and will not come to
+    /// `id` under this parent again. The end it ran may be gone from the
+    /// ends it still reports ([`RECENT`]) by the time this robot gets
+    /// there, and a barrier below `id` waited out its deadline for it
+    /// (docs/reliability.md, "A teammate gone on beyond the execution").
+    /// It may have run `id` and decided its allocation, so it stays in
+    /// that allocation, as a teammate that ran it does.
+    fn went_beyond(&self, k: usize, id: FrameId, pos: &Position) -> bool {
+        self.yet_to_start(k, id, pos).is_some_and(|g| {
+            g.id.behavior != id.behavior
+                && self.leads_back(id.behavior, g.id.behavior)
+                && !self.leads_back(g.id.behavior, id.behavior)
+        })
     }
 
     /// The teammate's frame at depth `k` of `pos`, if it runs, beside this

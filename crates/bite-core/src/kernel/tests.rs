@@ -2316,6 +2316,78 @@ behaviors:
     assert!(left_out(&h), "and left out of `s`'s barrier below it");
 }
 
+/// A teammate heard further on this robot's way, two sequential edges past
+/// its execution, in a behavior that never leads back to it (`c`#1 beside
+/// `a`#1, with `a` then `b` then `c`), went on beyond this robot's
+/// execution: it ran it and ended it by its own condition, and will not
+/// come to it again. It is marked departed from it and left out of the
+/// points below it, though its heartbeat no longer lists the end (the ends
+/// a robot reports are bounded). Found by `no_waiting_across_levels` (RNG
+/// seed 1061, graph seed 12562543272125157407): a robot waited out a
+/// `term.wait-all` deadline under `b33`#2 for two teammates that had ended
+/// it long before and run `b34`#2 into `b35`#2.
+#[test]
+fn a_teammate_gone_on_beyond_an_execution_is_departed_from_it() {
+    const BEYOND: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, children: [s], until: a_done, next: [b] }
+  b: { team: true, skill: w, until: b_done, next: [c] }
+  c: { team: true, skill: w, until: c_done }
+  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
+    let mut h = Harness::new(BEYOND, 3);
+    h.tick(
+        0,
+        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
+    );
+    // Robot 1 ends `s` under `a`#1 and waits at its barrier.
+    h.tick_one(1, 100, &[("s_done", T)]);
+    let g = h.kernels[1].mission().graph().clone();
+    let [root, a, b, c, s] = ["root", "a", "b", "c", "s"].map(|n| g.find(n).expect("behavior"));
+    let barrier = (h.kernels[1].instances.iter())
+        .find(|(k, i)| k.behavior == s && k.kind == Kind::Terminate && i.state == State::Active)
+        .map(|(k, _)| k)
+        .expect("robot 1 waits at `s`'s barrier");
+    let left_out = |h: &Harness, r: RobotId| {
+        (h.kernels[1].instances.get(&barrier))
+            .and_then(|i| i.excluded.as_ref())
+            .is_some_and(|x| x.contains(r))
+    };
+    let departed = |h: &Harness, r: RobotId| {
+        (h.kernels[1].stack().iter())
+            .find(|f| f.id() == at_root(a, 1))
+            .and_then(|f| f.departed.as_ref())
+            .is_some_and(|d| d.contains(r))
+    };
+    // Robot 0 runs `b`#1: the direct successor, departed as before.
+    let mut next = running(&[
+        (at_root(root, 1), None),
+        (at_root(b, 1), Some((at_root(a, 1), false))),
+    ]);
+    next.robot = RobotId(0);
+    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &next);
+    assert!(departed(&h, RobotId(0)), "robot 0, in `b`#1, is past `a`#1");
+    // Robot 2 (not the team's leader, which robot 1 would meet: see
+    // `Kernel::meet`) runs `c`#1, after `b`#1, and no longer reports `a`#1
+    // ended.
+    assert!(!left_out(&h, RobotId(2)));
+    let mut beyond = running(&[
+        (at_root(root, 1), None),
+        (at_root(c, 1), Some((at_root(b, 1), false))),
+    ]);
+    beyond.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &beyond);
+    assert!(
+        departed(&h, RobotId(2)),
+        "robot 2, in `c`#1, went on beyond `a`#1"
+    );
+    assert!(
+        left_out(&h, RobotId(2)),
+        "and is left out of `s`'s barrier below it"
+    );
+}
+
 /// A team whose members choose `b` or `c` after `a` each by its own
 /// preconditions (one option each: no protocol runs), and go on from
 /// either to `d`.
