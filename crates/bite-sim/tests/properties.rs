@@ -646,6 +646,12 @@ fn cases_that_failed_once() {
         (5_046_127_393_119_846_478, 3),
         (10_264_868_072_022_678_513, 5),
         (5_507_922_443_524_571_597, 8),
+        // "A teammate gone on beyond the execution": r3 and r5 ended
+        // `b33`#2 at once by its own condition and ran `b34`#2 into
+        // `b35`#2; r2, later into `b33`#2, waited at `b37`#2's
+        // `term.wait-all` for them, their end of `b33`#2 gone from the ends
+        // they reported.
+        (12_562_543_272_125_157_407, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
