@@ -2209,23 +2209,20 @@ fn a_teammate_that_went_past_an_execution_without_running_it_is_left_out_of_it()
     let mut h = twice_of_three();
     let [root, first, second, _] = twice_ids(&h);
     let barrier = waiting_at_first(&h, 1);
-    let left_out = |h: &Harness| {
-        (h.kernels[1].instances.get(&barrier))
-            .and_then(|i| i.excluded.as_ref())
-            .is_some_and(|x| x.contains(RobotId(2)))
-    };
-    assert!(!left_out(&h));
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
     // Robot 2 runs `second` but did not come from robot 1's `first` (its
     // anchor is the root: it converged there).
     let mut past = running(&[(root, None), (second, Some((root, true)))]);
     past.robot = RobotId(2);
     h.kernels[1].peer(Time::from_millis(200), RobotId(2), &past);
-    let departed = (h.kernels[1].stack().iter())
-        .find(|f| f.id() == first)
-        .and_then(|f| f.departed.as_ref())
-        .is_some_and(|d| d.contains(RobotId(2)));
-    assert!(departed, "robot 2 is done with `first`");
-    assert!(left_out(&h), "and left out of its barrier");
+    assert_gone_from(
+        &h,
+        1,
+        first,
+        barrier,
+        RobotId(2),
+        "robot 2 is done with `first`",
+    );
 }
 
 /// A robot whose deadline falls at a point with counted teammates it has
@@ -2254,6 +2251,26 @@ fn a_robot_calls_the_teammates_it_never_heard_when_its_deadline_falls() {
     assert_eq!(h.kernels[1].stats().timeouts, 1);
 }
 
+/// Three robots started on `a` (a barrier `s` below it), then `b`, then
+/// `c`, whose successors are `c_next` (`next: [a]`: a cycle), every
+/// behavior ending by its own condition.
+fn a_b_c(c_next: &str) -> Harness {
+    let graph = format!(
+        "start: root
+defaults: {{ terminate: term.local }}
+behaviors:
+  root: {{ team: true, children: [a] }}
+  a: {{ team: true, children: [s], until: a_done, next: [b] }}
+  b: {{ team: true, skill: w, until: b_done, next: [c] }}
+  c: {{ team: true, skill: w, until: c_done, {c_next} }}
+  s: {{ team: true, skill: w, until: s_done, terminate: term.test-barrier }}"
+    );
+    let mut h = Harness::new(&graph, 3);
+    let off = [("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)];
+    h.tick(0, &off);
+    h
+}
+
 /// A teammate heard in a later execution of the behavior this robot's
 /// execution came after, a behavior whose only successor is this robot's
 /// (`c`#2 beside `a`#2, which came after `c`#1), went round past this
@@ -2265,17 +2282,7 @@ fn a_robot_calls_the_teammates_it_never_heard_when_its_deadline_falls() {
 /// stalled.
 #[test]
 fn a_teammate_gone_round_past_an_execution_is_departed_from_it() {
-    const ROUND: &str = "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, children: [s], until: a_done, next: [b] }
-  b: { team: true, skill: w, until: b_done, next: [c] }
-  c: { team: true, skill: w, until: c_done, next: [a] }
-  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
-    let mut h = Harness::new(ROUND, 3);
-    let off = [("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)];
-    h.tick(0, &off);
+    let mut h = a_b_c("next: [a]");
     // Robot 1 goes round alone: `a`#1, `b`#1, `c`#1, then `a`#2, and ends
     // `s` there, waiting at its barrier for robots 0 and 2.
     h.tick_one(1, 100, &[("a_done", T)]);
@@ -2294,26 +2301,20 @@ behaviors:
         "robot 1 runs `a`#2: {:?}",
         h.stack(1)
     );
-    let barrier = (h.kernels[1].instances.iter())
-        .find(|(k, i)| k.behavior == s && k.kind == Kind::Terminate && i.state == State::Active)
-        .map(|(k, _)| k)
-        .expect("robot 1 waits at `s`'s barrier");
-    let left_out = |h: &Harness| {
-        (h.kernels[1].instances.get(&barrier))
-            .and_then(|i| i.excluded.as_ref())
-            .is_some_and(|x| x.contains(RobotId(2)))
-    };
-    assert!(!left_out(&h));
+    let barrier = barrier_at(&h, 1, s);
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
     // Robot 2 runs `c`#2, after `b`#2: it is past `a`#2.
     let mut past = running(&[(id(root, 1), None), (id(c, 2), Some((id(b, 2), false)))]);
     past.robot = RobotId(2);
     h.kernels[1].peer(Time::from_millis(450), RobotId(2), &past);
-    let departed = (h.kernels[1].stack().iter())
-        .find(|f| f.id() == id(a, 2))
-        .and_then(|f| f.departed.as_ref())
-        .is_some_and(|d| d.contains(RobotId(2)));
-    assert!(departed, "robot 2 is past `a`#2");
-    assert!(left_out(&h), "and left out of `s`'s barrier below it");
+    assert_gone_from(
+        &h,
+        1,
+        id(a, 2),
+        barrier,
+        RobotId(2),
+        "robot 2 is past `a`#2",
+    );
 }
 
 /// A teammate heard further on this robot's way, two sequential edges past
@@ -2328,38 +2329,12 @@ behaviors:
 /// it long before and run `b34`#2 into `b35`#2.
 #[test]
 fn a_teammate_gone_on_beyond_an_execution_is_departed_from_it() {
-    const BEYOND: &str = "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, children: [s], until: a_done, next: [b] }
-  b: { team: true, skill: w, until: b_done, next: [c] }
-  c: { team: true, skill: w, until: c_done }
-  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
-    let mut h = Harness::new(BEYOND, 3);
-    h.tick(
-        0,
-        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
-    );
+    let mut h = a_b_c("next: []");
     // Robot 1 ends `s` under `a`#1 and waits at its barrier.
     h.tick_one(1, 100, &[("s_done", T)]);
     let g = h.kernels[1].mission().graph().clone();
     let [root, a, b, c, s] = ["root", "a", "b", "c", "s"].map(|n| g.find(n).expect("behavior"));
-    let barrier = (h.kernels[1].instances.iter())
-        .find(|(k, i)| k.behavior == s && k.kind == Kind::Terminate && i.state == State::Active)
-        .map(|(k, _)| k)
-        .expect("robot 1 waits at `s`'s barrier");
-    let left_out = |h: &Harness, r: RobotId| {
-        (h.kernels[1].instances.get(&barrier))
-            .and_then(|i| i.excluded.as_ref())
-            .is_some_and(|x| x.contains(r))
-    };
-    let departed = |h: &Harness, r: RobotId| {
-        (h.kernels[1].stack().iter())
-            .find(|f| f.id() == at_root(a, 1))
-            .and_then(|f| f.departed.as_ref())
-            .is_some_and(|d| d.contains(r))
-    };
+    let barrier = barrier_at(&h, 1, s);
     // Robot 0 runs `b`#1: the direct successor, departed as before.
     let mut next = running(&[
         (at_root(root, 1), None),
@@ -2367,25 +2342,22 @@ behaviors:
     ]);
     next.robot = RobotId(0);
     h.kernels[1].peer(Time::from_millis(150), RobotId(0), &next);
-    assert!(departed(&h, RobotId(0)), "robot 0, in `b`#1, is past `a`#1");
+    assert!(
+        departed_from(&h, 1, at_root(a, 1), RobotId(0)),
+        "robot 0, in `b`#1, is past `a`#1"
+    );
     // Robot 2 (not the team's leader, which robot 1 would meet: see
     // `Kernel::meet`) runs `c`#1, after `b`#1, and no longer reports `a`#1
     // ended.
-    assert!(!left_out(&h, RobotId(2)));
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
     let mut beyond = running(&[
         (at_root(root, 1), None),
         (at_root(c, 1), Some((at_root(b, 1), false))),
     ]);
     beyond.robot = RobotId(2);
     h.kernels[1].peer(Time::from_millis(200), RobotId(2), &beyond);
-    assert!(
-        departed(&h, RobotId(2)),
-        "robot 2, in `c`#1, went on beyond `a`#1"
-    );
-    assert!(
-        left_out(&h, RobotId(2)),
-        "and is left out of `s`'s barrier below it"
-    );
+    let why = "robot 2, in `c`#1, went on beyond `a`#1";
+    assert_gone_from(&h, 1, at_root(a, 1), barrier, RobotId(2), why);
 }
 
 /// A team whose members choose `b` or `c` after `a` each by its own
@@ -2628,4 +2600,36 @@ fn at_root(behavior: BehaviorId, epoch: u32) -> FrameId {
         behavior,
         epoch,
     }
+}
+
+/// The barrier robot `i` waits at, at the end of `behavior`.
+fn barrier_at(h: &Harness, i: usize, behavior: BehaviorId) -> InstanceKey {
+    (h.kernels[i].instances.iter())
+        .find(|(k, x)| {
+            k.behavior == behavior && k.kind == Kind::Terminate && x.state == State::Active
+        })
+        .map(|(k, _)| k)
+        .expect("waits at the barrier")
+}
+
+/// True when robot `i`'s protocol instance `key` leaves teammate `r` out.
+fn left_out(h: &Harness, i: usize, key: InstanceKey, r: RobotId) -> bool {
+    (h.kernels[i].instances.get(&key))
+        .and_then(|x| x.excluded.as_ref())
+        .is_some_and(|x| x.contains(r))
+}
+
+/// Asserts that robot `i` counts teammate `r` departed from its execution
+/// `id` (`why`) and leaves it out of the barrier `key` below it.
+fn assert_gone_from(h: &Harness, i: usize, id: FrameId, key: InstanceKey, r: RobotId, why: &str) {
+    assert!(departed_from(h, i, id, r), "{why}");
+    assert!(left_out(h, i, key, r), "{why}, and left out of the barrier");
+}
+
+/// True when robot `i` counts teammate `r` departed from its execution `id`.
+fn departed_from(h: &Harness, i: usize, id: FrameId, r: RobotId) -> bool {
+    (h.kernels[i].stack().iter())
+        .find(|f| f.id() == id)
+        .and_then(|f| f.departed.as_ref())
+        .is_some_and(|d| d.contains(r))
 }
