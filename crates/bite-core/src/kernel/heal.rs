@@ -262,15 +262,25 @@ impl Kernel {
                 || pos.burned.contains(&id)
                 || (pos.frames.iter())
                     .any(|g| (g.id == id && g.state != FrameState::Running) || g.follows(id));
+            // Else the teammate's frame beside it, if it runs one this
+            // robot has yet to start (looked up once for the tests below).
+            let ahead = if ran {
+                None
+            } else {
+                self.yet_to_start(k, id, pos)
+            };
             // Or it went past without running it: it never took part in
             // the execution's allocation either (see below).
-            let went_past = !ran && self.went_past(k, id, pos);
+            let went_past = ahead.is_some_and(|g| self.went_past(k, id, g));
             // Or it went round past it: it runs a later execution of the
-            // behavior this one came after, which leads only here. It may
+            // behavior this one came after, which leads only here
+            // (`Kernel::round_past`; docs/reliability.md, "A teammate gone
+            // round past the execution"). Or it went on beyond it, to a
+            // behavior this one leads to and that never leads back. It may
             // have run it (and decided its allocation), so it stays in that
             // allocation, as a teammate that ran it does.
-            let went_round =
-                !ran && !went_past && (self.went_round(k, id, pos) || self.went_beyond(k, id, pos));
+            let went_round = !went_past
+                && ahead.is_some_and(|g| self.round_past(k, g.id) || self.went_beyond(id, g.id));
             // One that ended it before any allocation of it (its end, heard
             // with no allocation applied) neither decided one.
             let unallocated = || {
@@ -443,16 +453,13 @@ impl Kernel {
     }
 
     /// True when a teammate runs, beside this robot's execution `id` at
-    /// depth `k` (under the same parent execution, in the same team), an
-    /// execution of one of `id`'s successors that this robot has yet to
-    /// start: it reached the point after `id` by another way (a precondition
+    /// depth `k` (under the same parent execution, in the same team), `g`,
+    /// an execution of one of `id`'s successors that this robot has yet to
+    /// start ([`Kernel::yet_to_start`]): it reached the point after `id` by another way (a precondition
     /// that held for it alone chose another successor before, or it
     /// converged on teammates further on) and will not come to `id`
     /// (docs/reliability.md, "Teammates gone another way").
-    fn went_past(&self, k: usize, id: FrameId, pos: &Position) -> bool {
-        let Some(g) = self.yet_to_start(k, id, pos) else {
-            return false;
-        };
+    fn went_past(&self, k: usize, id: FrameId, g: &PosFrame) -> bool {
         // Not one before it: the execution this robot came from (it may
         // have converged on it without running it) or any it knows of.
         let before = |a: Anchor| !a.first && a.behavior == g.id.behavior && a.epoch >= g.id.epoch;
@@ -469,22 +476,10 @@ impl Kernel {
             && !(from_earlier && self.leads_back(g.id.behavior, id.behavior))
     }
 
-    /// True when a teammate runs, beside this robot's execution `id` at
-    /// depth `k` (under the same parent execution, in the same team), a
-    /// later execution of the behavior `id` came after, whose only
-    /// successor is `id`'s behavior, and that this robot has yet to start
-    /// (`Kernel::round_past`): the teammate is past `id` (it ran it, or
-    /// converged past it on teammates further on) and will not come back
-    /// to it (docs/reliability.md, "A teammate gone round past the
-    /// execution").
-    fn went_round(&self, k: usize, id: FrameId, pos: &Position) -> bool {
-        self.yet_to_start(k, id, pos)
-            .is_some_and(|g| self.round_past(k, g.id))
-    }
-
-    /// True when a teammate runs, beside this robot's execution `id` at
-    /// depth `k` (under the same parent execution, in the same team), an
-    /// execution this robot has yet to start of a behavior that `id`'s
+    /// True when a teammate runs, beside this robot's execution `id` (under
+    /// the same parent execution, in the same team), execution `g`, which
+    /// this robot has yet to start ([`Kernel::yet_to_start`]), of a behavior
+    /// that `id`'s
     /// leads to along sequential edges and that never leads back to it:
     /// the teammate is further on this robot's way (it ran `id`, ended by
     /// its own condition, and went on: `term.local`) and will not come to
@@ -494,12 +489,10 @@ impl Kernel {
     /// (docs/reliability.md, "A teammate gone on beyond the execution").
     /// It may have run `id` and decided its allocation, so it stays in
     /// that allocation, as a teammate that ran it does.
-    fn went_beyond(&self, k: usize, id: FrameId, pos: &Position) -> bool {
-        self.yet_to_start(k, id, pos).is_some_and(|g| {
-            g.id.behavior != id.behavior
-                && self.leads_back(id.behavior, g.id.behavior)
-                && !self.leads_back(g.id.behavior, id.behavior)
-        })
+    fn went_beyond(&self, id: FrameId, g: FrameId) -> bool {
+        g.behavior != id.behavior
+            && self.leads_back(id.behavior, g.behavior)
+            && !self.leads_back(g.behavior, id.behavior)
     }
 
     /// The teammate's frame at depth `k` of `pos`, if it runs, beside this
