@@ -455,10 +455,11 @@ impl Kernel {
     /// True when a teammate runs, beside this robot's execution `id` at
     /// depth `k` (under the same parent execution, in the same team), `g`,
     /// an execution of one of `id`'s successors that this robot has yet to
-    /// start ([`Kernel::yet_to_start`]): it reached the point after `id` by another way (a precondition
-    /// that held for it alone chose another successor before, or it
-    /// converged on teammates further on) and will not come to `id`
-    /// (docs/reliability.md, "Teammates gone another way").
+    /// start ([`Kernel::yet_to_start`]): it reached the point after `id`
+    /// by another way (a precondition that held for it alone chose another
+    /// successor before, or it converged on teammates further on) and will
+    /// not come to `id` (docs/reliability.md, "Teammates gone another
+    /// way").
     fn went_past(&self, k: usize, id: FrameId, g: &PosFrame) -> bool {
         // Not one before it: the execution this robot came from (it may
         // have converged on it without running it) or any it knows of.
@@ -478,17 +479,18 @@ impl Kernel {
 
     /// True when a teammate runs, beside this robot's execution `id` (under
     /// the same parent execution, in the same team), execution `g`, which
-    /// this robot has yet to start ([`Kernel::yet_to_start`]), of a behavior
-    /// that `id`'s
-    /// leads to along sequential edges and that never leads back to it:
-    /// the teammate is further on this robot's way (it ran `id`, ended by
-    /// its own condition, and went on: `term.local`) and will not come to
-    /// `id` under this parent again. The end it ran may be gone from the
-    /// ends it still reports ([`RECENT`]) by the time this robot gets
-    /// there, and a barrier below `id` waited out its deadline for it
-    /// (docs/reliability.md, "A teammate gone on beyond the execution").
-    /// It may have run `id` and decided its allocation, so it stays in
-    /// that allocation, as a teammate that ran it does.
+    /// this robot has yet to start ([`Kernel::yet_to_start`]), of a
+    /// behavior that `id`'s leads to along sequential edges and that never
+    /// leads back to it: the teammate is further on this robot's way (it
+    /// ran `id`, ended it by its own condition, and went on: `term.local`)
+    /// and will not come to `id` under this parent again. The end it ran
+    /// may be gone from the ends it still reports ([`RECENT`]) by the time
+    /// this robot gets there, and a barrier below `id` waited out its
+    /// deadline for it (docs/reliability.md, "A teammate gone on beyond the
+    /// execution"). It may have run `id` and decided its allocation, so it
+    /// stays in that allocation, as a teammate that ran it does. Both walks
+    /// are bounded ([`Kernel::leads_back`]): beyond the bound a way counts
+    /// as leading back, and nobody is departed.
     fn went_beyond(&self, id: FrameId, g: FrameId) -> bool {
         g.behavior != id.behavior
             && self.leads_back(id.behavior, g.behavior)
