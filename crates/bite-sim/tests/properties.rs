@@ -652,6 +652,12 @@ fn cases_that_failed_once() {
         // `term.wait-all` for them, their end of `b33`#2 gone from the ends
         // they reported.
         (12_562_543_272_125_157_407, 8),
+        // The same section, its first form: a member that took an
+        // individual behavior's other successor by its own precondition,
+        // and converged back a moment later, was taken for one gone on
+        // beyond its team's execution and left out of it (an allocation
+        // split, then a synchronization's deadline).
+        (3_518_242_391_574_278_183, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

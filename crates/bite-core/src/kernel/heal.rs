@@ -276,11 +276,11 @@ impl Kernel {
             // behavior this one came after, which leads only here
             // (`Kernel::round_past`; docs/reliability.md, "A teammate gone
             // round past the execution"). Or it went on beyond it, to a
-            // behavior this one leads to and that never leads back. It may
+            // behavior only this one leads to (`Kernel::went_beyond`). It may
             // have run it (and decided its allocation), so it stays in that
             // allocation, as a teammate that ran it does.
             let went_round = !went_past
-                && ahead.is_some_and(|g| self.round_past(k, g.id) || self.went_beyond(id, g.id));
+                && ahead.is_some_and(|g| self.round_past(k, g.id) || self.went_beyond(k, id, g.id));
             // One that ended it before any allocation of it (its end, heard
             // with no allocation applied) neither decided one.
             let unallocated = || {
@@ -477,24 +477,38 @@ impl Kernel {
             && !(from_earlier && self.leads_back(g.id.behavior, id.behavior))
     }
 
-    /// True when a teammate runs, beside this robot's execution `id` (under
-    /// the same parent execution, in the same team), execution `g`, which
-    /// this robot has yet to start ([`Kernel::yet_to_start`]), of a
-    /// behavior that `id`'s leads to along sequential edges and that never
-    /// leads back to it: the teammate is further on this robot's way (it
-    /// ran `id`, ended it by its own condition, and went on: `term.local`)
-    /// and will not come to `id` under this parent again. The end it ran
+    /// True when a teammate runs, beside this robot's execution `id` at
+    /// depth `k` (under the same parent execution, in the same team),
+    /// execution `g`, which this robot has yet to start
+    /// ([`Kernel::yet_to_start`]), of a behavior that only `id`'s leads to:
+    /// `id`'s behavior is on no cycle (it runs once under its parent), and
+    /// every way from the parent's chains to `g`'s behavior passes through
+    /// it. The teammate ran `id` (it ended it by its own condition, and
+    /// went on: `term.local`) and will not come to it again. The end it ran
     /// may be gone from the ends it still reports ([`RECENT`]) by the time
     /// this robot gets there, and a barrier below `id` waited out its
     /// deadline for it (docs/reliability.md, "A teammate gone on beyond the
-    /// execution"). It may have run `id` and decided its allocation, so it
-    /// stays in that allocation, as a teammate that ran it does. Both walks
-    /// are bounded ([`Kernel::leads_back`]): beyond the bound a way counts
-    /// as leading back, and nobody is departed.
-    fn went_beyond(&self, id: FrameId, g: FrameId) -> bool {
+    /// execution"). It may have decided `id`'s allocation, so it stays in
+    /// that allocation, as a teammate that ran it does.
+    ///
+    /// Not a teammate on a way that does not pass through `id` (another
+    /// successor of the point before it, taken by a precondition that held
+    /// for it alone): a split that heals by converging, which may bring it
+    /// into `id` (property seed 259). The walks are bounded
+    /// ([`Kernel::reaches`]): beyond the bound a way is taken to exist, and
+    /// nobody is departed.
+    fn went_beyond(&self, k: usize, id: FrameId, g: FrameId) -> bool {
+        let Some(parent) = k.checked_sub(1).and_then(|i| self.stack.get(i)) else {
+            return false;
+        };
+        let heads = self
+            .graph()
+            .get(parent.behavior)
+            .map_or(&[][..], |b| &b.children[..]);
         g.behavior != id.behavior
+            && !self.leads_back(id.behavior, id.behavior)
             && self.leads_back(id.behavior, g.behavior)
-            && !self.leads_back(g.behavior, id.behavior)
+            && !self.reaches(heads, g.behavior, Some(id.behavior))
     }
 
     /// The teammate's frame at depth `k` of `pos`, if it runs, beside this
@@ -514,21 +528,33 @@ impl Kernel {
     /// (looked for among the first [`LEADS_BACK_WALK`] behaviors reached;
     /// beyond, taken as yes).
     fn leads_back(&self, from: BehaviorId, to: BehaviorId) -> bool {
+        let next = self.graph().get(from).map_or(&[][..], |x| &x.next[..]);
+        self.reaches(next, to, None)
+    }
+
+    /// True when behavior `to` is one of `starts` or may follow one along
+    /// sequential edges without passing `avoid` (looked for among the
+    /// first [`LEADS_BACK_WALK`] behaviors reached; beyond, taken as yes).
+    fn reaches(&self, starts: &[BehaviorId], to: BehaviorId, avoid: Option<BehaviorId>) -> bool {
         let g = self.graph();
         let mut seen: SmallVec<[BehaviorId; 16]> = SmallVec::new();
-        let mut next: SmallVec<[BehaviorId; 16]> = SmallVec::from_elem(from, 1);
-        while let Some(b) = next.pop() {
-            for &n in g.get(b).map_or(&[][..], |x| &x.next[..]) {
+        let mut todo: SmallVec<[BehaviorId; 16]> = SmallVec::new();
+        let mut edges = starts;
+        loop {
+            for &n in edges {
                 if n == to || seen.len() >= LEADS_BACK_WALK {
                     return true;
                 }
-                if !seen.contains(&n) {
+                if Some(n) != avoid && !seen.contains(&n) {
                     seen.push(n);
-                    next.push(n);
+                    todo.push(n);
                 }
             }
+            let Some(b) = todo.pop() else {
+                return false;
+            };
+            edges = g.get(b).map_or(&[][..], |x| &x.next[..]);
         }
-        false
     }
 
     /// This robot's anchored frames, root first (read in place: a team

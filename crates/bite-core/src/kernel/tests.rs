@@ -2360,6 +2360,50 @@ fn a_teammate_gone_on_beyond_an_execution_is_departed_from_it() {
     assert_gone_from(&h, 1, at_root(a, 1), barrier, RobotId(2), why);
 }
 
+/// A teammate further on, in a behavior this robot's execution leads to
+/// that a way not through it leads to as well (`c`#1 beside `a`#1, with
+/// `p` then `a` or `q`, `a` then `b` then `c`, and `q` then `c`), may have
+/// come by the other way: it is not departed from this robot's execution.
+/// So is one beside an execution on a cycle (property seed 259, graph
+/// seed 3518242391574278183: a member that took an individual behavior's
+/// other successor, by a precondition that held for it alone, was taken
+/// for one gone on beyond its team's execution and left out of it, though
+/// it converged back into it a moment later; an allocation split and a
+/// synchronization's deadline followed).
+#[test]
+fn a_teammate_that_may_have_come_another_way_is_not_gone_on_beyond() {
+    const OTHER_WAY: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [p] }
+  p: { team: true, skill: w, until: p_done, next: [a, q] }
+  a: { team: true, children: [s], pre: want_a, until: a_done, next: [b] }
+  b: { team: true, skill: w, until: b_done, next: [c] }
+  q: { team: true, skill: w, pre: want_q, until: q_done, next: [c] }
+  c: { team: true, skill: w, until: c_done }
+  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
+    let mut h = Harness::new(OTHER_WAY, 3);
+    let off = [
+        "p_done", "want_a", "want_q", "a_done", "b_done", "q_done", "c_done", "s_done",
+    ];
+    h.tick(0, &off.map(|b| (b, F)));
+    // Robot 1 takes `a` after `p`#1, ends `s` below it and waits there.
+    h.tick_one(1, 100, &[("p_done", T), ("want_a", T)]);
+    h.tick_one(1, 200, &[("s_done", T)]);
+    let g = h.kernels[1].mission().graph().clone();
+    let [root, a, q, c, s] = ["root", "a", "q", "c", "s"].map(|n| g.find(n).expect("behavior"));
+    let barrier = barrier_at(&h, 1, s);
+    // Robot 2 runs `c`#1 after `q`#1: it went the other way.
+    let mut other = running(&[
+        (at_root(root, 1), None),
+        (at_root(c, 1), Some((at_root(q, 1), false))),
+    ]);
+    other.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(250), RobotId(2), &other);
+    assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(2)));
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
+}
+
 /// A team whose members choose `b` or `c` after `a` each by its own
 /// preconditions (one option each: no protocol runs), and go on from
 /// either to `d`.
