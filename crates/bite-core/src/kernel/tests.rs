@@ -1520,9 +1520,13 @@ fn robot_1_answers_robot_2_waiting_at(at: impl Fn([FrameId; 4]) -> (FrameId, Fra
     }
     h.kernels[1].peer(Time::from_millis(200), RobotId(2), &waiting);
     assert_eq!(audience(&h, 1), [0, 2], "robot 2 is answered");
-    let mut working = running(&[(ids[0], None), (exec, Some((after, false)))]);
-    working.robot = RobotId(2);
-    h.kernels[1].peer(Time::from_millis(300), RobotId(2), &working);
+    tell(
+        &mut h,
+        1,
+        2,
+        Time::from_millis(300),
+        &[(ids[0], None), (exec, Some((after, false)))],
+    );
     assert_eq!(audience(&h, 1), [0]);
 }
 
@@ -2043,13 +2047,17 @@ fn a_leader_waits_for_a_teammate_many_behaviors_behind() {
     assert!(!h.kernels[0].recent_ended.contains(&id(a, 1)));
     // Robot 1, heard at work in the first `a`, then in the first `b`.
     let now = |k: u64| Time::from_millis(100 * n + 100 * k);
-    tell_robot_0(
+    tell(
         &mut h,
+        0,
+        1,
         now(1),
         &[(id(root, 1), None), (id(a, 1), Some((id(root, 1), true)))],
     );
-    tell_robot_0(
+    tell(
         &mut h,
+        0,
+        1,
         now(2),
         &[(id(root, 1), None), (id(b, 1), Some((id(a, 1), false)))],
     );
@@ -2059,15 +2067,21 @@ fn a_leader_waits_for_a_teammate_many_behaviors_behind() {
     );
     // Heard in an execution of `b` robot 0 never started: not behind.
     let beyond = [(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))];
-    tell_robot_0(&mut h, now(3), &beyond);
+    tell(&mut h, 0, 1, now(3), &beyond);
     assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
 }
 
-/// Robot 0 hears robot 1 at `now` running `chain` (as [`running`]).
-fn tell_robot_0(h: &mut Harness, now: Time, chain: &[(FrameId, Option<(FrameId, bool)>)]) {
+/// Robot `to` hears robot `from` at `now` running `chain` (as [`running`]).
+fn tell(
+    h: &mut Harness,
+    to: usize,
+    from: u32,
+    now: Time,
+    chain: &[(FrameId, Option<(FrameId, bool)>)],
+) {
     let mut pos = running(chain);
-    pos.robot = RobotId(1);
-    h.kernels[0].peer(now, RobotId(1), &pos);
+    pos.robot = RobotId(from);
+    h.kernels[to].peer(now, RobotId(from), &pos);
 }
 
 /// A robot answers a teammate waiting at a point in an execution of its
@@ -2212,9 +2226,13 @@ fn a_teammate_that_went_past_an_execution_without_running_it_is_left_out_of_it()
     assert!(!left_out(&h, 1, barrier, RobotId(2)));
     // Robot 2 runs `second` but did not come from robot 1's `first` (its
     // anchor is the root: it converged there).
-    let mut past = running(&[(root, None), (second, Some((root, true)))]);
-    past.robot = RobotId(2);
-    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &past);
+    tell(
+        &mut h,
+        1,
+        2,
+        Time::from_millis(200),
+        &[(root, None), (second, Some((root, true)))],
+    );
     assert_gone_from(
         &h,
         1,
@@ -2332,16 +2350,10 @@ fn a_teammate_gone_on_beyond_an_execution_is_departed_from_it() {
     let mut h = a_b_c("next: []");
     // Robot 1 ends `s` under `a`#1 and waits at its barrier.
     h.tick_one(1, 100, &[("s_done", T)]);
-    let g = h.kernels[1].mission().graph().clone();
-    let [root, a, b, c, s] = ["root", "a", "b", "c", "s"].map(|n| g.find(n).expect("behavior"));
+    let [root, a, b, c, s] = behaviors(&h, 1, ["root", "a", "b", "c", "s"]);
     let barrier = barrier_at(&h, 1, s);
     // Robot 0 runs `b`#1: the direct successor, departed as before.
-    let mut next = running(&[
-        (at_root(root, 1), None),
-        (at_root(b, 1), Some((at_root(a, 1), false))),
-    ]);
-    next.robot = RobotId(0);
-    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &next);
+    robot_1_hears_in(&mut h, 0, 150, root, b, a);
     assert!(
         departed_from(&h, 1, at_root(a, 1), RobotId(0)),
         "robot 0, in `b`#1, is past `a`#1"
@@ -2350,12 +2362,7 @@ fn a_teammate_gone_on_beyond_an_execution_is_departed_from_it() {
     // `Kernel::meet`) runs `c`#1, after `b`#1, and no longer reports `a`#1
     // ended.
     assert!(!left_out(&h, 1, barrier, RobotId(2)));
-    let mut beyond = running(&[
-        (at_root(root, 1), None),
-        (at_root(c, 1), Some((at_root(b, 1), false))),
-    ]);
-    beyond.robot = RobotId(2);
-    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &beyond);
+    robot_1_hears_in(&mut h, 2, 200, root, c, b);
     let why = "robot 2, in `c`#1, went on beyond `a`#1";
     assert_gone_from(&h, 1, at_root(a, 1), barrier, RobotId(2), why);
 }
@@ -2390,16 +2397,10 @@ behaviors:
     // Robot 1 takes `a` after `p`#1, ends `s` below it and waits there.
     h.tick_one(1, 100, &[("p_done", T), ("want_a", T)]);
     h.tick_one(1, 200, &[("s_done", T)]);
-    let g = h.kernels[1].mission().graph().clone();
-    let [root, a, q, c, s] = ["root", "a", "q", "c", "s"].map(|n| g.find(n).expect("behavior"));
+    let [root, a, q, c, s] = behaviors(&h, 1, ["root", "a", "q", "c", "s"]);
     let barrier = barrier_at(&h, 1, s);
     // Robot 2 runs `c`#1 after `q`#1: it went the other way.
-    let mut other = running(&[
-        (at_root(root, 1), None),
-        (at_root(c, 1), Some((at_root(q, 1), false))),
-    ]);
-    other.robot = RobotId(2);
-    h.kernels[1].peer(Time::from_millis(250), RobotId(2), &other);
+    robot_1_hears_in(&mut h, 2, 250, root, c, q);
     assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(2)));
     assert!(!left_out(&h, 1, barrier, RobotId(2)));
 }
@@ -2540,9 +2541,13 @@ behaviors:
     let id = at_root;
     assert_eq!(h.kernels[1].org.runs(TeamId::ROOT, a), 1);
     // Robot 0 is in its first lap of `d` too, but after `a`#2.
-    let mut theirs = running(&[(id(root, 1), None), (id(d, 1), Some((id(a, 2), false)))]);
-    theirs.robot = RobotId(0);
-    h.kernels[1].peer(Time::from_millis(250), RobotId(0), &theirs);
+    tell(
+        &mut h,
+        1,
+        0,
+        Time::from_millis(250),
+        &[(id(root, 1), None), (id(d, 1), Some((id(a, 2), false)))],
+    );
     h.drain(1);
     assert_eq!(h.stack(1), ["root", "d"]);
     assert_eq!(
@@ -2577,8 +2582,10 @@ behaviors:
     let id = at_root;
     let now = |k: u64| Time::from_millis(100 * n + 100 * k);
     // Robot 1 at work in its second run of `a` (robot 0 ran `a` once).
-    tell_robot_0(
+    tell(
         &mut h,
+        0,
+        1,
         now(1),
         &[(id(root, 1), None), (id(a, 2), Some((id(root, 1), true)))],
     );
@@ -2588,7 +2595,7 @@ behaviors:
     );
     // In an execution of `b` robot 0 never started: not on its way.
     let beyond = [(id(root, 1), None), (id(b, 40), Some((id(a, 40), false)))];
-    tell_robot_0(&mut h, now(2), &beyond);
+    tell(&mut h, 0, 1, now(2), &beyond);
     assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
 }
 
@@ -2626,13 +2633,17 @@ fn a_robot_at_work_answers_a_teammate_at_the_point_while_its_leader_is_unheard()
     // Its leader heard at work beside it: robot 2 hears robot 0, and robot
     // 1 answers nobody.
     let mut h = twice_of_three();
-    let mut leader = running(&[
-        (root, None),
-        (first, Some((root, true))),
-        (s, Some((first, true))),
-    ]);
-    leader.robot = RobotId(0);
-    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &leader);
+    tell(
+        &mut h,
+        1,
+        0,
+        Time::from_millis(150),
+        &[
+            (root, None),
+            (first, Some((root, true))),
+            (s, Some((first, true))),
+        ],
+    );
     h.kernels[1].peer(Time::from_millis(200), RobotId(2), &at_the_end(2));
     assert!(!answers(&h, 2), "{:?}", audience(&h, 1));
 }
@@ -2644,6 +2655,29 @@ fn at_root(behavior: BehaviorId, epoch: u32) -> FrameId {
         behavior,
         epoch,
     }
+}
+
+/// The behaviors named `names` in robot `i`'s graph.
+fn behaviors<const N: usize>(h: &Harness, i: usize, names: [&str; N]) -> [BehaviorId; N] {
+    let g = h.kernels[i].mission().graph().clone();
+    names.map(|n| g.find(n).expect("behavior"))
+}
+
+/// Robot 1 hears robot `from` at `ms` running `b`#1 after `after`#1, under
+/// the root's first execution.
+fn robot_1_hears_in(
+    h: &mut Harness,
+    from: u32,
+    ms: u64,
+    root: BehaviorId,
+    b: BehaviorId,
+    after: BehaviorId,
+) {
+    let chain = [
+        (at_root(root, 1), None),
+        (at_root(b, 1), Some((at_root(after, 1), false))),
+    ];
+    tell(h, 1, from, Time::from_millis(ms), &chain);
 }
 
 /// The barrier robot `i` waits at, at the end of `behavior`.
