@@ -558,6 +558,11 @@ fn cases_that_failed_once() {
         // leader allocated; the leader's deadline fell before the split
         // was seen.
         (3_675_743_155_736_443_249, 7),
+        // "Both sides of a split waiting at a termination": a member that
+        // came late took its subteam from a later view of the silent
+        // allocation above and ended it at once; it and its leader each
+        // waited at their own subteam's termination for the other.
+        (15_491_346_240_280_064_998, 5),
         // "Teammates gone another way": a robot a lap ahead waited at an
         // allocation for a teammate it never heard (it answers now); a
         // teammate on another way into the point's execution (awaited); a

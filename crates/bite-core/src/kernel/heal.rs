@@ -26,13 +26,27 @@ impl Kernel {
     /// allocation's own frame, at the top, holds none yet): two members
     /// that took a subteam from different views of the allocation above
     /// waited there for a leader a lap behind until a deadline
-    /// (docs/reliability.md, "A leader a lap behind").
+    /// (docs/reliability.md, "A leader a lap behind"). So does a robot
+    /// waiting at a termination below (reallocating ends that wait): a
+    /// member that came late and ended its subteam at once waited at its
+    /// termination for its leader, and the leader at its own subteam's
+    /// termination for it, until a deadline (docs/reliability.md, "Both
+    /// sides of a split waiting at a termination").
     pub(super) fn reconcile_allocation(&mut self, from: RobotId, pos: &Position) {
         if self.lost.contains(from)
             || !matches!(
                 self.phase,
-                Phase::Run | Phase::Idle { .. } | Phase::Allocating(_)
+                Phase::Run | Phase::Idle { .. } | Phase::Allocating(_) | Phase::Terminating { .. }
             )
+        {
+            return;
+        }
+        // Waiting at a termination, only for a teammate of the subteam
+        // that ends (each side of the split waits for the other): any
+        // teammate's other allocation made robots that were only waiting
+        // for their own subteam join heal after heal, bounded but slower.
+        if let Phase::Terminating { frame, .. } = &self.phase
+            && !self.org.team(frame.team).is_some_and(|t| t.contains(from))
         {
             return;
         }

@@ -1785,6 +1785,83 @@ fn a_leader_waits_for_a_teammate_split_off_in_the_execution_above() {
     );
 }
 
+/// A robot waiting at a termination below an allocation heals a split of
+/// that allocation too, as one running a skill does: found by
+/// `no_waiting_across_levels` (RNG seed 1511, graph seed
+/// 15491346240280064998, no faults). A member that came late took its
+/// subteam from a later view of the silent allocation above and ended it
+/// at once; it waited at that subteam's termination for its leader, and
+/// the leader waited at its own subteam's termination for it, each
+/// hearing the other's other allocation, until the leader's deadline.
+/// Only a teammate of the subteam it waits in makes it heal.
+#[test]
+fn a_robot_waiting_at_a_termination_heals_an_allocation_split_above() {
+    let mut h = Harness::new(A_THEN_Q, 3);
+    h.tick(0, &[("a_done", F), ("q_done", F)]);
+    h.heartbeats();
+    for r in [1, 2] {
+        h.tick_one(r, 100, &[("a_done", T)]);
+        assert_eq!(h.stack(r), ["root", "b", "q"]);
+    }
+    h.tick_one(1, 150, &[("q_done", T)]);
+    let old_q = match h.kernels[1].popped() {
+        Some((f, FrameState::Ending)) => f.team,
+        other => panic!("r1 waits at q's barrier: {other:?}"),
+    };
+    let g = h.kernels[1].mission().graph();
+    let [root, a, b, y] = ["root", "a", "b", "y"].map(|n| g.find(n).expect("behavior"));
+    let (round, print) = h.kernels[1].stack[1].alloc_print().expect("b allocated");
+    let b_id = FrameId {
+        team: TeamId::ROOT,
+        behavior: b,
+        epoch: 1,
+    };
+    let mut split = running(&[
+        (
+            FrameId {
+                behavior: root,
+                ..b_id
+            },
+            None,
+        ),
+        (
+            b_id,
+            Some((
+                FrameId {
+                    behavior: a,
+                    ..b_id
+                },
+                false,
+            )),
+        ),
+        (
+            FrameId {
+                team: TeamId(0xfeed),
+                behavior: y,
+                epoch: 1,
+            },
+            Some((b_id, true)),
+        ),
+    ]);
+    split.frames[1].alloc = Some((round, print ^ 1));
+    // r0 (in `y`, not in q's subteam) with the other allocation: r1 does
+    // not wait for it, and leaves that split to robots at work.
+    split.robot = RobotId(0);
+    h.kernels[1].peer(Time::from_millis(180), RobotId(0), &split);
+    assert_eq!(h.kernels[1].stack[1].round, round, "r1 waits on at q");
+    split.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(200), RobotId(2), &split);
+    assert_eq!(
+        h.kernels[1].stack[1].round,
+        round + 1,
+        "r1 allocates `b` again, in the next round"
+    );
+    assert!(
+        h.kernels[1].popped().is_none_or(|(f, _)| f.team != old_q),
+        "no longer waiting at q in the old subteam"
+    );
+}
+
 /// A member a lap behind answers a teammate that went through an
 /// allocation it has yet to make, counts it a member of the new team and
 /// waits for it at a point there: the teammate hears it on its way.
