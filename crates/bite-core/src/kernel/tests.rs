@@ -1713,6 +1713,43 @@ behaviors:
   y: { skill: w, members: 1 }
   q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }";
 
+/// [`A_THEN_Q`] with three robots: r1 and r2 took `q`, and r1, done with
+/// it, waits at its barrier; r0 is still in `a`.
+fn r1_waiting_at_q() -> Harness {
+    let mut h = Harness::new(A_THEN_Q, 3);
+    h.tick(0, &[("a_done", F), ("q_done", F)]);
+    h.heartbeats();
+    for r in [1, 2] {
+        h.tick_one(r, 100, &[("a_done", T)]);
+        assert_eq!(h.stack(r), ["root", "b", "q"]);
+    }
+    h.tick_one(1, 150, &[("q_done", T)]);
+    h
+}
+
+/// A teammate's position in [`A_THEN_Q`]: in `b`#1, after `a`, running
+/// `y` in a subteam this robot does not know.
+fn in_y_elsewhere(h: &Harness) -> Position {
+    let g = h.kernels[1].mission().graph();
+    let [root, a, b, y] = ["root", "a", "b", "y"].map(|n| g.find(n).expect("behavior"));
+    let b_id = FrameId {
+        team: TeamId::ROOT,
+        behavior: b,
+        epoch: 1,
+    };
+    let at = |behavior| FrameId { behavior, ..b_id };
+    let elsewhere = FrameId {
+        team: TeamId(0xfeed),
+        behavior: y,
+        epoch: 1,
+    };
+    running(&[
+        (at(root), None),
+        (b_id, Some((at(a), false))),
+        (elsewhere, Some((b_id, true))),
+    ])
+}
+
 /// A leader waiting at a point in a subteam waits on for a teammate it
 /// counts there but hears in the execution above, in another subteam (or
 /// in none): the two took that allocation from different views, and the
@@ -1723,16 +1760,9 @@ behaviors:
 /// deadline fell in the 60 ms before the split was seen.
 #[test]
 fn a_leader_waits_for_a_teammate_split_off_in_the_execution_above() {
-    let mut h = Harness::new(A_THEN_Q, 3);
-    h.tick(0, &[("a_done", F), ("q_done", F)]);
-    h.heartbeats();
-    for r in [1, 2] {
-        h.tick_one(r, 100, &[("a_done", T)]);
-        assert_eq!(h.stack(r), ["root", "b", "q"]);
-    }
-    h.tick_one(1, 150, &[("q_done", T)]);
+    let mut h = r1_waiting_at_q();
     let g = h.kernels[1].mission().graph();
-    let [root, a, b, y] = ["root", "a", "b", "y"].map(|n| g.find(n).expect("behavior"));
+    let [root, a, b] = ["root", "a", "b"].map(|n| g.find(n).expect("behavior"));
     let q_team = h.kernels[1].popped().map(|(f, _)| f.team).expect("q ended");
     let key = InstanceKey {
         team: q_team,
@@ -1756,16 +1786,7 @@ fn a_leader_waits_for_a_teammate_split_off_in_the_execution_above() {
         behavior: a,
         ..b_id
     };
-    let elsewhere = FrameId {
-        team: TeamId(0xfeed),
-        behavior: y,
-        epoch: 1,
-    };
-    let mut split = running(&[
-        (root_id, None),
-        (b_id, Some((a_id, false))),
-        (elsewhere, Some((b_id, true))),
-    ]);
+    let mut split = in_y_elsewhere(&h);
     split.robot = RobotId(2);
     h.kernels[1].peer(Time::from_millis(200), RobotId(2), &split);
     assert!(
@@ -1796,53 +1817,13 @@ fn a_leader_waits_for_a_teammate_split_off_in_the_execution_above() {
 /// Only a teammate of the subteam it waits in makes it heal.
 #[test]
 fn a_robot_waiting_at_a_termination_heals_an_allocation_split_above() {
-    let mut h = Harness::new(A_THEN_Q, 3);
-    h.tick(0, &[("a_done", F), ("q_done", F)]);
-    h.heartbeats();
-    for r in [1, 2] {
-        h.tick_one(r, 100, &[("a_done", T)]);
-        assert_eq!(h.stack(r), ["root", "b", "q"]);
-    }
-    h.tick_one(1, 150, &[("q_done", T)]);
+    let mut h = r1_waiting_at_q();
     let old_q = match h.kernels[1].popped() {
         Some((f, FrameState::Ending)) => f.team,
         other => panic!("r1 waits at q's barrier: {other:?}"),
     };
-    let g = h.kernels[1].mission().graph();
-    let [root, a, b, y] = ["root", "a", "b", "y"].map(|n| g.find(n).expect("behavior"));
     let (round, print) = h.kernels[1].stack[1].alloc_print().expect("b allocated");
-    let b_id = FrameId {
-        team: TeamId::ROOT,
-        behavior: b,
-        epoch: 1,
-    };
-    let mut split = running(&[
-        (
-            FrameId {
-                behavior: root,
-                ..b_id
-            },
-            None,
-        ),
-        (
-            b_id,
-            Some((
-                FrameId {
-                    behavior: a,
-                    ..b_id
-                },
-                false,
-            )),
-        ),
-        (
-            FrameId {
-                team: TeamId(0xfeed),
-                behavior: y,
-                epoch: 1,
-            },
-            Some((b_id, true)),
-        ),
-    ]);
+    let mut split = in_y_elsewhere(&h);
     split.frames[1].alloc = Some((round, print ^ 1));
     // r0 (in `y`, not in q's subteam) with the other allocation: r1 does
     // not wait for it, and leaves that split to robots at work.
