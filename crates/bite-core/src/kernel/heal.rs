@@ -33,21 +33,17 @@ impl Kernel {
     /// termination for it, until a deadline (docs/reliability.md, "Both
     /// sides of a split waiting at a termination").
     pub(super) fn reconcile_allocation(&mut self, from: RobotId, pos: &Position) {
-        if self.lost.contains(from)
-            || !matches!(
-                self.phase,
-                Phase::Run | Phase::Idle { .. } | Phase::Allocating(_) | Phase::Terminating { .. }
-            )
-        {
-            return;
-        }
-        // Waiting at a termination, only for a teammate of the subteam
-        // that ends (each side of the split waits for the other): any
-        // teammate's other allocation made robots that were only waiting
-        // for their own subteam join heal after heal, bounded but slower.
-        if let Phase::Terminating { frame, .. } = &self.phase
-            && !self.org.team(frame.team).is_some_and(|t| t.contains(from))
-        {
+        let heals = match &self.phase {
+            Phase::Run | Phase::Idle { .. } | Phase::Allocating(_) => true,
+            // Only for a teammate of the subteam that ends (each side of
+            // the split waits for the other): healing on any teammate's
+            // other allocation added rounds that robots at work settle.
+            Phase::Terminating { frame, .. } => {
+                self.org.team(frame.team).is_some_and(|t| t.contains(from))
+            }
+            _ => false,
+        };
+        if !heals || self.lost.contains(from) {
             return;
         }
         let idle_top = matches!(self.phase, Phase::Idle { .. }).then(|| self.stack.len() - 1);
