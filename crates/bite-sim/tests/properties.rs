@@ -563,6 +563,16 @@ fn cases_that_failed_once() {
         // allocation above and ended it at once; it and its leader each
         // waited at their own subteam's termination for the other.
         (15_491_346_240_280_064_998, 5),
+        // "A follower a lap short in its counts": a robot that followed a
+        // teammate into its execution after the same predecessor kept its
+        // own, lower count of a team behavior of the loop, numbered its
+        // next run of it one lower, and at the next point took the
+        // teammate on its way there for one gone round past (seven
+        // robots). With six, "A teammate in the execution a robot
+        // converged past" (not fixed): the counts taken on change the
+        // run from 58.5 s, and the case it traced does not arise.
+        (13_366_699_504_392_707_480, 7),
+        (12_862_965_036_356_564_799, 6),
         // "Teammates gone another way": a robot a lap ahead waited at an
         // allocation for a teammate it never heard (it answers now); a
         // teammate on another way into the point's execution (awaited); a

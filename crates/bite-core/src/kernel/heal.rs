@@ -639,7 +639,7 @@ impl Kernel {
                 }
                 continue;
             }
-            self.converge(slot, from, id, theirs, prev);
+            self.converge(slot, from, pos, id, theirs, prev);
             return true;
         }
         false
@@ -820,7 +820,7 @@ impl Kernel {
             self.org
                 .runs_at_least(id.team, theirs.behavior, theirs.epoch);
         }
-        self.converge(slot, from, id, g.id, theirs);
+        self.converge(slot, from, pos, id, g.id, theirs);
         true
     }
 
@@ -859,11 +859,22 @@ impl Kernel {
     }
 
     /// Leave execution `mine` (and all below it) for `theirs`, the
-    /// successor the team converges on after `prev`.
+    /// successor the team converges on after `prev`, as teammate `from`
+    /// (at position `pos`) runs it.
+    ///
+    /// The teammate's history under the parent execution becomes this
+    /// robot's: the executions it tells it ended there in the team are
+    /// counted past, so that the two number their next executions of those
+    /// behaviors alike. Without it a robot that ran a behavior of the loop
+    /// fewer times than the teammate it followed numbered its next
+    /// execution of it one lower, and a barrier after it took the teammate
+    /// on its way there for one gone round past (docs/reliability.md, "A
+    /// follower a lap short in its counts").
     pub(super) fn converge(
         &mut self,
         slot: Slot,
         from: RobotId,
+        pos: &Position,
         mine: FrameId,
         theirs: FrameId,
         prev: Anchor,
@@ -895,6 +906,21 @@ impl Kernel {
         parent_runs.unbump(mine.behavior);
         self.org
             .runs_at_least(team, theirs.behavior, theirs.epoch.saturating_sub(1));
+        let parent = self.stack.last().map(Frame::id);
+        // Not `theirs`: the teammate may have ended it and wait at its
+        // termination, the execution this robot joins. Not an individual
+        // behavior's: each member numbers its runs of one at its own pace
+        // (`Kernel::meet`).
+        let graph = self.mission.graph().clone();
+        for e in &pos.ended {
+            if e.id.team == team
+                && e.parent == parent
+                && e.id != theirs
+                && !graph.is_individual(e.id.behavior)
+            {
+                self.org.runs_at_least(team, e.id.behavior, e.id.epoch);
+            }
+        }
         self.phase = Phase::Run;
         self.push_anchored(theirs.behavior, team, Via::Converged, Some(prev));
     }

@@ -2571,6 +2571,65 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
     );
 }
 
+/// A robot that follows a teammate into another execution after the same
+/// predecessor takes on the teammate's count of the team behaviors it ended
+/// under the parent: the two then number their next executions of those
+/// behaviors alike. Not of the execution it joins (the teammate may have
+/// ended it and wait at its termination), nor of an individual behavior
+/// (each member numbers its runs of one at its own pace). Before, a robot
+/// that had run a behavior of the loop fewer times numbered its next run
+/// of it one lower, and a barrier after it took the teammate on its way
+/// there for one gone round past (found by `no_waiting_across_levels`,
+/// graph seed 13366699504392707480: r2 waited out an allocation's deadline
+/// for r1, its coordinator, in its `alt4`#4 on the way, r2 having run that
+/// lap as `alt4`#3).
+#[test]
+fn a_robot_that_follows_a_teammate_counts_the_team_behaviors_it_ended() {
+    const LOOP: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: false, skill: w, until: a_done, next: [d] }
+  d: { team: true, skill: w, until: d_done, next: [e] }
+  e: { team: true, skill: w, until: e_done, next: [a] }";
+    let mut h = Harness::new(LOOP, 2);
+    h.tick(0, &[("a_done", F), ("d_done", F), ("e_done", F)]);
+    h.tick_one(1, 100, &[("a_done", T)]);
+    h.tick_one(1, 200, &[("a_done", F)]);
+    assert_eq!(h.stack(1), ["root", "d"]);
+    let [root, a, d, e] = behaviors(&h, 1, ["root", "a", "d", "e"]);
+    // Robot 0, its own first run of `a` behind it too, is in `d`#2: it ran
+    // `d`#1 and `e`#1 (and a later run of `a`), and has ended `d`#2 too.
+    let mut theirs = running(&[
+        (at_root(root, 1), None),
+        (at_root(d, 2), Some((at_root(a, 1), false))),
+    ]);
+    theirs.robot = RobotId(0);
+    theirs.ended = [(d, 1), (e, 1), (a, 3), (d, 2)]
+        .map(|(b, n)| position::Ended {
+            id: at_root(b, n),
+            parent: Some(at_root(root, 1)),
+        })
+        .to_vec();
+    h.kernels[1].peer(Time::from_millis(250), RobotId(0), &theirs);
+    h.drain(1);
+    assert_eq!(h.selected_via(1, "d"), [Via::Sequence, Via::Converged]);
+    let top = |h: &Harness| h.kernels[1].stack().last().map(|f| f.id());
+    assert_eq!(
+        top(&h),
+        Some(at_root(d, 2)),
+        "robot 1 joins `d`#2, not a later one"
+    );
+    assert_eq!(h.kernels[1].org.runs(TeamId::ROOT, e), 1, "`e`#1 is past");
+    assert_eq!(
+        h.kernels[1].org.runs(TeamId::ROOT, a),
+        1,
+        "`a` counted at its own pace"
+    );
+    h.tick_one(1, 300, &[("d_done", T)]);
+    assert_eq!(top(&h), Some(at_root(e, 2)), "the team's next `e`");
+}
+
 /// A lap of an individual behavior (`team: false`) is numbered by each
 /// member at its own pace: a teammate in the same execution id of it,
 /// after a later execution of the team behavior before it, ran another
