@@ -573,6 +573,17 @@ fn cases_that_failed_once() {
         // run from 58.5 s, and the case it traced does not arise.
         (13_366_699_504_392_707_480, 7),
         (12_862_965_036_356_564_799, 6),
+        // "Laps of an individual behavior taken for laps past": a robot at
+        // an allocation after its run of an individual behavior took a
+        // teammate in a later-numbered run of it (the same lap, numbered
+        // at the teammate's own pace) for one gone round past, left it
+        // out, and both sides' deadlines fell.
+        (2_799_136_479_243_646_113, 5),
+        // "A teammate seen on the other side of a split": the healing
+        // leader, at an allocation, saw a member take another successor
+        // after the same execution, and its deadline fell before the
+        // member came over.
+        (541_206_029_754_869_826, 6),
         // "Teammates gone another way": a robot a lap ahead waited at an
         // allocation for a teammate it never heard (it answers now); a
         // teammate on another way into the point's execution (awaited); a

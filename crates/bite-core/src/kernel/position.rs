@@ -773,12 +773,18 @@ impl Kernel {
     /// (docs/reliability.md, "A teammate gone round past the execution").
     /// With another successor it might be: it may have gone round another
     /// way and come to this execution's epoch later.
+    ///
+    /// Not from an individual behavior (`team: false`): each member
+    /// numbers its runs of one at its own pace, so a higher epoch there
+    /// says nothing of a lap (docs/reliability.md, "Laps of an individual
+    /// behavior taken for laps past").
     pub(super) fn round_past(&self, k: usize, g: FrameId) -> bool {
         self.slot_at(k).is_some_and(|(_, f)| {
             f.team == g.team
                 && f.anchor
                     .is_some_and(|a| !a.first && a.behavior == g.behavior && a.epoch < g.epoch)
-                && (self.graph().get(g.behavior)).is_some_and(|b| b.next[..] == [f.behavior])
+                && (self.graph().get(g.behavior))
+                    .is_some_and(|b| b.team && b.next[..] == [f.behavior])
         })
     }
 
@@ -1693,6 +1699,14 @@ impl Kernel {
                     .is_some_and(|k| frames.get(k + 1).is_none_or(|(g, _)| g.team != key.team))
             })
         };
+        // A teammate on the other side of a split this robot heals (it took
+        // another successor after the same execution, and this robot's side
+        // is the healing leader's: `Kernel::split_seen`) follows it within a
+        // heartbeat: it is on its way (docs/reliability.md, "A teammate
+        // seen on the other side of a split").
+        let healing = |r: RobotId, frames: &[(FrameId, FrameState)]| {
+            (frames.iter()).any(|(f, _)| f.team == key.team && self.splits_seen.contains(&(r, *f)))
+        };
         let mut running = false;
         for r in inst
             .team
@@ -1705,7 +1719,8 @@ impl Kernel {
                     running |= (frames.iter().enumerate().any(|(k, (f, st))| {
                         (at_point_counts && *f == id && *st == FrameState::Running)
                             || is_behind(frames, k)
-                    }) || split_off(frames))
+                    }) || split_off(frames)
+                        || healing(r, frames))
                         && progressing(r);
                 }
                 None => return false,

@@ -2331,6 +2331,11 @@ fn a_robot_calls_the_teammates_it_never_heard_when_its_deadline_falls() {
 /// `c`, whose successors are `c_next` (`next: [a]`: a cycle), every
 /// behavior ending by its own condition.
 fn a_b_c(c_next: &str) -> Harness {
+    a_b_c_with("team: true", c_next)
+}
+
+/// [`a_b_c`] with `c`'s `team` field `c_team`.
+fn a_b_c_with(c_team: &str, c_next: &str) -> Harness {
     let graph = format!(
         "start: root
 defaults: {{ terminate: term.local }}
@@ -2338,7 +2343,7 @@ behaviors:
   root: {{ team: true, children: [a] }}
   a: {{ team: true, children: [s], until: a_done, next: [b] }}
   b: {{ team: true, skill: w, until: b_done, next: [c] }}
-  c: {{ team: true, skill: w, until: c_done, {c_next} }}
+  c: {{ {c_team}, skill: w, until: c_done, {c_next} }}
   s: {{ team: true, skill: w, until: s_done, terminate: term.test-barrier }}"
     );
     let mut h = Harness::new(&graph, 3);
@@ -2391,6 +2396,38 @@ fn a_teammate_gone_round_past_an_execution_is_departed_from_it() {
         RobotId(2),
         "robot 2 is past `a`#2",
     );
+}
+
+/// A later run of an individual behavior (`team: false`) before this
+/// robot's execution is no lap past it: each member numbers its runs of
+/// one at its own pace. A teammate in its `c`#2 after `b`#1, beside this
+/// robot's `a`#2 after its own `c`#1, is on its way into `a`#2, not gone
+/// round past it, and is not marked departed from it. Found by
+/// `no_waiting_across_levels` (RNG seed 250, graph seed
+/// 2799136479243646113: r3 at `b1`#3's auction, after its `b2`#2, left
+/// out r0 in its `b2`#3 of the same lap, and both sides' deadlines fell).
+#[test]
+fn a_later_run_of_an_individual_behavior_is_no_lap_past() {
+    let mut h = a_b_c_with("team: false", "next: [a]");
+    // Robot 1 goes round alone, as in the test above.
+    h.tick_one(1, 100, &[("a_done", T)]);
+    h.tick_one(1, 200, &[("a_done", F), ("b_done", T)]);
+    h.tick_one(1, 300, &[("b_done", F), ("c_done", T)]);
+    h.tick_one(1, 400, &[("c_done", F), ("s_done", T)]);
+    let [root, a, b, c, s] = behaviors(&h, 1, ["root", "a", "b", "c", "s"]);
+    let barrier = barrier_at(&h, 1, s);
+    // Robot 2 runs `c`#2 (its second run of `c`) after `b`#1.
+    let mut lap = running(&[
+        (at_root(root, 1), None),
+        (at_root(c, 2), Some((at_root(b, 1), false))),
+    ]);
+    lap.robot = RobotId(2);
+    h.kernels[1].peer(Time::from_millis(450), RobotId(2), &lap);
+    assert!(
+        !departed_from(&h, 1, at_root(a, 2), RobotId(2)),
+        "robot 2 is on its way into `a`#2"
+    );
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
 }
 
 /// A teammate heard further on this robot's way, two sequential edges past
@@ -2628,6 +2665,64 @@ behaviors:
     );
     h.tick_one(1, 300, &[("d_done", T)]);
     assert_eq!(top(&h), Some(at_root(e, 2)), "the team's next `e`");
+}
+
+/// The healing leader at a point waits for a teammate it saw on the other
+/// side of a split: the teammate took another successor after the same
+/// execution and follows the leader's side within a heartbeat, so it is on
+/// its way. Before, it was neither behind nor at the point, and the
+/// leader's deadline fell between seeing the split and the teammate's
+/// arrival (found by `no_waiting_across_levels`, RNG seed 2164, graph
+/// seed 541206029754869826: r1's auction deadline fell 75 ms after it saw
+/// r2 in `alt8` and 60 ms before r2 joined `b6`).
+#[test]
+fn the_healing_leader_waits_for_a_teammate_on_the_other_side_of_a_split() {
+    let graph = CHOOSE.replace(
+        "next: [d] }\n  c:",
+        "next: [d], terminate: term.test-barrier }\n  c:",
+    );
+    let mut h = Harness::new(&graph, 2);
+    h.tick(0, &CHOOSE_OFF);
+    h.tick_one(0, 100, &[("a_done", T), ("want_b", T)]);
+    h.tick_one(0, 200, &[("a_done", F), ("b_done", T)]);
+    let [root, a, b, c] = behaviors(&h, 0, ["root", "a", "b", "c"]);
+    let key = barrier_at(&h, 0, b);
+    // Robot 1 at work in `a`#1: behind, awaited.
+    tell(
+        &mut h,
+        0,
+        1,
+        Time::from_millis(250),
+        &[
+            (at_root(root, 1), None),
+            (at_root(a, 1), Some((at_root(root, 1), true))),
+        ],
+    );
+    assert!(h.kernels[0].awaited_at_work(key));
+    // Then in `c`#1, after `a`#1: robot 0, the healing leader, keeps its
+    // side, and robot 1 comes over.
+    tell(
+        &mut h,
+        0,
+        1,
+        Time::from_millis(300),
+        &[
+            (at_root(root, 1), None),
+            (at_root(c, 1), Some((at_root(a, 1), false))),
+        ],
+    );
+    h.drain(0);
+    assert_eq!(h.stack(0), ["root"], "robot 0 still waits at `b`'s end");
+    assert!(
+        h.events_of(0).into_iter().any(
+            |e| matches!(e, Event::Split { follows: false, member, .. } if *member == RobotId(1))
+        ),
+        "robot 0 saw the split"
+    );
+    assert!(
+        h.kernels[0].awaited_at_work(key),
+        "robot 1 is on its way from the other side"
+    );
 }
 
 /// A lap of an individual behavior (`team: false`) is numbered by each
