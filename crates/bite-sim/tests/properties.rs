@@ -584,6 +584,10 @@ fn cases_that_failed_once() {
         // after the same execution, and its deadline fell before the
         // member came over.
         (541_206_029_754_869_826, 6),
+        // "A split seen from a synchronization": a member waited at its
+        // subteam's synchronization for a leader that came to the
+        // allocation above and allocated from another view.
+        (8_970_543_473_821_155_539, 7),
         // "Teammates gone another way": a robot a lap ahead waited at an
         // allocation for a teammate it never heard (it answers now); a
         // teammate on another way into the point's execution (awaited); a

@@ -31,14 +31,18 @@ impl Kernel {
     /// member that came late and ended its subteam at once waited at its
     /// termination for its leader, and the leader at its own subteam's
     /// termination for it, until a deadline (docs/reliability.md, "Both
-    /// sides of a split waiting at a termination").
+    /// sides of a split waiting at a termination"). And a robot waiting at
+    /// the synchronization after it, for a leader that came and allocated
+    /// from another view (docs/reliability.md, "A split seen from a
+    /// synchronization").
     pub(super) fn reconcile_allocation(&mut self, from: RobotId, pos: &Position) {
         let heals = match &self.phase {
             Phase::Run | Phase::Idle { .. } | Phase::Allocating(_) => true,
-            // Only for a teammate of the subteam that ends (each side of
-            // the split waits for the other): healing on any teammate's
-            // other allocation added rounds that robots at work settle.
-            Phase::Terminating { frame, .. } => {
+            // Only for a teammate of the subteam that ends, or that chooses
+            // its successor (each side of the split waits for the other):
+            // healing on any teammate's other allocation added rounds that
+            // robots at work settle.
+            Phase::Terminating { frame, .. } | Phase::Selecting { frame, .. } => {
                 self.org.team(frame.team).is_some_and(|t| t.contains(from))
             }
             _ => false,

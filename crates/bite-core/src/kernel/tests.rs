@@ -1716,7 +1716,12 @@ behaviors:
 /// [`A_THEN_Q`] with three robots: r1 and r2 took `q`, and r1, done with
 /// it, waits at its barrier; r0 is still in `a`.
 fn r1_waiting_at_q() -> Harness {
-    let mut h = Harness::new(A_THEN_Q, 3);
+    r1_waiting_at_q_in(A_THEN_Q)
+}
+
+/// [`r1_waiting_at_q`] in `graph`, a variant of [`A_THEN_Q`].
+fn r1_waiting_at_q_in(graph: &str) -> Harness {
+    let mut h = Harness::new(graph, 3);
     h.tick(0, &[("a_done", F), ("q_done", F)]);
     h.heartbeats();
     for r in [1, 2] {
@@ -1817,11 +1822,38 @@ fn a_leader_waits_for_a_teammate_split_off_in_the_execution_above() {
 /// Only a teammate of the subteam it waits in makes it heal.
 #[test]
 fn a_robot_waiting_at_a_termination_heals_an_allocation_split_above() {
-    let mut h = r1_waiting_at_q();
-    let old_q = match h.kernels[1].popped() {
-        Some((f, FrameState::Ending)) => f.team,
-        other => panic!("r1 waits at q's barrier: {other:?}"),
-    };
+    let h = r1_waiting_at_q();
+    assert!(
+        matches!(h.kernels[1].popped(), Some((_, FrameState::Ending))),
+        "r1 waits at q's barrier"
+    );
+    r1_heals_the_split_above_on_r2_only(h);
+}
+
+/// So does a robot waiting at the synchronization after it (found by
+/// `no_waiting_across_levels`, RNG seed 2200, graph seed
+/// 8970543473821155539: a member waited at its subteam's `sync.leader`
+/// for a leader that came to the allocation above and allocated from
+/// another view, and the member's deadline fell 0.1 s later).
+#[test]
+fn a_robot_waiting_at_a_synchronization_heals_an_allocation_split_above() {
+    let graph = A_THEN_Q.replace(
+        "q_done, terminate: term.test-barrier }",
+        "q_done, next: [q1, q2], sync: sync.test-never }\n  q1: { team: true, skill: w }\n  q2: { team: true, skill: w }",
+    );
+    let h = r1_waiting_at_q_in(&graph);
+    assert!(
+        matches!(h.kernels[1].popped(), Some((_, FrameState::Ended))),
+        "r1 waits at q's synchronization"
+    );
+    r1_heals_the_split_above_on_r2_only(h);
+}
+
+/// r1, waiting at q's end, hears r0 (not in q's subteam), then r2 (in it),
+/// each with another allocation of `b`#1: it allocates `b` again on r2's
+/// word only.
+fn r1_heals_the_split_above_on_r2_only(mut h: Harness) {
+    let old_q = h.kernels[1].popped().map(|(f, _)| f.team).expect("q ended");
     let (round, print) = h.kernels[1].stack[1].alloc_print().expect("b allocated");
     let mut split = in_y_elsewhere(&h);
     split.frames[1].alloc = Some((round, print ^ 1));
