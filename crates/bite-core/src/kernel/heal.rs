@@ -915,7 +915,7 @@ impl Kernel {
         // termination, the execution this robot joins. Not an individual
         // behavior's: each member numbers its runs of one at its own pace
         // (`Kernel::meet`).
-        let graph = self.mission.graph().clone();
+        let graph = self.mission.graph();
         for e in &pos.ended {
             if e.id.team == team
                 && e.parent == parent
