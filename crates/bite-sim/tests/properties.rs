@@ -588,12 +588,6 @@ fn cases_that_failed_once() {
         // subteam's synchronization for a leader that came to the
         // allocation above and allocated from another view.
         (8_970_543_473_821_155_539, 7),
-        // "A lap of an individual behavior numbered lower": a member ran a
-        // lap of an individual behavior as its own first run (its
-        // teammates, converged past an earlier one, as their second), went
-        // on into the team behavior after it, and the robot at the
-        // allocation below its second run waited for it, twice in the run.
-        (1_510_455_449_266_984_623, 7),
         // "Teammates gone another way": a robot a lap ahead waited at an
         // allocation for a teammate it never heard (it answers now); a
         // teammate on another way into the point's execution (awaited); a

@@ -481,22 +481,13 @@ impl Kernel {
         // Nor one it reached from an earlier execution of this robot's
         // behavior, by another successor, unless that way never leads back
         // here (its successors' runs are not this robot's to count).
-        // Except from an individual behavior's run into a team behavior:
-        // each member numbers its runs of an individual behavior at its own
-        // pace (it may number this lap's run one lower), so that epoch
-        // says nothing of the lap it came from; the team execution it
-        // runs, yet to start here, places it past this robot's lap
-        // (docs/reliability.md, "A lap of an individual behavior numbered
-        // lower").
-        let graph = self.graph();
-        let own_pace = graph.is_individual(id.behavior) && !graph.is_individual(g.id.behavior);
-        let from_earlier = g.anchor.is_some_and(|a| {
-            !a.first && a.behavior == id.behavior && a.epoch < id.epoch && !own_pace
-        });
+        let from_earlier = g
+            .anchor
+            .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch < id.epoch);
         g.id.behavior != id.behavior
             && g.id.epoch > self.org.runs(id.team, g.id.behavior)
             && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))
-            && (graph.get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
+            && (self.graph().get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
             && !(from_earlier && self.leads_back(g.id.behavior, id.behavior))
     }
 

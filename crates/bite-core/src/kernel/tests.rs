@@ -2462,58 +2462,6 @@ fn a_later_run_of_an_individual_behavior_is_no_lap_past() {
     assert!(!left_out(&h, 1, barrier, RobotId(2)));
 }
 
-/// A teammate in the team execution that follows this robot's execution of
-/// an individual behavior is past this robot's lap, though it came there
-/// from an execution of that behavior with a lower epoch: each member
-/// numbers its runs of an individual behavior at its own pace, so its
-/// `a`#1 may be the lap this robot runs as `a`#2. Beside this robot's
-/// `a`#2 (after `c`#2, in the cycle `b`, `c`, `a`), a teammate in `b`#3
-/// after its `a`#1 is marked departed from `a`#2 and left out of the
-/// points below. Found by `no_waiting_across_levels` (RNG seed 1283, graph
-/// seed 1510455449266984623: r4 ran that lap's `b3` as its `b3`#1 and went
-/// on to `b1`#2; r0, at its `b3`#2's allocation, waited for r4 until its
-/// deadline, twice in the run).
-#[test]
-fn a_teammate_past_a_lap_of_an_individual_behavior_is_departed_from_it() {
-    const LAPS: &str = "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [b] }
-  b: { team: true, skill: w, until: b_done, next: [c] }
-  c: { team: true, skill: w, until: c_done, next: [a] }
-  a: { team: false, children: [s], until: a_done, next: [b] }
-  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
-    let mut h = Harness::new(LAPS, 3);
-    h.tick(
-        0,
-        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
-    );
-    // Robot 1 goes round alone twice, to `a`#2, and ends `s` there,
-    // waiting at its barrier.
-    h.tick_one(1, 100, &[("b_done", T)]);
-    h.tick_one(1, 200, &[("b_done", F), ("c_done", T)]);
-    h.tick_one(1, 300, &[("c_done", F), ("a_done", T)]);
-    h.tick_one(1, 400, &[("a_done", F), ("b_done", T)]);
-    h.tick_one(1, 500, &[("b_done", F), ("c_done", T)]);
-    h.tick_one(1, 600, &[("c_done", F), ("s_done", T)]);
-    let [root, a, b, s] = behaviors(&h, 1, ["root", "a", "b", "s"]);
-    assert!(
-        h.kernels[1].stack().iter().any(|f| f.id() == at_root(a, 2)),
-        "robot 1 runs `a`#2: {:?}",
-        h.stack(1)
-    );
-    let barrier = barrier_at(&h, 1, s);
-    assert!(!left_out(&h, 1, barrier, RobotId(2)));
-    // Robot 2 runs `b`#3 after its `a`#1.
-    let chain = [
-        (at_root(root, 1), None),
-        (at_root(b, 3), Some((at_root(a, 1), false))),
-    ];
-    tell(&mut h, 1, 2, Time::from_millis(650), &chain);
-    let why = "robot 2, in `b`#3, is past robot 1's lap of `a`";
-    assert_gone_from(&h, 1, at_root(a, 2), barrier, RobotId(2), why);
-}
-
 /// A teammate heard further on this robot's way, two sequential edges past
 /// its execution, in a behavior that never leads back to it (`c`#1 beside
 /// `a`#1, with `a` then `b` then `c`), went on beyond this robot's
