@@ -16,9 +16,10 @@ use bite_core::event::Event;
 use bite_core::graph::load_str;
 use bite_core::interaction::Recipients;
 use bite_core::kernel::Output;
+use bite_core::kernel::{Anchor, FrameId, FrameState, PosFrame, Position};
 use bite_core::msg::{Body, InstanceKey};
 use bite_core::time::Time;
-use bite_core::{Kernel, Mission, RobotId, Value};
+use bite_core::{Kernel, Mission, RobotId, TeamId, Value};
 use std::sync::Arc;
 
 mod common;
@@ -417,4 +418,139 @@ fn a_new_coordinator_and_its_members_talk_a_retry_after_the_change() {
             );
         }
     }
+}
+
+/// Robot `me` of `robots` that run `p` (its children allocated by
+/// `alloc.optimal`), then `z`, having started `p`'s allocation; and robot
+/// 0's heartbeat from `z`#1, after `p`#1: it went past the allocation.
+fn waiting_with_r0_past(me: u32, robots: usize) -> (Kernel, InstanceKey, Position) {
+    let graph = format!(
+        "graph: past\nteam: {{ robots: {robots} }}\nstart: p\n\
+         defaults: {{ sync: sync.by-rule, allocate: alloc.optimal, terminate: term.local }}\n\
+         behaviors:\n  p: {{ team: true, children: [x, y], until: stop, next: [z] }}\n\
+         \x20 x: {{ team: true, skill: w }}\n  y: {{ team: true, skill: w }}\n\
+         \x20 z: {{ team: true, skill: w, until: stop }}\n"
+    );
+    let g = load_str(&Arc::from("past.yaml"), &graph).expect("the test graph loads");
+    let [p, z] = ["p", "z"].map(|n| g.find(n).expect("behavior"));
+    let mission = Arc::new(Mission::new(g, &bite_protocols::registry()).expect("binds"));
+    let mut k = Kernel::new(mission, RobotId(me), u64::from(me) + 1);
+    let key = start(&mut k);
+    let past = Position {
+        robot: RobotId(0),
+        frames: vec![PosFrame {
+            id: FrameId {
+                team: TeamId::ROOT,
+                behavior: z,
+                epoch: 1,
+            },
+            anchor: Some(Anchor {
+                behavior: p,
+                epoch: 1,
+                first: false,
+            }),
+            state: FrameState::Running,
+            alloc: None,
+            departed: None,
+        }],
+        ..Position::default()
+    };
+    (k, key, past)
+}
+
+/// A member waiting at an allocation asks its coordinator, once heard
+/// running the successor of the allocation's execution, how the allocation
+/// ended: it decided and left (its decision may have been lost), or it
+/// left undecided (its own reason to end the behavior came first), which
+/// it answers with `Done`. Only once it has been seen there for a retry:
+/// its decision may still be on its way. Found by
+/// `no_waiting_across_levels` (RNG seed 950, graph seed
+/// 183384660120993347, seven robots): the coordinator reached the
+/// allocation, sent its value to the robot it took for the coordinator,
+/// and its condition ended the behavior in the next tick; the member
+/// waited for its decision until the deadline (docs/reliability.md, "A
+/// coordinator that left undecided, unheard").
+#[test]
+fn a_member_asks_its_coordinator_heard_past_the_allocation() {
+    let (mut r1, key, past) = waiting_with_r0_past(1, 2);
+    let queries = |d: &Drained| {
+        (d.sent.iter())
+            .filter(|s| **s == (Recipients::One(RobotId(0)), Body::Query))
+            .count()
+    };
+    // r1 has waited a retry (500 ms) when it first sees r0 there.
+    r1.peer(Time::from_millis(600), RobotId(0), &past);
+    assert_eq!(queries(&drain(&mut r1)), 0, "first seen past: not yet");
+    r1.peer(Time::from_millis(1100), RobotId(0), &past);
+    let asked = drain(&mut r1);
+    assert_eq!(queries(&asked), 1, "past for a retry: r1 asks r0");
+    assert_eq!(asked.decided, 0);
+    r1.message(Time::from_millis(1150), from(0, key, 1, Body::Done));
+    assert_eq!(drain(&mut r1).decided, 1, "r0 left undecided: r1 decides");
+}
+
+/// A robot waiting at a point whose team's leader left the execution the
+/// point belongs to sends its heartbeats to the member acting for the
+/// leader too (the next by id), as it does while the leader is away from
+/// the team: the leader relays nothing of that execution, and the members
+/// still in it would not hear each other. In the case above (seed 950) the
+/// member heard nothing of its coordinator, at work on its way, and its
+/// deadline fell before it came.
+#[test]
+fn a_robot_waiting_where_its_leader_left_tells_the_member_acting_for_it() {
+    let (mut r2, _, past) = waiting_with_r0_past(2, 3);
+    let audience = |k: &Kernel| k.beacon_audience().iter().collect::<Vec<_>>();
+    assert_eq!(audience(&r2), [RobotId(0)], "r2 tells its leader only");
+    r2.peer(Time::from_millis(100), RobotId(0), &past);
+    assert_eq!(audience(&r2), [RobotId(0), RobotId(1)], "r0 left `p`#1");
+}
+
+/// A member whose allocation's deadline falls while its coordinator is
+/// heard out of the execution (here first seen running the successor just
+/// before the deadline, too late to have been asked a retry after) asks it
+/// how the allocation ended and waits two retries, instead of timing out:
+/// the coordinator left, and nothing it sends will come unasked. Its
+/// `Done` (it left undecided) lets the member decide without it, with no
+/// deadline counted. Found by `no_waiting_across_levels` (RNG seed 343,
+/// graph seed 12850264291869646365, seven robots): the coordinator became
+/// coordinator when the one before was left out, half a second before the
+/// deadline (docs/reliability.md, "A coordinator that left undecided,
+/// heard").
+#[test]
+fn a_member_asks_its_coordinator_heard_out_of_the_allocation_at_the_deadline() {
+    let (mut r1, key, past) = waiting_with_r0_past(1, 2);
+    let p = r1.mission().graph().find("p").expect("p");
+    let bound = r1.mission().bound(p, bite_core::ids::Kind::Allocate);
+    let len = bound.expect("the allocation is bound").deadline;
+    let deadline = Time(len.as_micros() as u64);
+    let queries = |d: &Drained| {
+        (d.sent.iter())
+            .filter(|s| **s == (Recipients::One(RobotId(0)), Body::Query))
+            .count()
+    };
+    let before = Time(deadline.0 - 200_000);
+    r1.peer(before, RobotId(0), &past);
+    assert_eq!(queries(&drain(&mut r1)), 0, "first seen past: not yet");
+    r1.tick(deadline, &[]);
+    let mut timed_out = 0;
+    let mut asked = 0;
+    while let Some(o) = r1.poll_output() {
+        match o {
+            Output::Event(Event::InteractionTimedOut { .. }) => timed_out += 1,
+            Output::Send(s)
+                if s.to == Recipients::One(RobotId(0)) && s.envelope.body == Body::Query =>
+            {
+                asked += 1
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(
+        (asked, timed_out),
+        (1, 0),
+        "asked at the deadline, no timeout"
+    );
+    let answer = Time(deadline.0 + 50_000);
+    r1.message(answer, from(0, key, 1, Body::Done));
+    assert_eq!(drain(&mut r1).decided, 1, "r0 left undecided: r1 decides");
 }

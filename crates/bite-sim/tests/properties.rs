@@ -588,6 +588,18 @@ fn cases_that_failed_once() {
         // subteam's synchronization for a leader that came to the
         // allocation above and allocated from another view.
         (8_970_543_473_821_155_539, 7),
+        // "A coordinator that left undecided, unheard": a robot waiting at
+        // an allocation whose leader had left the execution heard nobody
+        // still in it; its coordinator came, left undecided on its own
+        // condition, and went on, and nobody asked it how it ended.
+        (183_384_660_120_993_347, 7),
+        // "A coordinator that left undecided, heard": members waiting at an
+        // allocation whose leader had ended the execution by its own
+        // condition did not hear their coordinator (seed 2634); a member
+        // whose coordinator took over half a second before the deadline,
+        // already gone on, timed out before it asked it (seed 343).
+        (14_719_798_549_285_451_198, 8),
+        (12_850_264_291_869_646_365, 7),
         // "Teammates gone another way": a robot a lap ahead waited at an
         // allocation for a teammate it never heard (it answers now); a
         // teammate on another way into the point's execution (awaited); a

@@ -148,6 +148,7 @@ impl Kernel {
             outcome: None,
             timed_out: false,
             called: false,
+            asked: None,
             sent: 0,
             bytes: 0,
             received: 0,
@@ -575,7 +576,7 @@ impl Kernel {
                 self.stats.deadlines_rearmed += 1;
                 continue;
             }
-            if self.call_unheard(k) {
+            if self.call_unheard(k) || self.ask_coordinator_out(k) {
                 self.stats.deadlines_rearmed += 1;
                 continue;
             }
@@ -655,6 +656,46 @@ impl Kernel {
             }
             c => *c = Some((unheard, until)),
         }
+        true
+    }
+
+    /// The deadline of allocation `k` fell at a member whose coordinator
+    /// is heard (within [`position::FRESH`]) out of the execution: it left
+    /// it, having decided (its decision lost or still on its way) or
+    /// undecided (its own reason to end the behavior came first), and
+    /// nothing it sends will come unasked. Once per coordinator this robot
+    /// asks it (`Query`) and waits two retries: one that left answers with
+    /// its decision, or with `Done` when it left undecided (`inbox.rs`),
+    /// and this robot decides with the team, or without it, rather than at
+    /// a deadline (docs/reliability.md, "A coordinator that left
+    /// undecided, heard"). True when it asked.
+    fn ask_coordinator_out(&mut self, k: InstanceKey) -> bool {
+        if k.kind != Kind::Allocate {
+            return false;
+        }
+        let Some(inst) = self.instances.get(&k) else {
+            return false;
+        };
+        let Some(c) = self.coordinator(k, inst) else {
+            return false;
+        };
+        if c == self.me || inst.asked == Some(c) {
+            return false;
+        }
+        let id = FrameId::of(k);
+        if !self
+            .fresh_peer(c)
+            .is_some_and(|p| !p.frames.iter().any(|(f, _)| *f == id))
+        {
+            return false;
+        }
+        let now = self.now;
+        let Some(inst) = self.instances.get_mut(&k) else {
+            return false;
+        };
+        inst.asked = Some(c);
+        inst.deadline = now + inst.retry * 2;
+        self.reply(k, c, crate::msg::Body::Query);
         true
     }
 

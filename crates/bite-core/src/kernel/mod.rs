@@ -335,6 +335,9 @@ struct Instance {
     /// Its deadline fell once with counted teammates never heard, and this
     /// robot called them (`Kernel::call_unheard`).
     called: bool,
+    /// The coordinator this robot asked when the deadline fell with it
+    /// heard out of the execution (`Kernel::ask_coordinator_out`).
+    asked: Option<RobotId>,
     sent: u32,
     bytes: u64,
     received: u32,

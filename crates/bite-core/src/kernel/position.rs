@@ -606,8 +606,9 @@ impl Kernel {
 
     /// Who this robot's heartbeats go to: every member of the teams it
     /// leads, and the leader of each other team it is in (and, while that
-    /// leader is away from the team or behind the point this robot waits
-    /// at, the member that relays for it: `Kernel::acting_leader`).
+    /// leader is away from the team, or behind the point this robot waits
+    /// at, or departed from the execution of the allocation this robot
+    /// waits at, the member that relays for it: `Kernel::acting_leader`).
     pub fn beacon_audience(&self) -> MemberSet {
         let mut to = MemberSet::empty(self.org.roster_len());
         let frames = (self.stack.iter().enumerate())
@@ -619,6 +620,7 @@ impl Kernel {
             Phase::Allocating(_) => self.stack.len().checked_sub(1),
             _ => None,
         };
+        let allocating = matches!(self.phase, Phase::Allocating(_));
         for (depth, f) in frames {
             let t = f.team;
             let Some(team) = self.org.team(t) else {
@@ -629,9 +631,19 @@ impl Kernel {
                 Some(_) if self.relays_root(f, depth) => to.union_with(&team.members),
                 Some(l) => {
                     to.insert(l);
+                    // At the allocation it waits at, a leader departed
+                    // from the execution (it left it and went on) relays
+                    // nothing of it: the members still in it would not
+                    // hear each other (docs/reliability.md, "A coordinator
+                    // that left undecided, unheard"). At a termination,
+                    // members done with their part are departed from it
+                    // as a matter of course.
+                    let left = |r: RobotId| {
+                        allocating && f.departed.as_ref().is_some_and(|d| d.contains(r))
+                    };
                     let away = |r: RobotId| {
                         self.absent_from(r, t, f.started)
-                            || (waiting == Some(depth) && self.behind(r, f))
+                            || (waiting == Some(depth) && (self.behind(r, f) || left(r)))
                             || self.passed_by(r, depth, f)
                     };
                     if away(l) {
@@ -1406,10 +1418,14 @@ impl Kernel {
     /// barrier's member, acknowledged, resends every 4, 8, 16… retries,
     /// and under heavy loss waited out the deadline). So is one that left
     /// an allocation it coordinated (its own behavior ended as it decided:
-    /// the decision stands, and only asking brings it back).
+    /// the decision stands, and only asking brings it back), or that runs
+    /// the successor of the allocation's execution: it decided and left,
+    /// or left undecided (its own reason to end the behavior came first),
+    /// and answers `Done` (docs/reliability.md, "A coordinator that left
+    /// undecided, unheard").
     ///
     /// The heartbeat that shows a barrier's leader past it, or a leader
-    /// out of its allocation, may arrive before the decision does: then
+    /// out of its allocation or past it, may arrive before the decision does: then
     /// the member asks only once the coordinator has been seen so for a
     /// retry (a run without faults sends nothing more).
     fn ask_past_point(&mut self, from: RobotId, pos: &Position) {
@@ -1430,10 +1446,9 @@ impl Kernel {
         let ask: Vec<(InstanceKey, bool)> = waiting
             .filter_map(|(k, _)| match k.kind {
                 Kind::Allocate if pos.went_through(k) => Some((k, false)),
-                Kind::Allocate => pos
-                    .state_at(k)
-                    .is_some_and(|s| s != FrameState::Running)
-                    .then_some((k, true)),
+                Kind::Allocate => (pos.state_at(k).is_some_and(|s| s != FrameState::Running)
+                    || pos.went_past(k))
+                .then_some((k, true)),
                 Kind::Sync => pos.went_past(k).then_some((k, false)),
                 Kind::Terminate => pos.past_barrier(k).then_some((k, true)),
             })
