@@ -683,10 +683,8 @@ impl Kernel {
             return false;
         }
         let id = FrameId::of(k);
-        if !self
-            .fresh_peer(c)
-            .is_some_and(|p| !p.frames.iter().any(|(f, _)| *f == id))
-        {
+        // Not heard, or heard in the execution: nothing to ask.
+        if (self.fresh_peer(c)).is_none_or(|p| p.frames.iter().any(|(f, _)| *f == id)) {
             return false;
         }
         let now = self.now;
