@@ -1425,9 +1425,9 @@ impl Kernel {
     /// undecided, unheard").
     ///
     /// The heartbeat that shows a barrier's leader past it, or a leader
-    /// out of its allocation or past it, may arrive before the decision does: then
-    /// the member asks only once the coordinator has been seen so for a
-    /// retry (a run without faults sends nothing more).
+    /// out of its allocation or past it, may arrive before the decision
+    /// does: then the member asks only once the coordinator has been seen
+    /// so for a retry (a run without faults sends nothing more).
     fn ask_past_point(&mut self, from: RobotId, pos: &Position) {
         let now = self.now;
         // No instance has waited a retry yet: nothing to ask, and no
