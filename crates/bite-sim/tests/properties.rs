@@ -600,6 +600,13 @@ fn cases_that_failed_once() {
         // already gone on, timed out before it asked it (seed 343).
         (14_719_798_549_285_451_198, 8),
         (12_850_264_291_869_646_365, 7),
+        // "A lap renamed behind a robot that left it": a member that ran an
+        // individual behavior's lap under an id the team then burned was
+        // not taken for gone past the lap's next id (seed 1283); and a
+        // member that left a lap its teammates renamed afterwards numbered
+        // its next lap with the new name (seed 377 of the first attempt).
+        (1_510_455_449_266_984_623, 7),
+        (13_085_922_093_764_180_830, 8),
         // "Teammates gone another way": a robot a lap ahead waited at an
         // allocation for a teammate it never heard (it answers now); a
         // teammate on another way into the point's execution (awaited); a

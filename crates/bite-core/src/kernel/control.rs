@@ -729,6 +729,7 @@ impl Kernel {
                             let e = self.condition_event(s, "pre", pre);
                             self.emit(e);
                         }
+                        self.note_went_on();
                         self.phase = Phase::Run;
                         self.push(s, team, Via::Sequence, Some((b, epoch)));
                         true
@@ -742,6 +743,7 @@ impl Kernel {
                 };
                 match outcome {
                     Outcome::Sync(Some(s)) => {
+                        self.note_went_on();
                         self.phase = Phase::Run;
                         self.push(s, team, Via::Decision, Some((b, epoch)));
                         true
@@ -750,6 +752,17 @@ impl Kernel {
                 }
             }
         }
+    }
+
+    /// Going on in sequence from the execution just ended (the popped
+    /// frame): keep it, with what it followed and its depth
+    /// (`Kernel::count_renamed`).
+    fn note_went_on(&mut self) {
+        let depth = self.stack.len();
+        let parent = self.stack.last().map(Frame::id);
+        self.went_on_from = self
+            .popped()
+            .and_then(|(f, _)| Some((depth, parent?, f.id(), f.anchor?)));
     }
 
     /// Line 8b: the execution chain is over, so its parent terminates.

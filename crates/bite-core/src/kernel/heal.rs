@@ -199,6 +199,55 @@ impl Kernel {
         }
     }
 
+    /// A teammate runs, under the same parent execution and in the same
+    /// team, another execution of the individual behavior this robot last
+    /// ended and went on from in sequence, after the same step (the same
+    /// anchor), numbered higher, and the team burned this robot's: the
+    /// two are one step of the mission ([`Anchor`]), which the team
+    /// renamed after this robot had left it (teammates still in it
+    /// converged on one that a later arrival numbered higher, and burned
+    /// the old name). Count past the new name, as the teammates did,
+    /// so that this robot numbers its next run of the behavior past it
+    /// instead of reusing it for its next lap (docs/reliability.md, "A lap
+    /// renamed behind a robot that left it").
+    pub(super) fn count_renamed(&mut self, pos: &Position) {
+        let Some((k, parent, x, after)) = self.went_on_from else {
+            return;
+        };
+        // Only a name the team gave up (burned): each member numbers its
+        // runs of an individual behavior at its own pace, so the same step
+        // under another number is no renaming by itself. A team
+        // behavior's diverged histories meet instead (the robot may go
+        // back into the teammate's execution: `Kernel::meet`).
+        if after.first
+            || k == 0
+            || !self.mission.graph().is_individual(x.behavior)
+            || !self.recent_burned.contains(&x)
+        {
+            return;
+        }
+        // Still under the parent execution it ran `x` under, and not come
+        // to `x`'s behavior again there (wherever it is now).
+        let (Some(up), Some(g), Some(gu)) = (
+            self.stack.get(k - 1),
+            pos.frames.get(k),
+            pos.frames.get(k - 1),
+        ) else {
+            return;
+        };
+        if up.id() == parent
+            && up.runs.latest_epoch(x.behavior) == x.epoch
+            && gu.id == parent
+            && g.id.team == x.team
+            && g.id.behavior == x.behavior
+            && g.id.epoch > x.epoch
+            && g.anchor == Some(after)
+            && self.org.runs(x.team, x.behavior) < g.id.epoch
+        {
+            self.org.runs_at_least(x.team, x.behavior, g.id.epoch);
+        }
+    }
+
     /// Histories that diverged and met again: a teammate runs the same
     /// execution as this robot, but after a later execution of the same
     /// predecessor (cut off from the team, it ran that predecessor more
@@ -481,9 +530,19 @@ impl Kernel {
         // Nor one it reached from an earlier execution of this robot's
         // behavior, by another successor, unless that way never leads back
         // here (its successors' runs are not this robot's to count).
-        let from_earlier = g
-            .anchor
-            .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch < id.epoch);
+        // An execution the team burned is none of its laps: a teammate
+        // that ran it and went on ran this lap's behavior under an id the
+        // team gave up, and will number its next run past this one.
+        let from_earlier = g.anchor.is_some_and(|a| {
+            !a.first
+                && a.behavior == id.behavior
+                && a.epoch < id.epoch
+                && !self.recent_burned.contains(&FrameId {
+                    team: id.team,
+                    behavior: a.behavior,
+                    epoch: a.epoch,
+                })
+        });
         g.id.behavior != id.behavior
             && g.id.epoch > self.org.runs(id.team, g.id.behavior)
             && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))

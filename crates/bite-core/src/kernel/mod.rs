@@ -469,6 +469,11 @@ pub struct Kernel {
     recent_ended: position::RecentEnded,
     /// Executions burned recently, here or by teammates.
     recent_burned: VecDeque<FrameId>,
+    /// The execution this robot last ended and went on from in sequence:
+    /// the depth it ran at, its parent execution, its id and what it
+    /// followed. A teammate that runs another execution of its behavior
+    /// after the same step renamed it ([`Kernel::count_renamed`]).
+    went_on_from: Option<(usize, FrameId, FrameId, Anchor)>,
     /// An instance where this robot waits, and since when teammates are
     /// heard past its point (see `Kernel::follow_past`).
     left_behind: Option<(InstanceKey, Time)>,
@@ -576,6 +581,7 @@ impl Kernel {
             stats: Stats::default(),
             recent_ended: position::RecentEnded::default(),
             recent_burned: VecDeque::new(),
+            went_on_from: None,
             left_behind: None,
             asks_from: None,
             splits_seen: std::collections::BTreeSet::new(),

@@ -1022,6 +1022,7 @@ impl Kernel {
         self.answer_strangers(from, pos);
         self.apply_burns(pos);
         self.count_past(pos);
+        self.count_renamed(pos);
         self.catch_up(pos);
         self.learn_departures(from, pos);
         if !self.reconcile(from, pos, false) && !self.meet(from, pos) {

@@ -2462,6 +2462,158 @@ fn a_later_run_of_an_individual_behavior_is_no_lap_past() {
     assert!(!left_out(&h, 1, barrier, RobotId(2)));
 }
 
+/// A cycle `b`, `c`, `a` under the root, where `a` is an individual
+/// behavior (`team: false`) whose child `s` ends at a barrier.
+const LAPS: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [b] }
+  b: { team: true, skill: w, until: b_done, next: [c] }
+  c: { team: true, skill: w, until: c_done, next: [a] }
+  a: { team: false, children: [s], until: a_done, next: [b] }
+  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
+
+/// Robot `to` hears robot `from` at `ms` burn execution `id` (its
+/// heartbeat lists it among the executions burned recently).
+fn tell_burned(h: &mut Harness, to: usize, from: u32, ms: u64, root: BehaviorId, id: FrameId) {
+    let mut pos = running(&[(at_root(root, 1), None)]);
+    pos.robot = RobotId(from);
+    pos.burned = vec![id];
+    h.kernels[to].peer(Time::from_millis(ms), RobotId(from), &pos);
+}
+
+/// A teammate in the team execution after this robot's execution of an
+/// individual behavior, come from a run of it under an id the team burned,
+/// went past this robot's lap: that run was this lap's under a name the
+/// team gave up, and its next run will be numbered past it. Beside this
+/// robot's `a`#2 (its first, `a`#1 burned), a teammate in `b`#2 after
+/// `a`#1 is marked departed from `a`#2 and left out of the points below.
+/// Not so when `a`#1 was a lap of the team's (this robot ran it too): the
+/// teammate may come round to `a`#2. Found by `no_waiting_across_levels`
+/// (RNG seed 1283, graph seed 1510455449266984623: r4 ran `b3`#1 and went
+/// on to `b1`#2 while its teammates converged away from `b3`#1 and burned
+/// it; r0, at `b3`#2's allocation, waited for r4 until its deadline, twice
+/// in the run).
+#[test]
+fn a_teammate_past_a_burned_lap_of_an_individual_behavior_is_departed_from_it() {
+    let mut h = Harness::new(LAPS, 3);
+    h.tick(
+        0,
+        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
+    );
+    let [root, a, b, s] = behaviors(&h, 1, ["root", "a", "b", "s"]);
+    // The team burned `a`#1; robot 1 goes round once, to `a`#2, and ends
+    // `s` there, waiting at its barrier.
+    tell_burned(&mut h, 1, 0, 50, root, at_root(a, 1));
+    h.tick_one(1, 100, &[("b_done", T)]);
+    h.tick_one(1, 200, &[("b_done", F), ("c_done", T)]);
+    h.tick_one(1, 300, &[("c_done", F), ("s_done", T)]);
+    assert!(
+        h.kernels[1].stack().iter().any(|f| f.id() == at_root(a, 2)),
+        "robot 1 runs `a`#2: {:?}",
+        h.stack(1)
+    );
+    let barrier = barrier_at(&h, 1, s);
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
+    // Robot 2 ran `a`#1 and runs `b`#2 after it.
+    let chain = [
+        (at_root(root, 1), None),
+        (at_root(b, 2), Some((at_root(a, 1), false))),
+    ];
+    tell(&mut h, 1, 2, Time::from_millis(350), &chain);
+    let why = "robot 2, in `b`#2 after the burned `a`#1, is past robot 1's lap of `a`";
+    assert_gone_from(&h, 1, at_root(a, 2), barrier, RobotId(2), why);
+
+    // The same, `a`#1 not burned: robot 1 ran it, went round again to
+    // `a`#2; robot 2, in `b`#3 after `a`#1, may come round to `a`#2.
+    let mut h = Harness::new(LAPS, 3);
+    h.tick(
+        0,
+        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
+    );
+    h.tick_one(1, 100, &[("b_done", T)]);
+    h.tick_one(1, 200, &[("b_done", F), ("c_done", T)]);
+    h.tick_one(1, 300, &[("c_done", F), ("a_done", T)]);
+    h.tick_one(1, 400, &[("a_done", F), ("b_done", T)]);
+    h.tick_one(1, 500, &[("b_done", F), ("c_done", T)]);
+    h.tick_one(1, 600, &[("c_done", F), ("s_done", T)]);
+    assert!(h.kernels[1].stack().iter().any(|f| f.id() == at_root(a, 2)));
+    let barrier = barrier_at(&h, 1, s);
+    let chain = [
+        (at_root(root, 1), None),
+        (at_root(b, 3), Some((at_root(a, 1), false))),
+    ];
+    tell(&mut h, 1, 2, Time::from_millis(650), &chain);
+    assert!(
+        !departed_from(&h, 1, at_root(a, 2), RobotId(2)),
+        "robot 2 may come round to `a`#2"
+    );
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
+}
+
+/// A robot that left an execution its teammates renamed afterwards (they
+/// converged on one a later arrival numbered higher, after the same step,
+/// and burned the old name) counts past the new name: its next run of the
+/// behavior is numbered after it, not with it. Robot 1 ends `a`#1 (after
+/// `c`#1) and goes on to `b`#2; the team then burns `a`#1 and a teammate
+/// runs `a`#2 after `c`#1, the same step: robot 1's next lap runs `a`#3.
+/// Without the burn, `a`#2 after `c`#1 is only the teammate's own count of
+/// an individual behavior, and robot 1's next lap runs `a`#2. Found by
+/// `no_waiting_across_levels` (RNG seed 377 with the change for seed 1283,
+/// graph seed 13085922093764180830: r5 ran `b3`#2 and went on; r2 and r6,
+/// still in it, converged on r4's `b3`#3 after the same `b2`#3 and burned
+/// `b3`#2; r5 then numbered its next lap `b3`#3, the team's lap before,
+/// and the laps crossed until a deadline).
+#[test]
+fn a_robot_counts_past_a_lap_renamed_after_it_left() {
+    let run = |burned: bool, renamed: bool| {
+        let mut h = Harness::new(LAPS, 3);
+        h.tick(
+            0,
+            &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
+        );
+        let [root, a, b, c] = behaviors(&h, 1, ["root", "a", "b", "c"]);
+        h.tick_one(1, 100, &[("b_done", T)]);
+        h.tick_one(1, 200, &[("b_done", F), ("c_done", T)]);
+        h.tick_one(1, 300, &[("c_done", F), ("a_done", T)]);
+        assert!(
+            h.kernels[1].stack().iter().any(|f| f.id() == at_root(b, 2)),
+            "robot 1 runs `b`#2: {:?}",
+            h.stack(1)
+        );
+        if burned {
+            tell_burned(&mut h, 1, 0, 320, root, at_root(a, 1));
+        }
+        if renamed {
+            let chain = [
+                (at_root(root, 1), None),
+                (at_root(a, 2), Some((at_root(c, 1), false))),
+            ];
+            tell(&mut h, 1, 2, Time::from_millis(350), &chain);
+        }
+        h.tick_one(1, 400, &[("a_done", F), ("b_done", T)]);
+        h.tick_one(1, 500, &[("b_done", F), ("c_done", T)]);
+        (h.kernels[1].stack().iter())
+            .find(|f| f.behavior == a)
+            .map(|f| f.epoch)
+    };
+    assert_eq!(
+        run(false, false),
+        Some(2),
+        "nothing heard: the next lap is `a`#2"
+    );
+    assert_eq!(
+        run(false, true),
+        Some(2),
+        "`a`#2 after `c`#1 is the teammate's own count: the next lap is `a`#2"
+    );
+    assert_eq!(
+        run(true, true),
+        Some(3),
+        "`a`#1 burned, `a`#2 after `c`#1 is its new name: the next lap is `a`#3"
+    );
+}
+
 /// A teammate heard further on this robot's way, two sequential edges past
 /// its execution, in a behavior that never leads back to it (`c`#1 beside
 /// `a`#1, with `a` then `b` then `c`), went on beyond this robot's
