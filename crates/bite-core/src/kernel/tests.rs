@@ -2473,6 +2473,34 @@ behaviors:
   a: { team: false, children: [s], until: a_done, next: [b] }
   s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
 
+/// Three robots on [`LAPS`], every condition false.
+fn laps() -> Harness {
+    let mut h = Harness::new(LAPS, 3);
+    h.tick(
+        0,
+        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
+    );
+    h
+}
+
+/// Robot `i` goes once round [`LAPS`] from `b` at `ms` (a tick every
+/// 100 ms), and ends with `last` (`a_done`: on to the next `b`; `s_done`:
+/// waiting at the barrier under `a`).
+fn go_round(h: &mut Harness, i: usize, ms: u64, last: &'static str) {
+    h.tick_one(i, ms, &[("a_done", F), ("b_done", T)]);
+    h.tick_one(i, ms + 100, &[("b_done", F), ("c_done", T)]);
+    h.tick_one(i, ms + 200, &[("c_done", F), (last, T)]);
+}
+
+/// Asserts that robot `i` runs execution `id`.
+fn assert_runs(h: &Harness, i: usize, id: FrameId) {
+    assert!(
+        h.kernels[i].stack().iter().any(|f| f.id() == id),
+        "robot {i} runs {id:?}: {:?}",
+        h.stack(i)
+    );
+}
+
 /// Robot `to` hears robot `from` at `ms` burn execution `id` (its
 /// heartbeat lists it among the executions burned recently).
 fn tell_burned(h: &mut Harness, to: usize, from: u32, ms: u64, root: BehaviorId, id: FrameId) {
@@ -2496,23 +2524,13 @@ fn tell_burned(h: &mut Harness, to: usize, from: u32, ms: u64, root: BehaviorId,
 /// in the run).
 #[test]
 fn a_teammate_past_a_burned_lap_of_an_individual_behavior_is_departed_from_it() {
-    let mut h = Harness::new(LAPS, 3);
-    h.tick(
-        0,
-        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
-    );
+    let mut h = laps();
     let [root, a, b, s] = behaviors(&h, 1, ["root", "a", "b", "s"]);
     // The team burned `a`#1; robot 1 goes round once, to `a`#2, and ends
     // `s` there, waiting at its barrier.
     tell_burned(&mut h, 1, 0, 50, root, at_root(a, 1));
-    h.tick_one(1, 100, &[("b_done", T)]);
-    h.tick_one(1, 200, &[("b_done", F), ("c_done", T)]);
-    h.tick_one(1, 300, &[("c_done", F), ("s_done", T)]);
-    assert!(
-        h.kernels[1].stack().iter().any(|f| f.id() == at_root(a, 2)),
-        "robot 1 runs `a`#2: {:?}",
-        h.stack(1)
-    );
+    go_round(&mut h, 1, 100, "s_done");
+    assert_runs(&h, 1, at_root(a, 2));
     let barrier = barrier_at(&h, 1, s);
     assert!(!left_out(&h, 1, barrier, RobotId(2)));
     // Robot 2 ran `a`#1 and runs `b`#2 after it.
@@ -2526,18 +2544,10 @@ fn a_teammate_past_a_burned_lap_of_an_individual_behavior_is_departed_from_it() 
 
     // The same, `a`#1 not burned: robot 1 ran it, went round again to
     // `a`#2; robot 2, in `b`#3 after `a`#1, may come round to `a`#2.
-    let mut h = Harness::new(LAPS, 3);
-    h.tick(
-        0,
-        &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
-    );
-    h.tick_one(1, 100, &[("b_done", T)]);
-    h.tick_one(1, 200, &[("b_done", F), ("c_done", T)]);
-    h.tick_one(1, 300, &[("c_done", F), ("a_done", T)]);
-    h.tick_one(1, 400, &[("a_done", F), ("b_done", T)]);
-    h.tick_one(1, 500, &[("b_done", F), ("c_done", T)]);
-    h.tick_one(1, 600, &[("c_done", F), ("s_done", T)]);
-    assert!(h.kernels[1].stack().iter().any(|f| f.id() == at_root(a, 2)));
+    let mut h = laps();
+    go_round(&mut h, 1, 100, "a_done");
+    go_round(&mut h, 1, 400, "s_done");
+    assert_runs(&h, 1, at_root(a, 2));
     let barrier = barrier_at(&h, 1, s);
     let chain = [
         (at_root(root, 1), None),
@@ -2567,20 +2577,10 @@ fn a_teammate_past_a_burned_lap_of_an_individual_behavior_is_departed_from_it() 
 #[test]
 fn a_robot_counts_past_a_lap_renamed_after_it_left() {
     let run = |burned: bool, renamed: bool| {
-        let mut h = Harness::new(LAPS, 3);
-        h.tick(
-            0,
-            &[("a_done", F), ("b_done", F), ("c_done", F), ("s_done", F)],
-        );
+        let mut h = laps();
         let [root, a, b, c] = behaviors(&h, 1, ["root", "a", "b", "c"]);
-        h.tick_one(1, 100, &[("b_done", T)]);
-        h.tick_one(1, 200, &[("b_done", F), ("c_done", T)]);
-        h.tick_one(1, 300, &[("c_done", F), ("a_done", T)]);
-        assert!(
-            h.kernels[1].stack().iter().any(|f| f.id() == at_root(b, 2)),
-            "robot 1 runs `b`#2: {:?}",
-            h.stack(1)
-        );
+        go_round(&mut h, 1, 100, "a_done");
+        assert_runs(&h, 1, at_root(b, 2));
         if burned {
             tell_burned(&mut h, 1, 0, 320, root, at_root(a, 1));
         }
