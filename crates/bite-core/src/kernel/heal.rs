@@ -242,7 +242,6 @@ impl Kernel {
             && g.id.behavior == x.behavior
             && g.id.epoch > x.epoch
             && g.anchor == Some(after)
-            && self.org.runs(x.team, x.behavior) < g.id.epoch
         {
             self.org.runs_at_least(x.team, x.behavior, g.id.epoch);
         }
