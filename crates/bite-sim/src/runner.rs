@@ -1712,10 +1712,11 @@ fn robot_event(what: &What) -> Option<RobotId> {
 /// Ask for what an event carries to be brought into the cache: a
 /// heartbeat's position (shared by its whole audience, but heard between
 /// other robots' events, so cold by then), and what its hearer keeps of
-/// its sender (see `Kernel::prefetch_peer`).
+/// its sender (see `Kernel::prefetch_peer`); for a heartbeat to send,
+/// where its sender keeps its leaders (`Kernel::prefetch_audience`).
 fn prefetch_carried(agents: &[Agent], what: &What) {
-    if let What::Peer { to, .. } = what
-        && let Some(a) = agents.get(to.index())
+    if let What::Peer { to: r, .. } | What::Beacon(r) = what
+        && let Some(a) = agents.get(r.index())
     {
         prefetch_heard(a, what);
     }
@@ -1723,9 +1724,14 @@ fn prefetch_carried(agents: &[Agent], what: &What) {
 
 /// [`prefetch_carried`], for an event of robot `a`'s.
 fn prefetch_heard(a: &Agent, what: &What) {
-    if let What::Peer { pos, from, .. } = what {
-        bite_core::hint::prefetch_lines(Arc::as_ptr(pos), 2);
-        a.kernel().prefetch_peer(*from);
+    match what {
+        What::Peer { pos, from, .. } => {
+            bite_core::hint::prefetch_lines(Arc::as_ptr(pos), 2);
+            a.kernel().prefetch_peer(*from);
+        }
+        // A heartbeat to send: its audience is read from the peer table.
+        What::Beacon(_) => a.kernel().prefetch_audience(),
+        _ => {}
     }
 }
 

@@ -722,6 +722,14 @@ impl Kernel {
         self.peers.prefetch(from);
     }
 
+    /// Ask for what this robot reads to address its next heartbeat to be
+    /// brought into the cache (a hint): whether each leader it sends to
+    /// is away is read from its entry of that leader
+    /// ([`Kernel::beacon_audience`]), and a member keeps a handful.
+    pub fn prefetch_audience(&self) {
+        self.peers.prefetch_handful();
+    }
+
     /// The next output, if any.
     pub fn poll_output(&mut self) -> Option<Output> {
         if self.out.is_empty() {

@@ -215,14 +215,21 @@ impl Peers {
     /// the first it heard); a hash map's place is known only by reading it.
     pub fn prefetch(&self, r: RobotId) {
         match self {
-            Peers::Few { ids, peers } => {
-                crate::hint::prefetch_slice(ids, 1);
-                crate::hint::prefetch_slice(peers, 4);
-            }
+            Peers::Few { .. } => self.prefetch_handful(),
             Peers::Map(_) => {}
             Peers::Table { slots, .. } => {
                 crate::hint::prefetch_lines(slots.as_ptr().wrapping_add(r.index()), 2);
             }
+        }
+    }
+
+    /// Ask for a handful's ids and first entries to be brought into the
+    /// cache (a hint; nothing for more): where a member's leaders are,
+    /// which it reads before it sends a heartbeat.
+    pub fn prefetch_handful(&self) {
+        if let Peers::Few { ids, peers } = self {
+            crate::hint::prefetch_slice(ids, 1);
+            crate::hint::prefetch_slice(peers, 4);
         }
     }
 }
