@@ -1715,9 +1715,7 @@ fn robot_event(what: &What) -> Option<RobotId> {
 /// its sender (see `Kernel::prefetch_peer`); for a heartbeat to send,
 /// where its sender keeps its leaders (`Kernel::prefetch_audience`).
 fn prefetch_carried(agents: &[Agent], what: &What) {
-    if let What::Peer { to: r, .. } | What::Beacon(r) = what
-        && let Some(a) = agents.get(r.index())
-    {
+    if let Some(a) = robot_event(what).and_then(|r| agents.get(r.index())) {
         prefetch_heard(a, what);
     }
 }
