@@ -1657,15 +1657,10 @@ struct Beacon {
 
 /// Robot `a`'s heartbeat (`None`: nobody to tell).
 fn beacon_of(a: &Agent) -> Option<Beacon> {
-    let k = a.kernel();
-    let audience = k.beacon_audience();
-    (!audience.is_empty()).then(|| {
-        let pos = k.position();
-        Beacon {
-            audience,
-            bytes: pos.encoded_len() as u64,
-            pos: Arc::new(pos),
-        }
+    a.kernel().beacon().map(|(audience, pos)| Beacon {
+        audience,
+        bytes: pos.encoded_len() as u64,
+        pos: Arc::new(pos),
     })
 }
 

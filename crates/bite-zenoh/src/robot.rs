@@ -896,8 +896,11 @@ impl Node {
                 finished: kernel.is_finished(),
                 // Only the team view is new per heartbeat; it is what lets
                 // teammates find and heal a split (`Kernel::peer`).
-                position: (r.ticked && !kernel.beacon_audience().is_empty())
-                    .then(|| kernel.position()),
+                position: if r.ticked {
+                    kernel.beacon().map(|(_, pos)| pos)
+                } else {
+                    None
+                },
             };
             let frame = r
                 .sealer

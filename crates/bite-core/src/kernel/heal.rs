@@ -194,7 +194,7 @@ impl Kernel {
                 never.push(*e);
             }
         }
-        for e in never {
+        for e in &never {
             self.org.runs_at_least(e.id.team, e.id.behavior, e.id.epoch);
         }
     }

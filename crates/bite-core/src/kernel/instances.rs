@@ -649,12 +649,12 @@ impl Kernel {
         inst.called = true;
         let until = now + inst.retry * 2;
         inst.deadline = until;
-        match &mut self.calling {
+        match self.calling.as_deref_mut() {
             Some((set, t)) if *t > now => {
                 set.union_with(&unheard);
                 *t = (*t).max(until);
             }
-            c => *c = Some((unheard, until)),
+            _ => self.calling = Some(Box::new((unheard, until))),
         }
         true
     }

@@ -520,12 +520,15 @@ pub struct Kernel {
     left_at: Option<Time>,
     /// Teammates that send it heartbeats for a team it is not in (it left
     /// it, or has yet to join it): its own heartbeats answer them (see
-    /// `Kernel::answer_strangers`).
-    answering: Option<MemberSet>,
+    /// `Kernel::answer_strangers`). Boxed, as `calling`: rarely set, and
+    /// every robot's kernel is read from memory at each of its events
+    /// (the two inline were 88 of its bytes; docs/performance.md,
+    /// "2026-12-06, fifth session").
+    answering: Option<Box<MemberSet>>,
     /// Teammates counted at a point whose deadline fell without this robot
     /// ever hearing them, and until when its heartbeats go to them (see
     /// `Kernel::call_unheard`).
-    calling: Option<(MemberSet, Time)>,
+    calling: Option<Box<(MemberSet, Time)>>,
     /// Executions of points that teammates before this robot had ended
     /// when it learnt they left a behavior of its own, and that it has not
     /// ended (newest last, at most [`LEFT_RAN`], those it can no longer

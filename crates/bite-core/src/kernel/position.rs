@@ -102,6 +102,26 @@ pub const ANSWER_LEFT: std::time::Duration = std::time::Duration::from_secs(6);
 /// first members are all elsewhere.
 const ACTING_WALK: usize = 8;
 
+/// Who leads one of a robot's frames, as its heartbeat needs it
+/// ([`Kernel::frame_leaders`]).
+#[derive(Clone, Copy, Debug)]
+struct FrameLeader {
+    /// The member whose choice a split there follows
+    /// ([`Kernel::heal_leader`]).
+    leader: Option<RobotId>,
+    /// The leader is a teammate, and this robot relays the root in its
+    /// place ([`Kernel::relays_root`]).
+    relays: bool,
+}
+
+impl FrameLeader {
+    /// True when robot `me` speaks for the frame: it leads it, or relays
+    /// the root in its leader's place.
+    fn leads(&self, me: RobotId) -> bool {
+        self.leader == Some(me) || self.relays
+    }
+}
+
 /// Identity of one execution of a behavior by a team.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 pub struct FrameId {
@@ -526,11 +546,45 @@ pub(super) fn push_recent<T: PartialEq>(ring: &mut std::collections::VecDeque<T>
 impl Kernel {
     /// This robot's position, for its heartbeats.
     pub fn position(&self) -> Position {
+        self.position_with(&self.frame_leaders())
+    }
+
+    /// Who its next heartbeat goes to ([`Kernel::beacon_audience`]) and
+    /// what it says ([`Kernel::position`]), made together: both read who
+    /// leads each of its frames, worked out once here for the two (a robot
+    /// sends a heartbeat every period, and each leader is the first member
+    /// of the team not departed from a frame above). `None`: nobody to
+    /// tell, and no position made.
+    pub fn beacon(&self) -> Option<(MemberSet, Position)> {
+        let leaders = self.frame_leaders();
+        let audience = self.audience_with(&leaders);
+        (!audience.is_empty()).then(|| (audience, self.position_with(&leaders)))
+    }
+
+    /// For each of its frames (the stack's, root first, then the one it
+    /// ended), the member whose choice a split there follows
+    /// ([`Kernel::heal_leader`]) and, when that is a teammate, whether this
+    /// robot relays the root in its place ([`Kernel::relays_root`]).
+    fn frame_leaders(&self) -> smallvec::SmallVec<[FrameLeader; 8]> {
+        (self.stack.iter().enumerate())
+            .chain(self.popped().map(|(f, _)| (self.stack.len(), f)))
+            .map(|(depth, f)| {
+                let leader = self.heal_leader(f.team, depth);
+                let relays = leader.is_some_and(|l| l != self.me && self.relays_root(f, depth, l));
+                FrameLeader { leader, relays }
+            })
+            .collect()
+    }
+
+    /// [`Kernel::position`], with its frames' leaders worked out
+    /// ([`Kernel::frame_leaders`]).
+    fn position_with(&self, leaders: &[FrameLeader]) -> Position {
         // A robot idle under its top frame (an allocation gave it no part,
         // or it rejoined there after a restart) has ended its part of it:
         // it waits in that frame's termination, and takes no part below.
         let idle = matches!(self.phase, Phase::Idle { .. });
         let top = self.stack.len().saturating_sub(1);
+        let leads = |depth: usize| leaders[depth].leads(self.me);
         let mut frames: Vec<PosFrame> = self
             .stack
             .iter()
@@ -541,11 +595,11 @@ impl Kernel {
                 } else {
                     FrameState::Running
                 };
-                self.pos_frame(f, i, state)
+                self.pos_frame(f, leads(i), state)
             })
             .collect();
         if let Some((f, state)) = self.popped() {
-            frames.push(self.pos_frame(f, self.stack.len(), state));
+            frames.push(self.pos_frame(f, leads(self.stack.len()), state));
         }
         Position {
             robot: self.me,
@@ -569,8 +623,9 @@ impl Kernel {
         self.progress = self.progress.wrapping_add(1);
     }
 
-    pub(super) fn pos_frame(&self, f: &Frame, depth: usize, state: FrameState) -> PosFrame {
-        let leads = self.heal_leader(f.team, depth) == Some(self.me) || self.relays_root(f, depth);
+    /// Frame `f` as its heartbeat tells it; `leads`: this robot leads it
+    /// (or relays the root in its leader's place).
+    pub(super) fn pos_frame(&self, f: &Frame, leads: bool, state: FrameState) -> PosFrame {
         PosFrame {
             id: f.id(),
             anchor: f.anchor,
@@ -610,6 +665,12 @@ impl Kernel {
     /// at, or departed from the execution of the allocation this robot
     /// waits at, the member that relays for it: `Kernel::acting_leader`).
     pub fn beacon_audience(&self) -> MemberSet {
+        self.audience_with(&self.frame_leaders())
+    }
+
+    /// [`Kernel::beacon_audience`], with its frames' leaders worked out
+    /// ([`Kernel::frame_leaders`]).
+    fn audience_with(&self, leaders: &[FrameLeader]) -> MemberSet {
         let mut to = MemberSet::empty(self.org.roster_len());
         let frames = (self.stack.iter().enumerate())
             .chain(self.popped().map(|(f, _)| (self.stack.len(), f)));
@@ -626,9 +687,10 @@ impl Kernel {
             let Some(team) = self.org.team(t) else {
                 continue;
             };
-            match self.heal_leader(t, depth) {
+            let FrameLeader { leader, relays } = leaders[depth];
+            match leader {
                 Some(l) if l == self.me => to.union_with(&team.members),
-                Some(_) if self.relays_root(f, depth) => to.union_with(&team.members),
+                Some(_) if relays => to.union_with(&team.members),
                 Some(l) => {
                     to.insert(l);
                     // At the allocation it waits at, a leader departed
@@ -661,7 +723,7 @@ impl Kernel {
         }
         // Teammates counted at a point whose deadline fell unheard (see
         // `Kernel::call_unheard`).
-        if let Some((set, until)) = &self.calling
+        if let Some((set, until)) = self.calling.as_deref()
             && self.now < *until
         {
             to.union_with(set);
@@ -912,8 +974,9 @@ impl Kernel {
     /// ones out of their silent allocations, round after round
     /// (docs/reliability.md, "A root leader that finished"). Its members
     /// still send to the leader (see [`Kernel::heal_leader`]); a leader
-    /// waiting at the root's end still relays itself.
-    fn relays_root(&self, f: &Frame, depth: usize) -> bool {
+    /// waiting at the root's end still relays itself. `leader`: the
+    /// frame's [`Kernel::heal_leader`], already worked out.
+    fn relays_root(&self, f: &Frame, depth: usize, leader: RobotId) -> bool {
         if depth != 0 || f.team != TeamId::ROOT {
             return false;
         }
@@ -926,14 +989,12 @@ impl Kernel {
         let finished = |r: RobotId| {
             departed.contains(r) && self.fresh_peer(r).is_some_and(|p| p.frames.is_empty())
         };
-        match self.heal_leader(f.team, depth) {
-            Some(l) if l != self.me && finished(l) => {
-                team.members
-                    .first_not_in(self.me, || [&self.lost, departed].into_iter())
-                    == Some(self.me)
-            }
-            _ => false,
-        }
+        leader != self.me
+            && finished(leader)
+            && team
+                .members
+                .first_not_in(self.me, || [&self.lost, departed].into_iter())
+                == Some(self.me)
     }
 
     /// A teammate's position, heard with its heartbeat: learn who departed
@@ -1168,7 +1229,7 @@ impl Kernel {
         if stranger {
             let n = self.org.roster_len();
             self.answering
-                .get_or_insert_with(|| MemberSet::empty(n))
+                .get_or_insert_with(|| Box::new(MemberSet::empty(n)))
                 .insert(from);
         } else if let Some(a) = &mut self.answering
             && a.contains(from)

@@ -923,7 +923,16 @@ impl Harness {
         let sent: Vec<(Position, MemberSet)> = self
             .kernels
             .iter()
-            .map(|k| (k.position(), k.beacon_audience()))
+            .map(|k| {
+                let (pos, to) = (k.position(), k.beacon_audience());
+                // The runtimes' one call for both says the same.
+                let both = k.beacon();
+                assert_eq!(both.is_none(), to.is_empty());
+                if let Some((a, p)) = both {
+                    assert_eq!((&a, &p), (&to, &pos));
+                }
+                (pos, to)
+            })
             .collect();
         for (j, (p, to)) in sent.iter().enumerate() {
             for r in to.iter() {
