@@ -440,9 +440,16 @@ impl Interaction for Market {
                 self.maybe_award(cx);
             }
         } else if changed {
-            // A new auction under a new leader.
+            // A new auction under a new leader. Asked at once for its call
+            // (as a gathering member sends its contribution again): its
+            // calls made while this robot was still on its way, or still
+            // counted the old leader, were not its leader's then, and its
+            // next resend may come after its deadline (docs/reliability.md,
+            // "A member that found its coordinator gone at the point").
             self.won = false;
             self.call = None;
+            self.coord.reset_backoff();
+            cx.send(cx.leader(), Body::Query);
         }
     }
 

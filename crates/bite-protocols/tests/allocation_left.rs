@@ -420,6 +420,33 @@ fn a_new_coordinator_and_its_members_talk_a_retry_after_the_change() {
     }
 }
 
+/// A member of an `alloc.auction` whose coordinator changes asks the new
+/// one for its call at once: the new coordinator's calls made while the
+/// member still counted the old one were not its leader's then, and a
+/// member that reached the point late, bid to the old one and learnt from
+/// its answer that it had left, waited a retry for nothing while the new
+/// coordinator's deadline fell. Found by `no_waiting_across_levels` (RNG
+/// seed 2648, graph seed 12240106986188585820, seven robots)
+/// (docs/reliability.md, "A member that found its coordinator gone at the
+/// point").
+#[test]
+fn an_auction_member_asks_its_new_coordinator_at_once() {
+    let t = Time::from_secs_f64;
+    let mut k = robot_allocating_by("alloc.auction", 2);
+    start(&mut k);
+    k.tick(t(0.5), &[]);
+    drain(&mut k);
+    // r0, its coordinator, is lost: r1 leads, and is asked now.
+    k.member_lost(t(0.6), RobotId(0));
+    let now = drain(&mut k);
+    assert!(
+        (now.sent.iter())
+            .any(|(rcpt, m)| *rcpt == Recipients::One(RobotId(1)) && *m == Body::Query),
+        "r2 asks r1 at once: {:?}",
+        now.sent
+    );
+}
+
 /// Robot `me` of `robots` that run `p` (its children allocated by
 /// `alloc.optimal`), then `z`, having started `p`'s allocation; and robot
 /// 0's heartbeat from `z`#1, after `p`#1: it went past the allocation.

@@ -707,6 +707,13 @@ fn cases_that_failed_once() {
         // beyond its team's execution and left out of it (an allocation
         // split, then a synchronization's deadline).
         (3_518_242_391_574_278_183, 6),
+        // "A member that found its coordinator gone at the point": members
+        // that reached an `alloc.auction` late bid to a coordinator that
+        // had left it (they had not heard it leave), learnt so from its
+        // answer, and waited for the new coordinator's next call, which
+        // came after its deadline (property seed 2648 of the fifth
+        // session of 2026-12-06).
+        (12_240_106_986_188_585_820, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
