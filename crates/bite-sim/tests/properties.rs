@@ -714,6 +714,11 @@ fn cases_that_failed_once() {
         // came after its deadline (property seed 2648 of the fifth
         // session of 2026-12-06).
         (12_240_106_986_188_585_820, 7),
+        // The same section, seed 2677: a robot a lap ahead had ended more
+        // executions since it left `b22`#1 (before its synchronization)
+        // than it remembers, and kept its teammate's question about that
+        // synchronization for ever instead of answering that it had left.
+        (8_310_571_936_956_924_643, 5),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

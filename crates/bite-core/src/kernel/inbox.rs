@@ -213,6 +213,25 @@ impl Kernel {
         {
             return self.drop_msg(from, DropReason::Stale);
         }
+        // A question about the synchronization of an execution this robot
+        // started and has left before its point (an ancestor ended, or it
+        // went on another way), with no instance or tombstone of it here:
+        // it will never reach that point, and says so, as for an allocation
+        // it left. Kept for later, the question waited for ever, and the
+        // teammate that asked for its deadline: a robot a lap ahead had
+        // ended more executions since than it remembers (its last
+        // [`super::position::RECENT`]), and told neither from the question nor
+        // from the teammate's heartbeats that it had left the execution
+        // (docs/reliability.md, "A member that found its coordinator gone
+        // at the point", seed 2677).
+        if key.kind == Kind::Sync
+            && env.body.asks()
+            && self.org.runs(key.team, key.behavior) >= key.epoch
+            && !self.runs_execution(key)
+        {
+            self.stats.received += 1;
+            return self.reply(key, from, Body::Done);
+        }
         if self.inbox.len() >= self.limits.max_pending {
             return self.drop_msg(from, DropReason::BufferOverflow);
         }
@@ -227,6 +246,16 @@ impl Kernel {
         }
         self.stats.received += 1;
         self.stats.buffered += 1;
+    }
+
+    /// True when this robot runs the execution of instance `key`: on its
+    /// stack, or the one it ended and terminates or chooses a successor
+    /// for.
+    fn runs_execution(&self, key: InstanceKey) -> bool {
+        let id = super::position::FrameId::of(key);
+        (self.stack.iter().map(Frame::id))
+            .chain(self.popped().map(|(f, _)| f.id()))
+            .any(|f| f == id)
     }
 
     /// True when this robot left instance `key` before it decided (it is

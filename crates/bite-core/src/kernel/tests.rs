@@ -916,6 +916,60 @@ fn a_robot_done_with_a_behavior_answers_a_call_but_not_an_answer() {
     assert_eq!(answers(k, 102, notice), []);
 }
 
+/// A robot that left an execution before its synchronization (the
+/// behavior above it ended) answers a teammate's question about that
+/// synchronization with `Done`, and one still running it keeps the
+/// question for when it gets there. Kept for later by a robot that had
+/// left, the question waited for ever, and the teammate for its deadline
+/// (docs/reliability.md, "A member that found its coordinator gone at the
+/// point", property seed 2677).
+#[test]
+fn a_robot_that_left_an_execution_answers_a_question_about_its_synchronization() {
+    const P_A: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [p] }
+  p: { team: true, children: [a], until: p_done }
+  a: { team: true, skill: w, until: a_done, next: [b, c], sync: sync.test-never }
+  b: { team: true, skill: w }
+  c: { team: true, skill: w }";
+    let mut h = Harness::new(P_A, 2);
+    h.tick(0, &[("a_done", F), ("p_done", F)]);
+    let a = h.kernels[0].mission().graph().find("a").unwrap();
+    let sync_a = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: a,
+        kind: Kind::Sync,
+        epoch: 1,
+        round: 0,
+    };
+    let answers = |k: &mut Kernel, ms: u64, seq: u64| {
+        while k.poll_output().is_some() {}
+        k.message(
+            Time::from_millis(ms),
+            Envelope {
+                instance: sync_a,
+                sender: RobotId(1),
+                seq,
+                body: Body::Query,
+            },
+        );
+        std::iter::from_fn(|| k.poll_output())
+            .filter_map(|o| match o {
+                Output::Send(s) => Some(s.envelope.body),
+                Output::Event(_) => None,
+            })
+            .collect::<Vec<_>>()
+    };
+    // Still in `a`: the question waits for its synchronization.
+    assert_eq!(h.stack(0), ["root", "p", "a"]);
+    assert_eq!(answers(&mut h.kernels[0], 50, 100), []);
+    // `p` ends by its own condition: r0 leaves `a` before its point.
+    h.tick_one(0, 100, &[("p_done", T)]);
+    assert!(!h.stack(0).contains(&"a"), "{:?}", h.stack(0));
+    assert_eq!(answers(&mut h.kernels[0], 150, 101), [Body::Done]);
+}
+
 impl Harness {
     /// One round of heartbeats as the runtimes send them: each robot's
     /// position to its `beacon_audience`.
