@@ -868,6 +868,26 @@ fn messages_for_a_dissolved_subteam_are_stale() {
     );
 }
 
+/// What robot `k` sends in answer to robot 1's message `body` (number
+/// `seq`) for instance `key`, heard at `ms`.
+fn answers_to(k: &mut Kernel, key: InstanceKey, ms: u64, seq: u64, body: Body) -> Vec<Body> {
+    k.message(
+        Time::from_millis(ms),
+        Envelope {
+            instance: key,
+            sender: RobotId(1),
+            seq,
+            body,
+        },
+    );
+    std::iter::from_fn(|| k.poll_output())
+        .filter_map(|o| match o {
+            Output::Send(s) => Some(s.envelope.body),
+            Output::Event(_) => None,
+        })
+        .collect()
+}
+
 /// A robot that has left a behavior answers a teammate's re-allocation of
 /// it with `Done`, but answers neither a `Done` nor a notice: two robots
 /// that had both left it answered each other's `Done` for ever
@@ -885,24 +905,7 @@ fn a_robot_done_with_a_behavior_answers_a_call_but_not_an_answer() {
         epoch: 1,
         round: 1,
     };
-    let answers = |k: &mut Kernel, seq: u64, body: Body| {
-        let sender = RobotId(1);
-        k.message(
-            Time::from_millis(250),
-            Envelope {
-                instance: round1,
-                sender,
-                seq,
-                body,
-            },
-        );
-        std::iter::from_fn(|| k.poll_output())
-            .filter_map(|o| match o {
-                Output::Send(s) => Some(s.envelope.body),
-                Output::Event(_) => None,
-            })
-            .collect::<Vec<_>>()
-    };
+    let answers = |k: &mut Kernel, seq: u64, body: Body| answers_to(k, round1, 250, seq, body);
     assert_eq!(
         answers(k, 100, Body::Reallocate { lost: vec![] }),
         [Body::Done]
@@ -945,21 +948,7 @@ behaviors:
     };
     let answers = |k: &mut Kernel, ms: u64, seq: u64| {
         while k.poll_output().is_some() {}
-        k.message(
-            Time::from_millis(ms),
-            Envelope {
-                instance: sync_a,
-                sender: RobotId(1),
-                seq,
-                body: Body::Query,
-            },
-        );
-        std::iter::from_fn(|| k.poll_output())
-            .filter_map(|o| match o {
-                Output::Send(s) => Some(s.envelope.body),
-                Output::Event(_) => None,
-            })
-            .collect::<Vec<_>>()
+        answers_to(k, sync_a, ms, seq, Body::Query)
     };
     // Still in `a`: the question waits for its synchronization.
     assert_eq!(h.stack(0), ["root", "p", "a"]);
