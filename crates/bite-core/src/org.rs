@@ -243,6 +243,14 @@ fn from_key<A: Ord + Copy, B: Ord + Copy>(
     set.as_slice()[at..].iter().map(|(k, _)| *k)
 }
 
+/// A team's count of its executions of a behavior (the epoch of the
+/// latest, from 1), and the highest of them this robot started itself.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct RunCount {
+    count: u32,
+    started: u32,
+}
+
 /// One robot's copy of the organization hierarchy.
 ///
 /// The root team, and the [`Split`]s of the allocations this robot applied
@@ -264,8 +272,9 @@ pub struct Organization {
     links_by_team: LiteMap<(TeamId, BehaviorId), ()>,
     /// Links a split made that were removed since.
     unlinked: LiteMap<(BehaviorId, TeamId), ()>,
-    /// Execution counts: how many times team t has started behavior b.
-    runs: LiteMap<(TeamId, BehaviorId), u32>,
+    /// Execution counts: how many times team t has started behavior b,
+    /// and the highest of those executions this robot started itself.
+    runs: LiteMap<(TeamId, BehaviorId), RunCount>,
     /// Dissolved teams, oldest first, and the same as a set (looked up for
     /// every message, changed at every dissolution, never walked: a hash
     /// set; a B-tree of 4,096 ids was a tenth of a decision step).
@@ -490,9 +499,24 @@ impl Organization {
     /// Count one more execution of `b` by `t`; returns the new count (the
     /// epoch of that execution, from 1).
     pub fn start_run(&mut self, t: TeamId, b: BehaviorId) -> u32 {
-        let n = self.runs.entry((t, b)).or_insert(0);
-        *n = n.saturating_add(1);
-        *n
+        let n = self.runs.entry((t, b)).or_default();
+        n.count = n.count.saturating_add(1);
+        n.started = n.count;
+        n.count
+    }
+    /// Start execution `epoch` of `b` by `t`, a teammate's (to converge
+    /// with it), whatever the count: the count is raised to it, never
+    /// lowered. Returns `epoch`.
+    pub fn start_run_at(&mut self, t: TeamId, b: BehaviorId, epoch: u32) -> u32 {
+        let n = self.runs.entry((t, b)).or_default();
+        n.count = n.count.max(epoch);
+        n.started = n.started.max(epoch);
+        epoch
+    }
+    /// The highest execution of `b` by `t` this robot started itself (0:
+    /// none): a count raised by teammates' word is not a start.
+    pub fn started(&self, t: TeamId, b: BehaviorId) -> u32 {
+        self.runs.get(&(t, b)).map_or(0, |n| n.started)
     }
     /// Make the count of `t`'s executions of `b` at least `n` (an execution
     /// burned or adopted to converge with teammates is never started again).
@@ -504,9 +528,15 @@ impl Organization {
         // teammate's heartbeat mostly repeats counts already kept, and at
         // 100,000 robots asking cost a cache miss each time.
         if let Some(c) = self.runs.get_mut(&(t, b)) {
-            *c = (*c).max(n);
+            c.count = c.count.max(n);
         } else if !self.is_dead(t) {
-            self.runs.insert((t, b), n);
+            self.runs.insert(
+                (t, b),
+                RunCount {
+                    count: n,
+                    started: 0,
+                },
+            );
         }
     }
     /// Ask for the execution counts (read at every teammate's heartbeat)
@@ -519,7 +549,7 @@ impl Organization {
     }
     /// How many times `t` has started `b`.
     pub fn runs(&self, t: TeamId, b: BehaviorId) -> u32 {
-        self.runs.get(&(t, b)).copied().unwrap_or(0)
+        self.runs.get(&(t, b)).map_or(0, |n| n.count)
     }
 
     /// The smallest live teams containing `r` (its parents in the DAG, as a
@@ -658,6 +688,14 @@ mod tests {
         org.runs_at_least(TeamId(77), follow, 5);
         assert_eq!(org.runs(TeamId(77), follow), 5);
         org.check_invariants().unwrap();
+        // A count raised by a teammate's word is not a start of this
+        // robot's; a start, or a teammate's execution joined, is.
+        assert_eq!(org.started(TeamId(77), follow), 0);
+        assert_eq!(org.start_run_at(TeamId(77), follow, 3), 3);
+        assert_eq!(org.runs(TeamId(77), follow), 5, "never lowered");
+        assert_eq!(org.started(TeamId(77), follow), 3);
+        assert_eq!(org.start_run(TeamId(77), follow), 6);
+        assert_eq!(org.started(TeamId(77), follow), 6);
     }
 
     /// Every dissolved team is dead, the newest (read in place) and the

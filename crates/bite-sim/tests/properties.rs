@@ -719,6 +719,12 @@ fn cases_that_failed_once() {
         // than it remembers, and kept its teammate's question about that
         // synchronization for ever instead of answering that it had left.
         (8_310_571_936_956_924_643, 5),
+        // "Property seeds 2,638 to 3,553", seed 3136: a robot converged
+        // into the execution after its teammate's (its count was past
+        // the teammate's, from a third teammate's word), and "the higher
+        // epoch wins" drew the team up after it, epoch after epoch, until
+        // the stall watch ended the run.
+        (12_706_380_029_821_677_148, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -342,11 +342,28 @@ impl Kernel {
         via: Via,
         anchor: Option<Anchor>,
     ) {
+        self.push_anchored_at(b, team, via, anchor, None);
+    }
+
+    /// [`Kernel::push_anchored`]; `at`: the execution to join, a
+    /// teammate's (`Kernel::converge`), instead of the team's next one by
+    /// this robot's count.
+    pub(super) fn push_anchored_at(
+        &mut self,
+        b: BehaviorId,
+        team: TeamId,
+        via: Via,
+        anchor: Option<Anchor>,
+        at: Option<u32>,
+    ) {
         let parent_runs = match self.stack.last_mut() {
             Some(p) => &mut p.runs,
             None => &mut self.root_runs,
         };
-        let epoch = self.org.start_run(team, b);
+        let epoch = match at {
+            Some(e) => self.org.start_run_at(team, b, e),
+            None => self.org.start_run(team, b),
+        };
         parent_runs.bump(b, epoch);
         self.org.link(b, team);
         let depth = self.stack.len() as u32;

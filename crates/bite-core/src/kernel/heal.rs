@@ -984,7 +984,17 @@ impl Kernel {
             }
         }
         self.phase = Phase::Run;
-        self.push_anchored(theirs.behavior, team, Via::Converged, Some(prev));
+        // Exactly the teammate's execution, unless this robot started it
+        // (or a later one) itself, or burned it: a robot whose count was
+        // past it (it had heard a third teammate in a later one) started
+        // the one after it, an epoch above everyone, and "the higher epoch
+        // wins" drew the others up after it, for ever (docs/reliability.md,
+        // "Property seeds 2,638 to 3,553", seed 3136). A robot's starts of
+        // a behavior are numbered upwards (the checker's `epochs`).
+        let at = (theirs.epoch > self.org.started(team, theirs.behavior)
+            && !self.recent_burned.contains(&theirs))
+        .then_some(theirs.epoch);
+        self.push_anchored_at(theirs.behavior, team, Via::Converged, Some(prev), at);
     }
 
     pub(super) fn split_event(
