@@ -253,9 +253,7 @@ impl Kernel {
     /// for.
     fn runs_execution(&self, key: InstanceKey) -> bool {
         let id = super::position::FrameId::of(key);
-        (self.stack.iter().map(Frame::id))
-            .chain(self.popped().map(|(f, _)| f.id()))
-            .any(|f| f == id)
+        self.frames().any(|(_, f)| f.id() == id)
     }
 
     /// True when this robot left instance `key` before it decided (it is

@@ -566,8 +566,7 @@ impl Kernel {
     /// ([`Kernel::heal_leader`]) and, when that is a teammate, whether this
     /// robot relays the root in its place ([`Kernel::relays_root`]).
     fn frame_leaders(&self) -> smallvec::SmallVec<[FrameLeader; 8]> {
-        (self.stack.iter().enumerate())
-            .chain(self.popped().map(|(f, _)| (self.stack.len(), f)))
+        self.frames()
             .map(|(depth, f)| {
                 let leader = self.heal_leader(f.team, depth);
                 let relays = leader.is_some_and(|l| l != self.me && self.relays_root(f, depth, l));
@@ -649,6 +648,12 @@ impl Kernel {
         }
     }
 
+    /// Every frame this robot runs, with its depth: the stack's, root
+    /// first, then the one it ended ([`Kernel::popped`]), one deeper.
+    pub(super) fn frames(&self) -> impl Iterator<Item = (usize, &Frame)> + '_ {
+        (self.stack.iter().enumerate()).chain(self.popped().map(|(f, _)| (self.stack.len(), f)))
+    }
+
     /// The frame this robot ended and is terminating or choosing a
     /// successor for, if any.
     pub(super) fn popped(&self) -> Option<(&Frame, FrameState)> {
@@ -672,8 +677,7 @@ impl Kernel {
     /// ([`Kernel::frame_leaders`]).
     fn audience_with(&self, leaders: &[FrameLeader]) -> MemberSet {
         let mut to = MemberSet::empty(self.org.roster_len());
-        let frames = (self.stack.iter().enumerate())
-            .chain(self.popped().map(|(f, _)| (self.stack.len(), f)));
+        let frames = self.frames();
         // The frame this robot waits at, if any (its end, or its
         // allocation).
         let waiting = match self.phase {
@@ -1167,6 +1171,8 @@ impl Kernel {
         //   hold (deeper frames run under it): one it left, or has yet to
         //   join. A frame in the team of this robot's frame at the same
         //   depth is not looked up.
+        // (Not `Kernel::frames`: its opaque iterator would hold `self` to
+        // the end of the function, and `answering` is changed below.)
         let mut mine = self
             .stack
             .iter()
@@ -1709,10 +1715,7 @@ impl Kernel {
         // `triangle` and `line` expand to, at the same team count), and a
         // teammate ahead, in the later one, is not behind.
         let behind: Vec<Ended> = self
-            .stack
-            .iter()
-            .enumerate()
-            .chain(self.popped().map(|(f, _)| (self.stack.len(), f)))
+            .frames()
             .filter_map(|(i, f)| {
                 f.anchor.filter(|a| !a.first).map(|a| Ended {
                     id: FrameId {
