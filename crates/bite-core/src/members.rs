@@ -271,6 +271,21 @@ impl MemberSet {
             }
         }
     }
+    /// Its size in postcard's wire form (see `Serialize` below), counted
+    /// without writing it: the bit set's length, then its blocks as bytes.
+    /// A set held as a list is not turned into a bit set to be counted (a
+    /// leader's heartbeat counted its departed sets once per member).
+    pub fn wire_len(&self) -> usize {
+        let (length, blocks) = match &self.repr {
+            Repr::Bits(b) => (b.set.len(), b.set.as_slice().len()),
+            _ => {
+                let roster = self.roster as usize;
+                (roster, roster.div_ceil(usize::BITS as usize))
+            }
+        };
+        let bytes = blocks * std::mem::size_of::<usize>();
+        crate::msg::varint_len(length as u64) + crate::msg::varint_len(bytes as u64) + bytes
+    }
     /// Add a robot (ignored if outside the roster). Returns whether it was new.
     pub fn insert(&mut self, r: RobotId) -> bool {
         if r.index() >= self.roster as usize {
