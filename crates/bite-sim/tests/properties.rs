@@ -725,6 +725,13 @@ fn cases_that_failed_once() {
         // epoch wins" drew the team up after it, epoch after epoch, until
         // the stall watch ended the run.
         (12_706_380_029_821_677_148, 8),
+        // "A coordinator that went past the allocation", seeds 3251 and
+        // 3973: a coordinator converged onto a teammate past an
+        // `alloc.by-value` / `alloc.by-attribute` execution it never ran,
+        // and kept its members' questions about it for ever; they waited
+        // out their deadline.
+        (7_843_099_851_630_415_988, 7),
+        (16_386_558_250_385_141_952, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -213,18 +213,23 @@ impl Kernel {
         {
             return self.drop_msg(from, DropReason::Stale);
         }
-        // A question about the synchronization of an execution this robot
-        // started and has left before its point (an ancestor ended, or it
-        // went on another way), with no instance or tombstone of it here:
-        // it will never reach that point, and says so, as for an allocation
-        // it left. Kept for later, the question waited for ever, and the
+        // A question about the synchronization or the allocation of an
+        // execution this robot's count is past and that it does not run
+        // (it left before the point: an ancestor ended, or it went on
+        // another way; or it converged onto a teammate further on, past
+        // the execution), with no instance or tombstone of it here: it will
+        // never reach that point, and says so, as for an allocation it
+        // left. Kept for later, the question waited for ever, and the
         // teammate that asked for its deadline: a robot a lap ahead had
         // ended more executions since than it remembers (its last
         // [`super::position::RECENT`]), and told neither from the question nor
         // from the teammate's heartbeats that it had left the execution
         // (docs/reliability.md, "A member that found its coordinator gone
-        // at the point", seed 2677).
-        if key.kind == Kind::Sync
+        // at the point", seed 2677). A coordinator that converged past an
+        // allocation kept its members' questions for ever in the same way
+        // ("A coordinator that went past the allocation", seeds 3251 and
+        // 3973).
+        if matches!(key.kind, Kind::Sync | Kind::Allocate)
             && env.body.asks()
             && self.org.runs(key.team, key.behavior) >= key.epoch
             && !self.runs_execution(key)

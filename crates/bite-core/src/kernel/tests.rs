@@ -959,6 +959,48 @@ behaviors:
     assert_eq!(answers(&mut h.kernels[0], 150, 101), [Body::Done]);
 }
 
+/// The same for an allocation: a robot whose count of a behavior's runs
+/// is past an execution it does not run (a teammate's word raised it: it
+/// converged onto a teammate further on, past that execution) answers a
+/// teammate's question about the execution's allocation with `Done`. It
+/// kept the question for a point it would never reach, and the teammate,
+/// which took it for the coordinator, waited out its deadline (property
+/// seeds 3251 and 3973, docs/reliability.md, "A coordinator that went past
+/// the allocation"). Before its count got there, it keeps the question.
+#[test]
+fn a_robot_counted_past_an_execution_answers_a_question_about_its_allocation() {
+    const S_A: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [s] }
+  s: { team: true, skill: w, until: s_done, next: [a] }
+  a: { team: true, children: [x, y] }
+  x: { team: true, skill: w }
+  y: { team: true, skill: w }";
+    let mut h = Harness::new(S_A, 2);
+    h.tick(0, &[("s_done", F)]);
+    let a = h.kernels[0].mission().graph().find("a").unwrap();
+    let alloc_a = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: a,
+        kind: Kind::Allocate,
+        epoch: 1,
+        round: 0,
+    };
+    let answers = |k: &mut Kernel, ms: u64, seq: u64| {
+        while k.poll_output().is_some() {}
+        answers_to(k, alloc_a, ms, seq, Body::Query)
+    };
+    // On its way to `a`#1: the question waits for the allocation.
+    assert_eq!(h.stack(0), ["root", "s"]);
+    assert_eq!(answers(&mut h.kernels[0], 50, 100), []);
+    // Its count of `a` is raised past #1 (as `converge` and `count_past`
+    // do): its next `a` is #2, and it will never reach #1's point.
+    h.kernels[0].org.runs_at_least(TeamId::ROOT, a, 1);
+    assert_eq!(h.stack(0), ["root", "s"]);
+    assert_eq!(answers(&mut h.kernels[0], 100, 101), [Body::Done]);
+}
+
 impl Harness {
     /// One round of heartbeats as the runtimes send them: each robot's
     /// position to its `beacon_audience`.
