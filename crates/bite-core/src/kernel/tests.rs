@@ -919,6 +919,26 @@ fn a_robot_done_with_a_behavior_answers_a_call_but_not_an_answer() {
     assert_eq!(answers(k, 102, notice), []);
 }
 
+/// A teammate's `Query` about the first execution of the root team's
+/// point `kind` of `behavior`, sent to a kernel at `ms` with sequence
+/// number `seq`: what the kernel answers (its outputs so far drained).
+fn query_of_root_point(
+    behavior: &'static str,
+    kind: Kind,
+) -> impl Fn(&mut Kernel, u64, u64) -> Vec<Body> {
+    move |k: &mut Kernel, ms: u64, seq: u64| {
+        let key = InstanceKey {
+            team: TeamId::ROOT,
+            behavior: k.mission().graph().find(behavior).unwrap(),
+            kind,
+            epoch: 1,
+            round: 0,
+        };
+        while k.poll_output().is_some() {}
+        answers_to(k, key, ms, seq, Body::Query)
+    }
+}
+
 /// A robot that left an execution before its synchronization (the
 /// behavior above it ended) answers a teammate's question about that
 /// synchronization with `Done`, and one still running it keeps the
@@ -938,18 +958,7 @@ behaviors:
   c: { team: true, skill: w }";
     let mut h = Harness::new(P_A, 2);
     h.tick(0, &[("a_done", F), ("p_done", F)]);
-    let a = h.kernels[0].mission().graph().find("a").unwrap();
-    let sync_a = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: a,
-        kind: Kind::Sync,
-        epoch: 1,
-        round: 0,
-    };
-    let answers = |k: &mut Kernel, ms: u64, seq: u64| {
-        while k.poll_output().is_some() {}
-        answers_to(k, sync_a, ms, seq, Body::Query)
-    };
+    let answers = query_of_root_point("a", Kind::Sync);
     // Still in `a`: the question waits for its synchronization.
     assert_eq!(h.stack(0), ["root", "p", "a"]);
     assert_eq!(answers(&mut h.kernels[0], 50, 100), []);
@@ -980,17 +989,7 @@ behaviors:
     let mut h = Harness::new(S_A, 2);
     h.tick(0, &[("s_done", F)]);
     let a = h.kernels[0].mission().graph().find("a").unwrap();
-    let alloc_a = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: a,
-        kind: Kind::Allocate,
-        epoch: 1,
-        round: 0,
-    };
-    let answers = |k: &mut Kernel, ms: u64, seq: u64| {
-        while k.poll_output().is_some() {}
-        answers_to(k, alloc_a, ms, seq, Body::Query)
-    };
+    let answers = query_of_root_point("a", Kind::Allocate);
     // On its way to `a`#1: the question waits for the allocation.
     assert_eq!(h.stack(0), ["root", "s"]);
     assert_eq!(answers(&mut h.kernels[0], 50, 100), []);
