@@ -521,7 +521,13 @@ impl<R: Rule> Interaction for Gather<R> {
         if self.rule.is_contribution(body) {
             if !cx.is_leader() {
                 // Sent to a robot that no longer leads, or does not know yet
-                // that it does: the sender's retries recover it.
+                // that it does: the sender's retries recover it. One that
+                // applied the team's decision answers with it: the sender,
+                // which takes it for the coordinator (the one that decided
+                // has left, as far as the sender knows), would otherwise ask
+                // until its deadline (docs/reliability.md, "A member asked
+                // for a decision it applied", property seed 4167).
+                self.coord.answer(cx, from);
                 return;
             }
             if self.coord.answer(cx, from) || cx.is_aborted() {
@@ -561,6 +567,11 @@ impl<R: Rule> Interaction for Gather<R> {
                     && !cx.is_aborted()
                 {
                     self.contribute(cx);
+                } else if from != leader {
+                    // A member that takes this robot for its coordinator:
+                    // the decision, if the team's was applied here (as for
+                    // a contribution, above).
+                    self.coord.answer(cx, from);
                 }
             }
             _ if self

@@ -581,3 +581,38 @@ fn a_member_asks_its_coordinator_heard_out_of_the_allocation_at_the_deadline() {
     r1.message(answer, from(0, key, 1, Body::Done));
     assert_eq!(drain(&mut r1).decided, 1, "r0 left undecided: r1 decides");
 }
+
+/// A member that applied its coordinator's decision answers a teammate
+/// that asks it for the decision (a contribution or a `Query`): the
+/// teammate reached the point later, after the coordinator had left, and
+/// takes this robot for the coordinator. It got no answer and asked until
+/// its deadline (property seed 4167, graph seed 4632419412741304454, four
+/// robots: docs/reliability.md, "A member asked for a decision it
+/// applied"). A member that has not had the decision keeps quiet, as
+/// before: the sender's retries reach the coordinator when it knows it
+/// leads.
+#[test]
+fn a_member_that_applied_the_decision_answers_a_teammate_that_asks_it() {
+    let t = Time::from_secs_f64;
+    let mut r1 = robot_allocating_by("alloc.optimal", 1);
+    let key = start(&mut r1);
+    drain(&mut r1);
+    // r2 asks r1 before r1 has the decision: nothing to tell.
+    r1.message(t(0.1), from(2, key, 1, Body::Query));
+    assert_eq!(drain(&mut r1).sent, [], "no decision yet: r1 keeps quiet");
+    // r0, the coordinator, decides and tells the team.
+    let [x, y] = ["x", "y"].map(|n| r1.mission().graph().find(n).expect("child"));
+    let decision = Body::Assignment {
+        children: vec![x, y],
+        members: vec![(RobotId(0), 0), (RobotId(1), 0), (RobotId(2), 1)],
+    };
+    r1.message(t(0.2), from(0, key, 1, decision.clone()));
+    assert_eq!(drain(&mut r1).decided, 1, "r1 applies r0's decision");
+    // r2, which takes r1 for the coordinator, asks again: it is told.
+    r1.message(t(0.3), from(2, key, 2, Body::Query));
+    assert_eq!(
+        drain(&mut r1).sent,
+        [(Recipients::One(RobotId(2)), decision)],
+        "r1 answers r2 with the team's decision"
+    );
+}

@@ -732,6 +732,11 @@ fn cases_that_failed_once() {
         // out their deadline.
         (7_843_099_851_630_415_988, 7),
         (16_386_558_250_385_141_952, 6),
+        // "A member asked for a decision it applied", seed 4167: robots
+        // that reached an `alloc.by-value` point after its coordinator had
+        // decided and left asked a member that had applied the decision,
+        // which kept quiet (it was no coordinator in its own view).
+        (4_632_419_412_741_304_454, 4),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
