@@ -284,7 +284,7 @@ impl MemberSet {
             }
         };
         let bytes = blocks * std::mem::size_of::<usize>();
-        crate::msg::varint_len(length as u64) + crate::msg::varint_len(bytes as u64) + bytes
+        varint_len(length as u64) + varint_len(bytes as u64) + bytes
     }
     /// Add a robot (ignored if outside the roster). Returns whether it was new.
     pub fn insert(&mut self, r: RobotId) -> bool {
@@ -766,6 +766,19 @@ impl std::hash::Hash for MemberSet {
     }
 }
 
+/// Bytes postcard takes for an unsigned integer (a varint: seven bits a
+/// byte), for sizes counted by hand (`Position::encoded_len`,
+/// [`MemberSet::wire_len`]). Here, below `msg` in the core's layers,
+/// because a set's size on the wire is counted with it.
+#[inline]
+pub fn varint_len(v: u64) -> usize {
+    // Most numbers sent (epochs, behaviors, lengths) take one byte.
+    if v < 0x80 {
+        return 1;
+    }
+    (70 - v.leading_zeros() as usize) / 7
+}
+
 /// The wire form: the roster's bit set, whatever the set's form in memory.
 impl Serialize for MemberSet {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
@@ -1101,6 +1114,18 @@ impl ByIdMemo {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn varint_len_is_postcards_length_at_every_boundary() {
+        let mut values = vec![0u64, u64::MAX];
+        for bits in 1..64 {
+            values.extend([(1u64 << bits) - 1, 1u64 << bits, (1u64 << bits) + 1]);
+        }
+        for v in values {
+            let sent = postcard::to_allocvec(&v).unwrap_or_default().len();
+            assert_eq!(varint_len(v), sent, "{v}");
+        }
+    }
 
     fn set(roster: usize, ids: &[u32]) -> MemberSet {
         MemberSet::from_iter(roster, ids.iter().map(|i| RobotId(*i)))

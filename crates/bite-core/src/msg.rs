@@ -270,17 +270,6 @@ pub fn encode(env: &Envelope) -> Vec<u8> {
     }
 }
 
-/// Bytes postcard takes for an unsigned integer (a varint: seven bits a
-/// byte), for sizes counted by hand (`Position::encoded_len`).
-#[inline]
-pub fn varint_len(v: u64) -> usize {
-    // Most numbers sent (epochs, behaviors, lengths) take one byte.
-    if v < 0x80 {
-        return 1;
-    }
-    (70 - v.leading_zeros() as usize) / 7
-}
-
 /// Encoded size of an envelope in bytes (what the byte counters report).
 pub fn encoded_len(env: &Envelope) -> usize {
     1 + postcard::experimental::serialized_size(env).unwrap_or(0)
@@ -325,18 +314,6 @@ mod tests {
             body: Body::Vote {
                 choice: Some(BehaviorId(5)),
             },
-        }
-    }
-
-    #[test]
-    fn varint_len_is_postcards_length_at_every_boundary() {
-        let mut values = vec![0u64, u64::MAX];
-        for bits in 1..64 {
-            values.extend([(1u64 << bits) - 1, 1u64 << bits, (1u64 << bits) + 1]);
-        }
-        for v in values {
-            let sent = postcard::to_allocvec(&v).unwrap_or_default().len();
-            assert_eq!(varint_len(v), sent, "{v}");
         }
     }
 

@@ -386,7 +386,7 @@ impl Position {
     /// cost a fifth of a heartbeat sent (a test compares the two on
     /// random positions).
     pub fn encoded_len(&self) -> usize {
-        use crate::msg::varint_len as v;
+        use crate::members::varint_len as v;
         let id = |f: &FrameId| v(f.team.0) + v(f.behavior.0.into()) + v(f.epoch.into());
         let frames: usize = self
             .frames
