@@ -2036,8 +2036,8 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The size counted by hand is the size of what is sent, and it
-        /// decodes to the same position.
+        /// The size counted by hand is the size of what is sent, and of
+        /// what postcard's own counting pass says.
         #[test]
         fn encoded_len_is_the_wire_forms_length(pos in any_position()) {
             let bytes = pos.encode();
