@@ -2267,6 +2267,113 @@ fn tell(
     h.kernels[to].peer(now, RobotId(from), &pos);
 }
 
+/// A cycle under the root: `a`, then `b` or `c` (decided by rule: `b`,
+/// the first), both into `d`, whose child `s` ends at a barrier; `d`
+/// leads back to `a`, and nothing else does.
+const ROUND: &str = "start: root
+defaults: { terminate: term.local, sync: sync.by-rule }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b, c] }
+  b: { team: true, skill: w, until: b_done, next: [d] }
+  c: { team: true, skill: w, until: c_done, next: [d] }
+  d: { team: true, children: [s], until: d_done, next: [a] }
+  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
+
+/// Robot `i` goes once round [`ROUND`] from `a` at `ms` (a tick every
+/// 100 ms), through `b` into `d`, and ends with `last` (`d_done`: on to the
+/// next `a`; `s_done`: waiting at the barrier under `d`).
+fn round_once(h: &mut Harness, i: usize, ms: u64, last: &'static str) {
+    h.tick_one(i, ms, &[("d_done", F), ("a_done", T)]);
+    h.tick_one(i, ms + 100, &[("a_done", F), ("b_done", T)]);
+    h.tick_one(i, ms + 200, &[("b_done", F), (last, T)]);
+    h.tick_one(i, ms + 300, &[(last, F)]);
+}
+
+/// Three robots on [`ROUND`], every condition false.
+fn round() -> Harness {
+    let mut h = Harness::new(ROUND, 3);
+    let off = [("a_done", F), ("b_done", F), ("c_done", F), ("d_done", F)];
+    h.tick(0, &off);
+    h.tick(0, &[("s_done", F)]);
+    h
+}
+
+/// A teammate heard in an execution that came right after a later
+/// execution of the behavior that follows this robot's (`c`#3 after `a`#3,
+/// this robot in `d`#2 with two runs of `a`; `d`'s one successor is `a`,
+/// and only `d` leads to `a`) went round the cycle past this robot's
+/// execution: it is marked departed from it and left out of the barrier
+/// below. Its end of `d`#2 may be gone from the ends it reports, and it
+/// runs neither `d`'s successor nor a later execution of the behavior
+/// this robot came from (`b`). Not so when it is in `c`#2 after `a`#2: it
+/// may be on its way into `d`#2. Found by `no_waiting_across_levels` (RNG
+/// seed 4427, graph seed 3395602347605941739: r1 in `b3`#2, come by
+/// `alt4`, waited twice at points below it for r5 in `b2`#2 after `b1`#3,
+/// a lap ahead, until its deadlines).
+#[test]
+fn a_teammate_gone_round_the_cycle_past_an_execution_is_departed_from_it() {
+    let run = |lap: u32| {
+        let mut h = round();
+        let [root, a, c, d, s] = behaviors(&h, 1, ["root", "a", "c", "d", "s"]);
+        round_once(&mut h, 1, 100, "d_done");
+        round_once(&mut h, 1, 500, "s_done");
+        assert_runs(&h, 1, at_root(d, 2));
+        let barrier = barrier_at(&h, 1, s);
+        assert!(!left_out(&h, 1, barrier, RobotId(2)));
+        let chain = [
+            (at_root(root, 1), None),
+            (at_root(c, lap), Some((at_root(a, lap), false))),
+        ];
+        tell(&mut h, 1, 2, Time::from_millis(950), &chain);
+        (h, at_root(d, 2), barrier)
+    };
+    let (h, id, barrier) = run(3);
+    let why = "robot 2, in `c`#3 after `a`#3, went round past `d`#2";
+    assert_gone_from(&h, 1, id, barrier, RobotId(2), why);
+    let (h, id, barrier) = run(2);
+    assert!(
+        !departed_from(&h, 1, id, RobotId(2)),
+        "robot 2, in `c`#2 after `a`#2, may be on its way into `d`#2"
+    );
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
+}
+
+/// A robot answers a teammate waiting at a point below an execution it
+/// went past laps ago, when its end of that execution is gone from the
+/// ends it remembers ([`RECENT`]): the teammate's heartbeats go to the
+/// team's leader, and it would take this robot for silent. Robot 0 goes
+/// round [`ROUND`] four times; robot 1 waits at the barrier under `d`#2.
+/// Found with the test above (RNG seed 4427: r5, a lap ahead, did not
+/// answer r1, so r1 never learnt it was past).
+#[test]
+fn a_robot_answers_a_teammate_waiting_in_an_execution_it_went_past_laps_ago() {
+    let mut h = round();
+    let [root, b, d, s] = behaviors(&h, 0, ["root", "b", "d", "s"]);
+    for lap in 0..4 {
+        round_once(&mut h, 0, 100 + 400 * lap, "d_done");
+    }
+    assert!(
+        !h.kernels[0].recent_ended.contains(&at_root(d, 2)),
+        "robot 0 no longer lists its end of `d`#2"
+    );
+    let mut waiting = running(&[
+        (at_root(root, 1), None),
+        (at_root(d, 2), Some((at_root(b, 2), false))),
+        (at_root(s, 2), Some((at_root(d, 2), true))),
+    ]);
+    waiting.robot = RobotId(1);
+    if let Some(f) = waiting.frames.last_mut() {
+        f.state = FrameState::Ending;
+    }
+    h.kernels[0].peer(Time::from_millis(1800), RobotId(1), &waiting);
+    assert!(
+        (h.kernels[0].answering.as_ref()).is_some_and(|a| a.contains(RobotId(1))),
+        "robot 0 answers robot 1: {:?}",
+        audience(&h, 0)
+    );
+}
+
 /// A robot answers a teammate waiting at a point in an execution of its
 /// team it has yet to start, any number of behaviors ahead (not only the
 /// successor of its own): once the team's leader has gone by too, the
