@@ -333,7 +333,7 @@ impl Kernel {
             };
             // Or it went past without running it: it never took part in
             // the execution's allocation either (see below).
-            let went_past = ahead.is_some_and(|g| !self.lapped(id, g) && self.went_past(k, id, g));
+            let went_past = ahead.is_some_and(|g| self.went_past(k, id, g));
             // Or it went round past it: it runs a later execution of the
             // behavior this one came after, which leads only here
             // (`Kernel::round_past`; docs/reliability.md, "A teammate gone
@@ -342,12 +342,7 @@ impl Kernel {
             // have run it (and decided its allocation), so it stays in that
             // allocation, as a teammate that ran it does.
             let went_round = !went_past
-                && ahead.is_some_and(|g| {
-                    self.lapped(id, g)
-                        || self.round_past(k, g.id)
-                        || self.went_beyond(k, id, g.id)
-                        || self.went_round_after(k, id, g)
-                });
+                && ahead.is_some_and(|g| self.round_past(k, g.id) || self.went_beyond(k, id, g.id));
             // One that ended it before any allocation of it (its end, heard
             // with no allocation applied) neither decided one.
             let unallocated = || {
@@ -586,95 +581,6 @@ impl Kernel {
             && !self.leads_back(id.behavior, id.behavior)
             && self.leads_back(id.behavior, g.behavior)
             && !self.reaches(heads, g.behavior, Some(id.behavior))
-    }
-
-    /// True when a teammate's frame `g` came right after a later execution
-    /// of the team behavior of this robot's execution `id` (in the same
-    /// team, under the same parent): it ran `id`'s behavior again since
-    /// (`b2`#2 after `b1`#3, this robot in `b1`#2), so it went round past
-    /// `id`, running it or converging past it, and will not come to it.
-    /// Not "gone past without running it" ([`Kernel::went_past`]): it may
-    /// have run `id` and decided its points, so it stays in its allocation
-    /// (docs/reliability.md, "A teammate gone round the cycle past the
-    /// execution"). Not an individual behavior (`team: false`): each member
-    /// numbers its runs of one at its own pace, so a higher epoch there
-    /// says nothing of a lap.
-    fn lapped(&self, id: FrameId, g: &PosFrame) -> bool {
-        g.id.team == id.team
-            && g.anchor
-                .is_some_and(|a| !a.first && a.behavior == id.behavior && a.epoch > id.epoch)
-            && !self.graph().is_individual(id.behavior)
-    }
-
-    /// True when a teammate's frame `g`, beside this robot's execution `id`
-    /// at depth `k` (one this robot has yet to start:
-    /// [`Kernel::yet_to_start`]), is or came right after a later execution
-    /// of the behavior `x` that `id`'s behavior leads to: `id`'s behavior
-    /// has `x` as its one successor, and no other behavior under the
-    /// parent leads to `x`. Executions of the two then alternate in the
-    /// team's chain (`b3`#2, `b1`#3, ..., `b3`#3, `b1`#4), so a teammate
-    /// in `b1`#3 or past it, this robot's runs of `b1` being 2, went round
-    /// past `id`: it ended it by its own condition (`term.local`) and went
-    /// on round the cycle, or converged past it. Its end of `id` may be
-    /// gone from the ends it still reports ([`RECENT`]) after a few more
-    /// behaviors, and a barrier below `id` took it for one behind on its
-    /// way ([`Kernel::leads_into`]: `b2`#2 leads into `b3`) and waited out
-    /// its deadlines for it (docs/reliability.md, "A teammate gone round
-    /// the cycle past the execution"). It may have decided `id`'s
-    /// allocation, so it stays in that allocation, as a teammate that ran
-    /// it does.
-    ///
-    /// Not when `x` heads a chain under the parent and this robot has not
-    /// run it: `x`#1 is the chain's start, not a lap. Not from individual
-    /// behaviors (each member numbers its own runs). The walk that looks
-    /// for other ways into `x` is bounded ([`LEADS_BACK_WALK`]): beyond
-    /// the bound another way is taken to exist, and nobody is departed.
-    fn went_round_after(&self, k: usize, id: FrameId, g: &PosFrame) -> bool {
-        let graph = self.graph();
-        let Some(&[x]) = graph.get(id.behavior).map(|b| &b.next[..]) else {
-            return false;
-        };
-        let Some(parent) = k.checked_sub(1).and_then(|i| self.stack.get(i)) else {
-            return false;
-        };
-        let ran = parent.runs.latest_epoch(x);
-        let later = |f: FrameId| f.team == id.team && f.behavior == x && f.epoch > ran;
-        let by_sequence = g.anchor.filter(|a| !a.first);
-        let hit = (later(g.id) && by_sequence.is_some())
-            || by_sequence.is_some_and(|a| {
-                later(FrameId {
-                    team: g.id.team,
-                    behavior: a.behavior,
-                    epoch: a.epoch,
-                })
-            });
-        if !hit || graph.is_individual(id.behavior) || graph.is_individual(x) {
-            return false;
-        }
-        let heads = graph
-            .get(parent.behavior)
-            .map_or(&[][..], |b| &b.children[..]);
-        if ran == 0 && heads.contains(&x) {
-            return false;
-        }
-        // No other behavior under the parent leads to `x`.
-        let mut seen: SmallVec<[BehaviorId; 16]> = SmallVec::new();
-        let mut todo: SmallVec<[BehaviorId; 16]> = heads.iter().copied().collect();
-        while let Some(y) = todo.pop() {
-            if seen.contains(&y) {
-                continue;
-            }
-            if seen.len() >= LEADS_BACK_WALK {
-                return false;
-            }
-            seen.push(y);
-            let next = graph.get(y).map_or(&[][..], |b| &b.next[..]);
-            if y != id.behavior && next.contains(&x) {
-                return false;
-            }
-            todo.extend(next.iter().copied());
-        }
-        true
     }
 
     /// The teammate's frame at depth `k` of `pos`, if it runs, beside this

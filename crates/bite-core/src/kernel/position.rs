@@ -1258,16 +1258,9 @@ impl Kernel {
             //   a later execution in the same team under the same parent:
             //   the sender went on (this robot is behind, in an individual
             //   behavior, or was cut off), and may wait for it further on.
-            // - Or an execution this robot went past there (it started it
-            //   or a later one of its behavior under the same parent): the
-            //   sender is laps behind, and its end may be gone from the
-            //   ends this robot remembers ([`RECENT`]) while the sender
-            //   waits below it (docs/reliability.md, "A teammate gone
-            //   round the cycle past the execution").
             if std::mem::take(&mut shared)
                 && (self.recent_ended.contains(&f.id)
-                    || m.is_some_and(|m| f.follows(m) || self.ahead(k, m, f.id))
-                    || (k > 0 && self.passed(k, pos.frames[k - 1].id, f.id)))
+                    || m.is_some_and(|m| f.follows(m) || self.ahead(k, m, f.id)))
                 && waits()
             {
                 stranger = true;
