@@ -225,8 +225,25 @@ fn lapjv(n: usize, m: usize, c: &[f64]) -> Vec<usize> {
             continue;
         }
         let cf = row(freerow);
+        // The reduced costs and their minimum in one pass (a branch-free
+        // minimum, so that it vectorizes).
+        let mut lowest = f64::INFINITY;
+        for ((dj, cj), vj) in d.iter_mut().zip(cf).zip(&v) {
+            *dj = cj - vj;
+            lowest = if *dj < lowest { *dj } else { lowest };
+        }
+        // A free column at that minimum ends the path at once: the first
+        // collection below would find the same one (it scans the columns in
+        // order and keeps the first free one at the final minimum) and
+        // change no dual (none is scanned yet). On integer or constant
+        // costs most rows end so, and collecting every tied column first
+        // was most of the time.
+        if let Some(j) = (0..m).find(|&j| d[j] == lowest && y[j] == NONE) {
+            y[j] = freerow;
+            x[freerow] = j;
+            continue;
+        }
         for j in 0..m {
-            d[j] = cf[j] - v[j];
             pred[j] = freerow;
             collist[j] = j;
         }
