@@ -35,8 +35,8 @@ fn the_parsers_read_divan_tables() {
 
 #[test]
 fn a_quick_run_reads_every_bench_commands_json() {
-    let dir = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join(format!("speed-goals-{}", std::process::id()));
+    let dir =
+        Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("speed-goals-{}", std::process::id()));
     std::fs::create_dir_all(&dir).expect("scratch dir");
     let json = dir.join("goals.json");
     let o = script(&[

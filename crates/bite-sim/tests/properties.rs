@@ -737,6 +737,15 @@ fn cases_that_failed_once() {
         // decided and left asked a member that had applied the decision,
         // which kept quiet (it was no coordinator in its own view).
         (4_632_419_412_741_304_454, 4),
+        // "A leader gone off for good", seeds 5140, 4646, 4021 and 3003:
+        // the team's first member (or a member with it) went off into an
+        // individual behavior that never leads back, from an execution
+        // before the one a teammate waited in; the teammate waited for it
+        // at that execution's points until their deadlines.
+        (5_028_977_122_179_993_407, 8),
+        (1_642_720_823_527_748_982, 7),
+        (7_887_722_685_423_016_364, 8),
+        (15_105_780_659_358_193_082, 5),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -334,6 +334,11 @@ impl Kernel {
             // Or it went past without running it: it never took part in
             // the execution's allocation either (see below).
             let went_past = ahead.is_some_and(|g| self.went_past(k, id, g));
+            // Or it went off another way for good: the team's first member,
+            // in an individual behavior that never leads back here, come
+            // from an execution this robot ran before this one
+            // (`Kernel::went_off`).
+            let went_past = went_past || ahead.is_some_and(|g| self.went_off(k, id, g, from));
             // Or it went round past it: it runs a later execution of the
             // behavior this one came after, which leads only here
             // (`Kernel::round_past`; docs/reliability.md, "A teammate gone
@@ -581,6 +586,59 @@ impl Kernel {
             && !self.leads_back(id.behavior, id.behavior)
             && self.leads_back(id.behavior, g.behavior)
             && !self.reaches(heads, g.behavior, Some(id.behavior))
+    }
+
+    /// True when teammate `from` runs, beside this robot's execution `id`
+    /// at depth `k` (under the same parent execution, in the same team),
+    /// `g`, an execution this robot has yet to start
+    /// ([`Kernel::yet_to_start`]), and will never come to `id`:
+    ///
+    /// - `g`'s behavior is individual and never leads to `id`'s: an
+    ///   individual behavior's histories never meet ([`Kernel::meet`]),
+    ///   and its chain from there avoids `id`'s behavior;
+    /// - `from` is the team's first member, the healing leader on every
+    ///   member's view: at a split it follows no other side
+    ///   ([`Kernel::reconcile`]), the others converge on it; or `from` runs
+    ///   `g` with that member (heard recently), on the side the others
+    ///   converge on;
+    /// - `g` came after an execution this robot ran before `id` (of the
+    ///   same parent and team, so ended before `id` started): the teammate
+    ///   went off there, and never ran `id` either.
+    ///
+    /// It takes part in none of `id`'s points. Without this, a member that
+    /// went on from the execution before by the other successor waited for
+    /// the leader at `id`'s allocation until its deadline: the leader, its
+    /// coordinator, went another way into an individual behavior whose
+    /// chain ends the parent's (docs/reliability.md, "A leader gone off
+    /// for good").
+    fn went_off(&self, k: usize, id: FrameId, g: &PosFrame, from: RobotId) -> bool {
+        let (Some(parent), Some(a)) = (k.checked_sub(1).and_then(|i| self.stack.get(i)), g.anchor)
+        else {
+            return false;
+        };
+        let before = FrameId {
+            team: id.team,
+            behavior: a.behavior,
+            epoch: a.epoch,
+        };
+        !a.first
+            && before != id
+            && parent.runs.latest_epoch(a.behavior) >= a.epoch
+            && (a.behavior != id.behavior || a.epoch < id.epoch)
+            && g.id.behavior != id.behavior
+            && self.graph().is_individual(g.id.behavior)
+            && !self.leads_back(g.id.behavior, id.behavior)
+            && self
+                .org
+                .team(id.team)
+                .and_then(|t| t.members.first())
+                .is_some_and(|l| {
+                    l == from
+                        || (l != self.me
+                            && self
+                                .fresh_peer(l)
+                                .is_some_and(|p| p.frames.get(k).is_some_and(|(f, _)| *f == g.id)))
+                })
     }
 
     /// The teammate's frame at depth `k` of `pos`, if it runs, beside this

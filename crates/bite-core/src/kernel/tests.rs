@@ -3200,3 +3200,84 @@ fn departed_from(h: &Harness, i: usize, id: FrameId, r: RobotId) -> bool {
         .and_then(|f| f.departed.as_ref())
         .is_some_and(|d| d.contains(r))
 }
+
+/// Three robots under the root run `p`, whose successors are `q` (then
+/// `a`, a barrier `s` below it) and `off`, an individual behavior whose own
+/// successors are `off_next`; the team takes the first enabled successor
+/// (`sync.by-rule`). Robot 1 ends `p` and `q` alone, goes on to `a`#1 and
+/// ends `s`, waiting at its barrier. Its key, with the ids of `root`, `p`,
+/// `a` and `off`.
+fn gone_off(off_next: &str) -> (Harness, InstanceKey, [BehaviorId; 4]) {
+    let graph = format!(
+        "start: root
+defaults: {{ terminate: term.local }}
+behaviors:
+  root: {{ team: true, children: [p] }}
+  p: {{ team: true, skill: w, until: p_done, next: [q, off], sync: sync.by-rule }}
+  q: {{ team: true, skill: w, until: q_done, next: [a] }}
+  a: {{ team: true, children: [s], until: a_done }}
+  off: {{ team: false, skill: w, until: off_done, {off_next} }}
+  s: {{ team: true, skill: w, until: s_done, terminate: term.test-barrier }}"
+    );
+    let mut h = Harness::new(&graph, 3);
+    let off = [
+        ("p_done", F),
+        ("q_done", F),
+        ("a_done", F),
+        ("off_done", F),
+        ("s_done", F),
+    ];
+    h.tick(0, &off);
+    h.tick_one(1, 100, &[("p_done", T)]);
+    h.tick_one(1, 150, &[("p_done", F), ("q_done", T)]);
+    h.tick_one(1, 200, &[("q_done", F), ("s_done", T)]);
+    let [root, p, a, off, s] = behaviors(&h, 1, ["root", "p", "a", "off", "s"]);
+    assert_eq!(h.stack(1), ["root", "a"], "robot 1 ended `s` under `a`#1");
+    let barrier = barrier_at(&h, 1, s);
+    (h, barrier, [root, p, a, off])
+}
+
+/// A teammate that went off another way for good is departed from this
+/// robot's execution and left out of its points: beside this robot's
+/// `a`#1 (after `q`#1), the team's first member heard in `off`#1 after
+/// `p`#1 (which this robot ran before `a`#1), `off` an individual behavior
+/// that never leads to `a`; then another member heard there with it. Not a member heard
+/// there alone (it may converge on the leader's side elsewhere), nor the
+/// leader when `off` leads back to `a`. Found by `no_waiting_across_levels`
+/// (RNG seeds 5140 and 4646, graph seeds 5028977122179993407 and
+/// 1642720823527748982): a member waited at an allocation for its
+/// coordinator, the team's first member, gone off into an individual
+/// behavior whose chain ends its parent's, until its deadline.
+#[test]
+fn a_leader_gone_off_for_good_is_departed_from_the_execution() {
+    let (mut h, barrier, [root, p, a, off]) = gone_off("next: []");
+    let in_off = [
+        (at_root(root, 1), None),
+        (at_root(off, 1), Some((at_root(p, 1), false))),
+    ];
+    // Robot 2 alone in `off`: it may still follow the leader elsewhere.
+    tell(&mut h, 1, 2, Time::from_millis(250), &in_off);
+    assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(2)));
+    assert!(!left_out(&h, 1, barrier, RobotId(2)));
+    // The leader in `off`: gone for good.
+    tell(&mut h, 1, 0, Time::from_millis(300), &in_off);
+    let id = at_root(a, 1);
+    assert_gone_from(&h, 1, id, barrier, RobotId(0), "robot 0 went off");
+    // Robot 2 there with the leader: gone for good too.
+    tell(&mut h, 1, 2, Time::from_millis(350), &in_off);
+    assert_gone_from(&h, 1, id, barrier, RobotId(2), "robot 2 is with robot 0");
+}
+
+/// [`a_leader_gone_off_for_good_is_departed_from_the_execution`], but
+/// `off` leads back to `a`: the leader may come to `a`#1 yet.
+#[test]
+fn a_leader_gone_off_a_way_back_is_not_departed() {
+    let (mut h, barrier, [root, p, a, off]) = gone_off("next: [a]");
+    let in_off = [
+        (at_root(root, 1), None),
+        (at_root(off, 1), Some((at_root(p, 1), false))),
+    ];
+    tell(&mut h, 1, 0, Time::from_millis(300), &in_off);
+    assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(0)));
+    assert!(!left_out(&h, 1, barrier, RobotId(0)));
+}
