@@ -3237,6 +3237,19 @@ behaviors:
     (h, barrier, [root, p, a, off])
 }
 
+/// A teammate's chain in [`gone_off`]: `off`#1 after `p`#1, under the
+/// root's first execution.
+fn in_off_after(
+    root: BehaviorId,
+    p: BehaviorId,
+    off: BehaviorId,
+) -> [(FrameId, Option<(FrameId, bool)>); 2] {
+    [
+        (at_root(root, 1), None),
+        (at_root(off, 1), Some((at_root(p, 1), false))),
+    ]
+}
+
 /// A teammate that went off another way for good is departed from this
 /// robot's execution and left out of its points: beside this robot's
 /// `a`#1 (after `q`#1), the team's first member heard in `off`#1 after
@@ -3251,10 +3264,7 @@ behaviors:
 #[test]
 fn a_leader_gone_off_for_good_is_departed_from_the_execution() {
     let (mut h, barrier, [root, p, a, off]) = gone_off("next: []");
-    let in_off = [
-        (at_root(root, 1), None),
-        (at_root(off, 1), Some((at_root(p, 1), false))),
-    ];
+    let in_off = in_off_after(root, p, off);
     // Robot 2 alone in `off`: it may still follow the leader elsewhere.
     tell(&mut h, 1, 2, Time::from_millis(250), &in_off);
     assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(2)));
@@ -3273,10 +3283,7 @@ fn a_leader_gone_off_for_good_is_departed_from_the_execution() {
 #[test]
 fn a_leader_gone_off_a_way_back_is_not_departed() {
     let (mut h, barrier, [root, p, a, off]) = gone_off("next: [a]");
-    let in_off = [
-        (at_root(root, 1), None),
-        (at_root(off, 1), Some((at_root(p, 1), false))),
-    ];
+    let in_off = in_off_after(root, p, off);
     tell(&mut h, 1, 0, Time::from_millis(300), &in_off);
     assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(0)));
     assert!(!left_out(&h, 1, barrier, RobotId(0)));
