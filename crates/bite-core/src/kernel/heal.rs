@@ -616,13 +616,8 @@ impl Kernel {
         else {
             return false;
         };
-        let before = FrameId {
-            team: id.team,
-            behavior: a.behavior,
-            epoch: a.epoch,
-        };
+        // `a`: not `id` itself nor a later run of its behavior.
         !a.first
-            && before != id
             && parent.runs.latest_epoch(a.behavior) >= a.epoch
             && (a.behavior != id.behavior || a.epoch < id.epoch)
             && g.id.behavior != id.behavior
