@@ -750,8 +750,10 @@ fn cases_that_failed_once() {
         // ahead of the team (a `term.majority` that decided a minute
         // later), and left the subteam below it; its leader, which they no
         // longer sent heartbeats to, waited for them at its next point
-        // until its deadline.
+        // until its deadline. Seed 5839 (four robots, two deadlines)
+        // passed with the same change.
         (10_512_915_990_778_792_624, 7),
+        (16_918_095_872_503_224_342, 4),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -166,16 +166,14 @@ impl Kernel {
         self.abort_phase();
         let ended = self.stack[i].behavior;
         // Subteams below an end this robot makes alone (an individual
-        // behavior, one whose termination is silent: each member ends it
-        // on its own, or its own `until` or `urgent` condition, which it
-        // holds ahead of the team) are left while their teammates go on
-        // in them: it answers those that still send it heartbeats for a
-        // while (`Kernel::answer_strangers`). A team that the termination
-        // protocol ended learns who ended from it.
+        // behavior, or one whose termination is silent: each member ends
+        // it on its own) are left while their teammates go on in them:
+        // it answers those that still send it heartbeats for a while
+        // (`Kernel::answer_strangers`). A team that ends together learns
+        // who ended from its termination protocol.
         if self.stack[i..].iter().any(|f| f.subteams.is_some()) {
             let b = self.graph().behavior(ended);
             let together = b.team
-                && !matches!(reason, EndReason::Until | EndReason::Urgent)
                 && (self.mission.bound(ended, Kind::Terminate))
                     .is_some_and(|x| x.protocol.communicates());
             if !together {

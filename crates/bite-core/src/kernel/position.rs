@@ -1186,13 +1186,17 @@ impl Kernel {
     /// (`beacon_audience`) while the teammate goes on sending them: the
     /// teammate marks it departed, or waits on for it while it is on its
     /// way (`awaited_at_work`). A team it left is answered for
-    /// [`ANSWER_LEFT`] only (a leader that learnt of the departure still
+    /// [`ANSWER_LEFT`] (a leader that learnt of the departure still
     /// sends its heartbeats to every member, and an answer must not go on
-    /// for ever); a team it has yet to join, or an execution it ended,
-    /// only while the teammate waits at a point. A team that ends a
-    /// behavior together learns who ended it from its termination
-    /// protocol, and a teammate at work waits for nobody: neither is
-    /// answered, so a team in step sends nothing more.
+    /// for ever), and after that while the teammate waits at a point (a
+    /// robot that ended the team behavior above by its own condition,
+    /// ahead of its team, left the subteam without telling, and the
+    /// subteam's leader may reach a later point of the subteam long
+    /// after: property seed 5212); a team it has yet to join, or an
+    /// execution it ended, only while the teammate waits at a point. A
+    /// team that ends a behavior together learns who ended it from its
+    /// termination protocol, and a teammate at work waits for nobody:
+    /// neither is answered, so a team in step sends nothing more.
     fn answer_strangers(&mut self, from: RobotId, pos: &Position) {
         // Only a teammate waiting at a point waits for this robot: it
         // ended its last frame, or that frame is an allocation point not
@@ -1269,11 +1273,9 @@ impl Kernel {
             if m.is_some_and(|m| m.team == f.id.team) || self.org.team(f.id.team).is_some() {
                 continue;
             }
-            stranger = if self.org.is_dead(f.id.team) {
-                self.left_at.is_some_and(|at| self.now - at <= ANSWER_LEFT)
-            } else {
-                waits()
-            };
+            stranger = (self.org.is_dead(f.id.team)
+                && self.left_at.is_some_and(|at| self.now - at <= ANSWER_LEFT))
+                || waits();
             break;
         }
         if stranger {

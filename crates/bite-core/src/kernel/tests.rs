@@ -1747,40 +1747,57 @@ fn a_leader_that_left_answers_its_members_for_a_while() {
 }
 
 /// The team behavior `p` ends by its own `until` for r2 ahead of its
-/// teammates (its termination, a barrier, waits for them all): r2
-/// leaves the subteam `q` (r1 leads it; r2, r3) while r1 and r3 go on in
-/// it.
+/// teammates (its termination, a barrier, waits for them all): r2 leaves
+/// the subteam of `q` (r1 leads it; r2, r3) while r1 and r3 go on in it,
+/// through `q` and up to the barrier of `q2`, which r2 never ran.
 const MEMBER_ENDS_AHEAD: &str = "start: root
 defaults: { terminate: term.local }
 behaviors:
   root: { team: true, children: [p] }
   p: { team: true, children: [y, q], until: stop, terminate: term.test-barrier }
   y: { skill: w, members: 1 }
-  q: { skill: w }";
+  q: { team: true, skill: w, until: qdone, next: [q2] }
+  q2: { team: true, skill: w, until: q2done, terminate: term.test-barrier }";
 
-/// A member that ended a team behavior by its own condition, ahead of its
-/// team, answers the leader of a subteam it left, so that the leader learns
-/// it left and does not wait for it at the subteam's next point (found by
+/// A member that left a subteam (it ended the behavior above ahead of its
+/// team) answers the subteam's leader once that leader waits at a point,
+/// so that it leaves the member out rather than wait for it there; and
+/// not while the leader is at work, waiting for nobody (found by
 /// `no_waiting_across_levels`, graph seed 10512915990778792624: the
 /// subteam's leader waited 31 s for two members gone to the parent's
 /// `term.majority` barrier, which decided only 66 s later).
 #[test]
-fn a_member_that_ended_ahead_of_its_team_answers_its_subteam_leader() {
+fn a_member_that_left_answers_its_subteam_leader_waiting_at_a_point() {
     let mut h = Harness::new(MEMBER_ENDS_AHEAD, 4);
-    h.tick(0, &[("stop", F)]);
+    h.tick(0, &[("stop", F), ("qdone", F)]);
     assert_eq!(h.stack(2), ["root", "p", "q"]);
-    assert_eq!(audience(&h, 1), [0, 2, 3], "q's leader sends to its members");
+    assert_eq!(
+        audience(&h, 1),
+        [0, 2, 3],
+        "q's leader sends to its members"
+    );
     h.tick_one(2, 100, &[("stop", T)]);
     assert_eq!(h.stack(2), ["root"], "r2 waits at p's termination");
     assert_eq!(h.stack(1), ["root", "p", "q"]);
-    // r1 still sends to r2; r2 answers it.
+    // r1 still sends to r2, at work: r2 does not answer.
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0]);
+    // r1 goes on to q2 and waits at its barrier: r2 answers it.
+    h.tick_one(1, 200, &[("qdone", T), ("q2done", F)]);
+    assert_eq!(h.stack(1), ["root", "p", "q2"]);
+    h.tick_one(1, 300, &[("q2done", T)]);
+    let key = barrier_at(
+        &h,
+        1,
+        h.kernels[1].mission().graph().find("q2").expect("q2"),
+    );
+    assert!(!left_out(&h, 1, key, RobotId(2)), "r2 awaited at first");
     h.heartbeats();
     assert_eq!(audience(&h, 2), [0, 1]);
-    // r1 learns that r2 left q: it will not wait for it there.
+    // r1 learns that r2 left, and leaves it out of the barrier.
     h.heartbeats();
-    let q = h.kernels[1].stack()[2].id();
-    assert!(departed_from(&h, 1, q, RobotId(2)), "r2 departed from q");
-    assert!(!departed_from(&h, 1, q, RobotId(3)), "r3 goes on in q");
+    assert!(left_out(&h, 1, key, RobotId(2)), "r2 left out");
+    assert!(!left_out(&h, 1, key, RobotId(3)), "r3 awaited");
 }
 
 /// A root team's leader that finished the mission runs no frame and
