@@ -642,32 +642,12 @@ impl MemberSet {
             }
             return;
         }
-        // A set that `other` holds whole becomes `other`, shared rather
-        // than copied: every member of a team of 100,000 adds its leader's
-        // relayed departures (one set, shared by their heartbeats) to its
-        // own empty or smaller set, and each copy was a bit per robot of
-        // the roster, 12.5 KB, 0.7 GB at the peak of that team's run
-        // (docs/performance.md, "2026-12-07").
-        let roster = self.roster as usize;
-        let whole = |b: &Arc<Bits>| b.set.len() == roster;
-        if let Repr::Bits(b) = &other.repr
-            && !matches!(self.repr, Repr::Bits(_))
-            && whole(b)
-            && self.iter().all(|r| b.contains(r.index()))
-        {
-            self.repr = Repr::Bits(b.clone());
-            return;
-        }
         match (&mut self.repr, &other.repr) {
             (Repr::Bits(a), Repr::Bits(b)) => {
-                // Already holding all of `other`: nothing to copy; held
-                // whole by `other`: share `other`'s bits.
+                // Shared and already holding all of `other`: nothing to
+                // copy.
                 if !Bits::subset(b, a) {
-                    if whole(b) && Bits::subset(a, b) {
-                        *a = b.clone();
-                    } else {
-                        Bits::make_mut(a).union_with(b);
-                    }
+                    Bits::make_mut(a).union_with(b);
                 }
             }
             (_, Repr::Bits(b)) => {
@@ -1169,38 +1149,6 @@ mod tests {
             let json = serde_json::to_string(&m).expect("encodes");
             let back: MemberSet = serde_json::from_str(&json).expect("decodes from JSON");
             assert_eq!(back, m, "{json}");
-        }
-    }
-
-    /// A union whose result is `other` takes `other`'s bits, shared, in
-    /// place of a copy; every other union is the union of the members.
-    #[test]
-    fn a_union_that_adds_a_superset_shares_its_bits() {
-        let forms = [
-            set(1000, &[]),
-            set(1000, &[3, 500]),
-            set(1000, &(0..40).map(|i| i * 7).collect::<Vec<_>>()),
-            set(1000, &(0..400).collect::<Vec<_>>()),
-            set(1000, &(0..400).map(|i| i * 2).collect::<Vec<_>>()),
-            set(1000, &(0..1000).collect::<Vec<_>>()),
-        ];
-        for a in &forms {
-            for b in &forms {
-                let mut u = a.clone();
-                u.union_with(b);
-                let want: Vec<RobotId> = (0..1000)
-                    .map(RobotId)
-                    .filter(|r| a.contains(*r) || b.contains(*r))
-                    .collect();
-                assert_eq!(u.to_vec(), want, "{a:?} | {b:?}");
-                assert_eq!(u, set(1000, &want.iter().map(|r| r.0).collect::<Vec<_>>()));
-                let b_bits = matches!(b.repr, Repr::Bits(_));
-                let a_within_b = a.iter().all(|r| b.contains(r));
-                let b_within_a = b.iter().all(|r| a.contains(r));
-                if b_bits && a_within_b && !(b_within_a && matches!(a.repr, Repr::Bits(_))) {
-                    assert!(u.shares_bits(b), "{a:?} | {b:?} is b, shared");
-                }
-            }
         }
     }
 
