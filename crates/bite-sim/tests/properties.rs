@@ -746,11 +746,12 @@ fn cases_that_failed_once() {
         (1_642_720_823_527_748_982, 7),
         (7_887_722_685_423_016_364, 8),
         (15_105_780_659_358_193_082, 5),
-        // Seed 5212: two members ended a team behavior by its own `until`,
-        // ahead of the team (a `term.majority` that decided a minute
-        // later), and left the subteam below it; its leader, which they no
-        // longer sent heartbeats to, waited for them at its next point
-        // until its deadline. Seed 5839 (four robots, two deadlines)
+        // "A member that ended ahead of its team", seed 5212: two
+        // members ended a team behavior by its own `until`, ahead of the
+        // team (a `term.majority` that decided a minute later), and left
+        // the subteam below it; its leader, which they no longer sent
+        // heartbeats to, waited for them at its next point until its
+        // deadline. Seed 5839 (four robots, two deadlines)
         // passed with the same change.
         (10_512_915_990_778_792_624, 7),
         (16_918_095_872_503_224_342, 4),
