@@ -386,8 +386,11 @@ impl Kernel {
             let Some(mut who) = who else {
                 continue;
             };
-            who.remove(self.me);
-            if who.is_empty() {
+            // This robot is never news to itself. It is taken out of `who`
+            // below only where `who` is used: taking it out of a shared
+            // set copies the roster's bits.
+            let mine = who.contains(self.me);
+            if who.is_empty() || (mine && who.len() == 1) {
                 continue;
             }
             // When what this robot will know is exactly the leader's report
@@ -405,6 +408,7 @@ impl Kernel {
                         && d.is_subset(&team.members)
                 })
                 .cloned();
+            let shared = share.is_some();
             if let Some(d) = share {
                 match slot {
                     Some(i) => self.stack[i].departed = Some(d),
@@ -418,9 +422,16 @@ impl Kernel {
                 }
             }
             match slot {
-                Some(i) => self.depart(i, &who, who.contains(from).then_some((from, pos))),
+                Some(i) => {
+                    who.remove(self.me);
+                    self.depart(i, &who, who.contains(from).then_some((from, pos)));
+                }
+                // The frame this robot ended keeps the report, which holds
+                // all of `who`: nothing to add.
+                None if shared => {}
                 None => {
                     if let Some(key) = popped {
+                        who.remove(self.me);
                         self.depart_popped(key, &who);
                     }
                 }
