@@ -815,19 +815,25 @@ impl Kernel {
         let ttl = self.limits.pending_ttl;
         let closed = &self.closed;
         let org = &self.org;
-        let expired = self.inbox.retain(|k, m| {
-            let stale = closed
+        // Messages for an execution now over, or a team now dissolved, are
+        // stale; the others dropped waited past their time to live.
+        let mut stale = 0u64;
+        let dropped = self.inbox.retain(|k, m| {
+            let over = closed
                 .get(&(k.team, k.behavior, k.kind))
                 .is_some_and(|e| k.stamp() <= *e)
                 || org.is_dead(k.team);
-            !stale && now - m.at < ttl
+            stale += u64::from(over);
+            !over && now - m.at < ttl
         });
-        if expired > 0 {
-            *self
-                .stats
-                .dropped
-                .entry(DropReason::BufferOverflow)
-                .or_insert(0) += expired as u64;
+        let expired = dropped as u64 - stale;
+        for (reason, n) in [
+            (DropReason::Stale, stale),
+            (DropReason::BufferOverflow, expired),
+        ] {
+            if n > 0 {
+                *self.stats.dropped.entry(reason).or_insert(0) += n;
+            }
         }
         self.refresh_due();
     }

@@ -680,6 +680,52 @@ behaviors:
     assert_eq!(k.stats().dropped.get(&DropReason::UnknownSender), Some(&1));
 }
 
+/// Buffered messages the kernel forgets are counted by why: stale (their
+/// execution is over) or past their time to live (`Limits::pending_ttl`),
+/// not all as a full buffer.
+#[test]
+fn forgotten_buffered_messages_are_counted_stale_or_expired() {
+    let mut h = Harness::new(
+        "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [s], }
+  s: { team: true, until: found, terminate: term.test-first, next: [t] }
+  t: { team: true, until: t_done, terminate: term.test-first, next: [s] }",
+        2,
+    );
+    h.tick(0, &[]);
+    let t = h.kernels[0].mission().graph().find("t").unwrap();
+    let env = |seq: u64, team: TeamId| Envelope {
+        instance: InstanceKey {
+            team,
+            behavior: t,
+            kind: Kind::Terminate,
+            epoch: 1,
+            round: 0,
+        },
+        sender: RobotId(1),
+        seq,
+        body: Body::Ack,
+    };
+    let k = &mut h.kernels[0];
+    // One for `t` #1, not reached yet; one for a team not known yet.
+    k.message(Time(1), env(1, TeamId::ROOT));
+    k.message(Time(2), env(2, TeamId(42)));
+    assert_eq!(k.stats().buffered, 2);
+    // `t` #1 is over (as if this robot went past it with its team): its
+    // message is stale.
+    k.closed.insert((TeamId::ROOT, t, Kind::Terminate), (1, 0));
+    k.gc();
+    assert_eq!(k.stats().dropped.get(&DropReason::Stale), Some(&1));
+    assert_eq!(k.stats().dropped.get(&DropReason::BufferOverflow), None);
+    // The other waits until its time to live is past.
+    k.now = Time(2) + k.limits.pending_ttl;
+    k.gc();
+    assert_eq!(k.stats().dropped.get(&DropReason::Stale), Some(&1));
+    assert_eq!(k.stats().dropped.get(&DropReason::BufferOverflow), Some(&1));
+}
+
 #[test]
 fn kernels_are_deterministic() {
     let yaml = "start: root
