@@ -134,8 +134,8 @@ impl Kernel {
             split: None,
             imp: (bound.factory)(),
             input,
-            retry: bound.retry,
-            deadline_len: bound.deadline,
+            retry: bound.retry.into(),
+            deadline_len: bound.deadline.into(),
             state: if armed { State::Armed } else { State::Active },
             waiting_since: if armed { None } else { Some(self.now) },
             past_seen: None,
@@ -268,7 +268,7 @@ impl Kernel {
         }
         inst.state = State::Active;
         inst.waiting_since = Some(now);
-        inst.deadline = now + inst.deadline_len;
+        inst.deadline = now + inst.deadline_len.get();
         let protocol = inst.protocol;
         let excluded = inst.excluded_members();
         let ready = inst.retry_due();
@@ -326,7 +326,7 @@ impl Kernel {
                 beliefs: &self.beliefs,
                 rng: &mut self.rng,
                 input: &inst.input,
-                retry: inst.retry,
+                retry: inst.retry.get(),
                 deadline: inst.deadline,
                 decided: inst.state == State::Decided,
                 aborted: inst.state == State::Aborted,
@@ -369,7 +369,7 @@ impl Kernel {
             self.next_due = Some(self.next_due.map_or(w, |x| x.min(w)));
         }
         if fx.postpone && inst.state == State::Active {
-            inst.deadline = self.now + inst.deadline_len;
+            inst.deadline = self.now + inst.deadline_len.get();
         }
         for what in fx.violations {
             self.emit(Event::ProtocolViolation {
@@ -571,7 +571,7 @@ impl Kernel {
                 // A teammate this instance waits for is heard working on
                 // the behavior: not silent, only slower. Wait on.
                 if let Some(i) = self.instances.get_mut(&k) {
-                    i.deadline = now + i.deadline_len;
+                    i.deadline = now + i.deadline_len.get();
                 }
                 self.stats.deadlines_rearmed += 1;
                 continue;
@@ -647,7 +647,7 @@ impl Kernel {
             return false;
         };
         inst.called = true;
-        let until = now + inst.retry * 2;
+        let until = now + inst.retry.get() * 2;
         inst.deadline = until;
         match self.calling.as_deref_mut() {
             Some((set, t)) if *t > now => {
@@ -692,7 +692,7 @@ impl Kernel {
             return false;
         };
         inst.asked = Some(c);
-        inst.deadline = now + inst.retry * 2;
+        inst.deadline = now + inst.retry.get() * 2;
         self.reply(k, c, crate::msg::Body::Query);
         true
     }

@@ -105,7 +105,7 @@ impl Kernel {
             && let Some(inst) = self.instances.get_mut(&k)
             && inst.state == State::Active
         {
-            inst.deadline = inst.deadline.max(self.now + inst.retry);
+            inst.deadline = inst.deadline.max(self.now + inst.retry.get());
         }
         self.call(k, |imp, cx| imp.on_members_changed(cx));
     }

@@ -307,6 +307,27 @@ enum State {
     Aborted,
 }
 
+/// A binding's duration as an instance keeps it: nanoseconds in 8 bytes
+/// instead of a `Duration`'s 16, so that an [`Instance`] fits the
+/// allocator's 320-byte size class rather than the 384-byte one (a robot of
+/// a large team holds about six instances: docs/performance.md, "2026-12-07,
+/// tenth session"). Exact up to 584 years; longer ones are read as 584
+/// years, which no run can tell apart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct PackedDuration(u64);
+
+impl PackedDuration {
+    fn get(self) -> Duration {
+        Duration::from_nanos(self.0)
+    }
+}
+
+impl From<Duration> for PackedDuration {
+    fn from(d: Duration) -> Self {
+        PackedDuration(u64::try_from(d.as_nanos()).unwrap_or(u64::MAX))
+    }
+}
+
 struct Instance {
     protocol: &'static str,
     /// Members presumed lost when it started or since (it decides without
@@ -321,8 +342,8 @@ struct Instance {
     split: Option<Arc<Split>>,
     imp: Box<dyn Interaction>,
     input: PointInput,
-    retry: Duration,
-    deadline_len: Duration,
+    retry: PackedDuration,
+    deadline_len: PackedDuration,
     state: State,
     waiting_since: Option<Time>,
     /// When a heartbeat first showed the coordinator past the barrier, or
@@ -363,7 +384,7 @@ impl Instance {
     /// not wait; see `Kernel::asks_from`).
     fn retry_due(&self) -> Option<Time> {
         match (self.state, self.waiting_since) {
-            (State::Active, Some(t)) => Some(t + self.retry),
+            (State::Active, Some(t)) => Some(t + self.retry.get()),
             _ => None,
         }
     }

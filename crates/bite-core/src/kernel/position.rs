@@ -1354,7 +1354,7 @@ impl Kernel {
                     Kind::Allocate if self.coordinator(key, inst) == Some(from) => 6,
                     _ => 1,
                 };
-                past = Some((key, inst.retry, patience, o));
+                past = Some((key, inst.retry.get(), patience, o));
                 break;
             }
         }
@@ -1512,7 +1512,7 @@ impl Kernel {
         };
         let waiting_long = (self.peers.get(&from))
             .and_then(|p| p.moved)
-            .is_some_and(|t| now - t >= inst.retry);
+            .is_some_and(|t| now - t >= inst.retry.get());
         if !waiting_long
             || !matches!(inst.state, super::State::Armed | super::State::Active)
             || !inst.team.contains(from)
@@ -1576,7 +1576,7 @@ impl Kernel {
                     continue;
                 };
                 let seen = *inst.past_seen.get_or_insert(now);
-                if now - seen < inst.retry {
+                if now - seen < inst.retry.get() {
                     continue;
                 }
             }
@@ -1737,7 +1737,7 @@ impl Kernel {
         let Some(inst) = self.instances.get(&key) else {
             return false;
         };
-        let limit = slow_wait(inst.deadline_len);
+        let limit = slow_wait(inst.deadline_len.get());
         let progressing = |r: RobotId| {
             self.peers
                 .get(&r)

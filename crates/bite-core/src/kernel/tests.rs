@@ -1691,7 +1691,7 @@ fn a_member_asks_a_leader_seen_past_its_barrier_after_a_retry() {
     for past in [following, finished] {
         let mut h = Harness::new(TWICE, 2);
         let key = member_at_the_barrier(&mut h);
-        let retry = h.kernels[1].instances.get(&key).expect("waits").retry;
+        let retry = h.kernels[1].instances.get(&key).expect("waits").retry.get();
         let retry_ms = u64::try_from(retry.as_millis()).expect("a short retry");
         let queries = |k: &mut Kernel| {
             let mut n = 0;
@@ -3387,4 +3387,23 @@ fn a_leader_gone_off_a_way_back_is_not_departed() {
     tell(&mut h, 1, 0, Time::from_millis(300), &in_off);
     assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(0)));
     assert!(!left_out(&h, 1, barrier, RobotId(0)));
+}
+
+/// An instance fits the allocator's 320-byte size class (a large team's
+/// robots hold about six each; the next class is 384 bytes), and a
+/// binding's durations keep their nanoseconds.
+#[test]
+fn an_instance_fits_a_320_byte_block_and_keeps_its_durations() {
+    assert!(std::mem::size_of::<Instance>() <= 320);
+    for d in [
+        Duration::ZERO,
+        Duration::from_nanos(1),
+        Duration::from_micros(1_500),
+        Duration::from_secs(30),
+        Duration::from_secs(86_400 * 365 * 500),
+    ] {
+        assert_eq!(PackedDuration::from(d).get(), d);
+    }
+    let far = PackedDuration::from(Duration::MAX).get();
+    assert_eq!(far, Duration::from_nanos(u64::MAX));
 }
