@@ -150,8 +150,8 @@ pub(super) struct Peer {
     /// When it was last heard.
     pub heard: Time,
     /// When its position last changed, or its skill made a step (it makes
-    /// progress); `None`: it was heard only after this robot finished.
-    pub moved: Option<Time>,
+    /// progress); none: it was heard only after this robot finished.
+    pub moved: MaybeTime,
     /// Its skill's steps, as it last told them ([`Position::progress`]).
     pub progress: u32,
     /// The executions it is engaged in (its position's frames), kept in
@@ -171,8 +171,8 @@ pub(super) struct Peer {
 /// seventh of a run's memory (docs/performance.md, "2026-11-28, late").
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Quiet {
-    /// [`Peer::moved`] in microseconds (`u64::MAX`: `None`).
-    moved: u64,
+    /// [`Peer::moved`].
+    moved: MaybeTime,
     /// [`digest`] of [`Peer::frames`] and [`Peer::progress`].
     frames: u64,
 }
@@ -180,12 +180,40 @@ pub(super) struct Quiet {
 impl Quiet {
     fn of(p: &Peer) -> Self {
         Quiet {
-            moved: p.moved.map_or(u64::MAX, |t| t.0),
+            moved: p.moved,
             frames: digest(p.frames.iter().copied(), p.progress),
         }
     }
-    fn moved(self) -> Option<Time> {
-        (self.moved != u64::MAX).then_some(Time(self.moved))
+    fn moved(self) -> MaybeTime {
+        self.moved
+    }
+}
+
+/// An optional time in 8 bytes (an `Option<Time>` takes 16): `u64::MAX`,
+/// never a time a robot hears a teammate at, is none. A [`Peer`] with it
+/// is 128 bytes, and a robot's first four peers fill a 512-byte block
+/// instead of a 640-byte one (docs/performance.md, "2026-12-07, tenth
+/// session").
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) struct MaybeTime(u64);
+
+impl MaybeTime {
+    pub const NONE: MaybeTime = MaybeTime(u64::MAX);
+    pub fn get(self) -> Option<Time> {
+        (self != Self::NONE).then_some(Time(self.0))
+    }
+}
+
+impl Default for MaybeTime {
+    fn default() -> Self {
+        Self::NONE
+    }
+}
+
+impl From<Time> for MaybeTime {
+    fn from(t: Time) -> Self {
+        debug_assert_ne!(t, Time::MAX, "not a time a teammate is heard at");
+        MaybeTime(t.0)
     }
 }
 
@@ -1082,7 +1110,7 @@ impl Kernel {
             let quiet = &mut self.quiet;
             let roster_len = self.org.roster_len();
             let p = self.peers.get_or_insert_with(from, roster_len, || Peer {
-                moved: quiet.remove(&from).and_then(Quiet::moved),
+                moved: quiet.remove(&from).map_or(MaybeTime::NONE, Quiet::moved),
                 ..Peer::default()
             });
             if let Some(p) = p {
@@ -1102,11 +1130,11 @@ impl Kernel {
                 if !p.frames.iter().copied().eq(engaged()) {
                     p.frames.clear();
                     p.frames.extend(engaged());
-                    p.moved = Some(now);
+                    p.moved = now.into();
                 }
                 if p.progress != pos.progress {
                     p.progress = pos.progress;
-                    p.moved = Some(now);
+                    p.moved = now.into();
                 }
             }
             None => {
@@ -1114,7 +1142,7 @@ impl Kernel {
                 // or its skill made steps.
                 let moved = match self.quiet.remove(&from) {
                     Some(q) if q.frames == digest(engaged(), pos.progress) => q.moved(),
-                    _ => Some(now),
+                    _ => now.into(),
                 };
                 self.peers.insert(
                     from,
@@ -1511,7 +1539,7 @@ impl Kernel {
             return;
         };
         let waiting_long = (self.peers.get(&from))
-            .and_then(|p| p.moved)
+            .and_then(|p| p.moved.get())
             .is_some_and(|t| now - t >= inst.retry.get());
         if !waiting_long
             || !matches!(inst.state, super::State::Armed | super::State::Active)
@@ -1741,7 +1769,7 @@ impl Kernel {
         let progressing = |r: RobotId| {
             self.peers
                 .get(&r)
-                .and_then(|p| p.moved)
+                .and_then(|p| p.moved.get())
                 .is_some_and(|t| self.now - t < limit)
         };
         let id = FrameId::of(key);

@@ -1328,7 +1328,7 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     h.tick(0, &[]);
     h.beacons();
     let r1 = RobotId(1);
-    let first = h.kernels[0].peers.get(&r1).expect("heard").moved;
+    let first = h.kernels[0].peers.get(&r1).expect("heard").moved.get();
     assert!(first.is_some());
     let same = h.kernels[1].position();
     // Five seconds without a heartbeat from robot 1: quiet.
@@ -1339,7 +1339,10 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     assert!(h.kernels[0].quiet.contains_key(&r1));
     // Heard again where it was: it has not moved since.
     h.kernels[0].peer(Time::from_millis(5100), r1, &same);
-    assert_eq!(h.kernels[0].peers.get(&r1).expect("heard").moved, first);
+    assert_eq!(
+        h.kernels[0].peers.get(&r1).expect("heard").moved.get(),
+        first
+    );
     assert!(!h.kernels[0].quiet.contains_key(&r1));
     // Quiet again, then heard somewhere else: it moved.
     for ms in (6000..=10_000).step_by(1000) {
@@ -1351,7 +1354,7 @@ fn a_quiet_teammate_is_kept_small_and_moved_only_if_its_frames_changed() {
     assert_ne!(moved_on.frames, same.frames);
     h.kernels[0].peer(Time::from_millis(10_100), r1, &moved_on);
     assert_eq!(
-        h.kernels[0].peers.get(&r1).expect("heard").moved,
+        h.kernels[0].peers.get(&r1).expect("heard").moved.get(),
         Some(Time::from_millis(10_100))
     );
 }
@@ -3406,4 +3409,13 @@ fn an_instance_fits_a_320_byte_block_and_keeps_its_durations() {
     }
     let far = PackedDuration::from(Duration::MAX).get();
     assert_eq!(far, Duration::from_nanos(u64::MAX));
+}
+
+/// A teammate's record fits 128 bytes, so that a robot's first four fill
+/// a 512-byte block (the next size class is 640 bytes).
+#[test]
+fn a_peer_fits_128_bytes() {
+    assert!(std::mem::size_of::<position::Peer>() <= 128);
+    assert_eq!(position::MaybeTime::default().get(), None);
+    assert_eq!(position::MaybeTime::from(Time(7)).get(), Some(Time(7)));
 }
