@@ -423,14 +423,16 @@ enum Phase {
         since: u64,
         silent: bool,
     },
-    /// `frame` was popped; waiting for its termination protocol.
+    /// `frame` was popped; waiting for its termination protocol. (Boxed,
+    /// as in `Selecting`: a phase holding a frame inline was 216 bytes of
+    /// every robot's kernel, for the few that are between behaviors.)
     Terminating {
-        frame: Frame,
+        frame: Box<Frame>,
         key: Option<InstanceKey>,
     },
     /// `frame` ended; choosing its successor.
     Selecting {
-        frame: Frame,
+        frame: Box<Frame>,
         key: Option<InstanceKey>,
     },
     /// The stack emptied.
