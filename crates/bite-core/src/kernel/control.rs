@@ -207,10 +207,16 @@ impl Kernel {
             // nor for its team to choose the successor.
             let mut frame = frame;
             frame.urgent = true;
-            self.phase = Phase::Selecting { frame: Box::new(frame), key: None };
+            self.phase = Phase::Selecting {
+                frame: Box::new(frame),
+                key: None,
+            };
             return;
         }
-        self.phase = Phase::Terminating { frame: Box::new(frame), key };
+        self.phase = Phase::Terminating {
+            frame: Box::new(frame),
+            key,
+        };
     }
 
     /// Bookkeeping for a popped frame: links, subteams, event.
