@@ -615,24 +615,19 @@ behaviors:
     assert_eq!(h.terminated(1, "split"), [EndReason::Team]);
 }
 
-#[test]
-fn messages_are_deduplicated_and_stale_or_foreign_ones_dropped() {
-    let mut h = Harness::new(
-        "start: root
+/// Two team behaviors in a loop under the root, for the message tests.
+const S_THEN_T: &str = "start: root
 defaults: { terminate: term.local }
 behaviors:
   root: { team: true, children: [s], }
   s: { team: true, until: found, terminate: term.test-first, next: [t] }
-  t: { team: true, until: t_done, terminate: term.test-first, next: [s] }",
-        2,
-    );
-    h.tick(0, &[]);
-    let g = h.kernels[0].mission().graph().clone();
-    let s = g.find("s").unwrap();
-    let t = g.find("t").unwrap();
-    let env = |seq: u64, behavior: BehaviorId, kind: Kind, epoch: u32| Envelope {
+  t: { team: true, until: t_done, terminate: term.test-first, next: [s] }";
+
+/// An `Ack` from robot 1 for an instance of round 0.
+fn ack_from_r1(seq: u64, team: TeamId, behavior: BehaviorId, kind: Kind, epoch: u32) -> Envelope {
+    Envelope {
         instance: InstanceKey {
-            team: TeamId::ROOT,
+            team,
             behavior,
             kind,
             epoch,
@@ -641,6 +636,18 @@ behaviors:
         sender: RobotId(1),
         seq,
         body: Body::Ack,
+    }
+}
+
+#[test]
+fn messages_are_deduplicated_and_stale_or_foreign_ones_dropped() {
+    let mut h = Harness::new(S_THEN_T, 2);
+    h.tick(0, &[]);
+    let g = h.kernels[0].mission().graph().clone();
+    let s = g.find("s").unwrap();
+    let t = g.find("t").unwrap();
+    let env = |seq: u64, behavior: BehaviorId, kind: Kind, epoch: u32| {
+        ack_from_r1(seq, TeamId::ROOT, behavior, kind, epoch)
     };
     let k = &mut h.kernels[0];
     // A message for an instance not reached yet is buffered...
@@ -685,29 +692,10 @@ behaviors:
 /// not all as a full buffer.
 #[test]
 fn forgotten_buffered_messages_are_counted_stale_or_expired() {
-    let mut h = Harness::new(
-        "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [s], }
-  s: { team: true, until: found, terminate: term.test-first, next: [t] }
-  t: { team: true, until: t_done, terminate: term.test-first, next: [s] }",
-        2,
-    );
+    let mut h = Harness::new(S_THEN_T, 2);
     h.tick(0, &[]);
     let t = h.kernels[0].mission().graph().find("t").unwrap();
-    let env = |seq: u64, team: TeamId| Envelope {
-        instance: InstanceKey {
-            team,
-            behavior: t,
-            kind: Kind::Terminate,
-            epoch: 1,
-            round: 0,
-        },
-        sender: RobotId(1),
-        seq,
-        body: Body::Ack,
-    };
+    let env = |seq: u64, team: TeamId| ack_from_r1(seq, team, t, Kind::Terminate, 1);
     let k = &mut h.kernels[0];
     // One for `t` #1, not reached yet; one for a team not known yet.
     k.message(Time(1), env(1, TeamId::ROOT));
