@@ -184,9 +184,6 @@ impl Quiet {
             frames: digest(p.frames.iter().copied(), p.progress),
         }
     }
-    fn moved(self) -> MaybeTime {
-        self.moved
-    }
 }
 
 /// An optional time in 8 bytes (an `Option<Time>` takes 16): `u64::MAX`,
@@ -1110,7 +1107,7 @@ impl Kernel {
             let quiet = &mut self.quiet;
             let roster_len = self.org.roster_len();
             let p = self.peers.get_or_insert_with(from, roster_len, || Peer {
-                moved: quiet.remove(&from).map_or(MaybeTime::NONE, Quiet::moved),
+                moved: quiet.remove(&from).map_or(MaybeTime::NONE, |q| q.moved),
                 ..Peer::default()
             });
             if let Some(p) = p {
@@ -1141,7 +1138,7 @@ impl Kernel {
                 // Heard again after a while: it moved if its frames changed
                 // or its skill made steps.
                 let moved = match self.quiet.remove(&from) {
-                    Some(q) if q.frames == digest(engaged(), pos.progress) => q.moved(),
+                    Some(q) if q.frames == digest(engaged(), pos.progress) => q.moved,
                     _ => now.into(),
                 };
                 self.peers.insert(
