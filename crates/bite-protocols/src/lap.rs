@@ -19,6 +19,8 @@
 // assignments) by index; iterator rewrites would obscure it.
 #![allow(clippy::needless_range_loop)]
 
+use wide::f64x4;
+
 /// An optimal assignment: `row_to_col[i]` is the column of row `i`, or
 /// `None` if the row is unassigned (more rows than columns).
 #[derive(Clone, Debug, PartialEq)]
@@ -217,9 +219,28 @@ fn lapjv(n: usize, m: usize, c: &[f64]) -> Vec<usize> {
     }
 
     // Shortest augmenting paths for the remaining free rows.
+    //
+    // JV keeps the columns in `collist` order: scanned ("ready") first,
+    // then those at the current minimum distance (to scan), then the rest
+    // ("todo"), and each scan walks the todo part in that order. Here the
+    // scan's arithmetic runs over all columns in their own order instead,
+    // four at a time (`scan_row`), so that it reads the cost row, duals and
+    // distances in sequence rather than gathering them through `collist`:
+    // a column that left the todo part has its distance parked in `dfix`
+    // and `d[j] = −∞`, so no scan lowers it. Updating a todo column that JV
+    // would not reach (the scan stops at the path's end) changes nothing
+    // that is read afterwards: `d` and `pred` are set afresh for each free
+    // row. What depends on the order, the columns a scan brings to the
+    // minimum (`ties`), is replayed in `collist` order (`pos` is its
+    // inverse), so every choice among ties is JV's own.
     let mut d = vec![0.0f64; m];
-    let mut pred = vec![0usize; m];
+    let mut dfix = vec![0.0f64; m];
+    // A column's predecessor row, as an f64 (exact below 2⁵³) so that the
+    // scan selects it with the same lane mask as the distance.
+    let mut pred = vec![0.0f64; m];
     let mut collist = vec![0usize; m];
+    let mut pos = vec![0usize; m];
+    let mut ties: Vec<usize> = Vec::new();
     for &freerow in &free {
         if x[freerow] != NONE {
             continue;
@@ -243,9 +264,10 @@ fn lapjv(n: usize, m: usize, c: &[f64]) -> Vec<usize> {
             x[freerow] = j;
             continue;
         }
+        pred.fill(freerow as f64);
         for j in 0..m {
-            pred[j] = freerow;
             collist[j] = j;
+            pos[j] = j;
         }
         let (mut low, mut up) = (0usize, 0usize);
         let mut last = 0usize;
@@ -277,12 +299,17 @@ fn lapjv(n: usize, m: usize, c: &[f64]) -> Vec<usize> {
                         if free_at_min == NONE && y[j] == NONE {
                             free_at_min = j;
                         }
-                        collist[k] = collist[up];
-                        collist[up] = j;
+                        swap_positions(&mut collist, &mut pos, k, up);
                         up += 1;
                     }
                 }
                 endofpath = free_at_min;
+                if endofpath == NONE {
+                    for &j in &collist[low..up] {
+                        dfix[j] = d[j];
+                        d[j] = f64::NEG_INFINITY;
+                    }
+                }
             }
             if endofpath == NONE {
                 // Scan one column of the minimum set.
@@ -291,35 +318,34 @@ fn lapjv(n: usize, m: usize, c: &[f64]) -> Vec<usize> {
                 let i = y[j1];
                 let ci = row(i);
                 let h = ci[j1] - v[j1] - min;
-                let mut k = up;
-                while k < m {
-                    let j = collist[k];
-                    let v2 = ci[j] - v[j] - h;
-                    if v2 < d[j] {
-                        pred[j] = i;
-                        if v2 == min {
-                            if y[j] == NONE {
-                                endofpath = j;
-                                break;
-                            }
-                            collist[k] = collist[up];
-                            collist[up] = j;
-                            up += 1;
-                        }
-                        d[j] = v2;
+                scan_row(ci, &v, h, min, i as f64, &mut d, &mut pred, &mut ties);
+                // The columns this scan brought to the minimum, in JV's
+                // order: the first free one ends the path, the others join
+                // the set to scan.
+                if ties.len() > 1 {
+                    ties.sort_unstable_by_key(|&j| pos[j]);
+                }
+                for &j in &ties {
+                    if y[j] == NONE {
+                        endofpath = j;
+                        break;
                     }
-                    k += 1;
+                    let k = pos[j];
+                    swap_positions(&mut collist, &mut pos, k, up);
+                    up += 1;
+                    dfix[j] = min;
+                    d[j] = f64::NEG_INFINITY;
                 }
             }
         }
         // Update the duals of the columns scanned ("ready").
         for &j in &collist[..last] {
-            v[j] += d[j] - min;
+            v[j] += dfix[j] - min;
         }
         // Augment along the alternating path.
         let mut j = endofpath;
         loop {
-            let i = pred[j];
+            let i = pred[j] as usize;
             y[j] = i;
             let next = x[i];
             x[i] = j;
@@ -330,6 +356,65 @@ fn lapjv(n: usize, m: usize, c: &[f64]) -> Vec<usize> {
         }
     }
     x
+}
+
+/// Exchanges the columns at positions `a` and `b` of `collist`, keeping
+/// `pos` its inverse.
+fn swap_positions(collist: &mut [usize], pos: &mut [usize], a: usize, b: usize) {
+    collist.swap(a, b);
+    pos[collist[a]] = a;
+    pos[collist[b]] = b;
+}
+
+/// One scan of the shortest-path phase: for every column, the distance
+/// through row `i` (reduced cost `ci[j] − v[j]` less `h`) replaces `d[j]`
+/// and makes `i` the column's predecessor when it is lower. The columns
+/// whose new distance equals `min` are left in `ties`, in column order.
+/// Columns outside the todo part hold `d[j] = −∞` and are never lowered.
+#[allow(clippy::too_many_arguments)]
+fn scan_row(
+    ci: &[f64],
+    v: &[f64],
+    h: f64,
+    min: f64,
+    i: f64,
+    d: &mut [f64],
+    pred: &mut [f64],
+    ties: &mut Vec<usize>,
+) {
+    fn load(s: &[f64]) -> f64x4 {
+        f64x4::from([s[0], s[1], s[2], s[3]])
+    }
+    ties.clear();
+    let m = d.len();
+    let split = m - m % 4;
+    let (hw, minw, iw) = (f64x4::splat(h), f64x4::splat(min), f64x4::splat(i));
+    let lanes = d[..split]
+        .chunks_exact_mut(4)
+        .zip(pred[..split].chunks_exact_mut(4))
+        .zip(ci[..split].chunks_exact(4).zip(v[..split].chunks_exact(4)));
+    for (c, ((dj, pj), (cj, vj))) in lanes.enumerate() {
+        let dw = load(dj);
+        let v2 = load(cj) - load(vj) - hw;
+        let lower = v2.simd_lt(dw);
+        dj.copy_from_slice(&lower.bitselect(v2, dw).to_array());
+        pj.copy_from_slice(&lower.bitselect(iw, load(pj)).to_array());
+        let mut at_min = (lower & v2.simd_eq(minw)).to_bitmask();
+        while at_min != 0 {
+            ties.push(4 * c + at_min.trailing_zeros() as usize);
+            at_min &= at_min - 1;
+        }
+    }
+    for j in split..m {
+        let v2 = ci[j] - v[j] - h;
+        if v2 < d[j] {
+            d[j] = v2;
+            pred[j] = i;
+            if v2 == min {
+                ties.push(j);
+            }
+        }
+    }
 }
 
 /// The square initialisation: column reduction (each column's dual is its
@@ -668,5 +753,80 @@ mod tests {
             s.row_to_col,
             [9, 0, 3, 4, 5, 6, 7, 8, 1, 2].map(Some).to_vec()
         );
+    }
+
+    /// Ties are broken as JV breaks them: on integer and 0/1 costs, where
+    /// a scan often brings several columns to the minimum at once, the
+    /// assignments are those the solver gave before its scans were
+    /// vectorized (pinned as digests of `row_to_col`); `alloc.optimal`'s
+    /// decisions rest on them.
+    #[test]
+    fn ties_are_broken_in_jv_order() {
+        fn digest(s: &Solution) -> u64 {
+            s.row_to_col.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, c| {
+                (h ^ c.map_or(u64::MAX, |c| c as u64)).wrapping_mul(0x0100_0000_01b3)
+            })
+        }
+        const PINNED: [u64; 48] = [
+            1842648249690373234,
+            14861152499044524960,
+            13995931372903417408,
+            10419956597383813502,
+            18138117521441509518,
+            10143854169240347294,
+            13569316921194571878,
+            2269537129870702084,
+            9204149986513272003,
+            11374246979008032963,
+            10184707834160180855,
+            6961663044338402221,
+            13630384801331395577,
+            214756100425418145,
+            9052351088565217995,
+            9773562332640350889,
+            3290171024129675811,
+            3630267156609124405,
+            3290814696353811091,
+            13055427834040671219,
+            15711450720049523967,
+            9167544491434968699,
+            9164934464020811719,
+            15121296951486742645,
+            4593646963030219031,
+            11756992454947545407,
+            2674088766584693584,
+            10116830150417392339,
+            11139658718003630302,
+            11644875093638510956,
+            3747169809360713607,
+            13401745706617570200,
+            18426238576343895379,
+            13240326990023753751,
+            15387078547002725341,
+            6918297360829777215,
+            15220659360278216515,
+            15483426308192746035,
+            8793227833583400417,
+            13997567712482913745,
+            11063882493291746623,
+            2023550463508977637,
+            10875462996956211409,
+            15707182259349038107,
+            725282377096453931,
+            14165557576743777617,
+            17342600445804057,
+            2038556667673521093,
+        ];
+        let cases = [(23, 23), (40, 40), (64, 64), (30, 47), (47, 30), (97, 97)];
+        let mut got = Vec::new();
+        for (rows, cols) in cases {
+            for kind in [1u8, 2] {
+                for seed in 0..4u64 {
+                    let c = random_costs(rows, cols, kind, seed);
+                    got.push(digest(&solve(rows, cols, &c)));
+                }
+            }
+        }
+        assert_eq!(got, PINNED);
     }
 }
