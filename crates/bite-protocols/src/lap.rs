@@ -7,7 +7,10 @@
 //! assign most rows cheaply), then a Dijkstra-like shortest augmenting path
 //! for each row still free. Dense, `O(n²m)` worst case, far faster on
 //! typical instances (see `docs/performance.md`, where it is measured
-//! against SciPy's `linear_sum_assignment`).
+//! against SciPy's `linear_sum_assignment`). The shortest-path scans run
+//! four columns at a time in column order ([`scan_row`]); the choices
+//! among ties are replayed in JV's own order, so the assignment is the
+//! one JV's scalar scans give, ties included.
 //!
 //! Rectangular problems are solved as they are, not padded to a square:
 //! with `n` rows and `m ≥ n` columns only `n` rows are assigned, so the
