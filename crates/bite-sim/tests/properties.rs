@@ -755,6 +755,13 @@ fn cases_that_failed_once() {
         // passed with the same change.
         (10_512_915_990_778_792_624, 7),
         (16_918_095_872_503_224_342, 4),
+        // "Members past a split, unheard", seed 3859: two members chose
+        // apart after a silent `sync.by-rule` while the leader and two
+        // other members were still before the point; each sent its
+        // heartbeats to the leader and to a member behind, which did not
+        // answer, and the two ran their successors side by side for 5.8
+        // s (`splits-healed`).
+        (5_905_993_687_803_114_408, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

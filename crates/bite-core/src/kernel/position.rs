@@ -950,11 +950,7 @@ impl Kernel {
         let Some(a) = f.anchor.filter(|a| !a.first) else {
             return false;
         };
-        if self
-            .graph()
-            .get(a.behavior)
-            .is_none_or(|b| b.next.len() < 2)
-        {
+        if !self.splits_after(a.behavior) {
             return false;
         }
         let Some(parent) = depth.checked_sub(1).and_then(|i| self.stack.get(i)) else {
@@ -968,6 +964,12 @@ impl Kernel {
                     .get(depth)
                     .is_some_and(|(g, _)| g.team == f.team && self.passed(depth, parent, *g))
         })
+    }
+
+    /// True when behavior `b` has several successors: a point after which
+    /// members may choose apart.
+    fn splits_after(&self, b: BehaviorId) -> bool {
+        self.graph().get(b).is_some_and(|b| b.next.len() >= 2)
     }
 
     /// Teammate `r`'s entry, if it was heard within [`FRESH`].
@@ -1287,10 +1289,31 @@ impl Kernel {
             //   a later execution in the same team under the same parent:
             //   the sender went on (this robot is behind, in an individual
             //   behavior, or was cut off), and may wait for it further on.
-            if std::mem::take(&mut shared)
+            let first = std::mem::take(&mut shared);
+            if first
                 && (self.recent_ended.contains(&f.id)
                     || m.is_some_and(|m| f.follows(m) || self.ahead(k, m, f.id)))
                 && waits()
+            {
+                stranger = true;
+                break;
+            }
+            // - Or the successor of the execution this robot runs there,
+            //   at a point where each member may choose alone, while this
+            //   robot does not lead the team: the sender went on past it
+            //   (and past the team's leader, or it would not send here),
+            //   and took this robot for the member that relays the team
+            //   (`Kernel::acting_leader`: unheard, it is not known to be
+            //   behind). Answered, the sender learns it is behind and
+            //   looks further, until the members past the point find the
+            //   lowest of them; without it two members that chose apart
+            //   there heard only those behind them, and ran their two
+            //   successors side by side until the leader came
+            //   (docs/reliability.md, "Members past a split, unheard").
+            if first
+                && k > 0
+                && m.is_some_and(|m| f.follows(m) && self.splits_after(m.behavior))
+                && self.heal_leader(f.id.team, k) != Some(self.me)
             {
                 stranger = true;
                 break;

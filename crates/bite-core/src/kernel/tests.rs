@@ -2918,6 +2918,52 @@ fn members_ahead_of_their_leader_that_chose_apart_hear_each_other() {
     assert_eq!(audience(&h, 2), [0]);
 }
 
+/// The same with a member behind as well as the leader: the members past
+/// the point take it, unheard, for the one that relays, and it answers
+/// them, so that they learn it is behind and find the lowest of
+/// themselves. Before, the member behind heard them and said nothing; the
+/// two that chose apart sent their heartbeats to it and to the leader,
+/// both behind, and ran their two successors side by side until the
+/// leader came (found by `no_waiting_across_levels`, RNG seed 3859, graph
+/// seed 5905993687803114408: r3 and r5 ran `alt19` and `b3` for 5.8 s,
+/// breaking `splits-healed`; the leader, r0, and r1 and r2 were still in
+/// `b2`).
+#[test]
+fn members_past_a_split_find_each_other_past_members_behind() {
+    let mut h = Harness::new(CHOOSE, 4);
+    h.tick(0, &CHOOSE_OFF);
+    h.heartbeats();
+    h.tick_one(2, 100, &[("a_done", T), ("want_b", T)]);
+    h.tick_one(3, 100, &[("a_done", T), ("want_c", T)]);
+    assert_eq!(h.stack(2), ["root", "b"]);
+    assert_eq!(h.stack(3), ["root", "c"]);
+    assert_eq!(h.stack(1), ["root", "a"], "r1 is behind");
+    assert_eq!(h.stack(0), ["root", "a"], "and r0, the leader");
+    h.heartbeats();
+    assert_eq!(audience(&h, 3), [0, 1], "r3 takes r1 for the relay");
+    assert_eq!(audience(&h, 1), [0]);
+    h.heartbeats();
+    assert_eq!(audience(&h, 1), [0, 2, 3], "r1 answers those past it");
+    h.heartbeats();
+    assert_eq!(audience(&h, 2), [0, 1, 3], "r2 relays, r1 being behind");
+    h.heartbeats();
+    assert_eq!(h.stack(3), ["root", "b"], "r3 follows r2, the lower id");
+    // Once r1 comes, it relays, the lowest member past the point; once
+    // the leader comes, the members send to it alone again.
+    h.tick_one(1, 200, &[("a_done", T), ("want_b", T)]);
+    h.heartbeats();
+    h.heartbeats();
+    assert_eq!(audience(&h, 1), [0, 2, 3]);
+    assert_eq!(audience(&h, 2), [0, 1]);
+    h.tick_one(0, 300, &[("a_done", T), ("want_b", T)]);
+    h.heartbeats();
+    h.heartbeats();
+    for r in 1..4 {
+        assert_eq!(audience(&h, r), [0]);
+    }
+    assert!(h.kernels[1].answering.is_none());
+}
+
 /// A teammate that ended the execution this robot's execution came after
 /// and went through another successor of it, ahead of this robot: the
 /// split is seen from the executions the teammate ended, and this robot
