@@ -762,6 +762,11 @@ fn cases_that_failed_once() {
         // answer, and the two ran their successors side by side for 5.8
         // s (`splits-healed`).
         (5_905_993_687_803_114_408, 7),
+        // "A teammate a lap ahead, converged past", seed 6239: a robot a
+        // lap behind, in `b31`#1, waited out an `alloc.auction`'s deadline
+        // below it for a teammate that had converged past `b31`#1 onto the
+        // team's `b31`#2, come another way.
+        (11_787_103_274_286_648_411, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

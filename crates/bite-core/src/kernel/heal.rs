@@ -345,9 +345,14 @@ impl Kernel {
             // round past the execution"). Or it went on beyond it, to a
             // behavior only this one leads to (`Kernel::went_beyond`). It may
             // have run it (and decided its allocation), so it stays in that
-            // allocation, as a teammate that ran it does.
+            // allocation, as a teammate that ran it does. Or it runs a later
+            // execution of this one's behavior (`Kernel::lapped`).
             let went_round = !went_past
-                && ahead.is_some_and(|g| self.round_past(k, g.id) || self.went_beyond(k, id, g.id));
+                && ahead.is_some_and(|g| {
+                    self.round_past(k, g.id)
+                        || self.went_beyond(k, id, g.id)
+                        || self.lapped(k, id, g)
+                });
             // One that ended it before any allocation of it (its end, heard
             // with no allocation applied) neither decided one.
             let unallocated = || {
@@ -563,6 +568,31 @@ impl Kernel {
             && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))
             && (self.graph().get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
             && !(from_earlier && self.leads_back(g.id.behavior, id.behavior))
+    }
+
+    /// True when a teammate runs, beside this robot's execution `id` at
+    /// depth `k` (under the same parent execution, in the same team), `g`,
+    /// a later execution of `id`'s own behavior, which this robot has yet
+    /// to start ([`Kernel::yet_to_start`]): a robot numbers its executions
+    /// of a team behavior 1, 2, 3… and never runs one again, so the
+    /// teammate will not come to `id` (it ran it and went round, or
+    /// converged past it from the way before). It may have run it, so it
+    /// stays in its allocation, as a teammate that ran it does.
+    ///
+    /// Not when `g` came after the same execution as `id` (the same
+    /// successor counted differently: this robot converges on it,
+    /// [`Kernel::reconcile`]), nor for an individual behavior, which each
+    /// member numbers at its own pace. Without this, a robot a lap behind
+    /// waited at a point below `id` for a teammate that had converged past
+    /// it onto the team's next lap, until its deadline (docs/reliability.md,
+    /// "A teammate a lap ahead, converged past").
+    fn lapped(&self, k: usize, id: FrameId, g: &PosFrame) -> bool {
+        g.id.behavior == id.behavior
+            && g.id.epoch > id.epoch
+            && !self.graph().is_individual(id.behavior)
+            && self
+                .slot_at(k)
+                .is_some_and(|(_, f)| f.anchor.is_some() && f.anchor != g.anchor)
     }
 
     /// True when a teammate runs, beside this robot's execution `id` at

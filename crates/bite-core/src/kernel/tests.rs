@@ -2868,6 +2868,51 @@ behaviors:
     assert!(!left_out(&h, 1, barrier, RobotId(2)));
 }
 
+/// A teammate in a later execution of this robot's own behavior, come
+/// there another way, will not come to this robot's execution: it is
+/// departed from it and left out of the points below. Before, a robot a
+/// lap behind waited at a point below for a teammate that had converged
+/// past it onto the team's next lap, until its deadline (found by
+/// `no_waiting_across_levels`, RNG seed 6239, graph seed
+/// 11787103274286648411: r5, in `b31`#1 after `b30`#1, waited out its
+/// `alloc.auction`'s deadline below for r4, which converged from `b30`#1
+/// onto `b31`#2 after `alt32`#1).
+#[test]
+fn a_teammate_a_lap_ahead_come_another_way_is_gone_from_this_lap() {
+    const LAP: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [p] }
+  p: { team: true, skill: w, until: p_done, next: [a, q] }
+  q: { team: true, skill: w, pre: want_q, until: q_done, next: [a] }
+  a: { team: true, children: [s], pre: want_a, until: a_done, next: [p] }
+  s: { team: true, skill: w, until: s_done, terminate: term.test-barrier }";
+    let mut h = Harness::new(LAP, 3);
+    let off = ["p_done", "q_done", "a_done", "s_done", "want_a", "want_q"];
+    h.tick(0, &off.map(|b| (b, F)));
+    // Robot 1 takes `a`#1 after `p`#1, ends `s` below it and waits there.
+    h.tick_one(1, 100, &[("p_done", T), ("want_a", T)]);
+    h.tick_one(1, 200, &[("s_done", T)]);
+    let [root, q, a, s] = behaviors(&h, 1, ["root", "q", "a", "s"]);
+    let barrier = barrier_at(&h, 1, s);
+    assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(2)));
+    // Robot 2 runs `a`#2 after `q`#1: the team's next lap, come by `q`.
+    let chain = [
+        (at_root(root, 1), None),
+        (at_root(a, 2), Some((at_root(q, 1), false))),
+    ];
+    tell(&mut h, 1, 2, Time::from_millis(250), &chain);
+    assert_eq!(h.stack(1), ["root", "a"], "robot 1 stays in its lap");
+    assert_gone_from(
+        &h,
+        1,
+        at_root(a, 1),
+        barrier,
+        RobotId(2),
+        "robot 2 is a lap ahead",
+    );
+}
+
 /// A team whose members choose `b` or `c` after `a` each by its own
 /// preconditions (one option each: no protocol runs), and go on from
 /// either to `d`.
