@@ -767,6 +767,13 @@ fn cases_that_failed_once() {
         // below it for a teammate that had converged past `b31`#1 onto the
         // team's `b31`#2, come another way.
         (11_787_103_274_286_648_411, 6),
+        // "A teammate on the other way, two edges back", seed 6286: a
+        // member at an auction waited out its deadline for its
+        // coordinator, slow on the other successor of the point before,
+        // two sequential edges from the auction's behavior. Seed 4412
+        // (four robots) passes with the same change.
+        (7_004_174_605_040_164_135, 7),
+        (4_474_642_605_013_233_406, 4),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

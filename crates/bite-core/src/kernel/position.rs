@@ -891,19 +891,33 @@ impl Kernel {
     /// it sooner went on through `b2` into `b3`, where it waits for a
     /// teammate still in its run of `b1`).
     ///
+    /// From an execution of a team behavior this robot never ran under
+    /// the parent the way may be longer too: the teammate took another
+    /// successor of a point before, and its way leads into this robot's
+    /// behavior through others (a loop `b5`, then `alt8` or `b6`, then `b7`, then `b5` again: a
+    /// teammate in `b6`#1 beside this robot's `b5`#2, reached through
+    /// `alt8`#1 and `b7`#1, is on its way; property seed 6286, where the
+    /// leader, slow in `b5`#1's subtree, then in `b6`#1, was taken for
+    /// silent at `b5`#2's auction). Its epoch cannot say which lap it is
+    /// on (this robot never numbered that behavior), so it is waited for
+    /// as one behind is: while it makes progress, for a bounded number of
+    /// deadlines ([`Kernel::awaited_at_work`]).
+    ///
     /// Not a later execution of the behavior this robot's execution came
     /// after ([`Kernel::round_past`]): that teammate went round past it.
     fn leads_into(&self, k: usize, parent: FrameId, g: FrameId) -> bool {
         let graph = self.graph();
-        k.checked_sub(1)
-            .and_then(|i| self.stack.get(i))
-            .is_some_and(|p| p.id() == parent)
+        let Some(p) = k.checked_sub(1).and_then(|i| self.stack.get(i)) else {
+            return false;
+        };
+        p.id() == parent
             && graph.get(g.behavior).is_some_and(|b| {
                 self.slot_at(k).is_some_and(|(_, f)| {
                     f.team == g.team
                         && f.id() != g
                         && (b.next.contains(&f.behavior)
-                            || (graph.is_individual(g.behavior)
+                            || ((graph.is_individual(g.behavior)
+                                || p.runs.latest_epoch(g.behavior) == 0)
                                 && graph.leads_to(g.behavior, f.behavior)))
                 })
             })

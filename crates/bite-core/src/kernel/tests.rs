@@ -3270,6 +3270,50 @@ behaviors:
     assert!(!h.kernels[0].awaited_at_work(key), "not behind: {beyond:?}");
 }
 
+/// A leader at a barrier waits for a member heard at work in a team
+/// behavior two sequential edges before the barrier's, on the other
+/// successor of a point both went through, which the leader never ran:
+/// slow, not silent, it is on its way. Before, only a behavior followed
+/// directly by the leader's counted (found by `no_waiting_across_levels`,
+/// RNG seed 6286, graph seed 7004174605040164135: r3 at `b5`#2's auction,
+/// come through `alt8`#1 and `b7`#1, waited out its deadline for r2, its
+/// coordinator, slow in `b5`#1's subtree and then in `b6`#1, on its way
+/// through `b7`#1; the same rule serves a member waiting on its leader).
+#[test]
+fn a_teammate_on_the_other_way_two_edges_back_is_on_its_way() {
+    const TWO_WAYS: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [p] }
+  p: { team: true, skill: w, until: p_done, next: [b, c] }
+  b: { team: true, skill: w, pre: want_b, until: b_done, next: [e] }
+  c: { team: true, skill: w, pre: want_c, until: c_done, next: [e] }
+  e: { team: true, skill: w, until: e_done, next: [q] }
+  q: { team: true, skill: w, until: q_done, terminate: term.test-barrier }";
+    let mut h = Harness::new(TWO_WAYS, 2);
+    let off = [
+        "p_done", "b_done", "c_done", "e_done", "q_done", "want_b", "want_c",
+    ];
+    h.tick(0, &off.map(|b| (b, F)));
+    h.tick_one(0, 100, &[("p_done", T), ("want_b", T)]);
+    h.tick_one(0, 200, &[("p_done", F), ("b_done", T)]);
+    h.tick_one(0, 300, &[("b_done", F), ("e_done", T)]);
+    h.tick_one(0, 400, &[("e_done", F), ("q_done", T)]);
+    let [root, p, c, q] = behaviors(&h, 0, ["root", "p", "c", "q"]);
+    let key = barrier_at(&h, 0, q);
+    // Robot 1 at work in `c`#1, after `p`#1.
+    let chain = [
+        (at_root(root, 1), None),
+        (at_root(c, 1), Some((at_root(p, 1), false))),
+    ];
+    tell(&mut h, 0, 1, Time::from_millis(450), &chain);
+    assert_eq!(h.stack(0), ["root"], "robot 0 still waits at `q`'s end");
+    assert!(
+        h.kernels[0].awaited_at_work(key),
+        "robot 1 is on its way through `e`"
+    );
+}
+
 /// A robot at work in an execution whose point a teammate waits at
 /// answers the teammate while the leader it sends to there is not heard:
 /// the two counted different teammates departed above (an individual
