@@ -2934,6 +2934,20 @@ const CHOOSE_OFF: [(&str, Value); 6] = [
     ("want_c", F),
 ];
 
+/// `robots` robots on [`CHOOSE`], heard by each other at the start; then
+/// robot `on_b` takes `b` after `a`#1 and robot `on_c` takes `c`, each
+/// alone, while the others stay in `a`.
+fn chosen_apart(robots: usize, on_b: usize, on_c: usize) -> Harness {
+    let mut h = Harness::new(CHOOSE, robots);
+    h.tick(0, &CHOOSE_OFF);
+    h.heartbeats();
+    h.tick_one(on_b, 100, &[("a_done", T), ("want_b", T)]);
+    h.tick_one(on_c, 100, &[("a_done", T), ("want_c", T)]);
+    assert_eq!(h.stack(on_b), ["root", "b"]);
+    assert_eq!(h.stack(on_c), ["root", "c"]);
+    h
+}
+
 /// Members that went on past their leader and chose apart at a point with
 /// several successors hear each other: the lowest-id one relays the
 /// team's heartbeats while the leader is behind on its way, at work as
@@ -2944,13 +2958,7 @@ const CHOOSE_OFF: [(&str, Value); 6] = [
 /// 6.5 s, breaking `splits-healed`).
 #[test]
 fn members_ahead_of_their_leader_that_chose_apart_hear_each_other() {
-    let mut h = Harness::new(CHOOSE, 3);
-    h.tick(0, &CHOOSE_OFF);
-    h.heartbeats();
-    h.tick_one(1, 100, &[("a_done", T), ("want_b", T)]);
-    h.tick_one(2, 100, &[("a_done", T), ("want_c", T)]);
-    assert_eq!(h.stack(1), ["root", "b"]);
-    assert_eq!(h.stack(2), ["root", "c"]);
+    let mut h = chosen_apart(3, 1, 2);
     assert_eq!(h.stack(0), ["root", "a"], "r0, the leader, is behind");
     h.heartbeats();
     assert_eq!(audience(&h, 1), [0, 2], "r1 relays while r0 is in `a`");
@@ -2975,13 +2983,7 @@ fn members_ahead_of_their_leader_that_chose_apart_hear_each_other() {
 /// `b2`).
 #[test]
 fn members_past_a_split_find_each_other_past_members_behind() {
-    let mut h = Harness::new(CHOOSE, 4);
-    h.tick(0, &CHOOSE_OFF);
-    h.heartbeats();
-    h.tick_one(2, 100, &[("a_done", T), ("want_b", T)]);
-    h.tick_one(3, 100, &[("a_done", T), ("want_c", T)]);
-    assert_eq!(h.stack(2), ["root", "b"]);
-    assert_eq!(h.stack(3), ["root", "c"]);
+    let mut h = chosen_apart(4, 2, 3);
     assert_eq!(h.stack(1), ["root", "a"], "r1 is behind");
     assert_eq!(h.stack(0), ["root", "a"], "and r0, the leader");
     h.heartbeats();
