@@ -894,11 +894,11 @@ impl Kernel {
     /// From an execution of a team behavior this robot never ran under
     /// the parent the way may be longer too: the teammate took another
     /// successor of a point before, and its way leads into this robot's
-    /// behavior through others (a loop `b5`, then `alt8` or `b6`, then `b7`, then `b5` again: a
-    /// teammate in `b6`#1 beside this robot's `b5`#2, reached through
-    /// `alt8`#1 and `b7`#1, is on its way; property seed 6286, where the
-    /// leader, slow in `b5`#1's subtree, then in `b6`#1, was taken for
-    /// silent at `b5`#2's auction). Its epoch cannot say which lap it is
+    /// behavior through others (a loop `b5`, then `alt8` or `b6`, then
+    /// `b7`, then `b5` again: a teammate in `b6`#1 beside this robot's
+    /// `b5`#2, reached through `alt8`#1 and `b7`#1, is on its way;
+    /// property seed 6286, where the leader, slow in `b5`#1's subtree,
+    /// then in `b6`#1, was taken for silent at `b5`#2's auction). Its epoch cannot say which lap it is
     /// on (this robot never numbered that behavior), so it is waited for
     /// as one behind is: while it makes progress, for a bounded number of
     /// deadlines ([`Kernel::awaited_at_work`]).
