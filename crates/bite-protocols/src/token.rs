@@ -122,6 +122,12 @@ impl Tokens {
 
     /// Deal every unclaimed slot's token, slot k to the k-th live member.
     fn deal(&mut self, cx: &mut Cx<'_>) {
+        self.deal_to(cx, None);
+    }
+
+    /// Deal the unclaimed slots' tokens, slot k to the k-th live member;
+    /// only those of member `only` when given.
+    fn deal_to(&mut self, cx: &mut Cx<'_>, only: Option<RobotId>) {
         let members: Vec<RobotId> = cx.members().collect();
         if members.is_empty() {
             return;
@@ -138,6 +144,9 @@ impl Tokens {
                 threshold: self.threshold,
             };
             let to = members[k % members.len()];
+            if only.is_some_and(|r| r != to) {
+                continue;
+            }
             if to == cx.me() {
                 self.hold(cx, &token);
             } else {
@@ -145,6 +154,41 @@ impl Tokens {
             }
         }
         self.maybe_finish(cx);
+    }
+
+    /// A member without a place asks how the allocation stands: it was not
+    /// at the point yet when its tokens were dealt (it dropped them), and
+    /// the leader's next deal may be a whole backoff away (up to 64
+    /// retries). It is dealt its places again now, or, when every place
+    /// dealt to it is claimed, the first unclaimed one (a duplicate token
+    /// is harmless: the first claim wins). As `alloc.auction` sends its
+    /// call again to a member that asks (docs/reliability.md, "A member
+    /// that reached the token's point late").
+    fn deal_to_asker(&mut self, cx: &mut Cx<'_>, from: RobotId) {
+        if !self.leading
+            || cx.is_aborted()
+            || !cx.is_live(from)
+            || self.claims.values().any(|r| *r == from)
+        {
+            return;
+        }
+        let members: Vec<RobotId> = cx.members().collect();
+        let Some(at) = members.iter().position(|r| *r == from) else {
+            return;
+        };
+        let unclaimed = |k: &usize| !self.claims.contains_key(&(*k as u32));
+        let mine = (0..self.slots.len()).any(|k| unclaimed(&k) && k % members.len() == at);
+        if mine {
+            self.deal_to(cx, Some(from));
+        } else if let Some(k) = (0..self.slots.len()).find(unclaimed) {
+            let token = Body::Token {
+                slot: k as u32,
+                item: self.children[self.slots[k]].behavior,
+                hops: 0,
+                threshold: self.threshold,
+            };
+            cx.send(from, token);
+        }
     }
 
     /// This robot holds a token: keep it, or pass it on.
@@ -311,7 +355,9 @@ impl Interaction for Tokens {
                 }
             }
             Body::Query if cx.is_leader() => {
-                self.coord.answer(cx, from);
+                if !self.coord.answer(cx, from) {
+                    self.deal_to_asker(cx, from);
+                }
             }
             _ if self.coord.on_announcement(cx, from, body) => {}
             Body::Claim { .. } | Body::Query => {}

@@ -166,6 +166,41 @@ fn a_member_that_lost_a_claim_race_is_given_the_place_left_over() {
     );
 }
 
+/// A member that reached the point after its token was dealt (it dropped
+/// the token: it was not in the instance yet) asks the leader how the
+/// allocation stands; the leader deals it its place again at once, as
+/// `alloc.auction` sends its call again. Without it the member waited for
+/// the leader's next deal, up to 64 retries away, and the leader's
+/// deadline came first. Found by `no_waiting_across_levels` (RNG seed
+/// 6855, graph seed 8450988898213553314, eight robots; docs/reliability.md,
+/// "A member that reached the token's point late").
+#[test]
+fn a_member_that_asks_is_dealt_its_place_again() {
+    let mut r0 = robot(0);
+    let key = start(&mut r0);
+    drain(&mut r0);
+    // r0 dealt three places, kept one, and r1 claimed the second.
+    r0.message(
+        Time::from_millis(100),
+        from(1, key, 1, Body::Claim { slot: 1 }),
+    );
+    assert_eq!(drain(&mut r0).decided, 0, "r2 has not claimed yet");
+    r0.message(Time::from_millis(200), from(2, key, 1, Body::Query));
+    let d = drain(&mut r0);
+    let y = r0.mission().graph().find("y").expect("y");
+    assert!(
+        d.sent
+            .iter()
+            .any(|(to, m)| *to == Recipients::One(RobotId(2))
+                && matches!(m, Body::Token { slot: 2, item, .. } if *item == y)),
+        "r2 dealt the place left: {:?}",
+        d.sent
+    );
+    // And r1, which holds a place, is dealt nothing when it asks.
+    r0.message(Time::from_millis(300), from(1, key, 2, Body::Query));
+    assert!(drain(&mut r0).sent.is_empty(), "r1 holds a place");
+}
+
 /// A member that ended the behavior whose allocation made its subteam
 /// (its own `until`) dissolved the subteam; a teammate still in it, which
 /// heard its heartbeats only while they shared the subteam, asks it at the
