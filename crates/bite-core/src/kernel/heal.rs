@@ -634,9 +634,13 @@ impl Kernel {
     /// `g`, an execution this robot has yet to start
     /// ([`Kernel::yet_to_start`]), and will never come to `id`:
     ///
-    /// - `g`'s behavior is individual and never leads to `id`'s: an
-    ///   individual behavior's histories never meet ([`Kernel::meet`]),
-    ///   and its chain from there avoids `id`'s behavior;
+    /// - `g`'s behavior never leads to `id`'s, and one of the two is
+    ///   individual: histories meet only where both are team behaviors
+    ///   ([`Kernel::meet`]), so the teammate is never moved into `id`
+    ///   (nor, `g` individual, out of `g`; `g` a team behavior, only onto
+    ///   a side a lap further on), and its chain from there avoids `id`'s
+    ///   behavior (an individual `id` since docs/reliability.md, "A leader
+    ///   gone off from an individual behavior");
     /// - `from` is the team's first member, the healing leader on every
     ///   member's view: at a split it follows no other side
     ///   ([`Kernel::reconcile`]), the others converge on it; or `from` runs
@@ -662,7 +666,8 @@ impl Kernel {
             && parent.runs.latest_epoch(a.behavior) >= a.epoch
             && (a.behavior != id.behavior || a.epoch < id.epoch)
             && g.id.behavior != id.behavior
-            && self.graph().is_individual(g.id.behavior)
+            && (self.graph().is_individual(g.id.behavior)
+                || self.graph().is_individual(id.behavior))
             && !self.leads_back(g.id.behavior, id.behavior)
             && self
                 .org

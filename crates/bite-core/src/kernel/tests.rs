@@ -3436,6 +3436,16 @@ fn departed_from(h: &Harness, i: usize, id: FrameId, r: RobotId) -> bool {
 /// ends `s`, waiting at its barrier. Its key, with the ids of `root`, `p`,
 /// `a` and `off`.
 fn gone_off(off_next: &str) -> (Harness, InstanceKey, [BehaviorId; 4]) {
+    gone_off_as(true, false, off_next)
+}
+
+/// [`gone_off`] with `a` and `off` team behaviors or individual ones
+/// (`team:` as given).
+fn gone_off_as(
+    a_team: bool,
+    off_team: bool,
+    off_next: &str,
+) -> (Harness, InstanceKey, [BehaviorId; 4]) {
     let graph = format!(
         "start: root
 defaults: {{ terminate: term.local }}
@@ -3443,8 +3453,8 @@ behaviors:
   root: {{ team: true, children: [p] }}
   p: {{ team: true, skill: w, until: p_done, next: [q, off], sync: sync.by-rule }}
   q: {{ team: true, skill: w, until: q_done, next: [a] }}
-  a: {{ team: true, children: [s], until: a_done }}
-  off: {{ team: false, skill: w, until: off_done, {off_next} }}
+  a: {{ team: {a_team}, children: [s], until: a_done }}
+  off: {{ team: {off_team}, skill: w, until: off_done, {off_next} }}
   s: {{ team: true, skill: w, until: s_done, terminate: term.test-barrier }}"
     );
     let mut h = Harness::new(&graph, 3);
@@ -3511,6 +3521,38 @@ fn a_leader_gone_off_for_good_is_departed_from_the_execution() {
 #[test]
 fn a_leader_gone_off_a_way_back_is_not_departed() {
     let (mut h, barrier, [root, p, a, off]) = gone_off("next: [a]");
+    let in_off = in_off_after(root, p, off);
+    tell(&mut h, 1, 0, Time::from_millis(300), &in_off);
+    assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(0)));
+    assert!(!left_out(&h, 1, barrier, RobotId(0)));
+}
+
+/// [`a_leader_gone_off_for_good_is_departed_from_the_execution`] with the
+/// roles of team and individual behavior swapped: `a` individual (each
+/// member ends it alone) and `off` a team behavior that never leads back
+/// to it. The leader in `off` is gone for good as well: it follows no other
+/// side at a split, and histories meet only through team behaviors
+/// (`Kernel::meet`), so nothing brings it into `a`. With `a` a team
+/// behavior too, the histories may still meet, and nobody is departed.
+/// Found by `no_waiting_across_levels` (RNG seed 6404, graph seed
+/// 859933712933106335): a member waited at an individual behavior's
+/// auction for its coordinator, gone into a team behavior that ends the
+/// root's chain, until its deadline (docs/reliability.md, "A leader gone
+/// off from an individual behavior").
+#[test]
+fn a_leader_gone_off_into_a_team_behavior_leaves_an_individual_execution() {
+    let (mut h, barrier, [root, p, a, off]) = gone_off_as(false, true, "next: []");
+    let in_off = in_off_after(root, p, off);
+    tell(&mut h, 1, 0, Time::from_millis(300), &in_off);
+    assert_gone_from(
+        &h,
+        1,
+        at_root(a, 1),
+        barrier,
+        RobotId(0),
+        "robot 0 went off",
+    );
+    let (mut h, barrier, [root, p, a, off]) = gone_off_as(true, true, "next: []");
     let in_off = in_off_after(root, p, off);
     tell(&mut h, 1, 0, Time::from_millis(300), &in_off);
     assert!(!departed_from(&h, 1, at_root(a, 1), RobotId(0)));
