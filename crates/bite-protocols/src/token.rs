@@ -20,9 +20,11 @@
 //! unclaimed places again on its timer (a token lost on the way, or still
 //! travelling); a place claimed twice goes to the first claim, and the
 //! second claimant, which takes no more tokens once it has claimed, is
-//! given another unclaimed place (of the same child if there is one); a
-//! member waiting for the
-//! assignment asks for it with exponential backoff. When a member is
+//! given another unclaimed place (of the same child if there is one), as
+//! is a member that claims a place the leader never made (a token of an
+//! earlier leader's deal, passed on by a teammate). A member waiting for
+//! the assignment asks for it with exponential backoff, and one without a
+//! place is dealt its places again when it asks. When a member is
 //! presumed lost, its place (claimed or not) is dealt again as a token; a
 //! member that becomes leader because the leader was lost deals all places
 //! anew, and a token from a teammate a member has left out (its deal
@@ -249,27 +251,27 @@ impl Tokens {
     }
 
     fn record(&mut self, cx: &mut Cx<'_>, from: RobotId, slot: u32) {
-        if slot as usize >= self.slots.len() {
-            cx.violation(format!(
-                "alloc.token: {from} claimed a slot that does not exist"
-            ));
-            return;
-        }
         // One place per member; the first claim of a place wins it. The
         // member that lost the race takes no more tokens (it holds a
         // place, as far as it knows), so it is given another unclaimed
         // place, of the same child if there is one: left without, it held
         // the allocation up until the deadline (docs/reliability.md, "A
-        // place claimed twice").
+        // place claimed twice"). So is a member that claims a place this
+        // leader never made: a token of another leader's deal (numbered
+        // for the team that leader saw), passed on to it by a live
+        // teammate before the leadership changed; it took no more tokens
+        // either (docs/reliability.md, "A token of an earlier deal").
         if !self.claims.values().any(|r| *r == from) {
             let free = |s: &u32| !self.claims.contains_key(s);
-            let child = self.slots[slot as usize];
             let all = 0..self.slots.len() as u32;
-            let place = Some(slot).filter(free).or_else(|| {
-                (all.clone().filter(free))
-                    .find(|s| self.slots[*s as usize] == child)
-                    .or_else(|| all.clone().find(free))
-            });
+            let place = match self.slots.get(slot as usize) {
+                Some(&child) => Some(slot).filter(free).or_else(|| {
+                    (all.clone().filter(free))
+                        .find(|s| self.slots[*s as usize] == child)
+                        .or_else(|| all.clone().find(free))
+                }),
+                None => all.clone().find(free),
+            };
             if let Some(s) = place {
                 self.claims.insert(s, from);
                 self.coord.progress(cx);

@@ -201,6 +201,45 @@ fn a_member_that_asks_is_dealt_its_place_again() {
     assert!(drain(&mut r0).sent.is_empty(), "r1 holds a place");
 }
 
+/// A member claims a place the leader never made: a token of an earlier
+/// leader's deal (numbered for the team that leader saw), passed on to it
+/// by a live teammate before the leadership changed. It takes no more
+/// tokens once it has claimed, so the leader gives it a place left, as it
+/// does a member that lost a claim race. Found by
+/// `no_waiting_across_levels` (RNG seed 7260, graph seed
+/// 6026314665237865797, seven robots): the leader took each of the
+/// member's claims for a protocol violation and waited for it until its
+/// deadline (docs/reliability.md, "A token of an earlier deal").
+#[test]
+fn a_member_that_claims_a_place_of_an_earlier_deal_is_given_one() {
+    let mut r0 = robot(0);
+    let key = start(&mut r0);
+    drain(&mut r0);
+    // r0 dealt three places and kept one; r1 claims a seventh place.
+    r0.message(
+        Time::from_millis(100),
+        from(1, key, 1, Body::Claim { slot: 6 }),
+    );
+    assert_eq!(drain(&mut r0).decided, 0, "r2 has not claimed yet");
+    r0.message(
+        Time::from_millis(200),
+        from(2, key, 1, Body::Claim { slot: 2 }),
+    );
+    let d = drain(&mut r0);
+    assert_eq!(d.decided, 1, "decided at once, not at its deadline");
+    let placed: Vec<RobotId> = (d.sent.iter())
+        .find_map(|(_, m)| match m {
+            Body::Assignment { members, .. } => Some(members.iter().map(|(r, _)| *r).collect()),
+            _ => None,
+        })
+        .expect("the assignment announced");
+    assert_eq!(
+        placed,
+        [RobotId(0), RobotId(1), RobotId(2)],
+        "every member placed"
+    );
+}
+
 /// A member that ended the behavior whose allocation made its subteam
 /// (its own `until`) dissolved the subteam; a teammate still in it, which
 /// heard its heartbeats only while they shared the subteam, asks it at the
