@@ -138,18 +138,24 @@ fn the_token_leader_decides_once_every_live_member_holds_a_place() {
 /// place claimed twice").
 #[test]
 fn a_member_that_lost_a_claim_race_is_given_the_place_left_over() {
+    every_member_placed_after_claims(1, 1);
+}
+
+/// The token leader r0 of three, having dealt three places and kept one,
+/// hears r1 claim place `first`, then r2 place `second`: it decides at
+/// once, every member placed.
+fn every_member_placed_after_claims(first: u32, second: u32) {
     let mut r0 = robot(0);
     let key = start(&mut r0);
     drain(&mut r0);
-    // r0 dealt three places and kept one.
     r0.message(
         Time::from_millis(100),
-        from(1, key, 1, Body::Claim { slot: 1 }),
+        from(1, key, 1, Body::Claim { slot: first }),
     );
     assert_eq!(drain(&mut r0).decided, 0, "r2 has not claimed yet");
     r0.message(
         Time::from_millis(200),
-        from(2, key, 1, Body::Claim { slot: 1 }),
+        from(2, key, 1, Body::Claim { slot: second }),
     );
     let d = drain(&mut r0);
     assert_eq!(d.decided, 1, "decided at once, not at its deadline");
@@ -212,32 +218,8 @@ fn a_member_that_asks_is_dealt_its_place_again() {
 /// deadline (docs/reliability.md, "A token of an earlier deal").
 #[test]
 fn a_member_that_claims_a_place_of_an_earlier_deal_is_given_one() {
-    let mut r0 = robot(0);
-    let key = start(&mut r0);
-    drain(&mut r0);
-    // r0 dealt three places and kept one; r1 claims a seventh place.
-    r0.message(
-        Time::from_millis(100),
-        from(1, key, 1, Body::Claim { slot: 6 }),
-    );
-    assert_eq!(drain(&mut r0).decided, 0, "r2 has not claimed yet");
-    r0.message(
-        Time::from_millis(200),
-        from(2, key, 1, Body::Claim { slot: 2 }),
-    );
-    let d = drain(&mut r0);
-    assert_eq!(d.decided, 1, "decided at once, not at its deadline");
-    let placed: Vec<RobotId> = (d.sent.iter())
-        .find_map(|(_, m)| match m {
-            Body::Assignment { members, .. } => Some(members.iter().map(|(r, _)| *r).collect()),
-            _ => None,
-        })
-        .expect("the assignment announced");
-    assert_eq!(
-        placed,
-        [RobotId(0), RobotId(1), RobotId(2)],
-        "every member placed"
-    );
+    // r1 claims a seventh place of three.
+    every_member_placed_after_claims(6, 2);
 }
 
 /// A member that ended the behavior whose allocation made its subteam
