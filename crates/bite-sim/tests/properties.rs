@@ -774,6 +774,21 @@ fn cases_that_failed_once() {
         // (four robots) passes with the same change.
         (7_004_174_605_040_164_135, 7),
         (4_474_642_605_013_233_406, 4),
+        // "A member that reached the token's point late", seed 6855: a
+        // member came to an `alloc.token` point 44 s after its tokens were
+        // dealt (it dropped them), asked, and waited for the leader's next
+        // deal, a backoff away; the leader's deadline came first.
+        (8_450_988_898_213_553_314, 8),
+        // "A leader gone off from an individual behavior", seed 6404: a
+        // member waited at an individual behavior's auction for its
+        // coordinator, the team's first member, gone into a team behavior
+        // that ends the root's chain.
+        (859_933_712_933_106_335, 8),
+        // "A token of an earlier deal", seed 7260: a member claimed a
+        // place of an earlier leader's deal, passed on to it before the
+        // leadership changed; the new leader took the claim for a protocol
+        // violation and waited for the member until its deadline.
+        (6_026_314_665_237_865_797, 7),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }
