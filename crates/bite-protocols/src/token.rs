@@ -134,21 +134,12 @@ impl Tokens {
         if members.is_empty() {
             return;
         }
-        for (k, i) in self.slots.clone().into_iter().enumerate() {
-            let slot = k as u32;
-            if self.claims.contains_key(&slot) {
-                continue;
-            }
-            let token = Body::Token {
-                slot,
-                item: self.children[i].behavior,
-                hops: 0,
-                threshold: self.threshold,
-            };
+        for k in 0..self.slots.len() {
             let to = members[k % members.len()];
-            if only.is_some_and(|r| r != to) {
+            if self.claims.contains_key(&(k as u32)) || only.is_some_and(|r| r != to) {
                 continue;
             }
+            let token = self.token(k);
             if to == cx.me() {
                 self.hold(cx, &token);
             } else {
@@ -183,13 +174,17 @@ impl Tokens {
         if mine {
             self.deal_to(cx, Some(from));
         } else if let Some(k) = (0..self.slots.len()).find(unclaimed) {
-            let token = Body::Token {
-                slot: k as u32,
-                item: self.children[self.slots[k]].behavior,
-                hops: 0,
-                threshold: self.threshold,
-            };
-            cx.send(from, token);
+            cx.send(from, self.token(k));
+        }
+    }
+
+    /// Slot `k`'s token as the leader deals it.
+    fn token(&self, k: usize) -> Body {
+        Body::Token {
+            slot: k as u32,
+            item: self.children[self.slots[k]].behavior,
+            hops: 0,
+            threshold: self.threshold,
         }
     }
 
