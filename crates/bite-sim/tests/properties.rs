@@ -789,6 +789,11 @@ fn cases_that_failed_once() {
         // leadership changed; the new leader took the claim for a protocol
         // violation and waited for the member until its deadline.
         (6_026_314_665_237_865_797, 7),
+        // "A teammate allocating two levels up", seed 7435: a barrier's
+        // leader took a teammate making the allocation of the point's
+        // grandparent for silent and decided on its deadline, 0.1 s after
+        // the teammate came down.
+        (16_022_569_825_119_803_579, 8),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -1771,12 +1771,14 @@ impl Kernel {
     ///   it waits on if every member it still counts was heard within
     ///   [`FRESH`] and one of them is still *running* the behavior (it has
     ///   not reached the point yet), or the execution before one this
-    ///   robot is in (it is behind on the same path).
+    ///   robot is in (it is behind on the same path), or it is still
+    ///   making the allocation of an execution above the point (it runs
+    ///   one, with nothing below it yet: it is on its way down).
     /// - A member waits on its leader: it waits on while the leader was
     ///   heard within [`FRESH`] engaged in the execution (running it, or
     ///   waiting at its point), or, making progress, behind on the same
-    ///   path or still making the allocation above the point (in the
-    ///   execution above, with nothing below it yet).
+    ///   path or still making the allocation of an execution above the
+    ///   point.
     ///
     /// At an allocation only a teammate behind on the path counts (a team
     /// at the point reaches it together, and a protocol may count on its
@@ -1849,25 +1851,28 @@ impl Kernel {
                     && (self.passed(k, p, frames[k].0) || self.leads_into(k, p, frames[k].0))
             })
         };
-        // The execution above the point's, here.
-        let above = match self.stack.iter().position(|f| f.id() == id) {
-            Some(i) => i.checked_sub(1).map(|p| self.stack[p].id()),
+        // The executions above the point's, here (root first).
+        let ancestors = match self.stack.iter().position(|f| f.id() == id) {
+            Some(i) => &self.stack[..i],
             // Its end or its synchronization: the frame is popped.
-            None => (self.popped())
-                .filter(|(f, _)| f.id() == id)
-                .and_then(|_| self.stack.last())
-                .map(Frame::id),
+            None if self.popped().is_some_and(|(f, _)| f.id() == id) => &self.stack[..],
+            None => &[],
+        };
+        let above = ancestors.last().map(Frame::id);
+        // A teammate still making the allocation of an execution above the
+        // point (a lap behind, or coming down from further up: the
+        // grandparent's allocation) runs that execution with nothing below
+        // it yet: it is on its way. Not one in another of its subteams:
+        // two robots each in a subteam the other did not take waited for
+        // each other for ever (docs/reliability.md, "A coordinator still
+        // on its way to the allocation above", "A teammate allocating two
+        // levels up").
+        let allocating_above = |frames: &[(FrameId, FrameState)]| {
+            frames.last().is_some_and(|(f, st)| {
+                *st == FrameState::Running && ancestors.iter().any(|a| a.id() == *f)
+            })
         };
         if leader != Some(self.me) {
-            // A leader still making the allocation above (a lap behind)
-            // runs the execution above the point's with nothing below it
-            // yet: it is on its way. Not one in another of its subteams:
-            // two robots each in a subteam the other did not take waited
-            // for each other for ever (docs/reliability.md, "A coordinator
-            // still on its way to the allocation above").
-            let allocating_above = |frames: &[(FrameId, FrameState)]| {
-                above.is_some_and(|a| frames.last() == Some(&(a, FrameState::Running)))
-            };
             return leader.and_then(heard).is_some_and(|frames| {
                 frames.iter().any(|(f, _)| *f == id)
                     || (leader.is_some_and(progressing)
@@ -1908,7 +1913,8 @@ impl Kernel {
                         (at_point_counts && *f == id && *st == FrameState::Running)
                             || is_behind(frames, k)
                     }) || split_off(frames)
-                        || healing(r, frames))
+                        || healing(r, frames)
+                        || (at_point_counts && allocating_above(frames)))
                         && progressing(r);
                 }
                 None => return false,

@@ -1556,6 +1556,84 @@ fn a_teammate_in_a_same_numbered_execution_under_a_later_parent_is_not_behind() 
     );
 }
 
+/// Three team behaviors, one inside the other, over a leaf that ends at a
+/// barrier.
+const NESTED: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [top] }
+  top: { team: true, children: [mid] }
+  mid: { team: true, children: [leaf] }
+  leaf: { team: true, until: leaf_done, terminate: term.test-barrier }";
+
+/// A leader waiting at a barrier waits on for a teammate that runs an
+/// execution above the point with nothing below it yet (making that
+/// execution's allocation, or expanding it): it is on its way down, from
+/// the parent or from further up. Property seed 7435: the barrier's
+/// leader took a teammate allocating the point's grandparent for silent
+/// and decided on its deadline, 0.1 s after the teammate came down.
+#[test]
+fn a_leader_waits_for_a_teammate_on_its_way_down_from_further_up() {
+    let mut h = Harness::new(NESTED, 2);
+    h.tick(0, &[]);
+    assert_eq!(h.stack(0), ["root", "top", "mid", "leaf"]);
+    h.tick_one(0, 100, &[("leaf_done", T)]);
+    let g = h.kernels[0].mission().graph();
+    let [root, top, mid, leaf] = ["root", "top", "mid", "leaf"].map(|name| FrameId {
+        team: TeamId::ROOT,
+        behavior: g.find(name).expect("behavior"),
+        epoch: 1,
+    });
+    let key = InstanceKey {
+        team: TeamId::ROOT,
+        behavior: leaf.behavior,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
+    };
+    assert!(
+        h.kernels[0].instances.get(&key).is_some(),
+        "the leader waits"
+    );
+    // Heard in each execution above the point with nothing below it, the
+    // teammate is on its way: from the parent, the grandparent, the root.
+    let above = [
+        vec![
+            (root, None),
+            (top, Some((root, true))),
+            (mid, Some((top, true))),
+        ],
+        vec![(root, None), (top, Some((root, true)))],
+        vec![(root, None)],
+    ];
+    for (i, chain) in above.iter().enumerate() {
+        let mut h = Harness::new(NESTED, 2);
+        h.tick(0, &[]);
+        h.tick_one(0, 100, &[("leaf_done", T)]);
+        // Its heartbeats, sent by robot 1.
+        let from = |mut pos: Position| {
+            pos.robot = RobotId(1);
+            pos
+        };
+        h.kernels[0].peer(Time::from_millis(200), RobotId(1), &from(running(chain)));
+        assert!(
+            h.kernels[0].awaited_at_work(key),
+            "a teammate in the execution {} levels above the point is on its way",
+            i + 1
+        );
+        // Ending that execution instead, it is not coming down.
+        let mut ending = running(chain);
+        if let Some(last) = ending.frames.last_mut() {
+            last.state = FrameState::Ending;
+        }
+        h.kernels[0].peer(Time::from_millis(300), RobotId(1), &from(ending));
+        assert!(
+            !h.kernels[0].awaited_at_work(key),
+            "a teammate ending the execution above is not on its way down"
+        );
+    }
+}
+
 /// A teammate's frame running under an execution this robot ended is one
 /// this robot will never join: its team's count of that behavior goes past
 /// it (`count_past`). Not when the teammate's execution only shares the
