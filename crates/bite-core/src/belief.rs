@@ -289,7 +289,18 @@ impl RunCounts {
             self.0[i].1 = self.0[i].1.saturating_sub(1);
         }
     }
-    /// The highest epoch at which `b` was started here (0 when never).
+    /// Note that execution `epoch` of `b` is behind this robot's way here
+    /// though it never started it: it converged onto a teammate's
+    /// successor of it. The latest epoch is raised (never lowered), the
+    /// count of starts is not.
+    pub fn pass(&mut self, b: crate::ids::BehaviorId, epoch: u32) {
+        match self.0.binary_search_by_key(&b, |(x, _, _)| *x) {
+            Ok(i) => self.0[i].2 = self.0[i].2.max(epoch),
+            Err(i) => self.0.insert(i, (b, 0, epoch)),
+        }
+    }
+    /// The highest epoch at which `b` was started here (0 when never), or
+    /// passed ([`RunCounts::pass`]).
     /// Epochs count a team's executions of a behavior, so an execution of
     /// `b` by the same team under the same parent execution with an epoch
     /// up to this one came no later than this start.

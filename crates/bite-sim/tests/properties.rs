@@ -794,6 +794,18 @@ fn cases_that_failed_once() {
         // grandparent for silent and decided on its deadline, 0.1 s after
         // the teammate came down.
         (16_022_569_825_119_803_579, 8),
+        // "A teammate behind the execution converged past", seeds 7621 and
+        // 6662: robots a lap behind converged onto a teammate's execution
+        // after one they never ran, and took a teammate still in that one
+        // for a teammate elsewhere (at an allocation, its deadline decided
+        // without it); counted as passed, they no longer answered it where
+        // it waited for them. 3038, 5199 and 6166 pass since the same two
+        // changes.
+        (7_437_662_065_035_196_631, 5),
+        (10_620_271_608_133_783_173, 8),
+        (7_971_561_576_938_882_804, 8),
+        (16_496_831_448_393_991_138, 3),
+        (8_177_170_296_156_092_438, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

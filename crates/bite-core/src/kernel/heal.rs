@@ -1059,12 +1059,23 @@ impl Kernel {
             }
         }
         self.burn(mine);
+        // The execution the teammate's came after is behind this robot's
+        // way now, as one it ran is (`Kernel::passed`): a teammate still
+        // in it is on its way to this robot, not elsewhere
+        // (docs/reliability.md, "A teammate behind the execution converged
+        // past"). Not an individual behavior's: each member numbers its
+        // runs of one at its own pace.
+        let passed = (!prev.first && !self.mission.graph().is_individual(prev.behavior))
+            .then_some((prev.behavior, prev.epoch));
         // The parent's run counts forget the abandoned start.
         let parent_runs = match self.stack.last_mut() {
             Some(p) => &mut p.runs,
             None => &mut self.root_runs,
         };
         parent_runs.unbump(mine.behavior);
+        if let Some((b, epoch)) = passed {
+            parent_runs.pass(b, epoch);
+        }
         self.org
             .runs_at_least(team, theirs.behavior, theirs.epoch.saturating_sub(1));
         let parent = self.stack.last().map(Frame::id);

@@ -1203,8 +1203,10 @@ impl Kernel {
     ///   team's first point without hearing it on its way;
     /// - **ended**: the teammate waits at a point below an execution this
     ///   robot has ended (its own condition, under a termination each
-    ///   member makes alone); the team's leader, past it too, does not
-    ///   report that this robot left it, and the teammate waits for it;
+    ///   member makes alone), or gone past (it converged onto a
+    ///   teammate's execution after it: [`Kernel::passed`]); the team's
+    ///   leader, past it too, does not report that this robot left it,
+    ///   and the teammate waits for it;
     /// - **behind**: the teammate waits at a point after the execution
     ///   this robot runs (its frame there is that execution's successor:
     ///   this robot is slower in an individual behavior, or was cut off),
@@ -1306,7 +1308,9 @@ impl Kernel {
             let first = std::mem::take(&mut shared);
             if first
                 && (self.recent_ended.contains(&f.id)
-                    || m.is_some_and(|m| f.follows(m) || self.ahead(k, m, f.id)))
+                    || m.is_some_and(|m| f.follows(m) || self.ahead(k, m, f.id))
+                    || (k.checked_sub(1).and_then(|p| pos.frames.get(p)))
+                        .is_some_and(|p| self.passed(k, p.id, f.id)))
                 && waits()
             {
                 stranger = true;

@@ -3206,6 +3206,76 @@ behaviors:
     assert_eq!(top(&h), Some(at_root(e, 2)), "the team's next `e`");
 }
 
+/// A robot a lap behind that converges onto a teammate's execution comes
+/// after the teammate's predecessor, an execution it never ran: that
+/// execution is behind its way now, as one it ran is (`Kernel::passed`),
+/// so a teammate still in it is on its way to this robot. Found by
+/// `no_waiting_across_levels`, RNG seed 7621 (graph seed
+/// 7437662065035196631): r3, in `b1`#1, converged onto `b2`#2 after
+/// `b1`#2, and at `b3`#2's allocation took r4, still in `b1`#2, for a
+/// teammate elsewhere; its deadline decided without it.
+#[test]
+fn a_robot_that_converged_past_an_execution_takes_a_teammate_in_it_for_one_behind() {
+    const CYCLE: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [d] }
+  d: { team: true, skill: w, until: d_done, next: [e] }
+  e: { team: true, skill: w, until: e_done, next: [a] }";
+    let mut h = Harness::new(CYCLE, 3);
+    h.tick(0, &[("a_done", F), ("d_done", F), ("e_done", F)]);
+    assert_eq!(h.stack(1), ["root", "a"]);
+    let [root, a, d, e] = behaviors(&h, 1, ["root", "a", "d", "e"]);
+    // Robot 0 went round: `a`#1, `d`#1, `e`#1, `a`#2, and runs `d`#2.
+    // The ends it tells are the last few (`RECENT`): not `a`#1.
+    let mut theirs = running(&[
+        (at_root(root, 1), None),
+        (at_root(d, 2), Some((at_root(a, 2), false))),
+    ]);
+    theirs.robot = RobotId(0);
+    theirs.ended = [(d, 1), (e, 1), (a, 2)]
+        .map(|(b, n)| position::Ended {
+            id: at_root(b, n),
+            parent: Some(at_root(root, 1)),
+        })
+        .to_vec();
+    h.kernels[1].peer(Time::from_millis(250), RobotId(0), &theirs);
+    h.drain(1);
+    assert_eq!(
+        h.kernels[1].stack().last().map(|f| f.id()),
+        Some(at_root(d, 2)),
+        "robot 1 converged onto `d`#2"
+    );
+    let k = &h.kernels[1];
+    assert!(
+        k.passed(1, at_root(root, 1), at_root(a, 2)),
+        "`a`#2, which `d`#2 came after, is behind robot 1's way"
+    );
+    assert!(
+        !k.passed(1, at_root(root, 1), at_root(a, 3)),
+        "`a`#3 is not"
+    );
+    assert_eq!(k.org.runs(TeamId::ROOT, a), 2, "the team's count of `a`");
+    // Robot 2 waits at the end of `a`#2 for the team, robot 1 among it:
+    // robot 1 answers it (its heartbeats tell it went past), as it does a
+    // teammate waiting below an execution it ended. Before, it answered
+    // it only because it took `a`#2 for an execution it had yet to start.
+    let mut waiting = running(&[
+        (at_root(root, 1), None),
+        (at_root(a, 2), Some((at_root(e, 1), false))),
+    ]);
+    waiting.robot = RobotId(2);
+    if let Some(f) = waiting.frames.last_mut() {
+        f.state = FrameState::Ending;
+    }
+    h.kernels[1].peer(Time::from_millis(300), RobotId(2), &waiting);
+    assert!(
+        (h.kernels[1].answering.as_ref()).is_some_and(|a| a.contains(RobotId(2))),
+        "robot 1 answers a teammate waiting below an execution it went past"
+    );
+}
+
 /// The healing leader at a point waits for a teammate it saw on the other
 /// side of a split: the teammate took another successor after the same
 /// execution and follows the leader's side within a heartbeat, so it is on
