@@ -3147,6 +3147,41 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
     );
 }
 
+/// A cycle `a`, `d`, `e` under the root; `a` a team behavior or an
+/// individual one.
+fn cycle(a_is_team: bool) -> String {
+    format!(
+        "start: root
+defaults: {{ terminate: term.local }}
+behaviors:
+  root: {{ team: true, children: [a] }}
+  a: {{ team: {a_is_team}, skill: w, until: a_done, next: [d] }}
+  d: {{ team: true, skill: w, until: d_done, next: [e] }}
+  e: {{ team: true, skill: w, until: e_done, next: [a] }}"
+    )
+}
+
+/// Robot 0's heartbeat in [`cycle`]: in `d`#2 after `a`#`after`, under the
+/// root's first execution, telling the executions `ended` there.
+fn robot_0_in_d2(
+    [root, a, d]: [BehaviorId; 3],
+    after: u32,
+    ended: &[(BehaviorId, u32)],
+) -> Position {
+    let mut theirs = running(&[
+        (at_root(root, 1), None),
+        (at_root(d, 2), Some((at_root(a, after), false))),
+    ]);
+    theirs.robot = RobotId(0);
+    theirs.ended = (ended.iter())
+        .map(|&(b, n)| position::Ended {
+            id: at_root(b, n),
+            parent: Some(at_root(root, 1)),
+        })
+        .collect();
+    theirs
+}
+
 /// A robot that follows a teammate into another execution after the same
 /// predecessor takes on the teammate's count of the team behaviors it ended
 /// under the parent: the two then number their next executions of those
@@ -3161,14 +3196,7 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
 /// lap as `alt4`#3).
 #[test]
 fn a_robot_that_follows_a_teammate_counts_the_team_behaviors_it_ended() {
-    const LOOP: &str = "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: false, skill: w, until: a_done, next: [d] }
-  d: { team: true, skill: w, until: d_done, next: [e] }
-  e: { team: true, skill: w, until: e_done, next: [a] }";
-    let mut h = Harness::new(LOOP, 2);
+    let mut h = Harness::new(&cycle(false), 2);
     h.tick(0, &[("a_done", F), ("d_done", F), ("e_done", F)]);
     h.tick_one(1, 100, &[("a_done", T)]);
     h.tick_one(1, 200, &[("a_done", F)]);
@@ -3176,17 +3204,7 @@ behaviors:
     let [root, a, d, e] = behaviors(&h, 1, ["root", "a", "d", "e"]);
     // Robot 0, its own first run of `a` behind it too, is in `d`#2: it ran
     // `d`#1 and `e`#1 (and a later run of `a`), and has ended `d`#2 too.
-    let mut theirs = running(&[
-        (at_root(root, 1), None),
-        (at_root(d, 2), Some((at_root(a, 1), false))),
-    ]);
-    theirs.robot = RobotId(0);
-    theirs.ended = [(d, 1), (e, 1), (a, 3), (d, 2)]
-        .map(|(b, n)| position::Ended {
-            id: at_root(b, n),
-            parent: Some(at_root(root, 1)),
-        })
-        .to_vec();
+    let theirs = robot_0_in_d2([root, a, d], 1, &[(d, 1), (e, 1), (a, 3), (d, 2)]);
     h.kernels[1].peer(Time::from_millis(250), RobotId(0), &theirs);
     h.drain(1);
     assert_eq!(h.selected_via(1, "d"), [Via::Sequence, Via::Converged]);
@@ -3216,30 +3234,13 @@ behaviors:
 /// teammate elsewhere; its deadline decided without it.
 #[test]
 fn a_robot_that_converged_past_an_execution_takes_a_teammate_in_it_for_one_behind() {
-    const CYCLE: &str = "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, skill: w, until: a_done, next: [d] }
-  d: { team: true, skill: w, until: d_done, next: [e] }
-  e: { team: true, skill: w, until: e_done, next: [a] }";
-    let mut h = Harness::new(CYCLE, 3);
+    let mut h = Harness::new(&cycle(true), 3);
     h.tick(0, &[("a_done", F), ("d_done", F), ("e_done", F)]);
     assert_eq!(h.stack(1), ["root", "a"]);
     let [root, a, d, e] = behaviors(&h, 1, ["root", "a", "d", "e"]);
     // Robot 0 went round: `a`#1, `d`#1, `e`#1, `a`#2, and runs `d`#2.
     // The ends it tells are the last few (`RECENT`): not `a`#1.
-    let mut theirs = running(&[
-        (at_root(root, 1), None),
-        (at_root(d, 2), Some((at_root(a, 2), false))),
-    ]);
-    theirs.robot = RobotId(0);
-    theirs.ended = [(d, 1), (e, 1), (a, 2)]
-        .map(|(b, n)| position::Ended {
-            id: at_root(b, n),
-            parent: Some(at_root(root, 1)),
-        })
-        .to_vec();
+    let theirs = robot_0_in_d2([root, a, d], 2, &[(d, 1), (e, 1), (a, 2)]);
     h.kernels[1].peer(Time::from_millis(250), RobotId(0), &theirs);
     h.drain(1);
     assert_eq!(
