@@ -375,26 +375,35 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The same counts as the B-tree it replaces, whatever the starts
-        /// and abandoned starts, past the few kept in place; and the
-        /// highest epoch started of each behavior.
+        /// The same counts as the B-tree it replaces, whatever the starts,
+        /// abandoned starts and executions passed, past the few kept in
+        /// place; and the highest epoch started or passed of each behavior.
         #[test]
-        fn run_counts_count_as_a_map(ops in proptest::collection::vec((0u32..6, proptest::bool::ANY, 1u32..50), 0..60)) {
+        fn run_counts_count_as_a_map(ops in proptest::collection::vec((0u32..6, 0u8..3, 1u32..50), 0..60)) {
             use crate::ids::BehaviorId;
             let mut counts = RunCounts::new();
             let mut map: BTreeMap<BehaviorId, u32> = BTreeMap::new();
             let mut latest: BTreeMap<BehaviorId, u32> = BTreeMap::new();
-            for (b, start, epoch) in ops {
+            for (b, op, epoch) in ops {
                 let b = BehaviorId(b);
-                if start {
-                    counts.bump(b, epoch);
-                    *map.entry(b).or_insert(0) += 1;
-                    let e = latest.entry(b).or_insert(0);
-                    *e = (*e).max(epoch);
-                } else {
-                    counts.unbump(b);
-                    if let Some(n) = map.get_mut(&b) {
-                        *n = n.saturating_sub(1);
+                match op {
+                    0 => {
+                        counts.bump(b, epoch);
+                        *map.entry(b).or_insert(0) += 1;
+                        let e = latest.entry(b).or_insert(0);
+                        *e = (*e).max(epoch);
+                    }
+                    1 => {
+                        counts.unbump(b);
+                        if let Some(n) = map.get_mut(&b) {
+                            *n = n.saturating_sub(1);
+                        }
+                    }
+                    _ => {
+                        counts.pass(b, epoch);
+                        map.entry(b).or_insert(0);
+                        let e = latest.entry(b).or_insert(0);
+                        *e = (*e).max(epoch);
                     }
                 }
                 for x in 0..6 {
