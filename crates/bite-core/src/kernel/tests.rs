@@ -776,13 +776,7 @@ behaviors:
         h.kernels[1].message(
             Time::from_millis(100 + seq),
             Envelope {
-                instance: InstanceKey {
-                    team: TeamId::ROOT,
-                    behavior: work,
-                    kind: Kind::Terminate,
-                    epoch: 1,
-                    round: 0,
-                },
+                instance: first_termination(work),
                 sender: RobotId(0),
                 seq,
                 body: Body::Release {
@@ -1251,13 +1245,7 @@ fn a_silent_protocol_names_itself_when_sent_a_message() {
     h.kernels[1].message(
         Time::from_millis(50),
         Envelope {
-            instance: InstanceKey {
-                team: TeamId::ROOT,
-                behavior: a,
-                kind: Kind::Terminate,
-                epoch: 1,
-                round: 0,
-            },
+            instance: first_termination(a),
             sender: RobotId(0),
             seq: 1,
             body: Body::Release { next: None },
@@ -1458,13 +1446,7 @@ fn in_s_under(h: &Harness, parent: &str) -> Position {
 /// which robot `r` waits (checked).
 fn waiting_at_first(h: &Harness, r: usize) -> InstanceKey {
     let [_, first, ..] = twice_ids(h);
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: first.behavior,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let key = first_termination(first.behavior);
     assert!(
         h.kernels[r].instances.get(&key).is_some(),
         "robot {r} waits at the barrier"
@@ -1584,13 +1566,7 @@ fn a_leader_waits_for_a_teammate_on_its_way_down_from_further_up() {
         behavior: g.find(name).expect("behavior"),
         epoch: 1,
     });
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: leaf.behavior,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let key = first_termination(leaf.behavior);
     assert!(
         h.kernels[0].instances.get(&key).is_some(),
         "the leader waits"
@@ -2370,13 +2346,7 @@ fn alone_to_the_barrier(graph: &str, barrier: &str) -> (Harness, u64, InstanceKe
         assert!(n < 400, "robot 0 never reached {barrier}: {:?}", h.stack(0));
         h.tick_one(0, 100 * n, &[("step", Value::Bool(n % 2 == 1))]);
     }
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let key = first_termination(behavior);
     assert!(
         h.kernels[0].instances.get(&key).is_some(),
         "waits at {barrier}"
@@ -2517,13 +2487,7 @@ behaviors:
     h.tick_one(0, 300, &[("d_done", T)]);
     let g = h.kernels[0].mission().graph();
     let [root, a, c, d] = ["root", "a", "c", "d"].map(|n| g.find(n).expect("behavior"));
-    let key = InstanceKey {
-        team: TeamId::ROOT,
-        behavior: d,
-        kind: Kind::Terminate,
-        epoch: 1,
-        round: 0,
-    };
+    let key = first_termination(d);
     assert!(
         h.kernels[0].instances.get(&key).is_some(),
         "robot 0 waits at d"
@@ -3520,6 +3484,17 @@ fn at_root(behavior: BehaviorId, epoch: u32) -> FrameId {
         team: TeamId::ROOT,
         behavior,
         epoch,
+    }
+}
+
+/// The termination of the root team's first execution of `behavior`.
+fn first_termination(behavior: BehaviorId) -> InstanceKey {
+    InstanceKey {
+        team: TeamId::ROOT,
+        behavior,
+        kind: Kind::Terminate,
+        epoch: 1,
+        round: 0,
     }
 }
 
