@@ -842,6 +842,19 @@ impl Kernel {
             return None;
         }
         let next = &self.graph().get(prev.behavior)?.next;
+        // Where the teammate ended `prev` in its list (oldest first), and
+        // the first successor's execution it ended after it there.
+        let at = pos
+            .ended
+            .iter()
+            .rposition(|e| e.id == before && e.parent == Some(pid))?;
+        let after = pos.ended[at + 1..]
+            .iter()
+            .find(|e| {
+                e.parent == Some(pid) && e.id.team == id.team && next.contains(&e.id.behavior)
+            })
+            .map(|e| e.id);
+        let g = self.graph();
         pos.ended
             .iter()
             .rev()
@@ -851,7 +864,18 @@ impl Kernel {
                     && e.team == id.team
                     && e.behavior != id.behavior
                     && next.contains(&e.behavior)
-                    && parent.runs.latest_epoch(e.behavior).checked_add(1) == Some(e.epoch)
+                    // The lap this robot would have run in `id`'s place:
+                    // a team behavior's epochs count the team's laps; an
+                    // individual behavior's are the teammate's own count
+                    // (a robot that missed a lap of it is behind), so the
+                    // teammate's order tells it instead: the successor it
+                    // ended right after `prev` (docs/reliability.md, "A
+                    // split onto an individual successor, a lap on").
+                    && if g.is_individual(e.behavior) {
+                        after == Some(e)
+                    } else {
+                        parent.runs.latest_epoch(e.behavior).checked_add(1) == Some(e.epoch)
+                    }
                     && !pos.burned.contains(&e)
                     && !self.recent_burned.contains(&e)
             })

@@ -3111,6 +3111,60 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
     );
 }
 
+/// The same split when the other side is an individual behavior that the
+/// teammate has run more often than this robot (each numbers its runs of
+/// it at its own pace: this robot missed a lap of it): the teammate's
+/// order tells which of its executions came right after the point, not
+/// the epoch this robot would give it. Before, only the epoch after this
+/// robot's own count was looked for, and the split went unseen (found by
+/// `no_waiting_across_levels`, RNG seed 7540, graph seed
+/// 14163924047870139797: r3 missed a lap of the individual `b8` and
+/// stayed on `alt16` while r2 waited for it at `b6`'s allocation, two
+/// deadlines).
+#[test]
+fn a_split_onto_an_individual_successor_run_more_often_is_seen() {
+    let graph = CHOOSE
+        .replace("d: { team: true", "d: { team: false")
+        .replace("b: { team: true", "b: { team: false");
+    let start = |order: [&str; 2]| {
+        let mut h = Harness::new(&graph, 2);
+        h.tick(0, &CHOOSE_OFF);
+        h.tick_one(1, 100, &[("a_done", T), ("want_c", T)]);
+        assert_eq!(h.stack(1), ["root", "c"]);
+        let g = h.kernels[1].mission().graph().clone();
+        let [root, a, b, d] = ["root", "a", "b", "d"].map(|n| g.find(n).expect("behavior"));
+        // Robot 0 ran its second `b` after `a`#1 and is in `d`#1.
+        let mut theirs = running(&[
+            (at_root(root, 1), None),
+            (at_root(d, 1), Some((at_root(b, 2), false))),
+        ]);
+        theirs.robot = RobotId(0);
+        theirs.ended = order
+            .map(|x| position::Ended {
+                id: if x == "a" {
+                    at_root(a, 1)
+                } else {
+                    at_root(b, 2)
+                },
+                parent: Some(at_root(root, 1)),
+            })
+            .to_vec();
+        h.kernels[1].peer(Time::from_millis(150), RobotId(0), &theirs);
+        h.drain(1);
+        h
+    };
+    let h = start(["a", "b"]);
+    assert_eq!(
+        h.stack(1),
+        ["root", "b"],
+        "robot 1 follows robot 0 into `b`"
+    );
+    // A run of `b` it ended before `a`#1 came before the point: not the
+    // other side of it.
+    let h = start(["b", "a"]);
+    assert_eq!(h.stack(1), ["root", "c"]);
+}
+
 /// A cycle `a`, `d`, `e` under the root; `a` a team behavior or an
 /// individual one.
 fn cycle(a_is_team: bool) -> String {
