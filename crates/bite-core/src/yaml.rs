@@ -17,6 +17,9 @@ use std::sync::Arc;
 /// Largest file accepted, in bytes.
 pub const MAX_FILE_BYTES: usize = 16 * 1024 * 1024;
 
+/// Deepest nesting accepted (mappings and sequences, block or flow).
+pub const MAX_DEPTH: usize = 64;
+
 /// Read a file for parsing: its display name and text.
 pub fn read_file(path: &Path) -> Result<(Arc<str>, String), Diagnostics> {
     let file: Arc<str> = Arc::from(path.display().to_string());
@@ -169,7 +172,7 @@ pub fn parse<T: serde::de::DeserializeOwned>(
 ) -> Result<T, Diagnostics> {
     check_size(file, text.len() as u64)?;
     let mut budget = serde_saphyr::Budget::default();
-    budget.max_depth = 64;
+    budget.max_depth = MAX_DEPTH;
     // Room for the largest graph accepted (100,000 behaviors); the file
     // size limit bounds the work anyway.
     budget.max_nodes = 10_000_000;
@@ -417,6 +420,40 @@ mod tests {
         assert_eq!(loc_at("ab\ncd", 4), Loc::new(2, 2));
     }
 
+    /// Thousands of nested brackets (or keys) are left to the library,
+    /// which refuses them with a location, instead of overflowing the
+    /// fast reader's stack: a graph of `start: ` and 30,000 `[` aborted
+    /// `bite check` (found by an input audit, 2026-12-07).
+    #[test]
+    fn deep_nesting_is_left_to_the_library() {
+        for text in [
+            format!("start: {}", "[".repeat(30_000)),
+            format!("a: {}1{}", "[".repeat(MAX_DEPTH), "]".repeat(MAX_DEPTH)),
+            format!("a: {{b: {}", "{c: ".repeat(100_000)),
+            (0..MAX_DEPTH + 1)
+                .map(|i| format!("{}k{i}:\n", " ".repeat(i)))
+                .collect::<String>()
+                + &" ".repeat(MAX_DEPTH + 1)
+                + "v: 1\n",
+        ] {
+            assert!(fast::parse(&text).is_none(), "{}", &text[..40]);
+            let f: Arc<str> = Arc::from("deep.yaml");
+            let e = parse::<serde_json::Value>(&f, &text).expect_err("too deep");
+            assert!(
+                e.to_string().contains("deep.yaml:1:") || e.to_string().contains("deeper"),
+                "{e}"
+            );
+        }
+        // At the limit (the top mapping, its value, then the brackets),
+        // the fast reader still reads it.
+        let ok = format!(
+            "a: {}1{}",
+            "[".repeat(MAX_DEPTH - 2),
+            "]".repeat(MAX_DEPTH - 2)
+        );
+        assert!(fast::parse(&ok).is_some());
+    }
+
     #[test]
     fn endless_files_are_read_up_to_the_cap_only() {
         let f: Arc<str> = Arc::from("/dev/zero");
@@ -441,6 +478,7 @@ mod tests {
 /// its location, as it always did. What it accepts it reads as that
 /// library does, with the same line and column for every node.
 pub(crate) mod fast {
+    use super::MAX_DEPTH;
     use serde_saphyr::Location;
     use std::borrow::Cow;
 
@@ -539,11 +577,23 @@ pub(crate) mod fast {
             return None;
         }
         let mut pos = 0;
-        let root = block_map(&lines, &mut pos, 0)?;
+        let root = block_map(&lines, &mut pos, 0, 1)?;
         (pos == lines.len()).then_some(root)
     }
 
-    fn block_map<'a>(lines: &[Line<'a>], pos: &mut usize, indent: usize) -> Option<Node<'a>> {
+    /// A block mapping at nesting `depth` (the top one 1). Deeper than
+    /// [`MAX_DEPTH`]: `None`, and the library reports it (its budget has
+    /// the same limit), so that a file of thousands of nested brackets
+    /// cannot overflow the stack here first.
+    fn block_map<'a>(
+        lines: &[Line<'a>],
+        pos: &mut usize,
+        indent: usize,
+        depth: usize,
+    ) -> Option<Node<'a>> {
+        if depth > MAX_DEPTH {
+            return None;
+        }
         let first = lines.get(*pos)?;
         let (line0, col0) = (first.no, first.col(0));
         let mut entries: Vec<(Scalar<'a>, Node<'a>)> = Vec::new();
@@ -578,14 +628,14 @@ pub(crate) mod fast {
                 if next.indent <= indent {
                     return None;
                 }
-                block_map(lines, pos, next.indent)?
+                block_map(lines, pos, next.indent, depth + 1)?
             } else {
                 if !rest.starts_with(' ') {
                     return None;
                 }
                 let at = body.len() - after.len();
                 let mut cur = Cursor { line: l, at };
-                let v = cur.value(false)?;
+                let v = cur.value(false, depth + 1)?;
                 cur.end_of_line()?;
                 if lines.get(*pos).is_some_and(|n| n.indent > indent) {
                     return None;
@@ -633,7 +683,11 @@ pub(crate) mod fast {
             let r = self.rest();
             (r.is_empty() || (r.starts_with('#') && self.at > before)).then_some(())
         }
-        fn value(&mut self, flow: bool) -> Option<Node<'a>> {
+        /// A value at nesting `depth` (see `block_map`).
+        fn value(&mut self, flow: bool, depth: usize) -> Option<Node<'a>> {
+            if depth > MAX_DEPTH {
+                return None;
+            }
             let (line, col) = (self.line.no, self.line.col(self.at));
             let r = self.rest();
             match r.as_bytes().first()? {
@@ -647,7 +701,7 @@ pub(crate) mod fast {
                     }
                     loop {
                         self.skip_spaces();
-                        items.push(self.value(true)?);
+                        items.push(self.value(true, depth + 1)?);
                         self.skip_spaces();
                         match self.rest().as_bytes().first()? {
                             b',' => self.at += 1,
@@ -669,7 +723,7 @@ pub(crate) mod fast {
                     }
                     loop {
                         self.skip_spaces();
-                        let Node::Scalar(key) = self.value(true)? else {
+                        let Node::Scalar(key) = self.value(true, depth + 1)? else {
                             return None;
                         };
                         if key.quoted || !self.rest().starts_with(": ") {
@@ -677,7 +731,7 @@ pub(crate) mod fast {
                         }
                         self.at += 2;
                         self.skip_spaces();
-                        let v = self.value(true)?;
+                        let v = self.value(true, depth + 1)?;
                         entries.push((key, v));
                         self.skip_spaces();
                         match self.rest().as_bytes().first()? {

@@ -15,6 +15,12 @@ use smallvec::SmallVec;
 /// takes the way for one that leads back).
 const LEADS_BACK_WALK: usize = 64;
 
+/// How many executions of a predecessor `Kernel::catch_up` burns at most
+/// for one teammate's heartbeat (the latest ones; the count is raised past
+/// all of them). A team laps a behavior far fewer times than this between
+/// two heartbeats; a larger gap is a teammate's word that cannot be true.
+const MAX_CATCH_UP: u32 = 64;
+
 impl Kernel {
     /// Allocation splits: a teammate under the same execution of an
     /// allocation point holds another allocation of it. The newest round
@@ -285,8 +291,13 @@ impl Kernel {
             else {
                 continue;
             };
+            // At most the last `MAX_CATCH_UP` of them: burning the
+            // latest raises the count past all, and a teammate's epoch is
+            // its word, not a length to trust (a heartbeat claiming epoch
+            // 4,294,967,295 asked for 68 GB here and aborted the robot).
             let done = self.org.runs(id.team, b.behavior);
-            skip.extend((done + 1..=b.epoch).map(|epoch| FrameId {
+            let from = (done + 1).max(b.epoch.saturating_sub(MAX_CATCH_UP - 1));
+            skip.extend((from..=b.epoch).map(|epoch| FrameId {
                 team: id.team,
                 behavior: b.behavior,
                 epoch,

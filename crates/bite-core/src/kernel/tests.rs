@@ -3397,6 +3397,43 @@ behaviors:
     );
 }
 
+/// A teammate that claims to have run the predecessor 4,294,967,295
+/// times: the robot catches up (its count of the predecessor goes past
+/// the claim) by burning only the latest executions. Before, it burned
+/// every execution between, asking for 68 GB, and the process aborted:
+/// one heartbeat from a faulty or hostile member (it carries the team's
+/// key) took a robot down (found by a network audit, 2026-12-07).
+#[test]
+fn a_teammate_claiming_an_enormous_epoch_burns_a_bounded_few() {
+    const LAPS: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [d] }
+  d: { team: true, skill: w, until: d_done, next: [a] }";
+    let mut h = Harness::new(LAPS, 2);
+    h.tick(0, &[("a_done", F), ("d_done", F)]);
+    h.tick_one(1, 100, &[("a_done", T)]);
+    h.tick_one(1, 200, &[("a_done", F)]);
+    assert_eq!(h.stack(1), ["root", "d"]);
+    let g = h.kernels[1].mission().graph().clone();
+    let [root, a, d] = ["root", "a", "d"].map(|n| g.find(n).expect("behavior"));
+    let id = at_root;
+    tell(
+        &mut h,
+        1,
+        0,
+        Time::from_millis(250),
+        &[
+            (id(root, 1), None),
+            (id(d, 1), Some((id(a, u32::MAX), false))),
+        ],
+    );
+    h.drain(1);
+    assert_eq!(h.kernels[1].org.runs(TeamId::ROOT, a), u32::MAX);
+    assert!(h.kernels[1].recent_burned.contains(&id(a, u32::MAX)));
+}
+
 /// A robot at a barrier waits for a teammate heard at work in a run of an
 /// individual behavior (`team: false`) two sequential edges before its
 /// own, whatever epoch the teammate gave that run: each member numbers
