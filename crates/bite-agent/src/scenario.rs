@@ -172,6 +172,9 @@ pub struct FailureDetector {
     pub heartbeat: Duration,
 }
 
+/// The shortest heartbeat period a scenario may ask for.
+pub const MIN_HEARTBEAT: Duration = Duration::from_millis(10);
+
 impl Default for FailureDetector {
     fn default() -> Self {
         FailureDetector {
@@ -985,7 +988,7 @@ impl Scenario {
             Some(f) => {
                 let loc = Loc::from(f.referenced);
                 let base = FailureDetector::default();
-                Some(FailureDetector {
+                let fd = FailureDetector {
                     lost_after: f
                         .value
                         .lost_after
@@ -996,7 +999,31 @@ impl Scenario {
                         .heartbeat
                         .as_ref()
                         .map_or(base.heartbeat, |t| dur(file, loc, t, &mut d)),
-                })
+                };
+                // A heartbeat of 0 s never lets simulated time pass (the
+                // run hung, growing by 450 MB a second); one not shorter
+                // than `lost_after` has every robot presumed lost between
+                // two of its teammate's heartbeats.
+                if fd.heartbeat < MIN_HEARTBEAT {
+                    d.push(Diagnostic::error(
+                        file,
+                        loc,
+                        "bad-failure-detector",
+                        format!(
+                            "`heartbeat` must be at least {} ms",
+                            MIN_HEARTBEAT.as_millis()
+                        ),
+                    ));
+                } else if fd.lost_after <= fd.heartbeat {
+                    d.push(Diagnostic::error(
+                        file,
+                        loc,
+                        "bad-failure-detector",
+                        "`lost_after` must be longer than `heartbeat` (a robot is presumed lost \
+                         when not heard for `lost_after`)",
+                    ));
+                }
+                Some(fd)
             }
         };
         let mut stall = StallLimits::default();

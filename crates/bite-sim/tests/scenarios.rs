@@ -251,6 +251,24 @@ fn scenario_errors_name_the_file_and_place() {
     let err = Scenario::load_str(&Arc::from("bad.yaml"), "skills:\n  s: { duration: [3, 1] }")
         .expect_err("bounds out of order");
     assert!(err.to_string().starts_with("bad.yaml:2:"), "{err}");
+    // A heartbeat of 0 s never let simulated time pass (the run hung,
+    // growing by 450 MB a second); `lost_after` within a heartbeat has
+    // every robot presumed lost between two.
+    for fd in [
+        "{ heartbeat: 0s }",
+        "{ heartbeat: 1us }",
+        "{ lost_after: 100ms, heartbeat: 250ms }",
+    ] {
+        let text = format!("scenario: t\nfailure_detector: {fd}\n");
+        let err = Scenario::load_str(&Arc::from("hb.yaml"), &text).expect_err(fd);
+        assert_eq!(err.0[0].code, "bad-failure-detector", "{err}");
+        assert!(err.to_string().starts_with("hb.yaml:2:"), "{err}");
+    }
+    Scenario::load_str(
+        &Arc::from("hb.yaml"),
+        "failure_detector: { lost_after: 100ms, heartbeat: 10ms }",
+    )
+    .expect("the shortest heartbeat");
 }
 
 /// A teammate heard working whose position never changes is waited for up
