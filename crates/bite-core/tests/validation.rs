@@ -1036,6 +1036,29 @@ fn config_unknown_point() {
     hints(d, &["did you mean `search.terminate`?"]);
 }
 
+/// A point answers to its label and to `behavior.kind`: binding two of
+/// its names in one file is an error at the second (the last one won,
+/// silently).
+#[test]
+fn config_binds_one_point_under_two_names() {
+    let e = config_err(fixture!("config-duplicate-binding.yaml"));
+    let dups: Vec<_> =
+        e.0.iter()
+            .filter(|d| d.code == "duplicate-binding")
+            .collect();
+    assert_eq!(dups.len(), 2, "{e}");
+    at(dups[0], 5, 3);
+    says(
+        dups[0],
+        &["`search.sync` is the point `A` bound at line 4 already"],
+    );
+    at(dups[1], 7, 3);
+    says(
+        dups[1],
+        &["`walk.alloc` is the point `C` bound at line 6 already"],
+    );
+}
+
 #[test]
 fn config_unknown_point_suggests_behavior_kind_of_a_labelled_point() {
     let e = config_err(fixture!("config-unknown-point-labelled.yaml"));

@@ -18,7 +18,7 @@ use super::load::make_binding;
 use super::spec::ConfigSpec;
 use super::{BehaviorGraph, Binding};
 use crate::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
-use crate::ids::Kind;
+use crate::ids::{BehaviorId, Kind};
 use std::path::Path;
 use std::sync::Arc;
 
@@ -114,6 +114,7 @@ impl BehaviorGraph {
         for p in self.points() {
             known.push(format!("{}.{}", self.name_of(p.behavior), p.kind));
         }
+        let mut bound: Vec<((BehaviorId, Kind), &str, Loc)> = Vec::new();
         for (name, binding) in &cfg.bindings {
             match self.find_point(name) {
                 None => {
@@ -144,6 +145,29 @@ impl BehaviorGraph {
                     );
                 }
                 Some((b, kind)) => {
+                    // A point answers to its label and to `behavior.kind`
+                    // (and `alloc` for `allocate`): two of its names bound
+                    // in one file were read silently, the last one winning.
+                    if let Some((first, at)) = bound
+                        .iter()
+                        .find(|(p, _, _)| *p == (b, kind))
+                        .map(|(_, n, l)| (n, l))
+                    {
+                        diags.push(
+                            Diagnostic::error(
+                                &cfg.file,
+                                binding.loc,
+                                "duplicate-binding",
+                                format!(
+                                    "`{name}` is the point `{first}` bound at line {} already",
+                                    at.line
+                                ),
+                            )
+                            .with_hint("bind each point once"),
+                        );
+                        continue;
+                    }
+                    bound.push(((b, kind), name.as_str(), binding.loc));
                     g.behaviors[b.index()].bindings[kind.index()] = Some(Box::new(binding.clone()));
                 }
             }

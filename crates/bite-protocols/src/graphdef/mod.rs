@@ -1140,25 +1140,39 @@ fn build(l: &mut Loader<'_>, spec: spec::FileSpec) -> Option<GraphProtocol> {
 /// A behavior on a cycle of behaviors without `until` joined by edges to
 /// successors without `pre` (the interpreter would go round it at once).
 fn busy_loop(behaviors: &[BehaviorDef]) -> Option<usize> {
-    let free = |b: usize| behaviors[b].until.is_none();
+    // A condition that reads nothing (no variable, no time, no count) is
+    // a constant: `until: true` waits no more than no `until` (a protocol
+    // that looped on it, sending to the team at every step, flooded the
+    // network without end), and `pre: true` holds like no `pre`.
+    let always = |e: &Option<Expr>| {
+        e.as_ref().is_none_or(|e| {
+            e.beliefs().is_empty()
+                && !e.depends_on_time()
+                && !e.depends_on_runs()
+                && e.eval(&Nothing)
+        })
+    };
+    let free = |b: usize| always(&behaviors[b].until);
+    // An edge into `n` taken without waiting.
+    let step = |n: usize| free(n) && always(&behaviors[n].pre);
     // Colour DFS over the free subgraph.
     let mut colour = vec![0u8; behaviors.len()];
     fn visit(
         b: usize,
         behaviors: &[BehaviorDef],
         colour: &mut [u8],
-        free: &dyn Fn(usize) -> bool,
+        step: &dyn Fn(usize) -> bool,
     ) -> Option<usize> {
         colour[b] = 1;
         for &n in &behaviors[b].next {
-            if !free(n) || behaviors[n].pre.is_some() {
+            if !step(n) {
                 continue;
             }
             if colour[n] == 1 {
                 return Some(n);
             }
             if colour[n] == 0
-                && let Some(x) = visit(n, behaviors, colour, free)
+                && let Some(x) = visit(n, behaviors, colour, step)
             {
                 return Some(x);
             }
@@ -1168,9 +1182,27 @@ fn busy_loop(behaviors: &[BehaviorDef]) -> Option<usize> {
     }
     (0..behaviors.len()).find_map(|b| {
         (free(b) && colour[b] == 0)
-            .then(|| visit(b, behaviors, &mut colour, &free))
+            .then(|| visit(b, behaviors, &mut colour, &step))
             .flatten()
     })
+}
+
+/// The environment of a constant condition: it reads nothing.
+struct Nothing;
+
+impl bite_core::cond::Env for Nothing {
+    fn belief(&self, _: bite_core::ids::BeliefId) -> Option<&bite_core::value::Value> {
+        None
+    }
+    fn belief_age(&self, _: bite_core::ids::BeliefId) -> Option<f64> {
+        None
+    }
+    fn elapsed(&self) -> f64 {
+        0.0
+    }
+    fn runs(&self, _: Option<bite_core::ids::BehaviorId>) -> u32 {
+        0
+    }
 }
 
 struct SkillCx<'a, F> {
@@ -1593,6 +1625,32 @@ mod tests {
             "{HEAD}behaviors:\n  a:\n    next: [b]\n  b:\n    next: [a]\n    do:\n      - {{ decide: own }}\n"
         ));
         assert!(e.has("busy-loop"), "{e}");
+        // A constant condition waits no more than none (a loop on
+        // `until: true` that sent to the team at every step flooded the
+        // network); one that reads a variable may wait.
+        for (until, pre) in [
+            ("true", "true"),
+            ("1 < 2", "not false"),
+            ("true", "false or true"),
+        ] {
+            let e = errors(&format!(
+                "{HEAD}behaviors:\n  a:\n    until: {until}\n    next: [a]\n    pre: '{pre}'\n    do:\n      - {{ decide: own }}\n"
+            ));
+            assert!(e.has("busy-loop"), "{until} / {pre}: {e}");
+        }
+        for (until, pre) in [
+            ("heard_vote > 0", "true"),
+            ("true", "false"),
+            ("elapsed > 1", "true"),
+        ] {
+            let text = format!(
+                "{HEAD}behaviors:\n  a:\n    until: {until}\n    next: [a]\n    pre: '{pre}'\n    do:\n      - {{ decide: own }}\n"
+            );
+            let f: Arc<str> = Arc::from("p.yaml");
+            if let Err(e) = GraphProtocol::load_str(&f, &text, &crate::registry()) {
+                assert!(!e.has("busy-loop"), "{until} / {pre}: {e}");
+            }
+        }
         let e = errors(&format!(
             "{HEAD}behaviors:\n  a:\n    do:\n      - {{ use: sync.vot }}\n"
         ));
