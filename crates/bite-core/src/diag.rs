@@ -126,16 +126,31 @@ impl fmt::Display for Diagnostic {
         } else {
             write!(f, "{}: ", self.file)?;
         }
-        write!(f, "{sev}[{}]: {}", self.code, self.message)?;
+        write!(f, "{sev}[{}]: {}", self.code, clip(&self.message))?;
         if let Some(d) = &self.detail {
             for line in d.lines() {
-                write!(f, "\n    {line}")?;
+                write!(f, "\n    {}", clip(line))?;
             }
         }
         if let Some(h) = &self.hint {
             write!(f, "\n  hint: {h}")?;
         }
         Ok(())
+    }
+}
+
+/// Longest line of a diagnostic shown, in characters.
+pub const MAX_SHOWN: usize = 300;
+
+/// `line` cut to [`MAX_SHOWN`] characters, saying how many were left out:
+/// a snippet of a 10 MB line (or a message quoting it) printed it whole.
+fn clip(line: &str) -> std::borrow::Cow<'_, str> {
+    match line.char_indices().nth(MAX_SHOWN) {
+        None => line.into(),
+        Some((at, _)) => {
+            let more = line[at..].chars().count();
+            format!("{}… ({more} more characters)", &line[..at]).into()
+        }
     }
 }
 
@@ -186,6 +201,22 @@ pub fn did_you_mean<'a>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A snippet of an enormous line, or a message quoting it, is cut:
+    /// a 10 MB line of a mission printed 20 MB of errors (input audit).
+    #[test]
+    fn long_lines_are_cut_where_shown() {
+        let f: Arc<str> = Arc::from("m.rtcl");
+        let long = "é".repeat(10_000);
+        let d = Diagnostic::error(&f, Loc::new(1, 1), "x", format!("bad `{long}`"))
+            .with_detail(format!("{long}\n^"));
+        let text = d.to_string();
+        assert!(text.len() < 3 * MAX_SHOWN * 2, "{}", text.len());
+        assert!(text.contains("(9706 more characters)"), "{text}");
+        assert!(text.contains("(9700 more characters)"), "{text}");
+        assert!(text.ends_with("\n    ^"), "{text}");
+        assert_eq!(clip("short"), "short");
+    }
 
     #[test]
     fn display_names_file_line_col_and_hint() {
