@@ -305,6 +305,47 @@ fn explain(m: &str) -> (String, Option<String>) {
         });
         return (format!("unknown key `{field}`"), hint);
     }
+    // The library's own wording, in the user's terms (input audit,
+    // 2026-12-07: these reached users as the library wrote them).
+    if m.starts_with("multiple YAML documents detected") {
+        return (
+            "the file holds more than one YAML document (a `---` line starts another)".into(),
+            Some("keep one document per file".into()),
+        );
+    }
+    if m.starts_with("cannot deserialize null into ") {
+        return ("a value is missing here (it is empty or `~`)".into(), None);
+    }
+    if m.starts_with("recursive references require") {
+        return (
+            "an alias refers to the node that holds it (a recursive alias)".into(),
+            None,
+        );
+    }
+    if m.starts_with("data did not match any variant of untagged enum") {
+        return (
+            "this value has none of the forms accepted here".into(),
+            None,
+        );
+    }
+    if let Some(ty) = m.strip_prefix("invalid ") {
+        let max = match ty {
+            "u8" => Some(u64::from(u8::MAX)),
+            "u16" => Some(u64::from(u16::MAX)),
+            "u32" => Some(u64::from(u32::MAX)),
+            "u64" | "usize" => Some(u64::MAX),
+            _ => None,
+        };
+        if let Some(max) = max {
+            return (format!("expected a whole number from 0 to {max}"), None);
+        }
+    }
+    if let Some(rest) = m.strip_prefix("invalid type: floating point `")
+        && let Some((n, expected)) = rest.split_once('`')
+        && n.parse::<f64>().is_ok_and(|x| x.abs() >= 1e15)
+    {
+        return (format!("`{n}` is too large{expected}"), None);
+    }
     (m.to_string(), None)
 }
 
@@ -452,6 +493,30 @@ mod tests {
             "]".repeat(MAX_DEPTH - 2)
         );
         assert!(fast::parse(&ok).is_some());
+    }
+
+    /// The library's wording reaches the user in the user's terms.
+    #[test]
+    fn library_messages_are_explained() {
+        let f: Arc<str> = Arc::from("x.yaml");
+        let said = |text: &str| {
+            parse::<std::collections::BTreeMap<String, u64>>(&f, text)
+                .expect_err(text)
+                .to_string()
+        };
+        let m = said("a: 1\n---\nb: 2\n");
+        assert!(m.contains("more than one YAML document"), "{m}");
+        for n in ["-1", "99999999999999999999"] {
+            let m = said(&format!("a: {n}\n"));
+            assert!(
+                m.contains("expected a whole number from 0 to 18446744073709551615"),
+                "{m}"
+            );
+        }
+        let m = parse::<std::collections::BTreeMap<String, String>>(&f, "a: ~\n")
+            .expect_err("null")
+            .to_string();
+        assert!(m.contains("a value is missing here"), "{m}");
     }
 
     #[test]
