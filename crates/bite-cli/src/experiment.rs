@@ -37,8 +37,8 @@ pub struct ExperimentArgs {
     /// Output directory (default: `out/experiment-<name>`).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Threads (default: every core). The results are the same for any number.
-    #[arg(long)]
+    /// Threads, 1 to 1024 (default: every core). The results are the same for any number.
+    #[arg(long, value_parser = crate::parse_jobs)]
     pub jobs: Option<usize>,
     /// Forget the runs already in the output directory and run everything.
     #[arg(long)]
@@ -837,9 +837,7 @@ pub fn cmd_experiment(a: ExperimentArgs) -> Result<ExitCode> {
         .filter(|s| !done.contains_key(&key(&exp, s)))
         .cloned()
         .collect();
-    let jobs = a.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    });
+    let jobs = a.jobs.unwrap_or_else(crate::default_jobs);
     eprintln!(
         "experiment `{}`: {} runs ({} cases × {} fault classes × {} seeds); {} done before, {} to run on {jobs} threads",
         exp.name,

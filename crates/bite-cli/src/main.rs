@@ -447,6 +447,31 @@ fn parse_robots(s: &str) -> Result<usize, String> {
     }
 }
 
+/// The most worker threads `--jobs` may ask for: far more than any machine
+/// this runs on has cores (a run is CPU-bound, so more threads than cores
+/// buys nothing), and few enough that starting them cannot exhaust the
+/// process's threads or memory.
+pub(crate) const MAX_JOBS: usize = 1024;
+
+/// `--jobs`: a number of worker threads, 1 to [`MAX_JOBS`].
+pub(crate) fn parse_jobs(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("at least one thread".into()),
+        Ok(n) if n > MAX_JOBS => Err(format!(
+            "at most {MAX_JOBS} threads (a run uses one core; more threads than cores are no faster)"
+        )),
+        Ok(n) => Ok(n),
+        Err(_) => Err(format!("expected a number of threads, found `{s}`")),
+    }
+}
+
+/// The default of `--jobs`: every core (at most [`MAX_JOBS`]).
+pub(crate) fn default_jobs() -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(MAX_JOBS)
+}
+
 /// A failure that has already been explained to the user.
 #[derive(Debug)]
 struct Reported(u8);

@@ -74,8 +74,8 @@ pub struct TuneArgs {
     /// Output directory (default: `out/tune-<mission>`).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Threads (default: every core). The result is the same for any number.
-    #[arg(long)]
+    /// Threads, 1 to 1024 (default: every core). The result is the same for any number.
+    #[arg(long, value_parser = crate::parse_jobs)]
     pub jobs: Option<usize>,
 }
 
@@ -483,9 +483,7 @@ pub fn cmd_tune(a: TuneArgs) -> Result<ExitCode> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(format!("tune-{name}")));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let jobs = a.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    });
+    let jobs = a.jobs.unwrap_or_else(crate::default_jobs);
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template("{spinner} {pos}/{len} runs [{bar:30}] {elapsed} {msg}")

@@ -1,0 +1,121 @@
+//! Input that a command must refuse, quickly and with a clear error,
+//! rather than run with: team sizes and thread counts out of bounds,
+//! records and files without end, outputs that would overwrite the
+//! command's own inputs, baselines that do not load.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn bite() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_bite"));
+    c.current_dir(root());
+    c
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// A fresh scratch directory `name` for a test.
+fn scratch(name: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("bite-refusals-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("scratch dir");
+    d
+}
+
+/// Run `c`, killed if it takes longer than `limit`: what a refusal must
+/// not (a refused input is refused at once, not after eating the machine).
+#[allow(clippy::disallowed_methods)] // a test's deadline is wall time
+fn within(mut c: Command, limit: Duration) -> Output {
+    let mut child = c
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("bite starts");
+    let started = Instant::now();
+    loop {
+        if child.try_wait().expect("bite waits").is_some() {
+            return child.wait_with_output().expect("bite output");
+        }
+        if started.elapsed() > limit {
+            let _ = child.kill();
+            let out = child.wait_with_output().expect("bite output");
+            panic!(
+                "still running after {limit:?}: {c:?}\n{}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// `bite ARGS`, which must fail within `limit` with `code` and a standard
+/// error that says `says`; returns standard error.
+fn refused(args: &[&std::ffi::OsStr], code: i32, says: &str) -> String {
+    let mut c = bite();
+    c.args(args);
+    let out = within(c, Duration::from_secs(60));
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(code), "{args:?}: {err}");
+    assert!(err.contains(says), "{args:?}: expected `{says}` in:\n{err}");
+    err
+}
+
+fn os(s: &str) -> &std::ffi::OsStr {
+    s.as_ref()
+}
+
+#[test]
+fn sweep_holds_robots_and_jobs_to_their_bounds() {
+    let d = scratch("sweep");
+    let out = d.join("sweep.jsonl");
+    let base = |extra: &[&str]| -> Vec<std::ffi::OsString> {
+        let mut v: Vec<std::ffi::OsString> = ["sweep", "--classes", "none", "--seeds", "1"]
+            .iter()
+            .map(Into::into)
+            .collect();
+        v.extend(extra.iter().map(Into::into));
+        v.push("--out".into());
+        v.push(out.clone().into());
+        v
+    };
+    for (extra, says) in [
+        (&["--robots", "0"][..], "a team needs at least one robot"),
+        (&["--robots", "100000000000"][..], "at most 1000000 robots"),
+        (&["--jobs", "0"][..], "at least one thread"),
+        (&["--jobs", "100000"][..], "at most 1024 threads"),
+    ] {
+        let args = base(extra);
+        let args: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_os_str()).collect();
+        refused(&args, 2, says);
+    }
+    assert!(!out.exists(), "a refused sweep wrote nothing");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn experiment_and_tune_hold_jobs_to_their_bounds() {
+    refused(
+        &[
+            os("experiment"),
+            os("examples/experiments/table2.yaml"),
+            os("--jobs"),
+            os("0"),
+        ],
+        2,
+        "at least one thread",
+    );
+    refused(
+        &[
+            os("tune"),
+            os("examples/formation.yaml"),
+            os("--jobs"),
+            os("5000"),
+        ],
+        2,
+        "at most 1024 threads",
+    );
+}
