@@ -119,3 +119,34 @@ fn experiment_and_tune_hold_jobs_to_their_bounds() {
         "at most 1024 threads",
     );
 }
+
+/// A record whose header says the mission ran with `robots`.
+fn record_with_robots(d: &Path, robots: &str) -> PathBuf {
+    let f = d.join(format!("r0-{robots}.inputs"));
+    let graph = root().join("examples/formation.yaml");
+    std::fs::write(
+        &f,
+        format!(
+            "{{\"bite_inputs\":1,\"header\":{{\"robot\":\"r0\",\"origin\":{{\"args\":{{\"graph\":{:?},\"timed\":true,\"robots\":{robots}}}}}}}}}\n",
+            graph.display().to_string()
+        ),
+    )
+    .expect("write the record");
+    f
+}
+
+#[test]
+fn replay_holds_the_recorded_team_size_to_the_bounds_of_robots() {
+    let d = scratch("replay-robots");
+    for (robots, says) in [
+        ("100000000000", "at most 1000000 robots"),
+        ("0", "a team needs at least one robot"),
+        ("-3", "not a number of robots"),
+    ] {
+        let f = record_with_robots(&d, robots);
+        let err = refused(&[os("replay"), f.as_os_str()], 3, says);
+        assert!(err.contains(&f.display().to_string()), "{err}");
+        assert!(err.contains("`robots`"), "{err}");
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
