@@ -150,3 +150,17 @@ fn replay_holds_the_recorded_team_size_to_the_bounds_of_robots() {
     }
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn replay_of_an_endless_file_stops_at_the_line_cap() {
+    if !Path::new("/dev/zero").exists() {
+        eprintln!("no /dev/zero here: skipped");
+        return;
+    }
+    let err = refused(
+        &[os("replay"), os("/dev/zero")],
+        3,
+        "more than 16777216 bytes without a line break",
+    );
+    assert!(err.contains("/dev/zero: line 1"), "{err}");
+}
