@@ -277,8 +277,10 @@ struct RunArgs {
     /// simulated seconds, shown ten times faster).
     #[arg(long)]
     gif: Option<PathBuf>,
-    /// Seconds of simulated time between frames.
-    #[arg(long, default_value_t = 1.0)]
+    /// Seconds of simulated time between frames of `--frames` and
+    /// `--gif`: at least 0.01 (a GIF's shortest delay, shown ten times
+    /// faster), and at most 10,000 frames over the run's time limit.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_every)]
     every: f64,
     /// A fault laid over the scenario (repeatable): `loss=0.2`, `dup=0.3`,
     /// `jitter=200ms`, `partition=r0|r1,r2@10s+15s`, `oneway=r0>r1@5s+3s`,
@@ -289,6 +291,26 @@ struct RunArgs {
     faults: Vec<bite_sim::fault::Fault>,
     #[command(flatten)]
     viz: viz::VizArgs,
+}
+
+/// The shortest `--every`, seconds: a GIF's delays are whole hundredths of
+/// a second, shown ten times faster than simulated time.
+const MIN_EVERY: f64 = 0.01;
+
+/// The most frames `--frames` and `--gif` may draw: a run's animation is
+/// one picture per frame (each with every trail so far), and more would
+/// fill a disk rather than show a run.
+const MAX_FRAMES: f64 = 10_000.0;
+
+/// `--every`: seconds between frames, at least [`MIN_EVERY`].
+fn parse_every(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= MIN_EVERY => Ok(v),
+        Ok(_) => Err(format!(
+            "`{s}`: frames are at least {MIN_EVERY} s of simulated time apart"
+        )),
+        Err(_) => Err(format!("`{s}` is not a number of seconds")),
+    }
 }
 
 fn parse_fault(s: &str) -> Result<bite_sim::fault::Fault, String> {
@@ -747,8 +769,21 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         eprintln!("  = hint: give a scenario with `world: physics`, or leave out --timed");
         return Ok(ExitCode::from(2));
     }
-    if !(a.every.is_finite() && a.every > 0.0) {
-        anyhow::bail!("--every must be a positive number of seconds");
+    if !(a.every.is_finite() && a.every >= MIN_EVERY) {
+        anyhow::bail!("--every must be at least {MIN_EVERY} seconds");
+    }
+    if a.frames.is_some() || a.gif.is_some() {
+        // Refused before the run rather than after it: the frames of the
+        // whole time limit (a run that ends sooner draws fewer).
+        let limit = a.time_limit.unwrap_or(scenario.time_limit).as_secs_f64();
+        let most = (limit / a.every).floor() + 1.0;
+        if most > MAX_FRAMES {
+            anyhow::bail!(
+                "--every {} s over a time limit of {limit} s is up to {most} frames; the limit is {MAX_FRAMES}: \
+                 give a larger --every or a shorter --time-limit",
+                a.every
+            );
+        }
     }
     let mission = prepare(&graph, &scenario, a.robots, &registry()).map_err(bad_input)?;
     if !a.faults.is_empty() {

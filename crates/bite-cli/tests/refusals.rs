@@ -164,3 +164,37 @@ fn replay_of_an_endless_file_stops_at_the_line_cap() {
     );
     assert!(err.contains("/dev/zero: line 1"), "{err}");
 }
+
+#[test]
+fn frames_are_at_least_a_hundredth_of_a_second_apart_and_at_most_ten_thousand() {
+    let d = scratch("frames");
+    let frames = d.join("frames");
+    let log = d.join("run.jsonl");
+    let run = |every: &str, limit: &str| {
+        vec![
+            os("run").to_owned(),
+            os("examples/formation.yaml").to_owned(),
+            os("--every").to_owned(),
+            os(every).to_owned(),
+            os("--time-limit").to_owned(),
+            os(limit).to_owned(),
+            os("--frames").to_owned(),
+            frames.clone().into_os_string(),
+            os("--log").to_owned(),
+            log.clone().into_os_string(),
+        ]
+    };
+    let args = run("1e-9", "1s");
+    let args: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_os_str()).collect();
+    refused(
+        &args,
+        2,
+        "frames are at least 0.01 s of simulated time apart",
+    );
+    let args = run("0.01", "200s");
+    let args: Vec<&std::ffi::OsStr> = args.iter().map(|a| a.as_os_str()).collect();
+    refused(&args, 3, "up to 20001 frames; the limit is 10000");
+    assert!(!frames.exists(), "no frame written");
+    assert!(!log.exists(), "refused before the run");
+    let _ = std::fs::remove_dir_all(&d);
+}
