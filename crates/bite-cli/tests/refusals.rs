@@ -198,3 +198,51 @@ fn frames_are_at_least_a_hundredth_of_a_second_apart_and_at_most_ten_thousand() 
     assert!(!log.exists(), "refused before the run");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn tune_refuses_a_baseline_that_does_not_load_and_zero_passes() {
+    let d = scratch("tune");
+    let bad_yaml = d.join("bad.yaml");
+    std::fs::write(&bad_yaml, "config: x\nbindings: [A: \n").expect("write");
+    let unknown = d.join("unknown.yaml");
+    std::fs::write(&unknown, "config: x\nbindings:\n  A: no.such-protocol\n").expect("write");
+    let missing = d.join("missing.yaml");
+    let nothing = d.join("none-*.yaml");
+    let out = d.join("out");
+    for (baseline, says) in [
+        (&missing, "missing.yaml"),
+        (&bad_yaml, "bad.yaml"),
+        (&unknown, "unknown.yaml"),
+        (&nothing, "no file matches"),
+    ] {
+        let err = refused(
+            &[
+                os("tune"),
+                os("examples/formation.yaml"),
+                os("--timed"),
+                os("--seeds"),
+                os("1"),
+                os("--holdout"),
+                os("2"),
+                os("--baseline"),
+                baseline.as_os_str(),
+                os("--out"),
+                out.as_os_str(),
+            ],
+            if baseline == &nothing { 3 } else { 2 },
+            says,
+        );
+        assert!(err.contains("--baseline"), "{err}");
+    }
+    refused(
+        &[
+            os("tune"),
+            os("examples/formation.yaml"),
+            os("--passes"),
+            os("0"),
+        ],
+        2,
+        "at least one pass",
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
