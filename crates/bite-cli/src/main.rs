@@ -50,6 +50,7 @@ macro_rules! out {
 
 mod experiment;
 mod lapbench;
+mod outputs;
 mod stats;
 mod studio;
 mod sweep;
@@ -83,6 +84,15 @@ struct Cli {
 /// The registry of this process: the library, the shipped graph protocols
 /// and the `--protocols` files (loaded once, in `main`).
 static REGISTRY: std::sync::OnceLock<bite_core::interaction::Registry> = std::sync::OnceLock::new();
+
+/// The `--protocols` files of this process (set once, in `main`): inputs
+/// that no output may overwrite (see [`outputs::check`]).
+static PROTOCOL_FILES: std::sync::OnceLock<Vec<PathBuf>> = std::sync::OnceLock::new();
+
+/// The `--protocols` files given.
+fn protocol_files() -> &'static [PathBuf] {
+    PROTOCOL_FILES.get().map_or(&[], Vec::as_slice)
+}
 
 #[derive(Subcommand)]
 enum Cmd {
@@ -801,6 +811,31 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         }
         PathBuf::from("out").join(format!("{name}-seed{seed}.jsonl"))
     });
+    {
+        let mut inputs: Vec<(&str, &Path)> = Vec::new();
+        let named = [
+            ("graph", &a.graph),
+            ("--library", &a.library),
+            ("--config", &a.config),
+            ("--scenario", &a.scenario),
+        ];
+        for (what, p) in &named {
+            if let Some(p) = p {
+                inputs.push((*what, p.as_path()));
+            }
+        }
+        let mut outs: Vec<(&str, &Path)> = vec![("--log", log_path.as_path())];
+        for (what, p) in [
+            ("--svg", &a.svg),
+            ("--gif", &a.gif),
+            ("--mcap", &a.viz.mcap),
+        ] {
+            if let Some(p) = p {
+                outs.push((what, p.as_path()));
+            }
+        }
+        outputs::check(&inputs, &outs)?;
+    }
     if let Some(dir) = log_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -1086,6 +1121,11 @@ fn cmd_graph(
     output: Option<&Path>,
     svg: bool,
 ) -> Result<ExitCode> {
+    if let Some(out) = output {
+        let mut inputs = vec![("graph", graph)];
+        inputs.extend(config.map(|c| ("--config", c)));
+        outputs::check(&inputs, &[("--output", out)])?;
+    }
     if config.is_none() && is_protocol_file(graph) {
         if svg {
             eprintln!(
@@ -1137,6 +1177,12 @@ struct CompileArgs<'a> {
 }
 
 fn cmd_compile(a: CompileArgs<'_>) -> Result<ExitCode> {
+    if let Some(out) = a.output {
+        let mut inputs = vec![("mission", a.mission)];
+        inputs.extend(a.library.map(|p| ("--library", p)));
+        inputs.extend(a.scenario.map(|p| ("--scenario", p)));
+        outputs::check(&inputs, &[("--output", out)])?;
+    }
     let mut opts = match a.scenario {
         Some(s) => rtcl::options_for(&Scenario::load(s).map_err(bad_input)?, a.robots),
         None => bite_rtcl::CompileOptions::default(),
@@ -1599,6 +1645,7 @@ fn main() -> ExitCode {
     if std::env::var_os("BITE_PARSE_ONLY").is_some() {
         return ExitCode::SUCCESS;
     }
+    let _ = PROTOCOL_FILES.set(cli.protocols.clone());
     if !cli.protocols.is_empty() {
         let mut r = bite_protocols::registry();
         if let Err(d) = bite_protocols::load_protocol_files(&mut r, &cli.protocols) {

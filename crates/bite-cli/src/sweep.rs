@@ -223,6 +223,13 @@ pub fn cmd_sweep(a: SweepArgs) -> Result<ExitCode> {
             })
             .collect::<Result<_>>()?
     };
+    {
+        let mut inputs: Vec<(&str, &Path)> =
+            a.graphs.iter().map(|g| ("--graph", g.as_path())).collect();
+        inputs.extend(a.configs.iter().map(|c| ("--config", c.as_path())));
+        inputs.extend(a.scenario.as_deref().map(|s| ("--scenario", s)));
+        crate::outputs::check(&inputs, &[("--out", a.out.as_path())])?;
+    }
     let cases = build_cases(&a)?;
     if cases.is_empty() {
         anyhow::bail!(

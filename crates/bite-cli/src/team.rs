@@ -103,6 +103,20 @@ impl MissionArgs {
         )
     }
 
+    /// The input files these arguments name (flag, path), which no output
+    /// may overwrite.
+    fn inputs(&self) -> Vec<(&'static str, &Path)> {
+        [
+            ("graph", &self.graph),
+            ("--library", &self.library),
+            ("--config", &self.config),
+            ("--scenario", &self.scenario),
+        ]
+        .into_iter()
+        .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
+        .collect()
+    }
+
     /// The world a robot started with these arguments runs submitted missions
     /// in when they carry none: its `--scenario`, or its graph's (as
     /// [`MissionArgs::load`] resolves it); none without either.
@@ -640,6 +654,20 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
         }
         Ok(Some(PathBuf::from(text.replace("{name}", name))))
     };
+    {
+        let mut inputs = a.mission.inputs();
+        inputs.extend(a.key.as_deref().map(|k| ("--key", k)));
+        let mut files = Vec::new();
+        for name in names {
+            files.push(("--log", per_robot("--log", &a.log, name)?));
+            files.push(("--record", per_robot("--record", &a.record, name)?));
+        }
+        let outs: Vec<(&str, &Path)> = files
+            .iter()
+            .filter_map(|(what, p)| p.as_deref().map(|p| (*what, p)))
+            .collect();
+        crate::outputs::check(&inputs, &outs)?;
+    }
     let first = if a.mission.graph.is_some() || a.mission.built_in {
         let (graph, scenario) = a.mission.load()?;
         let mission =
@@ -792,6 +820,11 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
 
 /// `bite sim serve`.
 pub fn cmd_serve(a: ServeArgs) -> Result<ExitCode> {
+    let outs: Vec<(&str, &Path)> = [("--log", &a.log), ("--svg", &a.svg)]
+        .into_iter()
+        .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
+        .collect();
+    crate::outputs::check(&a.mission.inputs(), &outs)?;
     let (graph, scenario) = a.mission.load()?;
     let mission =
         bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())

@@ -246,3 +246,111 @@ fn tune_refuses_a_baseline_that_does_not_load_and_zero_passes() {
     );
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Every command that writes files made from input files refuses an output
+/// that is one of its inputs, or another of its outputs, and leaves the
+/// input as it was.
+#[test]
+fn an_output_that_would_overwrite_an_input_is_refused() {
+    let d = scratch("clobber");
+    let graph = d.join("clob.yaml");
+    std::fs::copy(root().join("examples/formation.yaml"), &graph).expect("copy");
+    let mission = d.join("m.rtcl");
+    std::fs::copy(root().join("examples/red-cube.rtcl"), &mission).expect("copy");
+    let scenario = root().join("examples/scenarios/formation.yaml");
+    let log = d.join("real.jsonl");
+    // A real run log, to convert.
+    let made = bite()
+        .args(["run", "examples/formation.yaml", "--timed", "--log"])
+        .arg(&log)
+        .output()
+        .expect("bite runs");
+    assert!(made.status.success(), "{made:?}");
+    let linked = d.join("linked.yaml");
+    std::fs::hard_link(&graph, &linked).expect("hard link");
+    let before = |p: &Path| std::fs::read(p).expect("read");
+    let (g0, m0, l0) = (before(&graph), before(&mission), before(&log));
+    let cases: Vec<(Vec<&std::ffi::OsStr>, &str)> = vec![
+        (
+            vec![
+                os("log"),
+                os("convert"),
+                log.as_os_str(),
+                os("-o"),
+                log.as_os_str(),
+            ],
+            "--output",
+        ),
+        (
+            vec![
+                os("run"),
+                graph.as_os_str(),
+                os("--scenario"),
+                scenario.as_os_str(),
+                os("--log"),
+                graph.as_os_str(),
+            ],
+            "--log",
+        ),
+        (
+            vec![
+                os("run"),
+                graph.as_os_str(),
+                os("--scenario"),
+                scenario.as_os_str(),
+                os("--log"),
+                linked.as_os_str(),
+            ],
+            "--log",
+        ),
+        (
+            vec![
+                os("compile"),
+                mission.as_os_str(),
+                os("-o"),
+                mission.as_os_str(),
+            ],
+            "--output",
+        ),
+        (
+            vec![os("graph"), graph.as_os_str(), os("-o"), graph.as_os_str()],
+            "--output",
+        ),
+        (
+            vec![
+                os("sweep"),
+                os("--graph"),
+                graph.as_os_str(),
+                os("--out"),
+                graph.as_os_str(),
+            ],
+            "--out",
+        ),
+    ];
+    for (args, flag) in cases {
+        let err = refused(&args, 3, "would overwrite the input");
+        assert!(err.contains(flag), "{err}");
+    }
+    // Two outputs of one run to one file.
+    let both = d.join("both.out");
+    let err = refused(
+        &[
+            os("run"),
+            graph.as_os_str(),
+            os("--scenario"),
+            scenario.as_os_str(),
+            os("--log"),
+            both.as_os_str(),
+            os("--mcap"),
+            both.as_os_str(),
+        ],
+        3,
+        "are the same file",
+    );
+    assert!(err.contains("--log") && err.contains("--mcap"), "{err}");
+    assert!(!both.exists());
+    assert_eq!(before(&graph), g0, "the graph is untouched");
+    assert_eq!(before(&mission), m0, "the mission is untouched");
+    assert_eq!(before(&log), l0, "the run log is untouched");
+    let _ = std::fs::remove_dir_all(&d);
+}
