@@ -103,9 +103,24 @@ pub fn parse_seeds(s: &str) -> Result<Vec<u64>, String> {
         }
         return Ok((a..=b).collect());
     }
-    s.split(',')
+    let seeds: Vec<u64> = s
+        .split(',')
         .map(|x| x.trim().parse::<u64>().map_err(|_| bad()))
-        .collect()
+        .collect::<Result<_, _>>()?;
+    no_repeated_seed(&seeds)?;
+    Ok(seeds)
+}
+
+/// A seed given twice would run the same runs twice and count them as
+/// independent samples: refused.
+pub fn no_repeated_seed(seeds: &[u64]) -> Result<(), String> {
+    let mut seen = std::collections::BTreeSet::new();
+    match seeds.iter().find(|s| !seen.insert(**s)) {
+        Some(s) => Err(format!(
+            "seed {s} is given twice: each seed is one run, counted once"
+        )),
+        None => Ok(()),
+    }
 }
 
 fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
