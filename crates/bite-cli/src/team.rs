@@ -469,7 +469,9 @@ pub struct SubmitArgs {
     /// switches to it at its next safe point (between behaviors, all its
     /// members together) instead of refusing it as busy. Its behaviors are
     /// matched to the running ones by name; a version that cannot replace
-    /// the running one is refused with the reason (`bite status`).
+    /// the running one is refused with the reason: a `mission_refused`
+    /// record in each robot's run log, and `last_rejection` in the status
+    /// it publishes on `bite/<team>/status/<robot>`.
     #[arg(long)]
     pub replace: bool,
     /// The submission id (default: a random one).

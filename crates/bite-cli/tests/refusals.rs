@@ -354,3 +354,65 @@ fn an_output_that_would_overwrite_an_input_is_refused() {
     assert_eq!(before(&log), l0, "the run log is untouched");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn messages_say_the_real_bound_and_the_real_command_once() {
+    // `control_hz` is more than 0, at most 1000.
+    let d = scratch("messages");
+    let s = d.join("zero-hz.yaml");
+    let text = std::fs::read_to_string(root().join("examples/scenarios/formation.yaml"))
+        .expect("the scenario");
+    let text: String = text
+        .lines()
+        .map(|l| {
+            if l.starts_with("control_hz:") {
+                "control_hz: 0".to_string()
+            } else {
+                l.to_string()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join("\n");
+    assert!(
+        text.contains("control_hz: 0"),
+        "the scenario sets control_hz"
+    );
+    std::fs::write(&s, text).expect("write");
+    let err = refused(
+        &[
+            os("run"),
+            os("examples/formation.yaml"),
+            os("--scenario"),
+            s.as_os_str(),
+            os("--log"),
+            d.join("run.jsonl").as_os_str(),
+        ],
+        2,
+        "more than 0 and at most 1000",
+    );
+    assert!(!err.contains("between 0 and"), "{err}");
+    // `bite submit --help` names no command that does not exist.
+    let help = bite()
+        .args(["submit", "--help"])
+        .output()
+        .expect("bite runs");
+    let help = String::from_utf8_lossy(&help.stdout);
+    assert!(help.contains("mission_refused"), "{help}");
+    assert!(!help.contains("bite status"), "{help}");
+    // A directory as the MCAP file: said once.
+    let log = d.join("l.jsonl");
+    std::fs::write(&log, "").expect("write");
+    let err = refused(
+        &[
+            os("log"),
+            os("convert"),
+            log.as_os_str(),
+            os("-o"),
+            d.as_os_str(),
+        ],
+        3,
+        "Is a directory",
+    );
+    assert_eq!(err.matches("Is a directory").count(), 1, "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}
