@@ -206,6 +206,48 @@ pub enum ReplayError {
     /// The mind could not be rebuilt from the header.
     #[error("{0}")]
     Mind(String),
+    /// A line is longer than any record writes ([`MAX_LINE_BYTES`]): not a
+    /// record (a device such as `/dev/zero`, a binary file).
+    #[error(
+        "line {line}: more than {limit} bytes without a line break (reading stopped there): not a record of a robot's inputs"
+    )]
+    TooLong {
+        /// Line number (1-based).
+        line: usize,
+        /// The limit, bytes.
+        limit: usize,
+    },
+}
+
+/// The longest line a record may hold, bytes: the cap on every file the
+/// project reads ([`bite_core::yaml::MAX_FILE_BYTES`]), far above what one
+/// input takes. A longer line is refused rather than read without bound.
+pub const MAX_LINE_BYTES: usize = bite_core::yaml::MAX_FILE_BYTES;
+
+/// Read line `line` of a record, at most `limit` bytes of it; `None` at the
+/// end of the file. The text keeps its line break (none: a cut last line).
+fn read_line(
+    r: &mut impl BufRead,
+    line: usize,
+    limit: usize,
+) -> Result<Option<String>, ReplayError> {
+    let mut bytes = Vec::new();
+    let cap = u64::try_from(limit).unwrap_or(u64::MAX).saturating_add(1);
+    let n = std::io::Read::take(&mut *r, cap)
+        .read_until(b'\n', &mut bytes)
+        .map_err(|source| ReplayError::Io { line, source })?;
+    if n == 0 {
+        return Ok(None);
+    }
+    if bytes.len() > limit {
+        return Err(ReplayError::TooLong { line, limit });
+    }
+    String::from_utf8(bytes)
+        .map(Some)
+        .map_err(|e| ReplayError::Malformed {
+            line,
+            what: format!("not UTF-8 text ({e})"),
+        })
 }
 
 /// How a replay went.
@@ -236,9 +278,12 @@ pub struct Difference {
 
 /// Read the header of a record.
 pub fn header(r: &mut impl BufRead) -> Result<serde_json::Value, ReplayError> {
-    let mut first = String::new();
-    r.read_line(&mut first)
-        .map_err(|source| ReplayError::Io { line: 1, source })?;
+    header_within(r, MAX_LINE_BYTES)
+}
+
+/// [`header`], with a header line of at most `limit` bytes.
+fn header_within(r: &mut impl BufRead, limit: usize) -> Result<serde_json::Value, ReplayError> {
+    let first = read_line(r, 1, limit)?.unwrap_or_default();
     let v: serde_json::Value =
         serde_json::from_str(&first).map_err(|e| ReplayError::Malformed {
             line: 1,
@@ -261,13 +306,9 @@ pub fn replay(r: &mut impl BufRead, agent: &mut Agent) -> Result<Replayed, Repla
     let mut line = 1;
     loop {
         line += 1;
-        let mut text = String::new();
-        let n = r
-            .read_line(&mut text)
-            .map_err(|source| ReplayError::Io { line, source })?;
-        if n == 0 {
+        let Some(text) = read_line(r, line, MAX_LINE_BYTES)? else {
             break;
-        }
+        };
         if !text.ends_with('\n') {
             // The robot was stopped (killed) while writing its last line.
             truncated = true;
@@ -310,4 +351,36 @@ pub fn replay(r: &mut impl BufRead, agent: &mut Agent) -> Result<Replayed, Repla
         truncated,
         first_difference: None,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_endless_header_line_is_refused_at_the_cap() {
+        // `/dev/zero`: bytes without end, never a line break.
+        let mut r = std::io::BufReader::new(std::io::repeat(0));
+        let e = header(&mut r).expect_err("no header in an endless line");
+        assert!(
+            matches!(e, ReplayError::TooLong { line: 1, limit } if limit == MAX_LINE_BYTES),
+            "{e}"
+        );
+        assert!(e.to_string().contains("without a line break"), "{e}");
+    }
+
+    #[test]
+    fn a_header_line_over_the_limit_is_refused_and_one_within_is_read() {
+        let line = "{\"bite_inputs\":1,\"header\":{\"robot\":\"r0\"}}\n";
+        let e = header_within(&mut line.as_bytes(), line.len() - 1).expect_err("too long");
+        assert!(matches!(e, ReplayError::TooLong { line: 1, .. }), "{e}");
+        let h = header_within(&mut line.as_bytes(), line.len()).expect("within");
+        assert_eq!(h["robot"], "r0");
+    }
+
+    #[test]
+    fn a_header_that_is_not_utf8_is_malformed() {
+        let e = header(&mut &b"\xff\xfe\n"[..]).expect_err("not UTF-8");
+        assert!(matches!(e, ReplayError::Malformed { line: 1, .. }), "{e}");
+    }
 }

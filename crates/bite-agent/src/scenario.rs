@@ -718,7 +718,10 @@ impl Scenario {
                     file,
                     Loc::from(h.referenced),
                     "bad-value",
-                    "`control_hz` must be between 0 and 1000",
+                    format!(
+                        "`control_hz` must be more than 0 and at most 1000 (ticks per second), found {}",
+                        h.value
+                    ),
                 ));
                 10.0
             }

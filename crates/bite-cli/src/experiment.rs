@@ -37,8 +37,8 @@ pub struct ExperimentArgs {
     /// Output directory (default: `out/experiment-<name>`).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Threads (default: every core). The results are the same for any number.
-    #[arg(long)]
+    /// Threads, 1 to 1024 (default: every core). The results are the same for any number.
+    #[arg(long, value_parser = crate::parse_jobs)]
     pub jobs: Option<usize>,
     /// Forget the runs already in the output directory and run everything.
     #[arg(long)]
@@ -77,7 +77,7 @@ enum SeedsSpec {
 struct MissionSpec {
     graph: Spanned<String>,
     #[serde(default)]
-    label: Option<String>,
+    label: Option<Spanned<String>>,
     #[serde(default)]
     library: Option<Spanned<String>>,
     #[serde(default)]
@@ -205,7 +205,10 @@ fn loc<T>(s: &Spanned<T>) -> Loc {
 fn seeds_of(s: &SeedsSpec) -> Result<Vec<u64>, String> {
     match s {
         SeedsSpec::One(n) => Ok(vec![*n]),
-        SeedsSpec::List(v) if !v.is_empty() => Ok(v.clone()),
+        SeedsSpec::List(v) if !v.is_empty() => {
+            crate::sweep::no_repeated_seed(v)?;
+            Ok(v.clone())
+        }
         SeedsSpec::List(_) => Err("an empty list of seeds".to_string()),
         SeedsSpec::Text(t) => crate::sweep::parse_seeds(t),
     }
@@ -264,6 +267,13 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
     }
     // Every mission, configuration and scenario must exist before anything runs.
     let mut wanted: Vec<Wanted> = Vec::new();
+    // What names rows must name one thing: a mission once, each label of
+    // a mission or configuration once (rows of two under one label would
+    // be merged), each world or scenario of a mission once (its runs
+    // would count twice as independent samples).
+    let mut missions_seen: Vec<(PathBuf, Loc)> = Vec::new();
+    let mut labels_seen: Vec<(String, Loc)> = Vec::new();
+    let largest_seed = seeds.iter().copied().max().unwrap_or(0);
     for (mi, m) in spec.missions.iter().enumerate() {
         let graph = rel(&m.graph.value);
         if !graph.exists() {
@@ -275,7 +285,44 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
             ));
             continue;
         }
+        let same_file = graph.canonicalize().unwrap_or_else(|_| graph.clone());
+        if let Some((_, first)) = missions_seen.iter().find(|(g, _)| *g == same_file) {
+            let mut d = error(
+                &file,
+                loc(&m.graph),
+                "duplicate-mission",
+                format!(
+                    "mission `{}` is listed twice (first at line {})",
+                    graph.display(),
+                    first.line
+                ),
+            );
+            d.hint = Some("list its configurations, worlds and scenarios under one entry".into());
+            diags.push(d);
+            continue;
+        }
+        missions_seen.push((same_file, loc(&m.graph)));
+        let (label, at) = match &m.label {
+            Some(l) => (l.value.clone(), loc(l)),
+            None => (stem(&graph), loc(&m.graph)),
+        };
+        if let Some((_, first)) = labels_seen.iter().find(|(l, _)| *l == label) {
+            let mut d = error(
+                &file,
+                at,
+                "duplicate-label",
+                format!(
+                    "mission label `{label}` names two missions (first at line {}): their rows would be merged",
+                    first.line
+                ),
+            );
+            d.hint = Some("give each mission its own `label:`".into());
+            diags.push(d);
+        }
+        labels_seen.push((label, at));
         let mut configs = Vec::new();
+        // Each configuration's label, file and seed offset, and where.
+        let mut configs_seen: Vec<(String, Option<PathBuf>, u64, Loc)> = Vec::new();
         for c in &m.configs {
             let (pattern, label, offset) = match &c.value {
                 ConfigEntry::Path(p) => (p.clone(), None, 0),
@@ -311,12 +358,58 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
                     format!("no configuration file matches `{}`", full.display()),
                 ));
             }
+            if largest_seed.checked_add(offset).is_none() {
+                diags.push(error(
+                    &file,
+                    loc(c),
+                    "bad-seed-offset",
+                    format!(
+                        "seed_offset {offset} plus seed {largest_seed} is past the largest seed, {}",
+                        u64::MAX
+                    ),
+                ));
+                continue;
+            }
             let many = found.len() > 1;
             for p in found {
                 let l = match (&label, many) {
                     (Some(l), false) => l.clone(),
                     _ => stem(&p),
                 };
+                let same_file = p.canonicalize().ok();
+                if let Some((_, _, _, first)) = configs_seen
+                    .iter()
+                    .find(|(_, f, o, _)| same_file.is_some() && *f == same_file && *o == offset)
+                {
+                    let mut d = error(
+                        &file,
+                        loc(c),
+                        "duplicate-config",
+                        format!(
+                            "configuration `{}` is listed twice with seed_offset {offset} (first at line {}): the same runs twice",
+                            p.display(),
+                            first.line
+                        ),
+                    );
+                    d.hint = Some("another `seed_offset` runs it on other seeds".into());
+                    diags.push(d);
+                } else if let Some((_, _, _, first)) =
+                    configs_seen.iter().find(|(seen, ..)| *seen == l)
+                {
+                    let mut d = error(
+                        &file,
+                        loc(c),
+                        "duplicate-label",
+                        format!(
+                            "configuration label `{l}` names two configurations of mission `{}` (first at line {}): their rows would be merged",
+                            graph.display(),
+                            first.line
+                        ),
+                    );
+                    d.hint = Some("give each its own `label:`".into());
+                    diags.push(d);
+                }
+                configs_seen.push((l.clone(), same_file, offset, loc(c)));
                 configs.push((Some(p), l, offset));
             }
         }
@@ -324,9 +417,33 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
             configs.push((None, "default".to_string(), 0));
         }
         let mut picks = Vec::new();
+        // Each scenario file picked, and where (a world picks its own).
+        let mut scenarios_seen: Vec<(PathBuf, Loc)> = Vec::new();
+        let mut twice = |p: &Path, at: Loc, diags: &mut Vec<Diagnostic>| {
+            let same_file = p.canonicalize().unwrap_or_else(|_| p.to_path_buf());
+            if let Some((_, first)) = scenarios_seen.iter().find(|(s, _)| *s == same_file) {
+                diags.push(error(
+                    &file,
+                    at,
+                    "duplicate-scenario",
+                    format!(
+                        "scenario `{}` is picked twice for mission `{}` (first at line {}): its runs would count twice",
+                        p.display(),
+                        graph.display(),
+                        first.line
+                    ),
+                ));
+                return true;
+            }
+            scenarios_seen.push((same_file, at));
+            false
+        };
         for s in &m.scenarios {
             let p = rel(&s.value);
             if p.exists() {
+                if twice(&p, loc(s), &mut diags) {
+                    continue;
+                }
                 picks.push(ScenarioPick::File(p));
             } else {
                 diags.push(error(
@@ -350,7 +467,21 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
         } else {
             m.worlds.iter().map(|w| (w.value.clone(), loc(w))).collect()
         };
+        let mut worlds_seen: Vec<(String, Loc)> = Vec::new();
         for (w, at) in worlds {
+            if let Some((_, first)) = worlds_seen.iter().find(|(seen, _)| *seen == w) {
+                diags.push(error(
+                    &file,
+                    at,
+                    "duplicate-world",
+                    format!(
+                        "world `{w}` is listed twice (first at line {}, column {}): its runs would count twice",
+                        first.line, first.col
+                    ),
+                ));
+                continue;
+            }
+            worlds_seen.push((w.clone(), at));
             let physical = match w.as_str() {
                 "timed" => false,
                 "physics" => true,
@@ -368,6 +499,9 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
             };
             let p = sibling_scenario(&graph, physical);
             if p.exists() {
+                if twice(&p, at, &mut diags) {
+                    continue;
+                }
                 picks.push(ScenarioPick::File(p));
             } else if !physical && !is_mission {
                 picks.push(ScenarioPick::EmptyTimed);
@@ -422,7 +556,10 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
     for (mi, graph, configs, picks) in wanted {
         let m = &spec.missions[mi];
         let library = m.library.as_ref().map(|l| rel(&l.value));
-        let mission_label = m.label.clone().unwrap_or_else(|| stem(&graph));
+        let mission_label = m
+            .label
+            .as_ref()
+            .map_or_else(|| stem(&graph), |l| l.value.clone());
         for (cfg, cfg_label, offset) in &configs {
             for pick in &picks {
                 let (scenario_path, timed) = match pick {
@@ -700,7 +837,9 @@ pub fn plan(exp: &Experiment) -> Vec<RunSpec> {
                 out.push(RunSpec {
                     case,
                     class: *class,
-                    seed: seed + m.seed_offset,
+                    // `load` refused an offset that takes a seed past
+                    // `u64::MAX`.
+                    seed: seed.saturating_add(m.seed_offset),
                 });
             }
         }
@@ -837,9 +976,7 @@ pub fn cmd_experiment(a: ExperimentArgs) -> Result<ExitCode> {
         .filter(|s| !done.contains_key(&key(&exp, s)))
         .cloned()
         .collect();
-    let jobs = a.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    });
+    let jobs = a.jobs.unwrap_or_else(crate::default_jobs);
     eprintln!(
         "experiment `{}`: {} runs ({} cases × {} fault classes × {} seeds); {} done before, {} to run on {jobs} threads",
         exp.name,

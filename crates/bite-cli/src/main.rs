@@ -50,6 +50,7 @@ macro_rules! out {
 
 mod experiment;
 mod lapbench;
+mod outputs;
 mod stats;
 mod studio;
 mod sweep;
@@ -83,6 +84,15 @@ struct Cli {
 /// The registry of this process: the library, the shipped graph protocols
 /// and the `--protocols` files (loaded once, in `main`).
 static REGISTRY: std::sync::OnceLock<bite_core::interaction::Registry> = std::sync::OnceLock::new();
+
+/// The `--protocols` files of this process (set once, in `main`): inputs
+/// that no output may overwrite (see [`outputs::check`]).
+static PROTOCOL_FILES: std::sync::OnceLock<Vec<PathBuf>> = std::sync::OnceLock::new();
+
+/// The `--protocols` files given.
+fn protocol_files() -> &'static [PathBuf] {
+    PROTOCOL_FILES.get().map_or(&[], Vec::as_slice)
+}
 
 #[derive(Subcommand)]
 enum Cmd {
@@ -277,8 +287,10 @@ struct RunArgs {
     /// simulated seconds, shown ten times faster).
     #[arg(long)]
     gif: Option<PathBuf>,
-    /// Seconds of simulated time between frames.
-    #[arg(long, default_value_t = 1.0)]
+    /// Seconds of simulated time between frames of `--frames` and
+    /// `--gif`: at least 0.01 (a GIF's shortest delay, shown ten times
+    /// faster), and at most 10,000 frames over the run's time limit.
+    #[arg(long, default_value_t = 1.0, value_parser = parse_every)]
     every: f64,
     /// A fault laid over the scenario (repeatable): `loss=0.2`, `dup=0.3`,
     /// `jitter=200ms`, `partition=r0|r1,r2@10s+15s`, `oneway=r0>r1@5s+3s`,
@@ -289,6 +301,26 @@ struct RunArgs {
     faults: Vec<bite_sim::fault::Fault>,
     #[command(flatten)]
     viz: viz::VizArgs,
+}
+
+/// The shortest `--every`, seconds: a GIF's delays are whole hundredths of
+/// a second, shown ten times faster than simulated time.
+const MIN_EVERY: f64 = 0.01;
+
+/// The most frames `--frames` and `--gif` may draw: a run's animation is
+/// one picture per frame (each with every trail so far), and more would
+/// fill a disk rather than show a run.
+const MAX_FRAMES: f64 = 10_000.0;
+
+/// `--every`: seconds between frames, at least [`MIN_EVERY`].
+fn parse_every(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= MIN_EVERY => Ok(v),
+        Ok(_) => Err(format!(
+            "`{s}`: frames are at least {MIN_EVERY} s of simulated time apart"
+        )),
+        Err(_) => Err(format!("`{s}` is not a number of seconds")),
+    }
 }
 
 fn parse_fault(s: &str) -> Result<bite_sim::fault::Fault, String> {
@@ -445,6 +477,31 @@ fn parse_robots(s: &str) -> Result<usize, String> {
         Ok(n) => Ok(n),
         Err(_) => Err(format!("expected a number of robots, found `{s}`")),
     }
+}
+
+/// The most worker threads `--jobs` may ask for: far more than any machine
+/// this runs on has cores (a run is CPU-bound, so more threads than cores
+/// buys nothing), and few enough that starting them cannot exhaust the
+/// process's threads or memory.
+pub(crate) const MAX_JOBS: usize = 1024;
+
+/// `--jobs`: a number of worker threads, 1 to [`MAX_JOBS`].
+pub(crate) fn parse_jobs(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("at least one thread".into()),
+        Ok(n) if n > MAX_JOBS => Err(format!(
+            "at most {MAX_JOBS} threads (a run uses one core; more threads than cores are no faster)"
+        )),
+        Ok(n) => Ok(n),
+        Err(_) => Err(format!("expected a number of threads, found `{s}`")),
+    }
+}
+
+/// The default of `--jobs`: every core (at most [`MAX_JOBS`]).
+pub(crate) fn default_jobs() -> usize {
+    std::thread::available_parallelism()
+        .map_or(1, std::num::NonZeroUsize::get)
+        .min(MAX_JOBS)
 }
 
 /// A failure that has already been explained to the user.
@@ -722,8 +779,21 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         eprintln!("  = hint: give a scenario with `world: physics`, or leave out --timed");
         return Ok(ExitCode::from(2));
     }
-    if !(a.every.is_finite() && a.every > 0.0) {
-        anyhow::bail!("--every must be a positive number of seconds");
+    if !(a.every.is_finite() && a.every >= MIN_EVERY) {
+        anyhow::bail!("--every must be at least {MIN_EVERY} seconds");
+    }
+    if a.frames.is_some() || a.gif.is_some() {
+        // Refused before the run rather than after it: the frames of the
+        // whole time limit (a run that ends sooner draws fewer).
+        let limit = a.time_limit.unwrap_or(scenario.time_limit).as_secs_f64();
+        let most = (limit / a.every).floor() + 1.0;
+        if most > MAX_FRAMES {
+            anyhow::bail!(
+                "--every {} s over a time limit of {limit} s is up to {most} frames; the limit is {MAX_FRAMES}: \
+                 give a larger --every or a shorter --time-limit",
+                a.every
+            );
+        }
     }
     let mission = prepare(&graph, &scenario, a.robots, &registry()).map_err(bad_input)?;
     if !a.faults.is_empty() {
@@ -741,6 +811,31 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
         }
         PathBuf::from("out").join(format!("{name}-seed{seed}.jsonl"))
     });
+    {
+        let mut inputs: Vec<(&str, &Path)> = Vec::new();
+        let named = [
+            ("graph", &a.graph),
+            ("--library", &a.library),
+            ("--config", &a.config),
+            ("--scenario", &a.scenario),
+        ];
+        for (what, p) in &named {
+            if let Some(p) = p {
+                inputs.push((*what, p.as_path()));
+            }
+        }
+        let mut outs: Vec<(&str, &Path)> = vec![("--log", log_path.as_path())];
+        for (what, p) in [
+            ("--svg", &a.svg),
+            ("--gif", &a.gif),
+            ("--mcap", &a.viz.mcap),
+        ] {
+            if let Some(p) = p {
+                outs.push((what, p.as_path()));
+            }
+        }
+        outputs::check(&inputs, &outs)?;
+    }
     if let Some(dir) = log_path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -1026,6 +1121,11 @@ fn cmd_graph(
     output: Option<&Path>,
     svg: bool,
 ) -> Result<ExitCode> {
+    if let Some(out) = output {
+        let mut inputs = vec![("graph", graph)];
+        inputs.extend(config.map(|c| ("--config", c)));
+        outputs::check(&inputs, &[("--output", out)])?;
+    }
     if config.is_none() && is_protocol_file(graph) {
         if svg {
             eprintln!(
@@ -1077,6 +1177,12 @@ struct CompileArgs<'a> {
 }
 
 fn cmd_compile(a: CompileArgs<'_>) -> Result<ExitCode> {
+    if let Some(out) = a.output {
+        let mut inputs = vec![("mission", a.mission)];
+        inputs.extend(a.library.map(|p| ("--library", p)));
+        inputs.extend(a.scenario.map(|p| ("--scenario", p)));
+        outputs::check(&inputs, &[("--output", out)])?;
+    }
     let mut opts = match a.scenario {
         Some(s) => rtcl::options_for(&Scenario::load(s).map_err(bad_input)?, a.robots),
         None => bite_rtcl::CompileOptions::default(),
@@ -1539,6 +1645,7 @@ fn main() -> ExitCode {
     if std::env::var_os("BITE_PARSE_ONLY").is_some() {
         return ExitCode::SUCCESS;
     }
+    let _ = PROTOCOL_FILES.set(cli.protocols.clone());
     if !cli.protocols.is_empty() {
         let mut r = bite_protocols::registry();
         if let Err(d) = bite_protocols::load_protocol_files(&mut r, &cli.protocols) {

@@ -60,9 +60,9 @@ pub struct SweepArgs {
     #[arg(long)]
     scenario: Option<PathBuf>,
     /// Team size (default: each scenario's, else each graph's), as `bite
-    /// run --robots`: the faults of each class pick their robots from
-    /// this team.
-    #[arg(long)]
+    /// run --robots` (1 to 1,000,000): the faults of each class pick
+    /// their robots from this team.
+    #[arg(long, value_parser = crate::parse_robots)]
     robots: Option<usize>,
     /// Worlds: `timed`, `physics` (a graph without a physical scenario
     /// runs in the timed world only; a mission, `.rtcl`, and a graph with
@@ -77,8 +77,8 @@ pub struct SweepArgs {
     /// Seeds: `1..30`, `7` or `1,5,9`.
     #[arg(long, default_value = "1..5")]
     seeds: String,
-    /// Threads (default: every core). Results are the same for any number.
-    #[arg(long)]
+    /// Threads, 1 to 1024 (default: every core). Results are the same for any number.
+    #[arg(long, value_parser = crate::parse_jobs)]
     jobs: Option<usize>,
     /// Where to write one JSON line per run.
     #[arg(long, default_value = "out/sweep.jsonl")]
@@ -103,9 +103,24 @@ pub fn parse_seeds(s: &str) -> Result<Vec<u64>, String> {
         }
         return Ok((a..=b).collect());
     }
-    s.split(',')
+    let seeds: Vec<u64> = s
+        .split(',')
         .map(|x| x.trim().parse::<u64>().map_err(|_| bad()))
-        .collect()
+        .collect::<Result<_, _>>()?;
+    no_repeated_seed(&seeds)?;
+    Ok(seeds)
+}
+
+/// A seed given twice would run the same runs twice and count them as
+/// independent samples: refused.
+pub fn no_repeated_seed(seeds: &[u64]) -> Result<(), String> {
+    let mut seen = std::collections::BTreeSet::new();
+    match seeds.iter().find(|s| !seen.insert(**s)) {
+        Some(s) => Err(format!(
+            "seed {s} is given twice: each seed is one run, counted once"
+        )),
+        None => Ok(()),
+    }
 }
 
 fn build_cases(a: &SweepArgs) -> Result<Vec<Case>> {
@@ -223,6 +238,13 @@ pub fn cmd_sweep(a: SweepArgs) -> Result<ExitCode> {
             })
             .collect::<Result<_>>()?
     };
+    {
+        let mut inputs: Vec<(&str, &Path)> =
+            a.graphs.iter().map(|g| ("--graph", g.as_path())).collect();
+        inputs.extend(a.configs.iter().map(|c| ("--config", c.as_path())));
+        inputs.extend(a.scenario.as_deref().map(|s| ("--scenario", s)));
+        crate::outputs::check(&inputs, &[("--out", a.out.as_path())])?;
+    }
     let cases = build_cases(&a)?;
     if cases.is_empty() {
         anyhow::bail!(
@@ -232,9 +254,7 @@ pub fn cmd_sweep(a: SweepArgs) -> Result<ExitCode> {
         );
     }
     let runs = plan(cases.len(), &classes, &seeds);
-    let jobs = a.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    });
+    let jobs = a.jobs.unwrap_or_else(crate::default_jobs);
     eprintln!(
         "sweep: {} runs ({} missions × {} classes × {} seeds) on {jobs} threads",
         runs.len(),

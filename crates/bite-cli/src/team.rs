@@ -103,6 +103,20 @@ impl MissionArgs {
         )
     }
 
+    /// The input files these arguments name (flag, path), which no output
+    /// may overwrite.
+    fn inputs(&self) -> Vec<(&'static str, &Path)> {
+        [
+            ("graph", &self.graph),
+            ("--library", &self.library),
+            ("--config", &self.config),
+            ("--scenario", &self.scenario),
+        ]
+        .into_iter()
+        .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
+        .collect()
+    }
+
     /// The world a robot started with these arguments runs submitted missions
     /// in when they carry none: its `--scenario`, or its graph's (as
     /// [`MissionArgs::load`] resolves it); none without either.
@@ -135,19 +149,20 @@ impl MissionArgs {
         })
     }
 
-    /// The arguments [`MissionArgs::origin`] wrote.
-    fn from_origin(v: &serde_json::Value) -> MissionArgs {
+    /// The arguments [`MissionArgs::origin`] wrote, in the record `file`;
+    /// a team size out of `--robots`' bounds is an error naming the file.
+    fn from_origin(v: &serde_json::Value, file: &Path) -> Result<MissionArgs> {
         let path = |k: &str| v[k].as_str().map(PathBuf::from);
-        MissionArgs {
+        Ok(MissionArgs {
             graph: path("graph"),
             library: path("library"),
             config: path("config"),
             scenario: path("scenario"),
-            robots: v["robots"].as_u64().map(|n| n as usize),
+            robots: origin_robots(&v["robots"], file)?,
             seed: v["seed"].as_u64(),
             timed: v["timed"].as_bool().unwrap_or(false),
             built_in: v["built_in"].as_bool().unwrap_or(false),
-        }
+        })
     }
 
     /// Arguments that give the same mission to a child process.
@@ -454,7 +469,9 @@ pub struct SubmitArgs {
     /// switches to it at its next safe point (between behaviors, all its
     /// members together) instead of refusing it as busy. Its behaviors are
     /// matched to the running ones by name; a version that cannot replace
-    /// the running one is refused with the reason (`bite status`).
+    /// the running one is refused with the reason: a `mission_refused`
+    /// record in each robot's run log, and `last_rejection` in the status
+    /// it publishes on `bite/<team>/status/<robot>`.
     #[arg(long)]
     pub replace: bool,
     /// The submission id (default: a random one).
@@ -639,6 +656,20 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
         }
         Ok(Some(PathBuf::from(text.replace("{name}", name))))
     };
+    {
+        let mut inputs = a.mission.inputs();
+        inputs.extend(a.key.as_deref().map(|k| ("--key", k)));
+        let mut files = Vec::new();
+        for name in names {
+            files.push(("--log", per_robot("--log", &a.log, name)?));
+            files.push(("--record", per_robot("--record", &a.record, name)?));
+        }
+        let outs: Vec<(&str, &Path)> = files
+            .iter()
+            .filter_map(|(what, p)| p.as_deref().map(|p| (*what, p)))
+            .collect();
+        crate::outputs::check(&inputs, &outs)?;
+    }
     let first = if a.mission.graph.is_some() || a.mission.built_in {
         let (graph, scenario) = a.mission.load()?;
         let mission =
@@ -791,6 +822,11 @@ pub fn cmd_robot(a: RobotArgs) -> Result<ExitCode> {
 
 /// `bite sim serve`.
 pub fn cmd_serve(a: ServeArgs) -> Result<ExitCode> {
+    let outs: Vec<(&str, &Path)> = [("--log", &a.log), ("--svg", &a.svg)]
+        .into_iter()
+        .filter_map(|(what, p)| p.as_deref().map(|p| (what, p)))
+        .collect();
+    crate::outputs::check(&a.mission.inputs(), &outs)?;
     let (graph, scenario) = a.mission.load()?;
     let mission =
         bite_sim::runner::prepare(&graph, &scenario, a.mission.robots, &crate::registry())
@@ -1406,6 +1442,27 @@ pub fn read_jsonl(p: &Path) -> Result<Vec<serde_json::Value>> {
         .collect())
 }
 
+/// The team size a record's origin gives (`robots`, absent or null for the
+/// mission's own), held to the bounds of `--robots`: a record is a file
+/// anyone may edit, and a team of 10^11 robots would eat memory without end.
+fn origin_robots(v: &serde_json::Value, file: &Path) -> Result<Option<usize>> {
+    if v.is_null() {
+        return Ok(None);
+    }
+    let n = v.as_u64().with_context(|| {
+        format!(
+            "{}: the record's team size `robots` is {v}, not a number of robots",
+            file.display()
+        )
+    })?;
+    parse_robots(&n.to_string()).map(Some).map_err(|e| {
+        anyhow::anyhow!(
+            "{}: the record's team size `robots` is {n}: {e}",
+            file.display()
+        )
+    })
+}
+
 /// `bite replay FILE`: re-run a robot's mind from its recorded inputs and
 /// say whether every output is identical.
 pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
@@ -1418,12 +1475,12 @@ pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
     let prepared = if origin.get("submitted").is_some() {
         let body: MissionBody = serde_json::from_value(origin["submitted"].clone())
             .with_context(|| format!("{}: the recorded submission", file.display()))?;
-        let base = MissionArgs::from_origin(&origin["base"]);
-        let robots = origin["robots"].as_u64().map(|n| n as usize);
+        let base = MissionArgs::from_origin(&origin["base"], file)?;
+        let robots = origin_robots(&origin["robots"], file)?;
         let own = base.own_scenario()?;
         loader(base, own, robots)(&body, None).map_err(|e| anyhow::anyhow!("{e}"))?
     } else if origin.get("args").is_some() {
-        let args = MissionArgs::from_origin(&origin["args"]);
+        let args = MissionArgs::from_origin(&origin["args"], file)?;
         let (graph, scenario) = args.load()?;
         let mission = bite_sim::runner::prepare(&graph, &scenario, args.robots, &crate::registry())
             .map_err(crate::bad_input)?;
@@ -1442,10 +1499,12 @@ pub fn cmd_replay(file: &Path) -> Result<ExitCode> {
     };
     let name = header["robot"].as_str().unwrap_or_default();
     let graph = prepared.mission.graph().clone();
-    let me = graph
-        .roster()
-        .find(name)
-        .with_context(|| format!("robot `{name}` is not on the mission's roster"))?;
+    let me = graph.roster().find(name).with_context(|| {
+        format!(
+            "{}: robot `{name}` is not on the mission's roster",
+            file.display()
+        )
+    })?;
     let seed = header["seed"].as_u64().unwrap_or(prepared.seed);
     let mut agent =
         bite_agent::agent::Agent::new(prepared.mission.clone(), &prepared.scenario, me, seed)

@@ -65,18 +65,28 @@ pub struct TuneArgs {
     /// default: `configs/*.yaml` next to the mission, those that fit it).
     #[arg(long = "baseline")]
     pub baselines: Vec<String>,
-    /// Passes over the points.
-    #[arg(long, default_value_t = 1)]
-    pub passes: usize,
+    /// Passes over the points (at least 1).
+    #[arg(long, default_value_t = 1, value_parser = parse_passes)]
+    pub passes: u64,
     /// Points to leave as they are (names as `bite check` prints them).
     #[arg(long = "keep")]
     pub keep: Vec<String>,
     /// Output directory (default: `out/tune-<mission>`).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Threads (default: every core). The result is the same for any number.
-    #[arg(long)]
+    /// Threads, 1 to 1024 (default: every core). The result is the same for any number.
+    #[arg(long, value_parser = crate::parse_jobs)]
     pub jobs: Option<usize>,
+}
+
+/// `--passes`: at least one (none would search nothing and still report a
+/// pass).
+fn parse_passes(s: &str) -> Result<u64, String> {
+    match s.parse::<u64>() {
+        Ok(0) => Err("at least one pass".into()),
+        Ok(n) => Ok(n),
+        Err(_) => Err(format!("expected a number of passes, found `{s}`")),
+    }
 }
 
 /// A weighted sum of summary figures.
@@ -407,30 +417,39 @@ fn options(kind: Kind, scenario: &Scenario, graph: &BehaviorGraph) -> Vec<String
 }
 
 /// The configuration files to compare with.
-fn baselines(a: &TuneArgs) -> Vec<PathBuf> {
-    let patterns: Vec<String> = if a.baselines.is_empty() {
+fn baselines(a: &TuneArgs) -> Result<Vec<PathBuf>> {
+    if a.baselines.is_empty() {
+        // The configurations next to the mission (some of them for other
+        // missions: those that do not fit this one are skipped).
         let dir = a.mission.parent().unwrap_or(Path::new(""));
-        vec![
-            dir.join("configs")
-                .join("*.yaml")
-                .to_string_lossy()
-                .into_owned(),
-        ]
-    } else {
-        a.baselines.clone()
-    };
+        let pattern = dir.join("configs").join("*.yaml");
+        let mut v: Vec<PathBuf> = glob::glob(&pattern.to_string_lossy())
+            .map(|paths| paths.filter_map(Result::ok).collect())
+            .unwrap_or_default();
+        v.sort();
+        return Ok(v);
+    }
     let mut out = Vec::new();
-    for p in patterns {
-        match glob::glob(&p) {
+    for p in &a.baselines {
+        // A plain path is the file itself, there or not (its loading says
+        // which); a pattern must match a file.
+        if !p.contains(['*', '?', '[']) {
+            out.push(PathBuf::from(p));
+            continue;
+        }
+        match glob::glob(p) {
             Ok(paths) => {
                 let mut v: Vec<PathBuf> = paths.filter_map(Result::ok).collect();
+                if v.is_empty() {
+                    anyhow::bail!("--baseline {p}: no file matches");
+                }
                 v.sort();
                 out.extend(v);
             }
             Err(_) => out.push(PathBuf::from(p)),
         }
     }
-    out
+    Ok(out)
 }
 
 /// `bite tune`.
@@ -483,9 +502,7 @@ pub fn cmd_tune(a: TuneArgs) -> Result<ExitCode> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("out").join(format!("tune-{name}")));
     std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
-    let jobs = a.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get)
-    });
+    let jobs = a.jobs.unwrap_or_else(crate::default_jobs);
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template("{spinner} {pos}/{len} runs [{bar:30}] {elapsed} {msg}")
@@ -512,15 +529,25 @@ pub fn cmd_tune(a: TuneArgs) -> Result<ExitCode> {
     if let Some(i) = search.candidate("own bindings", own.clone()) {
         base_cands.push(("own bindings".to_string(), i));
     }
-    for p in baselines(&a) {
-        let Ok(cfg) = Config::load(&p) else {
-            continue;
-        };
-        let Ok(g) = search.base.clone().with_config(&cfg) else {
-            continue;
-        };
-        let Ok(m) = bite_sim::prepare(&g, &search.scenario, None, &registry()) else {
-            continue;
+    // A baseline given with `--baseline` must load and fit the mission:
+    // one that does not is an error, not a baseline silently left out.
+    let given = !a.baselines.is_empty();
+    let refuse = |p: &Path, d: bite_core::diag::Diagnostics| {
+        eprintln!(
+            "error: --baseline {}: not a configuration of mission {}",
+            p.display(),
+            a.mission.display()
+        );
+        bad_input(d)
+    };
+    for p in baselines(&a)? {
+        let m = match Config::load(&p)
+            .and_then(|cfg| search.base.clone().with_config(&cfg))
+            .and_then(|g| bite_sim::prepare(&g, &search.scenario, None, &registry()))
+        {
+            Ok(m) => m,
+            Err(d) if given => return Err(refuse(&p, d)),
+            Err(_) => continue,
         };
         let b: Bindings = m
             .points()
@@ -550,7 +577,7 @@ pub fn cmd_tune(a: TuneArgs) -> Result<ExitCode> {
     search.bar.set_message("baselines");
     let idx: Vec<usize> = base_cands.iter().map(|(_, i)| *i).collect();
     let mut best = search.race("start", &idx, &seeds)?;
-    for pass in 0..a.passes.max(1) {
+    for pass in 0..a.passes {
         let mut changed = false;
         for (pi, p) in points.iter().enumerate() {
             if a.keep.contains(p) {

@@ -192,6 +192,8 @@ pub fn write_mcap(logs: Vec<Vec<J>>, out: &Path) -> Result<(usize, u64)> {
 
 /// `bite log convert`.
 pub fn cmd_convert(inputs: &[PathBuf], output: &Path) -> Result<ExitCode> {
+    let named: Vec<(&str, &Path)> = inputs.iter().map(|p| ("run log", p.as_path())).collect();
+    crate::outputs::check(&named, &[("--output", output)])?;
     let logs = read_logs(inputs)?;
     let (records, messages) = write_mcap(logs, output)?;
     println!(

@@ -180,6 +180,121 @@ fn a_malformed_experiment_names_file_line_and_column() {
     let _ = std::fs::remove_dir_all(&d);
 }
 
+/// `bite experiment FILE` of an experiment file with `body` (after its
+/// name): refused with exit 2; standard error.
+fn refused_experiment(d: &Path, name: &str, body: &str) -> (PathBuf, String) {
+    let f = d.join(format!("{name}.yaml"));
+    std::fs::write(&f, format!("experiment: {name}\n{body}")).unwrap();
+    let out = bite()
+        .arg("experiment")
+        .arg(&f)
+        .arg("--out")
+        .arg(d.join(format!("out-{name}")))
+        .output()
+        .expect("bite runs");
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{name}: {err}");
+    assert!(
+        !d.join(format!("out-{name}")).exists(),
+        "{name}: nothing ran"
+    );
+    (f, err)
+}
+
+#[test]
+fn an_experiment_that_would_count_a_run_twice_or_merge_rows_is_refused() {
+    let d = scratch("dups");
+    let graph = root().join("examples/formation.yaml");
+    let g = graph.display();
+    let configs = root().join("examples/configs");
+    let c1 = configs.join("1.yaml");
+    let c2 = configs.join("2.yaml");
+    let (c1, c2) = (c1.display(), c2.display());
+    let cases = [
+        (
+            "labels",
+            format!(
+                "missions:\n  - graph: {g}\n    worlds: [timed]\n    configs:\n      - {{ file: {c1}, label: x }}\n      - {{ file: {c2}, label: x }}\n"
+            ),
+            7,
+            "configuration label `x` names two configurations",
+        ),
+        (
+            "mission-labels",
+            format!(
+                "missions:\n  - graph: {g}\n    label: m\n    worlds: [timed]\n  - graph: {}\n    label: m\n",
+                root().join("examples/squads.yaml").display()
+            ),
+            7,
+            "mission label `m` names two missions",
+        ),
+        (
+            "seeds",
+            format!("seeds: [1, 1, 1]\nmissions:\n  - graph: {g}\n    worlds: [timed]\n"),
+            2,
+            "seed 1 is given twice",
+        ),
+        (
+            "missions",
+            format!(
+                "missions:\n  - graph: {g}\n    worlds: [timed]\n  - graph: {g}\n    worlds: [physics]\n"
+            ),
+            5,
+            "is listed twice",
+        ),
+        (
+            "worlds",
+            format!("missions:\n  - graph: {g}\n    worlds: [timed, timed]\n"),
+            4,
+            "world `timed` is listed twice",
+        ),
+        (
+            "scenarios",
+            format!(
+                "missions:\n  - graph: {g}\n    worlds: [timed]\n    scenarios: [{}]\n",
+                root().join("examples/scenarios/formation.yaml").display()
+            ),
+            4,
+            "is picked twice",
+        ),
+        (
+            "configs",
+            format!(
+                "missions:\n  - graph: {g}\n    worlds: [timed]\n    configs:\n      - {c1}\n      - {{ file: {c1}, label: again }}\n"
+            ),
+            7,
+            "is listed twice with seed_offset 0",
+        ),
+        (
+            "offset",
+            format!(
+                "seeds: [1, 2]\nmissions:\n  - graph: {g}\n    worlds: [timed]\n    configs:\n      - {{ file: {c1}, seed_offset: 18446744073709551615 }}\n"
+            ),
+            7,
+            "past the largest seed",
+        ),
+    ];
+    for (name, body, line, says) in cases {
+        let (f, err) = refused_experiment(&d, name, &body);
+        assert!(err.contains(says), "{name}: expected `{says}` in\n{err}");
+        let at = format!("{}:{line}:", f.display());
+        assert!(err.contains(&at), "{name}: expected `{at}` in\n{err}");
+    }
+    // `--seeds` that repeats a seed is refused too.
+    let out = bite()
+        .args([
+            "experiment",
+            "examples/experiments/table2.yaml",
+            "--seeds",
+            "3,4,3",
+        ])
+        .output()
+        .expect("bite runs");
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("seed 3 is given twice"));
+    let _ = std::fs::remove_dir_all(&d);
+}
+
 #[test]
 fn tune_writes_a_configuration_that_check_accepts_and_compares_on_holdout_seeds() {
     let d = scratch("tune");

@@ -36,15 +36,17 @@ pub use view::{Decision, Instance, View};
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The Foxglove SDK refused (a file, a port).
-    #[error("{0}")]
+    #[error(transparent)]
     Foxglove(#[from] foxglove::FoxgloveError),
-    /// Reading a run log.
-    #[error("{path}: {source}")]
+    /// Reading a run log (or clearing the place of an MCAP file).
+    // The reason is in the message and not a `source` as well: an error
+    // printed with its chain (`{:#}`) would say it twice.
+    #[error("{path}: {reason}")]
     Read {
-        /// The log.
+        /// The file.
         path: String,
         /// Why.
-        source: std::io::Error,
+        reason: std::io::Error,
     },
     /// A line of a run log is not a JSON object.
     #[error("{path}:{line}:{column}: expected a JSON object (a run-log record): {message}")]
@@ -728,9 +730,9 @@ impl McapFile {
     /// `recorder`, zstd-compressed chunks.
     pub fn create(recorder: &Recorder, path: &Path) -> Result<Self, Error> {
         if path.exists() {
-            std::fs::remove_file(path).map_err(|source| Error::Read {
+            std::fs::remove_file(path).map_err(|reason| Error::Read {
                 path: path.display().to_string(),
-                source,
+                reason,
             })?;
         }
         let handle = foxglove::McapWriter::new()
@@ -749,9 +751,9 @@ impl McapFile {
 /// Convert a run log (JSON lines) to an MCAP file; returns the number of
 /// records read and messages written.
 pub fn convert(jsonl: &Path, mcap: &Path) -> Result<(u64, u64), Error> {
-    let text = std::fs::read_to_string(jsonl).map_err(|source| Error::Read {
+    let text = std::fs::read_to_string(jsonl).map_err(|reason| Error::Read {
         path: jsonl.display().to_string(),
-        source,
+        reason,
     })?;
     let records = parse_records(&jsonl.display().to_string(), &text)?;
     let mut rec = Recorder::new()?;
