@@ -1165,3 +1165,67 @@ fn a_team_with_ros2_bodies_completes_the_formation() {
         assert_eq!(fin["payload_rejects"], serde_json::json!({}), "{fin}");
     }
 }
+
+/// A robot waiting for its mission counts the frames that reach it
+/// (`before-mission`; an oversized one as `oversize`) in its status.
+#[test]
+#[allow(clippy::disallowed_methods)] // a wall-clock deadline on a real process
+fn frames_reaching_a_robot_without_a_mission_are_counted() {
+    let _one = serial();
+    let out = tmp("before-mission");
+    let key = TeamKey::new((0..32).map(|i| i as u8 ^ 0x44).collect()).unwrap();
+    let key_file = out.join("team.key");
+    std::fs::write(&key_file, key.to_hex()).unwrap();
+    let team = format!("waiting-{}", std::process::id());
+    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let log = std::fs::File::create(out.join("r0.log")).unwrap();
+    let child = bite()
+        .current_dir(repo())
+        .args(["robot", "--name", "r0", "--team", &team, "--listen", &ep])
+        .args(["--scenario", "examples/scenarios/formation.yaml"])
+        .arg("--key")
+        .arg(&key_file)
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .stdin(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut procs = Procs(vec![("r0".into(), child)]);
+    let session = client(std::slice::from_ref(&ep));
+    let (tx, rx) = std::sync::mpsc::channel::<Value>();
+    let _sub = session
+        .declare_subscriber(format!("bite/{team}/status/r0"))
+        .callback(move |s| {
+            if let Ok(v) = serde_json::from_slice(&s.payload().to_bytes()) {
+                let _ = tx.send(v);
+            }
+        })
+        .wait()
+        .unwrap();
+    let first = rx.recv_timeout(Duration::from_secs(20)).expect("a status");
+    assert_eq!(first["state"], "waiting", "{first}");
+    let scope = Scope::new(&team, 1);
+    let hb = [bite_zenoh::wire::PAYLOAD_VERSION, 0, 0];
+    for on in ["r1", "r2"] {
+        let frame = seal_with(&key, &scope, FrameKind::Heartbeat, 1, unix_micros(), &hb);
+        session
+            .put(format!("bite/{team}/net/{on}"), frame)
+            .wait()
+            .unwrap();
+    }
+    session
+        .put(format!("bite/{team}/net/r1"), vec![0; 70_000])
+        .wait()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let want = serde_json::json!({"before-mission": 2, "oversize": 1});
+    let mut last = first;
+    while last["auth"]["rejected"] != want && Instant::now() < deadline {
+        if let Ok(v) = rx.recv_timeout(Duration::from_secs(1)) {
+            last = v;
+        }
+    }
+    assert_eq!(last["auth"]["rejected"], want, "{last}");
+    assert_eq!(last["state"], "waiting", "{last}");
+    procs.terminate();
+}

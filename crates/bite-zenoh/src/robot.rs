@@ -269,9 +269,24 @@ enum Input {
         ok: bool,
     },
     Mission(Vec<u8>),
+    /// An input larger than its kind may be, dropped uncopied: only
+    /// counted (and logged, the first ones).
+    Oversize {
+        what: Big,
+        len: usize,
+    },
     Query(zenoh::query::Query),
     /// Nothing: the robot's thread is to look at its timers again.
     Wake,
+}
+
+/// What an oversized input was.
+enum Big {
+    /// A frame, on the key of this sender.
+    Frame(String),
+    Sensors,
+    Mission,
+    Ros2,
 }
 
 /// Queue size between Zenoh's callbacks and the robot's thread.
@@ -279,7 +294,7 @@ const QUEUE: usize = 4096;
 /// Rejected frames logged one by one, per reason (all are counted).
 const LOG_REJECTS: u64 = 100;
 /// Largest sensor reading or mission submission taken (bytes).
-const MAX_JSON: usize = 1 << 20;
+const MAX_JSON: usize = wire::MAX_SUBMISSION_BYTES;
 /// Inputs handled before the timers get a turn.
 const BATCH: usize = 256;
 /// Range readings and object sightings taken per reading.
@@ -458,15 +473,17 @@ pub fn run_on(
         let frames = session
             .declare_subscriber(key)
             .callback(move |s| {
-                // Oversized frames are dropped before they are copied; the
-                // robot's own (Zenoh hands a session its own publications)
-                // before anything else is done.
+                // The robot's own frames (Zenoh hands a session its own
+                // publications) are dropped before anything else is done;
+                // oversized ones are counted, not copied.
                 let from = Keys::sender_of(s.key_expr().as_str());
-                if s.payload().len()
-                    > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC
-                    || from == me
-                {
+                if from == me {
                     return;
+                }
+                let len = s.payload().len();
+                if len > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC {
+                    let what = Big::Frame(from.to_string());
+                    return shared.deliver(&tx, Input::Oversize { what, len });
                 }
                 shared.deliver(
                     &tx,
@@ -482,26 +499,37 @@ pub fn run_on(
         subscribers.push(frames);
     }
     // Sensor readings and mission submissions: JSON, bounded.
-    let json_input = |key: String, input: fn(Vec<u8>) -> Input| {
+    let json_input = |key: String, input: fn(Vec<u8>) -> Input, big: fn() -> Big| {
         let (shared, tx) = (shared.clone(), tx.clone());
         session
             .declare_subscriber(key)
             .callback(move |s| {
-                if s.payload().len() <= MAX_JSON {
+                let len = s.payload().len();
+                if len <= MAX_JSON {
                     shared.deliver(&tx, input(s.payload().to_bytes().into_owned()))
+                } else {
+                    shared.deliver(&tx, Input::Oversize { what: big(), len })
                 }
             })
             .wait()
             .map_err(z)
     };
-    subscribers.push(json_input(keys.sensors(&opts.name), Input::Sensors)?);
-    subscribers.push(json_input(keys.mission(), Input::Mission)?);
+    subscribers.push(json_input(
+        keys.sensors(&opts.name),
+        Input::Sensors,
+        || Big::Sensors,
+    )?);
+    subscribers.push(json_input(keys.mission(), Input::Mission, || Big::Mission)?);
     for (odom, key) in ros_keys {
         let (shared, tx) = (shared.clone(), tx.clone());
         let sub = session
             .declare_subscriber(key)
             .callback(move |s| {
-                if s.payload().len() <= MAX_JSON {
+                let len = s.payload().len();
+                if len > MAX_JSON {
+                    let what = Big::Ros2;
+                    shared.deliver(&tx, Input::Oversize { what, len })
+                } else {
                     let ok = s
                         .attachment()
                         .is_some_and(|a| crate::ros2::parse_attachment(&a.to_bytes()).is_ok());
@@ -816,9 +844,16 @@ impl Node {
             speed: self.opts.speed,
         };
         let gather = now_us.max(origin) + self.opts.gather_timeout.as_micros() as u64;
-        if let Some(old) = &self.run {
-            self.last_auth = old.opener.stats().clone();
-        }
+        // The first mission's counts start with the frames dropped while
+        // the robot waited for it (`before-mission`, `oversize`).
+        let opener = Opener::new(self.opts.key.clone(), scope.clone(), me.0, n);
+        let opener = match &self.run {
+            Some(old) => {
+                self.last_auth = old.opener.stats().clone();
+                opener
+            }
+            None => opener.with_stats(self.last_auth.clone()),
+        };
         self.log_record(json!({
             "t": 0.0,
             "event": "run_started",
@@ -840,7 +875,7 @@ impl Node {
             me,
             index,
             sealer: Sealer::new(self.opts.key.clone(), scope.clone(), me.0),
-            opener: Opener::new(self.opts.key.clone(), scope, me.0, n),
+            opener,
             detects,
             ticked: false,
             clock,
@@ -1039,6 +1074,7 @@ impl Node {
             Input::Wake => {}
             Input::Mission(_) => debug_assert!(false, "submissions are the robot's thread's"),
             Input::Frame { from, bytes, at_us } => self.frame(&from, &bytes, at_us),
+            Input::Oversize { what, len } => self.oversize(what, len),
             Input::Sensors(bytes) => {
                 let Some(r) = self.run.as_mut() else { return };
                 match serde_json::from_slice::<Sensed>(&bytes) {
@@ -1167,7 +1203,10 @@ impl Node {
         if from == self.opts.name {
             return;
         }
-        let Some(r) = self.run.as_mut() else { return };
+        let Some(r) = self.run.as_mut() else {
+            // No mission yet: no tag to check the frame's MAC against.
+            return self.count_reject(from, Reject::BeforeMission);
+        };
         // A key no member publishes on matches no sender.
         let claimed = r.index.get(from).copied().unwrap_or(u32::MAX);
         let result = r
@@ -1179,17 +1218,7 @@ impl Node {
             Err(Reject::Own) => return,
             Err(reason) => {
                 let count = r.opener.stats().rejected.get(&reason).copied().unwrap_or(0);
-                if count <= LOG_REJECTS {
-                    let rec = json!({
-                        "t": r.clock.now().as_secs_f64(),
-                        "robot": self.opts.name,
-                        "event": "frame_rejected",
-                        "key": from,
-                        "reason": reason,
-                    });
-                    self.log_record(rec);
-                }
-                return;
+                return self.log_reject(from, reason, count);
             }
         };
         let now = r.clock.now();
@@ -1240,6 +1269,57 @@ impl Node {
                 }
                 Err(e) => self.payload_rejected(sender, "inform-malformed", &e),
             },
+        }
+    }
+
+    /// An input too large for its kind, dropped uncopied: counted where
+    /// the rejects of its kind are (frames in `auth.rejected` as
+    /// `oversize`; sensor readings and ROS 2 samples in `payload_rejects`;
+    /// submissions in `missions_rejected`).
+    fn oversize(&mut self, what: Big, len: usize) {
+        let reason = match what {
+            Big::Frame(from) => return self.count_reject(&from, Reject::Oversize),
+            Big::Mission => {
+                let why = format!("{len} bytes, larger than the {MAX_JSON} bytes a robot takes");
+                return self.reject_mission("mission_rejected", None, why);
+            }
+            Big::Sensors => "sensors-oversize",
+            Big::Ros2 => "ros2-oversize",
+        };
+        if let Some(r) = self.run.as_mut() {
+            *r.payload_rejects.entry(reason).or_insert(0) += 1;
+        }
+    }
+
+    /// Count a frame dropped before it was opened (`oversize`, or
+    /// `before-mission`): in the running mission's counts, or, before the
+    /// first mission, in those the status shows (the first mission's
+    /// counts start from them).
+    fn count_reject(&mut self, from: &str, reason: Reject) {
+        let stats = match self.run.as_mut() {
+            Some(r) => {
+                r.opener.count(reason);
+                r.opener.stats()
+            }
+            None => {
+                *self.last_auth.rejected.entry(reason).or_insert(0) += 1;
+                &self.last_auth
+            }
+        };
+        let count = stats.rejected.get(&reason).copied().unwrap_or(0);
+        self.log_reject(from, reason, count);
+    }
+
+    /// Log a rejected frame: the first [`LOG_REJECTS`] of each reason.
+    fn log_reject(&mut self, from: &str, reason: Reject, count: u64) {
+        if count <= LOG_REJECTS {
+            let rec = json!({
+                "robot": self.opts.name,
+                "event": "frame_rejected",
+                "key": from,
+                "reason": reason,
+            });
+            self.log_record(rec);
         }
     }
 

@@ -296,13 +296,18 @@ pub enum SubmissionError {
     WhatToRun,
 }
 
+/// Largest mission submission (and sensor reading) a robot takes, bytes of
+/// its JSON: larger ones are dropped and counted (`bite submit` refuses to
+/// send one).
+pub const MAX_SUBMISSION_BYTES: usize = 1 << 20;
+
 /// Check a submission's MAC and read its body.
 pub fn open_submission(
     key: &TeamKey,
     team: &str,
     bytes: &[u8],
 ) -> Result<MissionBody, SubmissionError> {
-    if bytes.len() > 1 << 20 {
+    if bytes.len() > MAX_SUBMISSION_BYTES {
         return Err(SubmissionError::Malformed("larger than 1 MiB".into()));
     }
     let s: Submission =
