@@ -295,6 +295,12 @@ const QUEUE: usize = 4096;
 const LOG_REJECTS: u64 = 100;
 /// Largest sensor reading or mission submission taken (bytes).
 const MAX_JSON: usize = wire::MAX_SUBMISSION_BYTES;
+/// Largest magnitude of a length or coordinate taken in a sensor reading
+/// (m): no robot measures a billion metres, and past it the squares of
+/// distances the fusion computes lose the precision it needs. A reading
+/// with a larger one, or with a number that is not finite (NaN, ±inf), is
+/// dropped and counted (`sensors-malformed`).
+const MAX_READING_M: f64 = 1e9;
 /// Inputs handled before the timers get a turn.
 const BATCH: usize = 256;
 /// Range readings and object sightings taken per reading.
@@ -1085,6 +1091,10 @@ impl Node {
                         s.mates.retain(|(j, _)| *j < n && *j != me);
                         s.rays.truncate(MAX_READINGS);
                         s.objects.truncate(MAX_READINGS);
+                        if !readings_hold(&s) {
+                            *r.payload_rejects.entry("sensors-malformed").or_insert(0) += 1;
+                            return;
+                        }
                         // A ROS 2 body: these are the camera's sightings;
                         // odometry drives the control ticks.
                         if let Some(ros) = self.ros.as_mut() {
@@ -1693,6 +1703,23 @@ impl Node {
     }
 }
 
+/// Whether a sensor reading's numbers can be a body's: every one finite,
+/// lengths and coordinates within [`MAX_READING_M`], the odometer not
+/// negative (`sim/**` keys are not authenticated: anyone on the network
+/// may publish a reading).
+fn readings_hold(s: &Sensed) -> bool {
+    let m = |x: f64| x.is_finite() && x.abs() <= MAX_READING_M;
+    let at = |p: &glam::DVec2| m(p.x) && m(p.y);
+    s.t.is_finite()
+        && at(&s.pose.pos)
+        && m(s.pose.heading)
+        && m(s.odometer)
+        && s.odometer >= 0.0
+        && s.rays.iter().all(|(a, d)| m(*a) && m(*d))
+        && s.mates.iter().all(|(_, p)| at(p))
+        && s.objects.iter().all(|(_, p)| at(p))
+}
+
 /// The tag that binds frames to a mission: a hash of its submission id, or
 /// of what the robots were started with (graph name, configuration name,
 /// clock origin in µs), so frames of another mission do not verify.
@@ -1736,6 +1763,40 @@ pub type StopFlag = Arc<AtomicBool>;
 mod tests {
     use super::*;
     use bite_core::members::MemberSet;
+
+    #[test]
+    fn readings_that_no_body_makes_are_refused() {
+        let good: Sensed = serde_json::from_str(
+            r#"{"t": 1.0, "pose": {"x": 1.5, "y": 1.0, "heading": 0.1},
+                "rays": [[0.0, 0.8]], "mates": [{"robot": 1, "x": 1.1, "y": 1.4}],
+                "objects": [{"index": 0, "x": 3.0, "y": 2.0}], "odometer": 4.7}"#,
+        )
+        .expect("a reading");
+        assert!(readings_hold(&good));
+        let bad: [fn(&mut Sensed); 10] = [
+            |s| s.odometer = 1e308,
+            |s| s.odometer = f64::INFINITY,
+            |s| s.odometer = -1.0,
+            |s| s.pose.pos.x = f64::NAN,
+            |s| s.pose.pos.y = -1e300,
+            |s| s.pose.heading = f64::NEG_INFINITY,
+            |s| s.rays[0].1 = f64::NAN,
+            |s| s.mates[0].1.x = f64::INFINITY,
+            |s| s.objects[0].1.y = 1e10,
+            |s| s.t = f64::NAN,
+        ];
+        for (i, spoil) in bad.iter().enumerate() {
+            let mut s = good.clone();
+            spoil(&mut s);
+            assert!(!readings_hold(&s), "case {i}: {s:?}");
+        }
+        // The forged reading of the audit: a finite odometer of 1e308.
+        let forged: Sensed = serde_json::from_str(
+            r#"{"t": 1.0, "pose": {"x": 0, "y": 0, "heading": 0}, "odometer": 1e308}"#,
+        )
+        .expect("it parses");
+        assert!(!readings_hold(&forged));
+    }
 
     #[test]
     fn a_message_to_one_teammate_goes_to_its_own_key_and_a_multicast_to_the_team() {
