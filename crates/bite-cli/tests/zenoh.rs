@@ -566,6 +566,26 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
             ),
         );
     }
+    // 8. Larger than any frame: counted as `oversize`, never copied.
+    put("r0", vec![0; 70_000]);
+    // 9. Genuine, of this payload version, but the envelope inside it has
+    //    a bad version byte: malformed, not a teammate of another version
+    //    (r0 is fine: its later frames read).
+    let to_r1 = [bite_zenoh::wire::PAYLOAD_VERSION, 0, 1, 127, 0, 0, 0];
+    put(
+        "r0",
+        seal_with(&t.key, &scope, FrameKind::Kernel, 0, unix_micros(), &to_r1),
+    );
+    // 10. Readings no body makes, and one too large, on r1's sensor key
+    //     (not authenticated: dropped and counted); a submission too large.
+    let sensors = format!("bite/{}/sim/sensors/r1", t.team);
+    let forged = r#"{"t": 1.0, "pose": {"x": 0, "y": 0, "heading": 0}, "odometer": 1e308}"#;
+    session.put(&sensors, forged).wait().unwrap();
+    session.put(&sensors, vec![b' '; 2 << 20]).wait().unwrap();
+    session
+        .put(format!("bite/{}/mission", t.team), vec![b' '; 2 << 20])
+        .wait()
+        .unwrap();
     t.all_complete(Duration::from_secs(240));
     // r1 and r2 each received every injected frame once, and r1 the frame
     // addressed to it.
@@ -577,6 +597,7 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
             .find(|e| e["event"] == "run_finished")
             .unwrap();
         let rej = &fin["auth"]["rejected"];
+        assert_eq!(rej["oversize"], 1, "{r}: {fin}");
         assert_eq!(rej["replay"], 1, "{r}: {fin}");
         assert_eq!(rej["bad-mac"], 2, "{r}: {fin}");
         assert_eq!(rej["not-member"], 1, "{r}: {fin}");
@@ -585,8 +606,23 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
             .iter()
             .filter(|e| e["event"] == "frame_rejected")
             .count();
-        assert_eq!(logged, 5 + addressed as usize, "{r}");
+        assert_eq!(logged, 6 + addressed as usize, "{r}");
         assert_eq!(fin["payload_rejects"]["payload-version"], 2, "{r}: {fin}");
+        assert_eq!(fin["payload_rejects"]["kernel-malformed"], 1, "{r}: {fin}");
+        if r == "r1" {
+            let p = &fin["payload_rejects"];
+            assert_eq!(p["sensors-malformed"], 1, "{r}: {fin}");
+            assert_eq!(p["sensors-oversize"], 1, "{r}: {fin}");
+        }
+        let refused: Vec<_> = (log.iter())
+            .filter(|e| e["event"] == "mission_rejected")
+            .collect();
+        assert_eq!(refused.len(), 1, "{r}: the oversized submission");
+        assert!(
+            (refused[0]["reason"].as_str().unwrap_or("")).contains("larger than"),
+            "{r}: {}",
+            refused[0]
+        );
         let told: Vec<_> = log
             .iter()
             .filter(|e| e["event"] == "peer_version")
@@ -597,10 +633,13 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         assert_eq!(told[0]["ours"], bite_zenoh::wire::PAYLOAD_VERSION, "{r}");
         assert!(fin["auth"]["accepted"].as_u64().unwrap() > 10, "{fin}");
     }
-    let shown = srx
-        .try_iter()
-        .any(|v| v["peer_versions"] == serde_json::json!({"r0": 3}));
+    let statuses: Vec<Value> = srx.try_iter().collect();
+    let shown = (statuses.iter()).any(|v| v["peer_versions"] == serde_json::json!({"r0": 3}));
     assert!(shown, "r1's status never showed r0's payload version");
+    // r0's later frames read: it is not left blamed.
+    let last = statuses.last().expect("r1's statuses");
+    assert!(last.get("peer_versions").is_none(), "{last}");
+    assert_eq!(last["missions_rejected"], 1, "{last}");
     check_agreement(&t.out, &["r0", "r1", "r2"]);
     let _ = &t.key_file;
 }

@@ -333,9 +333,12 @@ struct Running {
     mission_id: Option<String>,
     finished_at: Option<u64>,
     payload_rejects: BTreeMap<&'static str, u64>,
-    /// Teammates heard speaking another payload version, by name (each
-    /// said once).
+    /// Teammates whose last authenticated frame had another payload
+    /// version, by name (a teammate whose frames read again leaves it).
     other_versions: BTreeMap<String, u8>,
+    /// Teammates and versions said in the log and on standard error (each
+    /// once a run).
+    versions_told: BTreeSet<(String, u8)>,
     /// Said that the kernel's timer spins (see `Node::timer_spinning`).
     spin_said: bool,
     /// Kernel messages that arrived before the first control tick.
@@ -901,6 +904,7 @@ impl Node {
             finished_at: None,
             payload_rejects: BTreeMap::new(),
             other_versions: BTreeMap::new(),
+            versions_told: BTreeSet::new(),
             spin_said: false,
             early: Vec::new(),
             names,
@@ -1241,6 +1245,7 @@ impl Node {
         match kind {
             FrameKind::Heartbeat => match wire::decode_heartbeat(&payload) {
                 Ok(h) => {
+                    Self::version_ok(r, sender);
                     r.alive.finished(sender, h.finished);
                     if let Some(pos) = h.position
                         && r.ticked
@@ -1254,6 +1259,7 @@ impl Node {
             },
             FrameKind::Kernel => match wire::decode_kernel(&payload) {
                 Ok((to, env)) => {
+                    Self::version_ok(r, sender);
                     if env.sender.0 != sender {
                         *r.payload_rejects.entry("sender-mismatch").or_insert(0) += 1;
                     } else if to.includes(r.me) {
@@ -1273,6 +1279,7 @@ impl Node {
             },
             FrameKind::Inform => match wire::decode_inform(&payload) {
                 Ok((to, msg)) => {
+                    Self::version_ok(r, sender);
                     if to.contains(&r.me.0) && r.gather_until.is_none() {
                         r.agent.inform(now, RobotId(sender), &msg);
                     }
@@ -1353,11 +1360,25 @@ impl Node {
         }));
     }
 
+    /// A teammate's frame that authenticated (`Opener::open` passed it)
+    /// and whose payload read: the teammate speaks this robot's payload
+    /// version, whatever an earlier frame (a corrupt one) said.
+    fn version_ok(r: &mut Running, sender: u32) {
+        if !r.other_versions.is_empty()
+            && let Some(name) = r.names.get(sender as usize)
+        {
+            r.other_versions.remove(name);
+        }
+    }
+
     /// A teammate's authenticated frame whose payload this robot cannot
-    /// read: counted under `malformed`, or, when the teammate speaks another
-    /// payload version (a team not upgraded together), under
-    /// `payload-version`, and said once per teammate in the log and on
-    /// standard error: its frames are all dropped until it is upgraded.
+    /// read: counted under `malformed`, or, when the payload's own first
+    /// byte is another payload version (a team not upgraded together),
+    /// under `payload-version`, shown in the status until a frame of that
+    /// teammate reads again, and said once per teammate and version in the
+    /// log and on standard error: its frames are all dropped until it is
+    /// upgraded. (Only an authenticated frame reaches here: a forged one
+    /// never blames a teammate.)
     fn payload_rejected(&mut self, sender: u32, malformed: &'static str, e: &WireError) {
         let Some(r) = self.run.as_mut() else { return };
         let WireError::Version(theirs) = *e else {
@@ -1368,9 +1389,15 @@ impl Node {
         // On the roster: the frame authenticated.
         let teammate =
             (r.names.get(sender as usize).cloned()).unwrap_or_else(|| format!("#{sender}"));
-        if r.other_versions.insert(teammate.clone(), theirs).is_some() {
+        let new = r.other_versions.insert(teammate.clone(), theirs) != Some(theirs);
+        if !r.versions_told.insert((teammate.clone(), theirs)) {
+            if new {
+                self.publish_status();
+            }
             return;
         }
+        // Shown at once: the next good frame of the teammate clears it.
+        self.publish_status();
         eprintln!(
             "robot {}: teammate {teammate} speaks payload version {theirs}, this robot version {}: \
              its frames are dropped; run the same version of bite on every robot of the team",
