@@ -866,21 +866,61 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
         seed: None,
         replace: a.replace,
     };
+    // An input error (exit 2), said before anything is sent.
+    let refuse = |why: String| {
+        eprintln!("error: {why}; nothing was sent");
+        anyhow::Error::new(Reported(2))
+    };
+    check_submission(&body).map_err(refuse)?;
     let sub = bite_zenoh::wire::sign_submission(&key, &a.net.team, &body);
+    let bytes = serde_json::to_vec(&sub)?;
+    let most = bite_zenoh::wire::MAX_SUBMISSION_BYTES;
+    if bytes.len() > most {
+        return Err(refuse(format!(
+            "the submission is {} bytes; robots take at most {most} (1 MiB) and would drop it \
+             unread",
+            bytes.len()
+        )));
+    }
     let session = a.net.options().open()?;
     // Give the session a moment to reach its peers before the put.
     std::thread::sleep(Duration::from_millis(500));
     session
-        .put(
-            bite_zenoh::Keys::new(&a.net.team).mission(),
-            serde_json::to_vec(&sub)?,
-        )
+        .put(bite_zenoh::Keys::new(&a.net.team).mission(), bytes)
         .wait()
         .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
     std::thread::sleep(Duration::from_millis(200));
     let _ = session.close().wait();
     println!("{id}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// What a robot will make of a submission, checked before it is sent:
+/// with a scenario (and not a new version of a running mission, which a
+/// robot numbers against the mission it runs), loaded exactly as a robot
+/// loads it; otherwise the graph (YAML) and configuration are parsed (a
+/// mission in the command language needs a world to compile in: the
+/// robots' own).
+fn check_submission(body: &MissionBody) -> Result<(), String> {
+    let refused = |e: String| format!("robots would refuse this mission: {e}");
+    if body.scenario.is_some() && !body.replace {
+        return loader(MissionArgs::default(), None, None)(body, None)
+            .map(|_| ())
+            .map_err(refused);
+    }
+    if let Some(text) = &body.graph {
+        let label = format!("{} (submitted)", body.id);
+        let graph = bite_core::graph::load_str(&Arc::from(label.as_str()), text)
+            .map_err(|d| refused(d.to_string()))?;
+        if let Some(c) = &body.config {
+            let cfg = bite_core::Config::load_str(&Arc::from(format!("{} (config)", body.id)), c)
+                .map_err(|d| refused(d.to_string()))?;
+            graph
+                .with_config(&cfg)
+                .map_err(|d| refused(d.to_string()))?;
+        }
+    }
+    Ok(())
 }
 
 /// The scenario `bite submit` sends: the one given, else the one next to

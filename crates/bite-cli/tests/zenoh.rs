@@ -1268,3 +1268,37 @@ fn frames_reaching_a_robot_without_a_mission_are_counted() {
     assert_eq!(last["state"], "waiting", "{last}");
     procs.terminate();
 }
+
+/// `bite submit` checks what it sends as a robot would: a mission that
+/// does not load, or is larger than robots take, is refused (exit 2)
+/// before anything is sent.
+#[test]
+fn bite_submit_refuses_what_robots_would_drop() {
+    let out = tmp("submit-check");
+    let key = TeamKey::new(vec![0x21; 32]).unwrap();
+    let key_file = out.join("team.key");
+    std::fs::write(&key_file, key.to_hex()).unwrap();
+    let bad = out.join("bad.yaml");
+    std::fs::write(&bad, "name: [unclosed\n").unwrap();
+    let big = out.join("big.yaml");
+    let graph = std::fs::read_to_string(repo().join("examples/formation.yaml")).unwrap();
+    std::fs::write(&big, format!("{graph}\n# {}\n", "x".repeat(2 << 20))).unwrap();
+    let scenario = repo().join("examples/scenarios/formation.yaml");
+    for (file, why) in [(&bad, "robots would refuse"), (&big, "1 MiB")] {
+        let o = bite()
+            .args(["submit", "--team", "nobody", "--id", "m-check"])
+            .arg("--key")
+            .arg(&key_file)
+            .arg("--scenario")
+            .arg(&scenario)
+            .arg(file)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{}: {err}", file.display());
+        assert!(err.contains(why), "{}: {err}", file.display());
+        assert!(err.contains("nothing was sent"), "{err}");
+        assert!(o.stdout.is_empty(), "no id printed: nothing was submitted");
+    }
+}
