@@ -1302,3 +1302,95 @@ fn bite_submit_refuses_what_robots_would_drop() {
         assert!(o.stdout.is_empty(), "no id printed: nothing was submitted");
     }
 }
+
+/// A robot process frozen (`SIGSTOP`) mid-run: its teammates presume it
+/// lost and complete; `bite launch` stops it after a short grace instead
+/// of waiting out the wall limit, reports it unresponsive, exits 1, and
+/// holds it to no invariant past its freeze.
+#[test]
+#[allow(clippy::disallowed_methods)] // wall-clock deadlines on real processes
+fn a_frozen_robot_is_stopped_and_reported_unresponsive() {
+    let _one = serial();
+    let out = tmp("frozen");
+    let team = format!("frozen-{}", std::process::id());
+    let began = Instant::now();
+    let child = bite()
+        .current_dir(repo())
+        .args([
+            "launch",
+            "examples/formation.yaml",
+            "--speed",
+            "2",
+            "--json",
+        ])
+        .args(["--team", &team])
+        .arg("--out")
+        .arg(&out)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut procs = Procs(vec![("launch".into(), child)]);
+    // r1's process, found by its command line.
+    let r1 = {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let found = std::fs::read_dir("/proc").unwrap().flatten().find_map(|d| {
+                let cmd = std::fs::read(d.path().join("cmdline")).ok()?;
+                let args: Vec<&[u8]> = cmd.split(|b| *b == 0).collect();
+                let has = |w: &[&str]| {
+                    args.windows(w.len())
+                        .any(|x| x.iter().zip(w).all(|(a, b)| *a == b.as_bytes()))
+                };
+                (has(&["robot"]) && has(&["--name", "r1"]) && has(&["--team", &team]))
+                    .then(|| d.file_name().to_string_lossy().parse::<i32>().ok())
+                    .flatten()
+            });
+            if let Some(pid) = found {
+                break nix::unistd::Pid::from_raw(pid);
+            }
+            assert!(Instant::now() < deadline, "r1's process never started");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    // Whatever happens, r1 is not left frozen.
+    struct Thaw(nix::unistd::Pid);
+    impl Drop for Thaw {
+        fn drop(&mut self) {
+            let _ = nix::sys::signal::kill(self.0, nix::sys::signal::Signal::SIGKILL);
+        }
+    }
+    let _thaw = Thaw(r1);
+    // Frozen at about 16 s of team time (2 s to start, then 8 s at 2x).
+    std::thread::sleep(Duration::from_secs(10));
+    nix::sys::signal::kill(r1, nix::sys::signal::Signal::SIGSTOP).unwrap();
+    // The wall limit is 300 s / 2 + 20 s = 170 s: it must end well before.
+    let exits = procs.wait_all(Duration::from_secs(130));
+    assert!(
+        exits[0].1.is_some(),
+        "bite launch waited for the frozen robot"
+    );
+    let (_, child) = procs.0.pop().unwrap();
+    let o = child.wait_with_output().unwrap();
+    let took = began.elapsed();
+    let text = String::from_utf8_lossy(&o.stdout);
+    let err = String::from_utf8_lossy(&o.stderr);
+    let s: Value =
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("no summary ({e}): {err}\n{text}"));
+    assert_eq!(o.status.code(), Some(1), "{s:#}\n{err}");
+    assert_eq!(s["completed"], false, "{s:#}");
+    assert_eq!(s["unresponsive"], serde_json::json!(["r1"]), "{s:#}");
+    assert_eq!(s["invariants"]["violations"], 0, "{s:#}");
+    for r in s["robots"].as_array().unwrap() {
+        if r["robot"] == "r1" {
+            assert!(r["unresponsive_at"].as_f64().is_some(), "{r}");
+            assert_eq!(r["completed"], false, "{r}");
+        } else {
+            assert_eq!(r["completed"], true, "{r}");
+            let lost = r["lost"].as_array().unwrap();
+            assert!(lost.contains(&serde_json::json!("r1")), "{r}");
+        }
+    }
+    assert!(took < Duration::from_secs(120), "took {took:?}");
+}
