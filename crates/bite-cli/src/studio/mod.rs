@@ -783,22 +783,50 @@ async fn watch(s: Arc<Studio>, mut socket: WebSocket) {
 }
 
 /// The world's layout was put once, at the start: ask the simulator
-/// server for it (again until it answers: it may not be up yet).
+/// server for it (again until it answers: it may not be up yet). And the
+/// team's roster, from the layout or the robots' membership answers:
+/// records of robots not on it are not kept.
 fn fetch_layout(studio: &Arc<Studio>) {
     use bite_zenoh::zenoh::Wait;
+    use bite_zenoh::zenoh::query::{ConsolidationMode, QueryTarget};
     let Some(session) = studio.session.get().cloned() else {
         return;
     };
     let st = studio.clone();
-    let key = bite_zenoh::Keys::new(&studio.team).world();
+    let keys = bite_zenoh::Keys::new(&studio.team);
+    let key = keys.world();
+    let members = keys.members("*");
     let generation = st.feed().generation;
     std::thread::spawn(move || {
+        let mut got = false;
         for _ in 0..120 {
             if st.feed().generation != generation {
                 return;
             }
-            let mut got = false;
-            if let Ok(replies) = session.get(&key).timeout(Duration::from_secs(1)).wait() {
+            if st.feed().roster.is_none()
+                && let Ok(replies) = (session.get(&members))
+                    .target(QueryTarget::All)
+                    .consolidation(ConsolidationMode::None)
+                    .timeout(Duration::from_secs(1))
+                    .wait()
+            {
+                while let Ok(reply) = replies.recv() {
+                    let Ok(sample) = reply.result() else { continue };
+                    let Ok(m) = serde_json::from_slice::<bite_zenoh::wire::Membership>(
+                        &sample.payload().to_bytes(),
+                    ) else {
+                        continue;
+                    };
+                    let mut f = st.feed();
+                    if !m.roster.is_empty() && f.generation == generation && f.roster.is_none() {
+                        f.roster = Some(m.roster);
+                    }
+                }
+            }
+            if got && st.feed().roster.is_some() {
+                return;
+            }
+            if !got && let Ok(replies) = session.get(&key).timeout(Duration::from_secs(1)).wait() {
                 while let Ok(reply) = replies.recv() {
                     let Ok(sample) = reply.result() else { continue };
                     if let Ok(rec) = serde_json::from_slice::<J>(&sample.payload().to_bytes())
@@ -806,13 +834,14 @@ fn fetch_layout(studio: &Arc<Studio>) {
                     {
                         let mut f = st.feed();
                         if f.source == Source::Zenoh && f.generation == generation {
-                            f.push(rec);
+                            let len = sample.payload().len();
+                            f.push_live(Ok(rec), len);
                         }
                         got = true;
                     }
                 }
             }
-            if got {
+            if got && st.feed().roster.is_some() {
                 return;
             }
             std::thread::sleep(Duration::from_millis(500));
@@ -848,18 +877,16 @@ fn subscribe(
         let sub = session
             .declare_subscriber(&key)
             .callback(move |sample| {
-                let Ok(mut rec) = serde_json::from_slice::<J>(&sample.payload().to_bytes()) else {
-                    return;
+                // Bounded, a record, of a robot on the roster: or counted
+                // (`dropped` in the snapshots), never kept.
+                let len = sample.payload().len();
+                let rec = match len > feed::MAX_RECORD_BYTES {
+                    true => Err(feed::Refused::Oversize),
+                    false => feed::live_record(&sample.payload().to_bytes(), status),
                 };
-                if !rec.is_object() {
-                    return;
-                }
-                if status {
-                    rec["event"] = json!("status");
-                }
                 let mut f = st.feed();
                 if f.source == Source::Zenoh {
-                    f.push(rec);
+                    f.push_live(rec, len);
                 }
             })
             .wait()
