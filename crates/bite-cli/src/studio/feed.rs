@@ -256,10 +256,28 @@ impl Feed {
 /// that are not records are reported (`file:line:col: why`, the first 20)
 /// and skipped, and the records put in time order (several processes'
 /// logs concatenated).
-pub fn parse_log(name: &str, text: &str) -> (Vec<J>, Vec<String>, usize) {
-    let (records, bad) = bite_foxglove::read_records(name, text);
-    let problems = bad.iter().take(20).map(|e| e.to_string()).collect();
-    (bite_foxglove::merge(vec![records]), problems, bad.len())
+pub fn parse_log(name: &str, text: &str) -> Parsed {
+    let (records, bad, torn) = bite_foxglove::read_records_torn(name, text);
+    Parsed {
+        records: bite_foxglove::merge(vec![records]),
+        problems: bad.iter().take(20).map(|e| e.to_string()).collect(),
+        bad: bad.len(),
+        torn,
+    }
+}
+
+/// A run log read for replay.
+#[derive(Debug, Default)]
+pub struct Parsed {
+    /// Its records, in time order.
+    pub records: Vec<J>,
+    /// The first 20 lines that are not records (`file:line:col: why`).
+    pub problems: Vec<String>,
+    /// Lines that are not records.
+    pub bad: usize,
+    /// Its last line was a record cut short (no newline after it: a log
+    /// being written, or a process killed mid-write), skipped.
+    pub torn: bool,
 }
 
 /// Records a page applies per snapshot at most.
@@ -523,9 +541,9 @@ mod tests {
     fn feed_of(lines: &str) -> Feed {
         let mut f = Feed::new();
         f.reset(Source::Replay, "test".into(), false);
-        let (r, p, _) = parse_log("test.jsonl", lines);
-        f.records = r;
-        f.problems = p;
+        let p = parse_log("test.jsonl", lines);
+        f.records = p.records;
+        f.problems = p.problems;
         f
     }
 
@@ -548,6 +566,19 @@ not json
             "{:?}",
             f.problems
         );
+    }
+
+    #[test]
+    fn a_last_line_without_a_newline_is_torn_only_when_it_is_a_record_cut_short() {
+        let p = parse_log("up.jsonl", "not json");
+        assert_eq!((p.records.len(), p.bad, p.torn), (0, 1, false));
+        let p = parse_log("up.jsonl", "{\"t\":0.0,\"event\":\"x\"}\n{\"t\":1.0,\"ev");
+        assert_eq!((p.records.len(), p.bad, p.torn), (1, 0, true));
+        let p = parse_log("up.jsonl", "{\"t\":0.0,\"event\":\"x\"}\n");
+        assert_eq!((p.records.len(), p.bad, p.torn), (1, 0, false));
+        // Cut short but with its newline: written whole, malformed.
+        let p = parse_log("up.jsonl", "{\"t\":1.0,\"ev\n");
+        assert_eq!((p.records.len(), p.bad, p.torn), (0, 1, false));
     }
 
     #[test]
