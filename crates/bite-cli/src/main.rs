@@ -7,6 +7,7 @@ mod benchkit;
 mod plot;
 mod rtcl;
 mod team;
+mod unresponsive;
 mod zbench;
 use bite_core::diag::{Diagnostic, Diagnostics};
 use bite_core::graph::BehaviorGraph;

@@ -902,21 +902,61 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
         seed: None,
         replace: a.replace,
     };
+    // An input error (exit 2), said before anything is sent.
+    let refuse = |why: String| {
+        eprintln!("error: {why}; nothing was sent");
+        anyhow::Error::new(Reported(2))
+    };
+    check_submission(&body).map_err(refuse)?;
     let sub = bite_zenoh::wire::sign_submission(&key, &a.net.team, &body);
+    let bytes = serde_json::to_vec(&sub)?;
+    let most = bite_zenoh::wire::MAX_SUBMISSION_BYTES;
+    if bytes.len() > most {
+        return Err(refuse(format!(
+            "the submission is {} bytes; robots take at most {most} (1 MiB) and would drop it \
+             unread",
+            bytes.len()
+        )));
+    }
     let session = a.net.options().open()?;
     // Give the session a moment to reach its peers before the put.
     std::thread::sleep(Duration::from_millis(500));
     session
-        .put(
-            bite_zenoh::Keys::new(&a.net.team).mission(),
-            serde_json::to_vec(&sub)?,
-        )
+        .put(bite_zenoh::Keys::new(&a.net.team).mission(), bytes)
         .wait()
         .map_err(|e| anyhow::anyhow!("zenoh: {e}"))?;
     std::thread::sleep(Duration::from_millis(200));
     let _ = session.close().wait();
     println!("{id}");
     Ok(ExitCode::SUCCESS)
+}
+
+/// What a robot will make of a submission, checked before it is sent:
+/// with a scenario (and not a new version of a running mission, which a
+/// robot numbers against the mission it runs), loaded exactly as a robot
+/// loads it; otherwise the graph (YAML) and configuration are parsed (a
+/// mission in the command language needs a world to compile in: the
+/// robots' own).
+fn check_submission(body: &MissionBody) -> Result<(), String> {
+    let refused = |e: String| format!("robots would refuse this mission: {e}");
+    if body.scenario.is_some() && !body.replace {
+        return loader(MissionArgs::default(), None, None)(body, None)
+            .map(|_| ())
+            .map_err(refused);
+    }
+    if let Some(text) = &body.graph {
+        let label = format!("{} (submitted)", body.id);
+        let graph = bite_core::graph::load_str(&Arc::from(label.as_str()), text)
+            .map_err(|d| refused(d.to_string()))?;
+        if let Some(c) = &body.config {
+            let cfg = bite_core::Config::load_str(&Arc::from(format!("{} (config)", body.id)), c)
+                .map_err(|d| refused(d.to_string()))?;
+            graph
+                .with_config(&cfg)
+                .map_err(|d| refused(d.to_string()))?;
+        }
+    }
+    Ok(())
 }
 
 /// The scenario `bite submit` sends: the one given, else the one next to
@@ -962,6 +1002,10 @@ struct Proc {
     child: Child,
     exit: Option<std::process::ExitStatus>,
     killed_at: Option<f64>,
+    /// Team time at which it was stopped as unresponsive: a robot of it
+    /// was presumed lost by teammates that completed, and stayed silent
+    /// (see [`crate::unresponsive`]).
+    unresponsive_at: Option<f64>,
 }
 
 impl Drop for Proc {
@@ -991,6 +1035,8 @@ pub fn cmd_launch(a: LaunchArgs) -> Result<ExitCode> {
                 "COMPLETED"
             } else if !r["killed_at"].is_null() {
                 "KILLED"
+            } else if !r["unresponsive_at"].is_null() {
+                "UNRESPONSIVE"
             } else {
                 "INCOMPLETE"
             };
@@ -1146,6 +1192,7 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             child,
             exit: None,
             killed_at: None,
+            unresponsive_at: None,
         })
     };
     let common = |v: &mut Vec<String>| {
@@ -1253,8 +1300,20 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
     let wall_limit =
         Duration::from_secs_f64(limit.as_secs_f64() / a.speed) + Duration::from_secs(20);
     let began = unix_micros();
+    let mut watch = crate::unresponsive::Watch::default();
     loop {
         let t = (unix_micros() as f64 / 1000.0 - start_ms as f64) / 1000.0 * a.speed;
+        // What the logs say: who completed, whom its teammates presume lost.
+        let records = tails.poll();
+        let now_us = unix_micros();
+        for r in &records {
+            watch.see(r, now_us);
+        }
+        if let Some(v) = live.as_mut() {
+            for r in &records {
+                v.record(r);
+            }
+        }
         bar.set_position(t.max(0.0) as u64);
         for p in procs.iter_mut() {
             if p.exit.is_none() {
@@ -1269,6 +1328,24 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
                 p.killed_at = Some(t);
                 bar.println(format!("killed {} at team time {t:.1} s", p.name));
             }
+        }
+        // Robots presumed lost by teammates that completed, silent ever
+        // since (frozen, hung): stopped after a grace period, not waited
+        // for until the wall limit.
+        let running: Vec<Option<&[String]>> = (procs.iter())
+            .map(|p| (p.exit.is_none() && p.killed_at.is_none()).then_some(p.robots.as_slice()))
+            .collect();
+        for i in watch.silent(&running, now_us) {
+            let p = &mut procs[i];
+            let _ = p.child.kill();
+            p.unresponsive_at = Some(t);
+            p.exit = p.child.wait().ok();
+            bar.println(format!(
+                "stopped {} at team time {t:.1} s: presumed lost by its teammates, which completed, \
+                 and silent for {} s",
+                p.name,
+                crate::unresponsive::GRACE.as_secs()
+            ));
         }
         let done = procs.iter().filter(|p| p.exit.is_some()).count();
         bar.set_message(format!("{done}/{} robot processes ended", procs.len()));
@@ -1300,11 +1377,6 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
             }
             break;
         }
-        if let Some(v) = live.as_mut() {
-            for r in tails.poll() {
-                v.record(&r);
-            }
-        }
         std::thread::sleep(Duration::from_millis(50));
     }
     bar.finish_and_clear();
@@ -1328,10 +1400,12 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
     let registry = crate::registry();
     let agreement =
         bite_zenoh::agreement::check(&logs, |p| registry.get(p).is_some_and(|p| p.communicates()));
-    // The same invariants every simulated run is held to, over the logs.
+    // The same invariants every simulated run is held to, over the logs. A
+    // robot stopped as unresponsive ran nothing after its last record (it
+    // was frozen or hung): crashed there, as a killed one.
     let stopped: Vec<&str> = procs
         .iter()
-        .filter(|p| p.killed_at.is_some())
+        .filter(|p| p.killed_at.is_some() || p.unresponsive_at.is_some())
         .flat_map(|p| p.robots.iter().map(String::as_str))
         .collect();
     let (violations, records_checked) = bite_sim::check::check_logs(&mission, &logs, &stopped);
@@ -1358,6 +1432,7 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
                 "process": p.name,
                 "exit": p.exit.and_then(|e| e.code()),
                 "killed_at": p.killed_at,
+                "unresponsive_at": p.unresponsive_at,
                 "completed": completed,
                 "completed_at": log.iter().find(|r| r["event"] == "mission_completed").map(|r| r["t"].clone()),
                 "lost": lost,
@@ -1369,6 +1444,11 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         .iter()
         .filter(|r| r["killed_at"].is_null())
         .all(|r| r["completed"] == true);
+    // Robots stopped as unresponsive before they completed.
+    let unresponsive: Vec<serde_json::Value> = (robots.iter())
+        .filter(|r| !r["unresponsive_at"].is_null() && r["completed"] != true)
+        .map(|r| r["robot"].clone())
+        .collect();
     let summary = json!({
         "team": team,
         "graph": graph.name(),
@@ -1379,6 +1459,7 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
         "robots": robots,
         "server": server_exit.map(|e| e.and_then(|e| e.code())),
         "completed": survivors_completed,
+        "unresponsive": unresponsive,
         "joint_decisions": agreement.decisions,
         "disagreements": agreement.disagreements,
         "silent_splits": agreement.splits,

@@ -352,7 +352,11 @@ function onSnapshot(s) {
     out.textContent = s.live ? "running" : "";
     out.className = "";
   }
-  $("#problems").innerHTML = (s.problems || []).map((p) => `<li>${esc(p)}</li>`).join("");
+  const dropped = Object.entries(s.dropped || {}).filter(([, n]) => n > 0);
+  const droppedLine = dropped.length
+    ? [`dropped records: ${dropped.map(([why, n]) => `${n} ${why.replaceAll("_", " ")}`).join(", ")}`]
+    : [];
+  $("#problems").innerHTML = droppedLine.concat(s.problems || []).map((p) => `<li>${esc(p)}</li>`).join("");
   scheduleDraw();
 }
 

@@ -336,3 +336,58 @@ fn only_the_studios_own_page_may_use_it() {
     );
     assert!(own.starts_with("HTTP/1.1 200"), "{own}");
 }
+
+/// `/api/replay`: a last line that is no record is a bad line, one cut
+/// short is reported torn; one upload is read at a time (another, while
+/// the first is still arriving, is answered 503).
+#[test]
+fn an_uploaded_log_is_read_one_at_a_time_and_its_last_line_reported() {
+    use std::io::{Read, Write};
+    let dir = scratch("upload");
+    let (_s, url) = studio(&[], &dir);
+    let post = |body: &str| {
+        http(
+            &url,
+            &format!(
+                "POST /api/replay HTTP/1.1\r\nHost: {{addr}}\r\nContent-Type: text/plain\r\n\
+                 Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+                body.len()
+            ),
+        )
+    };
+    let garbage = post("not json");
+    assert!(garbage.starts_with("HTTP/1.1 200"), "{garbage}");
+    assert!(garbage.contains(r#""bad_lines":1"#), "{garbage}");
+    assert!(garbage.contains(r#""records":0"#), "{garbage}");
+    assert!(garbage.contains(r#""torn_last_line":false"#), "{garbage}");
+    let torn = post("{\"t\":0.0,\"event\":\"x\"}\n{\"t\":1.0,\"ev");
+    assert!(torn.contains(r#""bad_lines":0"#), "{torn}");
+    assert!(torn.contains(r#""records":1"#), "{torn}");
+    assert!(torn.contains(r#""torn_last_line":true"#), "{torn}");
+    // A first upload whose body has not all arrived holds the reader.
+    let addr = url.trim_start_matches("http://").trim_end_matches('/');
+    let mut first = std::net::TcpStream::connect(addr).expect("connects");
+    first
+        .set_read_timeout(Some(Duration::from_secs(10)))
+        .expect("timeout");
+    let body = "{\"t\":0.0,\"event\":\"x\"}\n";
+    write!(
+        first,
+        "POST /api/replay HTTP/1.1\r\nHost: {addr}\r\nContent-Type: text/plain\r\n\
+         Content-Length: {}\r\nConnection: close\r\n\r\n{}",
+        body.len(),
+        &body[..5]
+    )
+    .expect("sends");
+    first.flush().expect("sent");
+    std::thread::sleep(Duration::from_millis(500));
+    let busy = post("{}\n");
+    assert!(busy.starts_with("HTTP/1.1 503"), "{busy}");
+    first.write_all(&body.as_bytes()[5..]).expect("sends");
+    let mut out = String::new();
+    let _ = first.read_to_string(&mut out);
+    assert!(out.starts_with("HTTP/1.1 200"), "{out}");
+    assert!(out.contains(r#""records":1"#), "{out}");
+    let after = post("{}\n");
+    assert!(after.starts_with("HTTP/1.1 200"), "{after}");
+}

@@ -566,6 +566,26 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
             ),
         );
     }
+    // 8. Larger than any frame: counted as `oversize`, never copied.
+    put("r0", vec![0; 70_000]);
+    // 9. Genuine, of this payload version, but the envelope inside it has
+    //    a bad version byte: malformed, not a teammate of another version
+    //    (r0 is fine: its later frames read).
+    let to_r1 = [bite_zenoh::wire::PAYLOAD_VERSION, 0, 1, 127, 0, 0, 0];
+    put(
+        "r0",
+        seal_with(&t.key, &scope, FrameKind::Kernel, 0, unix_micros(), &to_r1),
+    );
+    // 10. Readings no body makes, and one too large, on r1's sensor key
+    //     (not authenticated: dropped and counted); a submission too large.
+    let sensors = format!("bite/{}/sim/sensors/r1", t.team);
+    let forged = r#"{"t": 1.0, "pose": {"x": 0, "y": 0, "heading": 0}, "odometer": 1e308}"#;
+    session.put(&sensors, forged).wait().unwrap();
+    session.put(&sensors, vec![b' '; 2 << 20]).wait().unwrap();
+    session
+        .put(format!("bite/{}/mission", t.team), vec![b' '; 2 << 20])
+        .wait()
+        .unwrap();
     t.all_complete(Duration::from_secs(240));
     // r1 and r2 each received every injected frame once, and r1 the frame
     // addressed to it.
@@ -577,6 +597,7 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
             .find(|e| e["event"] == "run_finished")
             .unwrap();
         let rej = &fin["auth"]["rejected"];
+        assert_eq!(rej["oversize"], 1, "{r}: {fin}");
         assert_eq!(rej["replay"], 1, "{r}: {fin}");
         assert_eq!(rej["bad-mac"], 2, "{r}: {fin}");
         assert_eq!(rej["not-member"], 1, "{r}: {fin}");
@@ -585,8 +606,23 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
             .iter()
             .filter(|e| e["event"] == "frame_rejected")
             .count();
-        assert_eq!(logged, 5 + addressed as usize, "{r}");
+        assert_eq!(logged, 6 + addressed as usize, "{r}");
         assert_eq!(fin["payload_rejects"]["payload-version"], 2, "{r}: {fin}");
+        assert_eq!(fin["payload_rejects"]["kernel-malformed"], 1, "{r}: {fin}");
+        if r == "r1" {
+            let p = &fin["payload_rejects"];
+            assert_eq!(p["sensors-malformed"], 1, "{r}: {fin}");
+            assert_eq!(p["sensors-oversize"], 1, "{r}: {fin}");
+        }
+        let refused: Vec<_> = (log.iter())
+            .filter(|e| e["event"] == "mission_rejected")
+            .collect();
+        assert_eq!(refused.len(), 1, "{r}: the oversized submission");
+        assert!(
+            (refused[0]["reason"].as_str().unwrap_or("")).contains("larger than"),
+            "{r}: {}",
+            refused[0]
+        );
         let told: Vec<_> = log
             .iter()
             .filter(|e| e["event"] == "peer_version")
@@ -597,10 +633,13 @@ fn forged_tampered_and_replayed_frames_are_rejected_and_counted() {
         assert_eq!(told[0]["ours"], bite_zenoh::wire::PAYLOAD_VERSION, "{r}");
         assert!(fin["auth"]["accepted"].as_u64().unwrap() > 10, "{fin}");
     }
-    let shown = srx
-        .try_iter()
-        .any(|v| v["peer_versions"] == serde_json::json!({"r0": 3}));
+    let statuses: Vec<Value> = srx.try_iter().collect();
+    let shown = (statuses.iter()).any(|v| v["peer_versions"] == serde_json::json!({"r0": 3}));
     assert!(shown, "r1's status never showed r0's payload version");
+    // r0's later frames read: it is not left blamed.
+    let last = statuses.last().expect("r1's statuses");
+    assert!(last.get("peer_versions").is_none(), "{last}");
+    assert_eq!(last["missions_rejected"], 1, "{last}");
     check_agreement(&t.out, &["r0", "r1", "r2"]);
     let _ = &t.key_file;
 }
@@ -1164,4 +1203,194 @@ fn a_team_with_ros2_bodies_completes_the_formation() {
             .unwrap();
         assert_eq!(fin["payload_rejects"], serde_json::json!({}), "{fin}");
     }
+}
+
+/// A robot waiting for its mission counts the frames that reach it
+/// (`before-mission`; an oversized one as `oversize`) in its status.
+#[test]
+#[allow(clippy::disallowed_methods)] // a wall-clock deadline on a real process
+fn frames_reaching_a_robot_without_a_mission_are_counted() {
+    let _one = serial();
+    let out = tmp("before-mission");
+    let key = TeamKey::new((0..32).map(|i| i as u8 ^ 0x44).collect()).unwrap();
+    let key_file = out.join("team.key");
+    std::fs::write(&key_file, key.to_hex()).unwrap();
+    let team = format!("waiting-{}", std::process::id());
+    let ep = format!("tcp/127.0.0.1:{}", free_port());
+    let log = std::fs::File::create(out.join("r0.log")).unwrap();
+    let child = bite()
+        .current_dir(repo())
+        .args(["robot", "--name", "r0", "--team", &team, "--listen", &ep])
+        .args(["--scenario", "examples/scenarios/formation.yaml"])
+        .arg("--key")
+        .arg(&key_file)
+        .stdout(log.try_clone().unwrap())
+        .stderr(log)
+        .stdin(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut procs = Procs(vec![("r0".into(), child)]);
+    let session = client(std::slice::from_ref(&ep));
+    let (tx, rx) = std::sync::mpsc::channel::<Value>();
+    let _sub = session
+        .declare_subscriber(format!("bite/{team}/status/r0"))
+        .callback(move |s| {
+            if let Ok(v) = serde_json::from_slice(&s.payload().to_bytes()) {
+                let _ = tx.send(v);
+            }
+        })
+        .wait()
+        .unwrap();
+    let first = rx.recv_timeout(Duration::from_secs(20)).expect("a status");
+    assert_eq!(first["state"], "waiting", "{first}");
+    let scope = Scope::new(&team, 1);
+    let hb = [bite_zenoh::wire::PAYLOAD_VERSION, 0, 0];
+    for on in ["r1", "r2"] {
+        let frame = seal_with(&key, &scope, FrameKind::Heartbeat, 1, unix_micros(), &hb);
+        session
+            .put(format!("bite/{team}/net/{on}"), frame)
+            .wait()
+            .unwrap();
+    }
+    session
+        .put(format!("bite/{team}/net/r1"), vec![0; 70_000])
+        .wait()
+        .unwrap();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    let want = serde_json::json!({"before-mission": 2, "oversize": 1});
+    let mut last = first;
+    while last["auth"]["rejected"] != want && Instant::now() < deadline {
+        if let Ok(v) = rx.recv_timeout(Duration::from_secs(1)) {
+            last = v;
+        }
+    }
+    assert_eq!(last["auth"]["rejected"], want, "{last}");
+    assert_eq!(last["state"], "waiting", "{last}");
+    procs.terminate();
+}
+
+/// `bite submit` checks what it sends as a robot would: a mission that
+/// does not load, or is larger than robots take, is refused (exit 2)
+/// before anything is sent.
+#[test]
+fn bite_submit_refuses_what_robots_would_drop() {
+    let out = tmp("submit-check");
+    let key = TeamKey::new(vec![0x21; 32]).unwrap();
+    let key_file = out.join("team.key");
+    std::fs::write(&key_file, key.to_hex()).unwrap();
+    let bad = out.join("bad.yaml");
+    std::fs::write(&bad, "name: [unclosed\n").unwrap();
+    let big = out.join("big.yaml");
+    let graph = std::fs::read_to_string(repo().join("examples/formation.yaml")).unwrap();
+    std::fs::write(&big, format!("{graph}\n# {}\n", "x".repeat(2 << 20))).unwrap();
+    let scenario = repo().join("examples/scenarios/formation.yaml");
+    for (file, why) in [(&bad, "robots would refuse"), (&big, "1 MiB")] {
+        let o = bite()
+            .args(["submit", "--team", "nobody", "--id", "m-check"])
+            .arg("--key")
+            .arg(&key_file)
+            .arg("--scenario")
+            .arg(&scenario)
+            .arg(file)
+            .stdin(Stdio::null())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{}: {err}", file.display());
+        assert!(err.contains(why), "{}: {err}", file.display());
+        assert!(err.contains("nothing was sent"), "{err}");
+        assert!(o.stdout.is_empty(), "no id printed: nothing was submitted");
+    }
+}
+
+/// A robot process frozen (`SIGSTOP`) mid-run: its teammates presume it
+/// lost and complete; `bite launch` stops it after a short grace instead
+/// of waiting out the wall limit, reports it unresponsive, exits 1, and
+/// holds it to no invariant past its freeze.
+#[test]
+#[allow(clippy::disallowed_methods)] // wall-clock deadlines on real processes
+fn a_frozen_robot_is_stopped_and_reported_unresponsive() {
+    let _one = serial();
+    let out = tmp("frozen");
+    let team = format!("frozen-{}", std::process::id());
+    let began = Instant::now();
+    let child = bite()
+        .current_dir(repo())
+        .args([
+            "launch",
+            "examples/formation.yaml",
+            "--speed",
+            "2",
+            "--json",
+        ])
+        .args(["--team", &team])
+        .arg("--out")
+        .arg(&out)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut procs = Procs(vec![("launch".into(), child)]);
+    // r1's process, found by its command line.
+    let r1 = {
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let found = std::fs::read_dir("/proc").unwrap().flatten().find_map(|d| {
+                let cmd = std::fs::read(d.path().join("cmdline")).ok()?;
+                let args: Vec<&[u8]> = cmd.split(|b| *b == 0).collect();
+                let has = |w: &[&str]| {
+                    args.windows(w.len())
+                        .any(|x| x.iter().zip(w).all(|(a, b)| *a == b.as_bytes()))
+                };
+                (has(&["robot"]) && has(&["--name", "r1"]) && has(&["--team", &team]))
+                    .then(|| d.file_name().to_string_lossy().parse::<i32>().ok())
+                    .flatten()
+            });
+            if let Some(pid) = found {
+                break nix::unistd::Pid::from_raw(pid);
+            }
+            assert!(Instant::now() < deadline, "r1's process never started");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    };
+    // Whatever happens, r1 is not left frozen.
+    struct Thaw(nix::unistd::Pid);
+    impl Drop for Thaw {
+        fn drop(&mut self) {
+            let _ = nix::sys::signal::kill(self.0, nix::sys::signal::Signal::SIGKILL);
+        }
+    }
+    let _thaw = Thaw(r1);
+    // Frozen at about 16 s of team time (2 s to start, then 8 s at 2x).
+    std::thread::sleep(Duration::from_secs(10));
+    nix::sys::signal::kill(r1, nix::sys::signal::Signal::SIGSTOP).unwrap();
+    // The wall limit is 300 s / 2 + 20 s = 170 s: it must end well before.
+    let exits = procs.wait_all(Duration::from_secs(130));
+    assert!(
+        exits[0].1.is_some(),
+        "bite launch waited for the frozen robot"
+    );
+    let (_, child) = procs.0.pop().unwrap();
+    let o = child.wait_with_output().unwrap();
+    let took = began.elapsed();
+    let text = String::from_utf8_lossy(&o.stdout);
+    let err = String::from_utf8_lossy(&o.stderr);
+    let s: Value =
+        serde_json::from_str(&text).unwrap_or_else(|e| panic!("no summary ({e}): {err}\n{text}"));
+    assert_eq!(o.status.code(), Some(1), "{s:#}\n{err}");
+    assert_eq!(s["completed"], false, "{s:#}");
+    assert_eq!(s["unresponsive"], serde_json::json!(["r1"]), "{s:#}");
+    assert_eq!(s["invariants"]["violations"], 0, "{s:#}");
+    for r in s["robots"].as_array().unwrap() {
+        if r["robot"] == "r1" {
+            assert!(r["unresponsive_at"].as_f64().is_some(), "{r}");
+            assert_eq!(r["completed"], false, "{r}");
+        } else {
+            assert_eq!(r["completed"], true, "{r}");
+            let lost = r["lost"].as_array().unwrap();
+            assert!(lost.contains(&serde_json::json!("r1")), "{r}");
+        }
+    }
+    assert!(took < Duration::from_secs(120), "took {took:?}");
 }

@@ -779,11 +779,22 @@ pub fn parse_records(path: &str, text: &str) -> Result<Vec<J>, Error> {
 
 /// The records of a run log that are records, and an [`Error::Malformed`]
 /// for every line that is not (in file order); a torn last line (a killed
-/// process) is skipped without one.
+/// process) is skipped without one (see [`read_records_torn`]).
 pub fn read_records(path: &str, text: &str) -> (Vec<J>, Vec<Error>) {
+    let (records, bad, _) = read_records_torn(path, text);
+    (records, bad)
+}
+
+/// [`read_records`], and whether the last line was torn and skipped: a
+/// last line with no newline after it that is the beginning of a record
+/// cut short (the JSON ends too soon: a process killed mid-write, or a log
+/// still being written). A last line that is not the beginning of a
+/// record (`not json`) is malformed like any other.
+pub fn read_records_torn(path: &str, text: &str) -> (Vec<J>, Vec<Error>, bool) {
     let lines: Vec<&str> = text.lines().collect();
     let mut out = Vec::with_capacity(lines.len());
     let mut bad = Vec::new();
+    let mut torn = false;
     for (k, line) in lines.iter().enumerate() {
         if line.trim().is_empty() {
             continue;
@@ -796,7 +807,9 @@ pub fn read_records(path: &str, text: &str) -> (Vec<J>, Vec<Error>) {
                 column: 1,
                 message: "a JSON value that is not an object".into(),
             }),
-            Err(_) if k + 1 == lines.len() && !text.ends_with('\n') => {}
+            Err(e) if e.is_eof() && k + 1 == lines.len() && !text.ends_with('\n') => {
+                torn = true;
+            }
             Err(e) => bad.push(Error::Malformed {
                 path: path.into(),
                 line: k + 1,
@@ -805,7 +818,7 @@ pub fn read_records(path: &str, text: &str) -> (Vec<J>, Vec<Error>) {
             }),
         }
     }
-    (out, bad)
+    (out, bad, torn)
 }
 
 /// Merge the logs of a team (each robot's, the simulator server's) into one

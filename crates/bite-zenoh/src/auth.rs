@@ -192,9 +192,17 @@ pub struct Frame<'a> {
 )]
 #[serde(rename_all = "kebab-case")]
 pub enum Reject {
-    /// Too short, wrong magic, version or kind, or too large.
+    /// Too short, wrong magic, version or kind.
     #[error("malformed frame")]
     Malformed,
+    /// Larger than a frame can be ([`HEADER`] + [`MAX_PAYLOAD`] + [`MAC`]):
+    /// dropped before it is copied or checked.
+    #[error("frame larger than the limit")]
+    Oversize,
+    /// It arrived while the robot had no mission (nothing to check it
+    /// against: the MAC binds a frame to its mission).
+    #[error("frame before the robot's mission")]
+    BeforeMission,
     /// The MAC does not match (forged with another key, or tampered).
     #[error("bad MAC")]
     BadMac,
@@ -406,11 +414,10 @@ impl Opener {
         claimed: Option<u32>,
         now_us: u64,
     ) -> Result<Frame<'a>, Reject> {
-        if bytes.len() < HEADER + MAC
-            || bytes.len() > HEADER + MAX_PAYLOAD + MAC
-            || &bytes[0..2] != MAGIC
-            || bytes[2] != FRAME_VERSION
-        {
+        if bytes.len() > HEADER + MAX_PAYLOAD + MAC {
+            return Err(Reject::Oversize);
+        }
+        if bytes.len() < HEADER + MAC || &bytes[0..2] != MAGIC || bytes[2] != FRAME_VERSION {
             return Err(Reject::Malformed);
         }
         let kind = FrameKind::from_byte(bytes[3]).ok_or(Reject::Malformed)?;
@@ -450,6 +457,19 @@ impl Opener {
     /// What was accepted and dropped.
     pub fn stats(&self) -> &AuthStats {
         &self.stats
+    }
+
+    /// Count a frame dropped before it reached [`Opener::open`] (too
+    /// large to be copied: [`Reject::Oversize`]).
+    pub fn count(&mut self, reason: Reject) {
+        *self.stats.rejected.entry(reason).or_insert(0) += 1;
+    }
+
+    /// Start from these counts (frames dropped before the opener existed:
+    /// before the robot's first mission).
+    pub fn with_stats(mut self, stats: AuthStats) -> Opener {
+        self.stats = stats;
+        self
     }
 }
 
@@ -529,6 +549,38 @@ mod tests {
         assert_eq!(o.stats().rejected[&Reject::Malformed], 4);
         assert!(o.open(&[], None, NOW).is_err());
         assert_eq!(o.open(b"BZ\x01", None, NOW), Err(Reject::Malformed));
+    }
+
+    #[test]
+    fn an_oversized_frame_is_counted_as_oversize() {
+        let mut o = Opener::new(key(1), sc("t"), 1, 3);
+        let big = seal_with(
+            &key(1),
+            &sc("t"),
+            FrameKind::Kernel,
+            0,
+            NOW,
+            &vec![6; MAX_PAYLOAD + 1],
+        );
+        assert_eq!(o.open(&big, Some(0), NOW), Err(Reject::Oversize));
+        // One the robot's callback dropped before copying it.
+        o.count(Reject::Oversize);
+        assert_eq!(o.stats().rejected[&Reject::Oversize], 2);
+        assert_eq!(o.stats().rejected_total(), 2);
+        assert_eq!(
+            serde_json::to_value(Reject::Oversize).unwrap(),
+            "oversize",
+            "the name in `auth.rejected`"
+        );
+        assert_eq!(
+            serde_json::to_value(Reject::BeforeMission).unwrap(),
+            "before-mission"
+        );
+        // Counts made before the opener existed are kept.
+        let mut before = AuthStats::default();
+        before.rejected.insert(Reject::BeforeMission, 3);
+        let o = Opener::new(key(1), sc("t"), 1, 3).with_stats(before);
+        assert_eq!(o.stats().rejected_total(), 3);
     }
 
     #[test]

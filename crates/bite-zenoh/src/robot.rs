@@ -269,9 +269,24 @@ enum Input {
         ok: bool,
     },
     Mission(Vec<u8>),
+    /// An input larger than its kind may be, dropped uncopied: only
+    /// counted (and logged, the first ones).
+    Oversize {
+        what: Big,
+        len: usize,
+    },
     Query(zenoh::query::Query),
     /// Nothing: the robot's thread is to look at its timers again.
     Wake,
+}
+
+/// What an oversized input was.
+enum Big {
+    /// A frame, on the key of this sender.
+    Frame(String),
+    Sensors,
+    Mission,
+    Ros2,
 }
 
 /// Queue size between Zenoh's callbacks and the robot's thread.
@@ -279,7 +294,13 @@ const QUEUE: usize = 4096;
 /// Rejected frames logged one by one, per reason (all are counted).
 const LOG_REJECTS: u64 = 100;
 /// Largest sensor reading or mission submission taken (bytes).
-const MAX_JSON: usize = 1 << 20;
+const MAX_JSON: usize = wire::MAX_SUBMISSION_BYTES;
+/// Largest magnitude of a length or coordinate taken in a sensor reading
+/// (m): no robot measures a billion metres, and past it the squares of
+/// distances the fusion computes lose the precision it needs. A reading
+/// with a larger one, or with a number that is not finite (NaN, ±inf), is
+/// dropped and counted (`sensors-malformed`).
+const MAX_READING_M: f64 = 1e9;
 /// Inputs handled before the timers get a turn.
 const BATCH: usize = 256;
 /// Range readings and object sightings taken per reading.
@@ -312,9 +333,12 @@ struct Running {
     mission_id: Option<String>,
     finished_at: Option<u64>,
     payload_rejects: BTreeMap<&'static str, u64>,
-    /// Teammates heard speaking another payload version, by name (each
-    /// said once).
+    /// Teammates whose last authenticated frame had another payload
+    /// version, by name (a teammate whose frames read again leaves it).
     other_versions: BTreeMap<String, u8>,
+    /// Teammates and versions said in the log and on standard error (each
+    /// once a run).
+    versions_told: BTreeSet<(String, u8)>,
     /// Said that the kernel's timer spins (see `Node::timer_spinning`).
     spin_said: bool,
     /// Kernel messages that arrived before the first control tick.
@@ -458,15 +482,17 @@ pub fn run_on(
         let frames = session
             .declare_subscriber(key)
             .callback(move |s| {
-                // Oversized frames are dropped before they are copied; the
-                // robot's own (Zenoh hands a session its own publications)
-                // before anything else is done.
+                // The robot's own frames (Zenoh hands a session its own
+                // publications) are dropped before anything else is done;
+                // oversized ones are counted, not copied.
                 let from = Keys::sender_of(s.key_expr().as_str());
-                if s.payload().len()
-                    > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC
-                    || from == me
-                {
+                if from == me {
                     return;
+                }
+                let len = s.payload().len();
+                if len > crate::auth::HEADER + crate::auth::MAX_PAYLOAD + crate::auth::MAC {
+                    let what = Big::Frame(from.to_string());
+                    return shared.deliver(&tx, Input::Oversize { what, len });
                 }
                 shared.deliver(
                     &tx,
@@ -482,26 +508,37 @@ pub fn run_on(
         subscribers.push(frames);
     }
     // Sensor readings and mission submissions: JSON, bounded.
-    let json_input = |key: String, input: fn(Vec<u8>) -> Input| {
+    let json_input = |key: String, input: fn(Vec<u8>) -> Input, big: fn() -> Big| {
         let (shared, tx) = (shared.clone(), tx.clone());
         session
             .declare_subscriber(key)
             .callback(move |s| {
-                if s.payload().len() <= MAX_JSON {
+                let len = s.payload().len();
+                if len <= MAX_JSON {
                     shared.deliver(&tx, input(s.payload().to_bytes().into_owned()))
+                } else {
+                    shared.deliver(&tx, Input::Oversize { what: big(), len })
                 }
             })
             .wait()
             .map_err(z)
     };
-    subscribers.push(json_input(keys.sensors(&opts.name), Input::Sensors)?);
-    subscribers.push(json_input(keys.mission(), Input::Mission)?);
+    subscribers.push(json_input(
+        keys.sensors(&opts.name),
+        Input::Sensors,
+        || Big::Sensors,
+    )?);
+    subscribers.push(json_input(keys.mission(), Input::Mission, || Big::Mission)?);
     for (odom, key) in ros_keys {
         let (shared, tx) = (shared.clone(), tx.clone());
         let sub = session
             .declare_subscriber(key)
             .callback(move |s| {
-                if s.payload().len() <= MAX_JSON {
+                let len = s.payload().len();
+                if len > MAX_JSON {
+                    let what = Big::Ros2;
+                    shared.deliver(&tx, Input::Oversize { what, len })
+                } else {
                     let ok = s
                         .attachment()
                         .is_some_and(|a| crate::ros2::parse_attachment(&a.to_bytes()).is_ok());
@@ -816,9 +853,16 @@ impl Node {
             speed: self.opts.speed,
         };
         let gather = now_us.max(origin) + self.opts.gather_timeout.as_micros() as u64;
-        if let Some(old) = &self.run {
-            self.last_auth = old.opener.stats().clone();
-        }
+        // The first mission's counts start with the frames dropped while
+        // the robot waited for it (`before-mission`, `oversize`).
+        let opener = Opener::new(self.opts.key.clone(), scope.clone(), me.0, n);
+        let opener = match &self.run {
+            Some(old) => {
+                self.last_auth = old.opener.stats().clone();
+                opener
+            }
+            None => opener.with_stats(self.last_auth.clone()),
+        };
         self.log_record(json!({
             "t": 0.0,
             "event": "run_started",
@@ -840,7 +884,7 @@ impl Node {
             me,
             index,
             sealer: Sealer::new(self.opts.key.clone(), scope.clone(), me.0),
-            opener: Opener::new(self.opts.key.clone(), scope, me.0, n),
+            opener,
             detects,
             ticked: false,
             clock,
@@ -860,6 +904,7 @@ impl Node {
             finished_at: None,
             payload_rejects: BTreeMap::new(),
             other_versions: BTreeMap::new(),
+            versions_told: BTreeSet::new(),
             spin_said: false,
             early: Vec::new(),
             names,
@@ -1039,6 +1084,7 @@ impl Node {
             Input::Wake => {}
             Input::Mission(_) => debug_assert!(false, "submissions are the robot's thread's"),
             Input::Frame { from, bytes, at_us } => self.frame(&from, &bytes, at_us),
+            Input::Oversize { what, len } => self.oversize(what, len),
             Input::Sensors(bytes) => {
                 let Some(r) = self.run.as_mut() else { return };
                 match serde_json::from_slice::<Sensed>(&bytes) {
@@ -1049,6 +1095,10 @@ impl Node {
                         s.mates.retain(|(j, _)| *j < n && *j != me);
                         s.rays.truncate(MAX_READINGS);
                         s.objects.truncate(MAX_READINGS);
+                        if !readings_hold(&s) {
+                            *r.payload_rejects.entry("sensors-malformed").or_insert(0) += 1;
+                            return;
+                        }
                         // A ROS 2 body: these are the camera's sightings;
                         // odometry drives the control ticks.
                         if let Some(ros) = self.ros.as_mut() {
@@ -1167,7 +1217,10 @@ impl Node {
         if from == self.opts.name {
             return;
         }
-        let Some(r) = self.run.as_mut() else { return };
+        let Some(r) = self.run.as_mut() else {
+            // No mission yet: no tag to check the frame's MAC against.
+            return self.count_reject(from, Reject::BeforeMission);
+        };
         // A key no member publishes on matches no sender.
         let claimed = r.index.get(from).copied().unwrap_or(u32::MAX);
         let result = r
@@ -1179,17 +1232,7 @@ impl Node {
             Err(Reject::Own) => return,
             Err(reason) => {
                 let count = r.opener.stats().rejected.get(&reason).copied().unwrap_or(0);
-                if count <= LOG_REJECTS {
-                    let rec = json!({
-                        "t": r.clock.now().as_secs_f64(),
-                        "robot": self.opts.name,
-                        "event": "frame_rejected",
-                        "key": from,
-                        "reason": reason,
-                    });
-                    self.log_record(rec);
-                }
-                return;
+                return self.log_reject(from, reason, count);
             }
         };
         let now = r.clock.now();
@@ -1202,6 +1245,7 @@ impl Node {
         match kind {
             FrameKind::Heartbeat => match wire::decode_heartbeat(&payload) {
                 Ok(h) => {
+                    Self::version_ok(r, sender);
                     r.alive.finished(sender, h.finished);
                     if let Some(pos) = h.position
                         && r.ticked
@@ -1215,6 +1259,7 @@ impl Node {
             },
             FrameKind::Kernel => match wire::decode_kernel(&payload) {
                 Ok((to, env)) => {
+                    Self::version_ok(r, sender);
                     if env.sender.0 != sender {
                         *r.payload_rejects.entry("sender-mismatch").or_insert(0) += 1;
                     } else if to.includes(r.me) {
@@ -1234,12 +1279,64 @@ impl Node {
             },
             FrameKind::Inform => match wire::decode_inform(&payload) {
                 Ok((to, msg)) => {
+                    Self::version_ok(r, sender);
                     if to.contains(&r.me.0) && r.gather_until.is_none() {
                         r.agent.inform(now, RobotId(sender), &msg);
                     }
                 }
                 Err(e) => self.payload_rejected(sender, "inform-malformed", &e),
             },
+        }
+    }
+
+    /// An input too large for its kind, dropped uncopied: counted where
+    /// the rejects of its kind are (frames in `auth.rejected` as
+    /// `oversize`; sensor readings and ROS 2 samples in `payload_rejects`;
+    /// submissions in `missions_rejected`).
+    fn oversize(&mut self, what: Big, len: usize) {
+        let reason = match what {
+            Big::Frame(from) => return self.count_reject(&from, Reject::Oversize),
+            Big::Mission => {
+                let why = format!("{len} bytes, larger than the {MAX_JSON} bytes a robot takes");
+                return self.reject_mission("mission_rejected", None, why);
+            }
+            Big::Sensors => "sensors-oversize",
+            Big::Ros2 => "ros2-oversize",
+        };
+        if let Some(r) = self.run.as_mut() {
+            *r.payload_rejects.entry(reason).or_insert(0) += 1;
+        }
+    }
+
+    /// Count a frame dropped before it was opened (`oversize`, or
+    /// `before-mission`): in the running mission's counts, or, before the
+    /// first mission, in those the status shows (the first mission's
+    /// counts start from them).
+    fn count_reject(&mut self, from: &str, reason: Reject) {
+        let stats = match self.run.as_mut() {
+            Some(r) => {
+                r.opener.count(reason);
+                r.opener.stats()
+            }
+            None => {
+                *self.last_auth.rejected.entry(reason).or_insert(0) += 1;
+                &self.last_auth
+            }
+        };
+        let count = stats.rejected.get(&reason).copied().unwrap_or(0);
+        self.log_reject(from, reason, count);
+    }
+
+    /// Log a rejected frame: the first [`LOG_REJECTS`] of each reason.
+    fn log_reject(&mut self, from: &str, reason: Reject, count: u64) {
+        if count <= LOG_REJECTS {
+            let rec = json!({
+                "robot": self.opts.name,
+                "event": "frame_rejected",
+                "key": from,
+                "reason": reason,
+            });
+            self.log_record(rec);
         }
     }
 
@@ -1263,11 +1360,25 @@ impl Node {
         }));
     }
 
+    /// A teammate's frame that authenticated (`Opener::open` passed it)
+    /// and whose payload read: the teammate speaks this robot's payload
+    /// version, whatever an earlier frame (a corrupt one) said.
+    fn version_ok(r: &mut Running, sender: u32) {
+        if !r.other_versions.is_empty()
+            && let Some(name) = r.names.get(sender as usize)
+        {
+            r.other_versions.remove(name);
+        }
+    }
+
     /// A teammate's authenticated frame whose payload this robot cannot
-    /// read: counted under `malformed`, or, when the teammate speaks another
-    /// payload version (a team not upgraded together), under
-    /// `payload-version`, and said once per teammate in the log and on
-    /// standard error: its frames are all dropped until it is upgraded.
+    /// read: counted under `malformed`, or, when the payload's own first
+    /// byte is another payload version (a team not upgraded together),
+    /// under `payload-version`, shown in the status until a frame of that
+    /// teammate reads again, and said once per teammate and version in the
+    /// log and on standard error: its frames are all dropped until it is
+    /// upgraded. (Only an authenticated frame reaches here: a forged one
+    /// never blames a teammate.)
     fn payload_rejected(&mut self, sender: u32, malformed: &'static str, e: &WireError) {
         let Some(r) = self.run.as_mut() else { return };
         let WireError::Version(theirs) = *e else {
@@ -1278,9 +1389,15 @@ impl Node {
         // On the roster: the frame authenticated.
         let teammate =
             (r.names.get(sender as usize).cloned()).unwrap_or_else(|| format!("#{sender}"));
-        if r.other_versions.insert(teammate.clone(), theirs).is_some() {
+        let new = r.other_versions.insert(teammate.clone(), theirs) != Some(theirs);
+        if !r.versions_told.insert((teammate.clone(), theirs)) {
+            if new {
+                self.publish_status();
+            }
             return;
         }
+        // Shown at once: the next good frame of the teammate clears it.
+        self.publish_status();
         eprintln!(
             "robot {}: teammate {teammate} speaks payload version {theirs}, this robot version {}: \
              its frames are dropped; run the same version of bite on every robot of the team",
@@ -1613,6 +1730,23 @@ impl Node {
     }
 }
 
+/// Whether a sensor reading's numbers can be a body's: every one finite,
+/// lengths and coordinates within [`MAX_READING_M`], the odometer not
+/// negative (`sim/**` keys are not authenticated: anyone on the network
+/// may publish a reading).
+fn readings_hold(s: &Sensed) -> bool {
+    let m = |x: f64| x.is_finite() && x.abs() <= MAX_READING_M;
+    let at = |p: &glam::DVec2| m(p.x) && m(p.y);
+    s.t.is_finite()
+        && at(&s.pose.pos)
+        && m(s.pose.heading)
+        && m(s.odometer)
+        && s.odometer >= 0.0
+        && s.rays.iter().all(|(a, d)| m(*a) && m(*d))
+        && s.mates.iter().all(|(_, p)| at(p))
+        && s.objects.iter().all(|(_, p)| at(p))
+}
+
 /// The tag that binds frames to a mission: a hash of its submission id, or
 /// of what the robots were started with (graph name, configuration name,
 /// clock origin in µs), so frames of another mission do not verify.
@@ -1656,6 +1790,40 @@ pub type StopFlag = Arc<AtomicBool>;
 mod tests {
     use super::*;
     use bite_core::members::MemberSet;
+
+    #[test]
+    fn readings_that_no_body_makes_are_refused() {
+        let good: Sensed = serde_json::from_str(
+            r#"{"t": 1.0, "pose": {"x": 1.5, "y": 1.0, "heading": 0.1},
+                "rays": [[0.0, 0.8]], "mates": [{"robot": 1, "x": 1.1, "y": 1.4}],
+                "objects": [{"index": 0, "x": 3.0, "y": 2.0}], "odometer": 4.7}"#,
+        )
+        .expect("a reading");
+        assert!(readings_hold(&good));
+        let bad: [fn(&mut Sensed); 10] = [
+            |s| s.odometer = 1e308,
+            |s| s.odometer = f64::INFINITY,
+            |s| s.odometer = -1.0,
+            |s| s.pose.pos.x = f64::NAN,
+            |s| s.pose.pos.y = -1e300,
+            |s| s.pose.heading = f64::NEG_INFINITY,
+            |s| s.rays[0].1 = f64::NAN,
+            |s| s.mates[0].1.x = f64::INFINITY,
+            |s| s.objects[0].1.y = 1e10,
+            |s| s.t = f64::NAN,
+        ];
+        for (i, spoil) in bad.iter().enumerate() {
+            let mut s = good.clone();
+            spoil(&mut s);
+            assert!(!readings_hold(&s), "case {i}: {s:?}");
+        }
+        // The forged reading of the audit: a finite odometer of 1e308.
+        let forged: Sensed = serde_json::from_str(
+            r#"{"t": 1.0, "pose": {"x": 0, "y": 0, "heading": 0}, "odometer": 1e308}"#,
+        )
+        .expect("it parses");
+        assert!(!readings_hold(&forged));
+    }
 
     #[test]
     fn a_message_to_one_teammate_goes_to_its_own_key_and_a_multicast_to_the_team() {

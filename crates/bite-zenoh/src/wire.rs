@@ -55,12 +55,19 @@ pub fn encode_kernel(to: &Recipients, env: &Envelope) -> Vec<u8> {
     out
 }
 
-/// Decode a kernel frame's payload. Never panics.
+/// Decode a kernel frame's payload. Never panics. Only the payload's own
+/// first byte is a payload version ([`WireError::Version`]): a bad version
+/// byte of the envelope inside (`bite_core::msg::encode`'s) is a malformed
+/// payload, not a teammate running another version of bite.
 pub fn decode_kernel(bytes: &[u8]) -> Result<(To, Envelope), WireError> {
     let rest = version(bytes)?;
     let (to, rest): (To, &[u8]) =
         postcard::take_from_bytes(rest).map_err(|e| WireError::Malformed(e.to_string()))?;
-    Ok((to, bite_core::msg::decode(rest)?))
+    let env = bite_core::msg::decode(rest).map_err(|e| match e {
+        WireError::Version(v) => WireError::Malformed(format!("envelope version {v}")),
+        e => e,
+    })?;
+    Ok((to, env))
 }
 
 /// A world-model frame's payload: version, recipients, the report.
@@ -296,13 +303,18 @@ pub enum SubmissionError {
     WhatToRun,
 }
 
+/// Largest mission submission (and sensor reading) a robot takes, bytes of
+/// its JSON: larger ones are dropped and counted (`bite submit` refuses to
+/// send one).
+pub const MAX_SUBMISSION_BYTES: usize = 1 << 20;
+
 /// Check a submission's MAC and read its body.
 pub fn open_submission(
     key: &TeamKey,
     team: &str,
     bytes: &[u8],
 ) -> Result<MissionBody, SubmissionError> {
-    if bytes.len() > 1 << 20 {
+    if bytes.len() > MAX_SUBMISSION_BYTES {
         return Err(SubmissionError::Malformed("larger than 1 MiB".into()));
     }
     let s: Submission =
@@ -405,6 +417,16 @@ mod tests {
         let mut v = bytes.clone();
         v[0] = 9;
         assert_eq!(decode_kernel(&v), Err(WireError::Version(9)));
+        // The envelope's own version byte, after the recipients, is not the
+        // payload's: a frame with a bad one is malformed.
+        let inner = bytes.len() - bite_core::msg::encode(&env).len();
+        let mut v = bytes.clone();
+        v[inner] = 127;
+        assert!(
+            matches!(decode_kernel(&v), Err(WireError::Malformed(_))),
+            "{:?}",
+            decode_kernel(&v)
+        );
     }
 
     #[test]

@@ -23,6 +23,63 @@ pub enum Source {
     Replay,
 }
 
+/// Most records a growing feed (a run, a live team) keeps: past it, the
+/// oldest quarter is dropped (counted in [`Dropped::oldest`]).
+pub const MAX_RECORDS: usize = 200_000;
+/// Most bytes of JSON a growing feed keeps (as for [`MAX_RECORDS`]).
+pub const MAX_BYTES: usize = 64 << 20;
+/// Largest record taken from a live team (bytes of JSON): a robot's
+/// records are far smaller; larger ones are dropped ([`Dropped::oversize`]).
+pub const MAX_RECORD_BYTES: usize = 256 << 10;
+/// Records dropped from the front that pages starting over still apply
+/// (the world's layout, the run's start), at most.
+const PINNED: usize = 64;
+
+/// What a feed did not keep, by reason (sent with every snapshot).
+#[derive(Clone, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Dropped {
+    /// Records larger than [`MAX_RECORD_BYTES`].
+    pub oversize: u64,
+    /// The oldest records, dropped to stay within [`MAX_RECORDS`] and
+    /// [`MAX_BYTES`].
+    pub oldest: u64,
+    /// Records of robots not on the team's roster.
+    pub not_on_roster: u64,
+    /// Payloads that are not a JSON object.
+    pub garbage: u64,
+}
+
+impl Dropped {
+    fn any(&self) -> bool {
+        *self != Dropped::default()
+    }
+}
+
+/// Why a live team's payload is not a record.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refused {
+    /// Larger than [`MAX_RECORD_BYTES`].
+    Oversize,
+    /// Not a JSON object.
+    Garbage,
+}
+
+/// A live team's payload as a record (`status`: a robot's status, made a
+/// record), parsed out of the feed's lock.
+pub fn live_record(bytes: &[u8], status: bool) -> Result<J, Refused> {
+    if bytes.len() > MAX_RECORD_BYTES {
+        return Err(Refused::Oversize);
+    }
+    let mut rec = match serde_json::from_slice::<J>(bytes) {
+        Ok(r @ J::Object(_)) => r,
+        _ => return Err(Refused::Garbage),
+    };
+    if status {
+        rec["event"] = json!("status");
+    }
+    Ok(rec)
+}
+
 /// The current source's records.
 pub struct Feed {
     /// Bumped at every new source: pages start over.
@@ -36,8 +93,21 @@ pub struct Feed {
     pub label: String,
     /// Still growing.
     pub live: bool,
-    /// The records, in order.
+    /// The records, in order (after the [`Feed::first`] dropped).
     pub records: Vec<J>,
+    /// Records dropped from the front (the oldest): the index, among all
+    /// the source's records, of `records[0]`.
+    pub first: usize,
+    /// The layout and start records among those dropped.
+    pub pinned: Vec<J>,
+    /// Bytes of JSON of `records` (of those pushed).
+    bytes: usize,
+    /// What was not kept.
+    pub dropped: Dropped,
+    /// The team's roster, once known (a live team: from the world's layout
+    /// or a robot's membership answer): records of other robots are not
+    /// kept.
+    pub roster: Option<Vec<String>>,
     /// How a run the studio started ended (outcome, exit code, log path,
     /// violations), once it has.
     pub ended: Option<J>,
@@ -58,6 +128,11 @@ impl Feed {
             label: String::new(),
             live: false,
             records: Vec::new(),
+            first: 0,
+            pinned: Vec::new(),
+            bytes: 0,
+            dropped: Dropped::default(),
+            roster: None,
             ended: None,
             problems: Vec::new(),
             changed: tokio::sync::watch::Sender::new(0),
@@ -82,6 +157,11 @@ impl Feed {
         self.label = label;
         self.live = live;
         self.records.clear();
+        self.first = 0;
+        self.pinned.clear();
+        self.bytes = 0;
+        self.dropped = Dropped::default();
+        self.roster = None;
         self.ended = None;
         self.problems.clear();
         self.touch();
@@ -89,8 +169,77 @@ impl Feed {
 
     /// Add a record.
     pub fn push(&mut self, rec: J) {
+        let len = json_len(&rec);
+        self.push_sized(rec, len);
+    }
+
+    /// Add a record of `len` bytes of JSON; the oldest quarter goes when
+    /// the feed holds more than [`MAX_RECORDS`] or [`MAX_BYTES`].
+    pub fn push_sized(&mut self, rec: J, len: usize) {
         self.records.push(rec);
+        self.bytes = self.bytes.saturating_add(len);
+        if self.records.len() > MAX_RECORDS || self.bytes > MAX_BYTES {
+            self.drop_oldest();
+        }
         self.touch();
+    }
+
+    /// A record from a live team ([`live_record`] of its `len` bytes):
+    /// kept if it is one, of a robot on the roster (when the roster is
+    /// known); counted otherwise.
+    pub fn push_live(&mut self, rec: Result<J, Refused>, len: usize) {
+        let rec = match rec {
+            Ok(r) => r,
+            Err(Refused::Oversize) => {
+                self.dropped.oversize += 1;
+                return self.touch();
+            }
+            Err(Refused::Garbage) => {
+                self.dropped.garbage += 1;
+                return self.touch();
+            }
+        };
+        if let (Some(roster), Some(robot)) = (&self.roster, rec.get("robot"))
+            && !robot
+                .as_str()
+                .is_some_and(|r| roster.iter().any(|n| n == r))
+        {
+            self.dropped.not_on_roster += 1;
+            return self.touch();
+        }
+        if rec["event"] == "world"
+            && let Some(names) = rec["robots"].as_array()
+        {
+            let names: Vec<String> = names
+                .iter()
+                .filter_map(|n| n.as_str().map(String::from))
+                .collect();
+            if !names.is_empty() {
+                self.roster = Some(names);
+            }
+        }
+        self.push_sized(rec, len);
+    }
+
+    fn drop_oldest(&mut self) {
+        let n = (self.records.len() / 4).max(1);
+        for r in self.records.drain(..n) {
+            self.bytes = self.bytes.saturating_sub(json_len(&r));
+            let e = r["event"].as_str().unwrap_or("");
+            if matches!(e, "world" | "run_started" | "server_started") {
+                if self.pinned.len() >= PINNED {
+                    self.pinned.remove(0);
+                }
+                self.pinned.push(r);
+            }
+        }
+        self.first += n;
+        self.dropped.oldest += n as u64;
+    }
+
+    /// Record `i` of the source (counting those dropped), if kept.
+    pub fn get(&self, i: usize) -> Option<&J> {
+        i.checked_sub(self.first).and_then(|k| self.records.get(k))
     }
 
     /// The time of the last record, s.
@@ -107,10 +256,28 @@ impl Feed {
 /// that are not records are reported (`file:line:col: why`, the first 20)
 /// and skipped, and the records put in time order (several processes'
 /// logs concatenated).
-pub fn parse_log(name: &str, text: &str) -> (Vec<J>, Vec<String>, usize) {
-    let (records, bad) = bite_foxglove::read_records(name, text);
-    let problems = bad.iter().take(20).map(|e| e.to_string()).collect();
-    (bite_foxglove::merge(vec![records]), problems, bad.len())
+pub fn parse_log(name: &str, text: &str) -> Parsed {
+    let (records, bad, torn) = bite_foxglove::read_records_torn(name, text);
+    Parsed {
+        records: bite_foxglove::merge(vec![records]),
+        problems: bad.iter().take(20).map(|e| e.to_string()).collect(),
+        bad: bad.len(),
+        torn,
+    }
+}
+
+/// A run log read for replay.
+#[derive(Debug, Default)]
+pub struct Parsed {
+    /// Its records, in time order.
+    pub records: Vec<J>,
+    /// The first 20 lines that are not records (`file:line:col: why`).
+    pub problems: Vec<String>,
+    /// Lines that are not records.
+    pub bad: usize,
+    /// Its last line was a record cut short (no newline after it: a log
+    /// being written, or a process killed mid-write), skipped.
+    pub torn: bool,
 }
 
 /// Records a page applies per snapshot at most.
@@ -183,10 +350,11 @@ impl Cursor {
     /// Records of the feed the page has still to apply (up to its time).
     pub fn behind(&self, feed: &Feed) -> bool {
         feed.generation == self.generation
-            && feed.records.get(self.applied).is_some_and(|r| {
-                self.at
-                    .is_none_or(|at| r["t"].as_f64().unwrap_or(0.0) <= at + 1e-9)
-            })
+            && (self.applied < feed.first
+                || feed.get(self.applied).is_some_and(|r| {
+                    self.at
+                        .is_none_or(|at| r["t"].as_f64().unwrap_or(0.0) <= at + 1e-9)
+                }))
     }
 
     /// Apply the feed's records up to the page's time, at most
@@ -201,9 +369,20 @@ impl Cursor {
             self.version = feed.version;
             self.dirty = true;
         }
+        if self.applied < feed.first {
+            // Records dropped before this page applied them: a page that
+            // starts over takes the layout and the start from them.
+            if self.applied == 0 {
+                for r in &feed.pinned {
+                    self.view.apply(r);
+                }
+            }
+            self.applied = feed.first;
+            self.dirty = true;
+        }
         let until = self.applied.saturating_add(BATCH);
         while self.applied < until
-            && let Some(r) = feed.records.get(self.applied)
+            && let Some(r) = feed.get(self.applied)
         {
             if let Some(at) = self.at
                 && r["t"].as_f64().unwrap_or(0.0) > at + 1e-9
@@ -329,8 +508,26 @@ impl Cursor {
             "summary": v.summary,
             "ended": feed.ended,
             "problems": feed.problems,
+            "dropped": feed.dropped.any().then_some(&feed.dropped),
         })
     }
+}
+
+/// Bytes of a record's JSON text.
+fn json_len(rec: &J) -> usize {
+    struct Count(usize);
+    impl std::io::Write for Count {
+        fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+            self.0 += b.len();
+            Ok(b.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            Ok(())
+        }
+    }
+    let mut c = Count(0);
+    let _ = serde_json::to_writer(&mut c, rec);
+    c.0
 }
 
 fn round3(x: f64) -> f64 {
@@ -344,9 +541,9 @@ mod tests {
     fn feed_of(lines: &str) -> Feed {
         let mut f = Feed::new();
         f.reset(Source::Replay, "test".into(), false);
-        let (r, p, _) = parse_log("test.jsonl", lines);
-        f.records = r;
-        f.problems = p;
+        let p = parse_log("test.jsonl", lines);
+        f.records = p.records;
+        f.problems = p.problems;
         f
     }
 
@@ -372,6 +569,19 @@ not json
     }
 
     #[test]
+    fn a_last_line_without_a_newline_is_torn_only_when_it_is_a_record_cut_short() {
+        let p = parse_log("up.jsonl", "not json");
+        assert_eq!((p.records.len(), p.bad, p.torn), (0, 1, false));
+        let p = parse_log("up.jsonl", "{\"t\":0.0,\"event\":\"x\"}\n{\"t\":1.0,\"ev");
+        assert_eq!((p.records.len(), p.bad, p.torn), (1, 0, true));
+        let p = parse_log("up.jsonl", "{\"t\":0.0,\"event\":\"x\"}\n");
+        assert_eq!((p.records.len(), p.bad, p.torn), (1, 0, false));
+        // Cut short but with its newline: written whole, malformed.
+        let p = parse_log("up.jsonl", "{\"t\":1.0,\"ev\n");
+        assert_eq!((p.records.len(), p.bad, p.torn), (0, 1, false));
+    }
+
+    #[test]
     fn seeking_moves_the_robots_and_back_again() {
         let f = feed_of(LOG);
         let mut c = Cursor::new();
@@ -390,6 +600,78 @@ not json
         c.seek(None);
         c.catch_up(&f);
         assert_eq!(c.snapshot(&f)["robots"][0]["pose"][0], 2.0);
+    }
+
+    #[test]
+    fn a_live_feed_keeps_what_is_bounded_and_counts_the_rest() {
+        let mut f = Feed::new();
+        f.reset(Source::Zenoh, "team".into(), true);
+        let live = |f: &mut Feed, b: &[u8], status: bool| {
+            f.push_live(live_record(b, status), b.len());
+        };
+        // Garbage, and a record too large.
+        live(&mut f, b"not json", false);
+        live(&mut f, b"[1, 2]", false);
+        let big = format!(
+            r#"{{"t":1.0,"robot":"r0","event":"x","pad":"{}"}}"#,
+            "a".repeat(MAX_RECORD_BYTES)
+        );
+        live(&mut f, big.as_bytes(), false);
+        assert_eq!(f.records.len(), 0);
+        assert_eq!(f.dropped.garbage, 2);
+        assert_eq!(f.dropped.oversize, 1);
+        // Before the roster is known, any robot; after, only its members.
+        live(&mut f, br#"{"t":0.5,"robot":"r9","event":"x"}"#, false);
+        let world = br#"{"t":0.0,"event":"world","robots":["r0","r1","r2"]}"#;
+        live(&mut f, world, false);
+        assert_eq!(f.roster.as_deref().map(<[String]>::len), Some(3));
+        live(&mut f, br#"{"robot":"r9","state":"running"}"#, true);
+        live(&mut f, br#"{"robot":"r1","state":"running"}"#, true);
+        assert_eq!(f.dropped.not_on_roster, 1);
+        assert_eq!(f.records.len(), 3);
+        assert_eq!(f.records[2]["event"], "status");
+        let mut c = Cursor::new();
+        c.catch_up(&f);
+        let s = c.snapshot(&f);
+        assert_eq!(s["dropped"]["not_on_roster"], 1, "{s}");
+        assert_eq!(s["dropped"]["garbage"], 2, "{s}");
+        // A new source starts its counts again.
+        f.reset(Source::Zenoh, "team".into(), true);
+        assert_eq!(f.dropped, Dropped::default());
+        assert!(f.roster.is_none());
+    }
+
+    #[test]
+    fn a_growing_feed_drops_its_oldest_records_and_pages_keep_the_layout() {
+        let mut f = Feed::new();
+        f.reset(Source::Run, "run".into(), true);
+        f.push(json!({"t":0.0,"event":"world","robots":["r0"],"behaviors":["walk"],"palette":["#ff0000"]}));
+        let pad = "x".repeat(1000);
+        let mut follower = Cursor::new();
+        for k in 0..(MAX_BYTES / 1000 + 10) {
+            f.push(json!({"t": k as f64 * 0.01, "event":"poses","robots":[[k as f64, 0.0, 0.0]],"pad": pad}));
+            if k % 10_000 == 0 {
+                follower.catch_up(&f);
+            }
+        }
+        assert!(f.bytes <= MAX_BYTES, "{} bytes kept", f.bytes);
+        assert!(f.first > 0 && f.dropped.oldest == f.first as u64);
+        assert_eq!(f.pinned.len(), 1, "the layout is kept aside");
+        // A page that joins now sees the layout and the latest poses.
+        let mut c = Cursor::new();
+        while c.behind(&f) || c.generation != f.generation {
+            c.catch_up(&f);
+        }
+        let s = c.snapshot(&f);
+        assert!(s["layout"].is_object(), "{}", s["layout"]);
+        let last = (MAX_BYTES / 1000 + 9) as f64;
+        assert_eq!(s["robots"][0]["pose"][0], last);
+        // A page that followed from the start goes on from where it is.
+        while follower.behind(&f) {
+            follower.catch_up(&f);
+        }
+        assert_eq!(follower.snapshot(&f)["robots"][0]["pose"][0], last);
+        assert_eq!(follower.snapshot(&f)["dropped"]["oldest"], f.first);
     }
 
     #[test]

@@ -123,6 +123,8 @@ struct Studio {
     team: String,
     /// The Zenoh session of `--connect`.
     session: std::sync::OnceLock<bite_zenoh::zenoh::Session>,
+    /// One uploaded log read at a time (another is answered 503).
+    replaying: tokio::sync::Semaphore,
 }
 
 impl Studio {
@@ -148,10 +150,13 @@ fn is_log(p: &Path) -> bool {
 /// A run log's records: JSON lines, or an MCAP file BITE wrote (its
 /// `/bite/events` channel). Lines that are not records are reported
 /// (`file:line:col: why`, the first 20) and skipped.
-fn read_log(name: &str, bytes: &[u8]) -> Result<(Vec<J>, Vec<String>, usize), String> {
+fn read_log(name: &str, bytes: &[u8]) -> Result<feed::Parsed, String> {
     if bytes.starts_with(bite_foxglove::MCAP_MAGIC) {
         return bite_foxglove::read_mcap(name, bytes)
-            .map(|r| (r, Vec::new(), 0))
+            .map(|records| feed::Parsed {
+                records,
+                ..Default::default()
+            })
             .map_err(|e| e.to_string());
     }
     let text = std::str::from_utf8(bytes).map_err(|e| {
@@ -176,23 +181,25 @@ pub fn cmd_studio(a: StudioArgs) -> Result<ExitCode> {
         if is_log(p) {
             let bytes =
                 std::fs::read(p).with_context(|| format!("reading the run log {}", p.display()))?;
-            let (records, problems, bad) =
-                read_log(&p.display().to_string(), &bytes).map_err(|e| {
-                    eprintln!("error: {e}");
-                    anyhow::Error::new(crate::Reported(2))
-                })?;
-            for x in &problems {
+            let log = read_log(&p.display().to_string(), &bytes).map_err(|e| {
+                eprintln!("error: {e}");
+                anyhow::Error::new(crate::Reported(2))
+            })?;
+            for x in &log.problems {
                 eprintln!("warning: {x}");
             }
-            if bad > problems.len() {
+            if log.bad > log.problems.len() {
                 eprintln!(
                     "warning: {} more lines were not records",
-                    bad - problems.len()
+                    log.bad - log.problems.len()
                 );
             }
+            if log.torn {
+                eprintln!("note: its last line, a record cut short, was skipped");
+            }
             feed.reset(Source::Replay, p.display().to_string(), false);
-            feed.records = records;
-            feed.problems = problems;
+            feed.records = log.records;
+            feed.problems = log.problems;
         } else {
             let text = crate::read_input(p)?;
             if scenario_path.is_none() {
@@ -239,6 +246,7 @@ pub fn cmd_studio(a: StudioArgs) -> Result<ExitCode> {
         connected,
         team: a.team.clone(),
         session: std::sync::OnceLock::new(),
+        replaying: tokio::sync::Semaphore::new(1),
     });
     // The Zenoh session lives as long as the studio.
     let _session = if a.connect.is_empty() {
@@ -273,10 +281,7 @@ async fn serve(studio: Arc<Studio>, port: u16) -> Result<()> {
         .route("/api/run", post(run_text))
         .route("/api/stop", post(stop_run))
         .route("/api/live", post(live))
-        .route(
-            "/api/replay",
-            post(replay).layer(DefaultBodyLimit::max(MAX_LOG_BYTES)),
-        )
+        .route("/api/replay", post(replay))
         .route("/api/monitor", get(monitor))
         .layer(DefaultBodyLimit::max(MAX_TEXT_BYTES))
         .layer(axum::middleware::from_fn_with_state(
@@ -296,8 +301,11 @@ async fn serve(studio: Arc<Studio>, port: u16) -> Result<()> {
 
 /// Largest mission or graph text the editor sends.
 const MAX_TEXT_BYTES: usize = 4 << 20;
-/// Largest run log a page uploads for replay.
-const MAX_LOG_BYTES: usize = 512 << 20;
+/// Largest run log a page uploads for replay. Its records take some 40
+/// times its size in memory while it is parsed (JSON values), so 64 MiB
+/// needs some 2.7 GB at most; one upload is parsed at a time
+/// ([`Studio::replaying`]).
+const MAX_LOG_BYTES: usize = 64 << 20;
 
 /// Only the studio's own page may use it: the `Host` must be this
 /// loopback address (a DNS-rebinding page names another host) and an
@@ -693,13 +701,35 @@ struct ReplayQuery {
 async fn replay(
     State(s): State<Arc<Studio>>,
     Query(q): Query<ReplayQuery>,
-    body: axum::body::Bytes,
+    body: axum::body::Body,
 ) -> Response {
+    // One upload at a time, before its body is read: each may take some
+    // 40 times its size while it is parsed.
+    let Ok(_one) = s.replaying.try_acquire() else {
+        return (
+            StatusCode::SERVICE_UNAVAILABLE,
+            Json(json!({"error": "another run log is being read: try again when it is done"})),
+        )
+            .into_response();
+    };
+    let body = match axum::body::to_bytes(body, MAX_LOG_BYTES).await {
+        Ok(b) => b,
+        Err(_) => {
+            return (
+                StatusCode::PAYLOAD_TOO_LARGE,
+                Json(json!({"error": format!(
+                    "the run log could not be read whole: the studio replays logs of at most {} MiB",
+                    MAX_LOG_BYTES >> 20
+                )})),
+            )
+                .into_response();
+        }
+    };
     let name = q.name.unwrap_or_else(|| "run log".into());
     // Parsing a large log is long work: off the server's threads.
     let name2 = name.clone();
     let parsed = tokio::task::spawn_blocking(move || read_log(&name2, &body)).await;
-    let (records, problems, bad) = match parsed {
+    let log = match parsed {
         Ok(Ok(x)) => x,
         Ok(Err(e)) => {
             return (StatusCode::UNPROCESSABLE_ENTITY, Json(json!({"error": e}))).into_response();
@@ -712,19 +742,20 @@ async fn replay(
                 .into_response();
         }
     };
-    let n = records.len();
+    let (n, bad, torn) = (log.records.len(), log.bad, log.torn);
     let (old, end) = {
         let mut f = s.feed();
         let old = std::mem::take(&mut f.records);
         f.reset(Source::Replay, name, false);
-        f.records = records;
-        f.problems = problems;
+        f.records = log.records;
+        f.problems = log.problems;
         f.touch();
         (old, f.end_time())
     };
     // The old records are freed here, not under the feed's lock.
     drop(old);
-    Json(json!({"ok": true, "records": n, "bad_lines": bad, "end": end})).into_response()
+    Json(json!({"ok": true, "records": n, "bad_lines": bad, "torn_last_line": torn, "end": end}))
+        .into_response()
 }
 
 async fn monitor(State(s): State<Arc<Studio>>, ws: WebSocketUpgrade) -> Response {
@@ -783,22 +814,50 @@ async fn watch(s: Arc<Studio>, mut socket: WebSocket) {
 }
 
 /// The world's layout was put once, at the start: ask the simulator
-/// server for it (again until it answers: it may not be up yet).
+/// server for it (again until it answers: it may not be up yet). And the
+/// team's roster, from the layout or the robots' membership answers:
+/// records of robots not on it are not kept.
 fn fetch_layout(studio: &Arc<Studio>) {
     use bite_zenoh::zenoh::Wait;
+    use bite_zenoh::zenoh::query::{ConsolidationMode, QueryTarget};
     let Some(session) = studio.session.get().cloned() else {
         return;
     };
     let st = studio.clone();
-    let key = bite_zenoh::Keys::new(&studio.team).world();
+    let keys = bite_zenoh::Keys::new(&studio.team);
+    let key = keys.world();
+    let members = keys.members("*");
     let generation = st.feed().generation;
     std::thread::spawn(move || {
+        let mut got = false;
         for _ in 0..120 {
             if st.feed().generation != generation {
                 return;
             }
-            let mut got = false;
-            if let Ok(replies) = session.get(&key).timeout(Duration::from_secs(1)).wait() {
+            if st.feed().roster.is_none()
+                && let Ok(replies) = (session.get(&members))
+                    .target(QueryTarget::All)
+                    .consolidation(ConsolidationMode::None)
+                    .timeout(Duration::from_secs(1))
+                    .wait()
+            {
+                while let Ok(reply) = replies.recv() {
+                    let Ok(sample) = reply.result() else { continue };
+                    let Ok(m) = serde_json::from_slice::<bite_zenoh::wire::Membership>(
+                        &sample.payload().to_bytes(),
+                    ) else {
+                        continue;
+                    };
+                    let mut f = st.feed();
+                    if !m.roster.is_empty() && f.generation == generation && f.roster.is_none() {
+                        f.roster = Some(m.roster);
+                    }
+                }
+            }
+            if got && st.feed().roster.is_some() {
+                return;
+            }
+            if !got && let Ok(replies) = session.get(&key).timeout(Duration::from_secs(1)).wait() {
                 while let Ok(reply) = replies.recv() {
                     let Ok(sample) = reply.result() else { continue };
                     if let Ok(rec) = serde_json::from_slice::<J>(&sample.payload().to_bytes())
@@ -806,13 +865,14 @@ fn fetch_layout(studio: &Arc<Studio>) {
                     {
                         let mut f = st.feed();
                         if f.source == Source::Zenoh && f.generation == generation {
-                            f.push(rec);
+                            let len = sample.payload().len();
+                            f.push_live(Ok(rec), len);
                         }
                         got = true;
                     }
                 }
             }
-            if got {
+            if got && st.feed().roster.is_some() {
                 return;
             }
             std::thread::sleep(Duration::from_millis(500));
@@ -848,18 +908,16 @@ fn subscribe(
         let sub = session
             .declare_subscriber(&key)
             .callback(move |sample| {
-                let Ok(mut rec) = serde_json::from_slice::<J>(&sample.payload().to_bytes()) else {
-                    return;
+                // Bounded, a record, of a robot on the roster: or counted
+                // (`dropped` in the snapshots), never kept.
+                let len = sample.payload().len();
+                let rec = match len > feed::MAX_RECORD_BYTES {
+                    true => Err(feed::Refused::Oversize),
+                    false => feed::live_record(&sample.payload().to_bytes(), status),
                 };
-                if !rec.is_object() {
-                    return;
-                }
-                if status {
-                    rec["event"] = json!("status");
-                }
                 let mut f = st.feed();
                 if f.source == Source::Zenoh {
-                    f.push(rec);
+                    f.push_live(rec, len);
                 }
             })
             .wait()
