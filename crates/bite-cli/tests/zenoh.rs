@@ -465,6 +465,31 @@ fn team(name: &str, mission: Option<&str>, speed: &str) -> Team {
     }
 }
 
+/// Robot r0's statuses as it publishes them, and its first, which says it
+/// waits for a mission (the subscriber must be kept while they are read).
+fn waiting_status(
+    session: &zenoh::Session,
+    team: &str,
+) -> (
+    zenoh::pubsub::Subscriber<()>,
+    std::sync::mpsc::Receiver<Value>,
+    Value,
+) {
+    let (tx, rx) = std::sync::mpsc::channel::<Value>();
+    let sub = session
+        .declare_subscriber(format!("bite/{team}/status/r0"))
+        .callback(move |s| {
+            if let Ok(v) = serde_json::from_slice(&s.payload().to_bytes()) {
+                let _ = tx.send(v);
+            }
+        })
+        .wait()
+        .unwrap();
+    let first = rx.recv_timeout(Duration::from_secs(20)).expect("a status");
+    assert_eq!(first["state"], "waiting", "{first}");
+    (sub, rx, first)
+}
+
 fn client(endpoints: &[String]) -> zenoh::Session {
     let mut c = zenoh::Config::default();
     c.insert_json5("mode", "\"peer\"").unwrap();
@@ -966,18 +991,7 @@ fn a_submission_without_a_world_is_refused_with_the_reason() {
         .unwrap();
     procs.0.push(("r0".into(), child));
     let session = client(std::slice::from_ref(&ep));
-    let (tx, rx) = std::sync::mpsc::channel::<Value>();
-    let _sub = session
-        .declare_subscriber(format!("bite/{team}/status/r0"))
-        .callback(move |s| {
-            if let Ok(v) = serde_json::from_slice(&s.payload().to_bytes()) {
-                let _ = tx.send(v);
-            }
-        })
-        .wait()
-        .unwrap();
-    let first = rx.recv_timeout(Duration::from_secs(20)).expect("a status");
-    assert_eq!(first["state"], "waiting", "{first}");
+    let (_sub, rx, _) = waiting_status(&session, &team);
     let sub = bite()
         .args([
             "submit",
@@ -1231,18 +1245,7 @@ fn frames_reaching_a_robot_without_a_mission_are_counted() {
         .unwrap();
     let mut procs = Procs(vec![("r0".into(), child)]);
     let session = client(std::slice::from_ref(&ep));
-    let (tx, rx) = std::sync::mpsc::channel::<Value>();
-    let _sub = session
-        .declare_subscriber(format!("bite/{team}/status/r0"))
-        .callback(move |s| {
-            if let Ok(v) = serde_json::from_slice(&s.payload().to_bytes()) {
-                let _ = tx.send(v);
-            }
-        })
-        .wait()
-        .unwrap();
-    let first = rx.recv_timeout(Duration::from_secs(20)).expect("a status");
-    assert_eq!(first["state"], "waiting", "{first}");
+    let (_sub, rx, first) = waiting_status(&session, &team);
     let scope = Scope::new(&team, 1);
     let hb = [bite_zenoh::wire::PAYLOAD_VERSION, 0, 0];
     for on in ["r1", "r2"] {

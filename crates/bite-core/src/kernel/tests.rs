@@ -3353,6 +3353,27 @@ fn the_healing_leader_waits_for_a_teammate_on_the_other_side_of_a_split() {
     );
 }
 
+/// Two robots lapping `a`, `d` under the root (`d` a team behavior or an
+/// individual one): robot 1 has ended `a`#1 and runs `d`.
+fn lapping(d_is_team: bool) -> (Harness, [BehaviorId; 3]) {
+    let graph = format!(
+        "start: root
+defaults: {{ terminate: term.local }}
+behaviors:
+  root: {{ team: true, children: [a] }}
+  a: {{ team: true, skill: w, until: a_done, next: [d] }}
+  d: {{ team: {d_is_team}, skill: w, until: d_done, next: [a] }}"
+    );
+    let mut h = Harness::new(&graph, 2);
+    h.tick(0, &[("a_done", F), ("d_done", F)]);
+    h.tick_one(1, 100, &[("a_done", T)]);
+    h.tick_one(1, 200, &[("a_done", F)]);
+    assert_eq!(h.stack(1), ["root", "d"]);
+    let g = h.kernels[1].mission().graph().clone();
+    let ids = ["root", "a", "d"].map(|n| g.find(n).expect("behavior"));
+    (h, ids)
+}
+
 /// A lap of an individual behavior (`team: false`) is numbered by each
 /// member at its own pace: a teammate in the same execution id of it,
 /// after a later execution of the team behavior before it, ran another
@@ -3365,19 +3386,7 @@ fn the_healing_leader_waits_for_a_teammate_on_the_other_side_of_a_split() {
 /// r2 alone at `b2`#4's `term.majority`, the team done with `b2`#3).
 #[test]
 fn a_teammate_a_lap_ahead_in_an_individual_behavior_burns_nothing() {
-    const LAPS: &str = "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, skill: w, until: a_done, next: [d] }
-  d: { team: false, skill: w, until: d_done, next: [a] }";
-    let mut h = Harness::new(LAPS, 2);
-    h.tick(0, &[("a_done", F), ("d_done", F)]);
-    h.tick_one(1, 100, &[("a_done", T)]);
-    h.tick_one(1, 200, &[("a_done", F)]);
-    assert_eq!(h.stack(1), ["root", "d"]);
-    let g = h.kernels[1].mission().graph().clone();
-    let [root, a, d] = ["root", "a", "d"].map(|n| g.find(n).expect("behavior"));
+    let (mut h, [root, a, d]) = lapping(false);
     let id = at_root;
     assert_eq!(h.kernels[1].org.runs(TeamId::ROOT, a), 1);
     // Robot 0 is in its first lap of `d` too, but after `a`#2.
@@ -3405,19 +3414,7 @@ behaviors:
 /// key) took a robot down (found by a network audit, 2026-12-07).
 #[test]
 fn a_teammate_claiming_an_enormous_epoch_burns_a_bounded_few() {
-    const LAPS: &str = "start: root
-defaults: { terminate: term.local }
-behaviors:
-  root: { team: true, children: [a] }
-  a: { team: true, skill: w, until: a_done, next: [d] }
-  d: { team: true, skill: w, until: d_done, next: [a] }";
-    let mut h = Harness::new(LAPS, 2);
-    h.tick(0, &[("a_done", F), ("d_done", F)]);
-    h.tick_one(1, 100, &[("a_done", T)]);
-    h.tick_one(1, 200, &[("a_done", F)]);
-    assert_eq!(h.stack(1), ["root", "d"]);
-    let g = h.kernels[1].mission().graph().clone();
-    let [root, a, d] = ["root", "a", "d"].map(|n| g.find(n).expect("behavior"));
+    let (mut h, [root, a, d]) = lapping(true);
     let id = at_root;
     tell(
         &mut h,
