@@ -991,6 +991,7 @@ impl Scenario {
             Some(f) => {
                 let loc = Loc::from(f.referenced);
                 let base = FailureDetector::default();
+                let before = d.len();
                 let fd = FailureDetector {
                     lost_after: f
                         .value
@@ -1007,7 +1008,9 @@ impl Scenario {
                 // run hung, growing by 450 MB a second); one not shorter
                 // than `lost_after` has every robot presumed lost between
                 // two of its teammate's heartbeats.
-                if fd.heartbeat < MIN_HEARTBEAT {
+                // (Not again for a duration already reported unreadable.)
+                if d.len() > before {
+                } else if fd.heartbeat < MIN_HEARTBEAT {
                     d.push(Diagnostic::error(
                         file,
                         loc,

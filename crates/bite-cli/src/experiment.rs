@@ -271,7 +271,9 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
     // a mission or configuration once (rows of two under one label would
     // be merged), each world or scenario of a mission once (its runs
     // would count twice as independent samples).
-    let mut missions_seen: Vec<(PathBuf, Loc)> = Vec::new();
+    // A mission is its graph with its command library (one `.rtcl`
+    // compiled with two libraries is two missions).
+    let mut missions_seen: Vec<((PathBuf, Option<PathBuf>), Loc)> = Vec::new();
     let mut labels_seen: Vec<(String, Loc)> = Vec::new();
     let largest_seed = seeds.iter().copied().max().unwrap_or(0);
     for (mi, m) in spec.missions.iter().enumerate() {
@@ -285,14 +287,18 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
             ));
             continue;
         }
-        let same_file = graph.canonicalize().unwrap_or_else(|_| graph.clone());
+        let canon = |p: &PathBuf| p.canonicalize().unwrap_or_else(|_| p.clone());
+        let same_file = (
+            canon(&graph),
+            m.library.as_ref().map(|l| canon(&rel(&l.value))),
+        );
         if let Some((_, first)) = missions_seen.iter().find(|(g, _)| *g == same_file) {
             let mut d = error(
                 &file,
                 loc(&m.graph),
                 "duplicate-mission",
                 format!(
-                    "mission `{}` is listed twice (first at line {})",
+                    "mission `{}` is listed twice, with the same library (first at line {})",
                     graph.display(),
                     first.line
                 ),

@@ -907,7 +907,9 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
         eprintln!("error: {why}; nothing was sent");
         anyhow::Error::new(Reported(2))
     };
-    check_submission(&body).map_err(refuse)?;
+    if let Some(w) = check_submission(&body, rtcl::is_mission(&a.graph)).map_err(refuse)? {
+        eprintln!("warning: {w}");
+    }
     let sub = bite_zenoh::wire::sign_submission(&key, &a.net.team, &body);
     let bytes = serde_json::to_vec(&sub)?;
     let most = bite_zenoh::wire::MAX_SUBMISSION_BYTES;
@@ -931,20 +933,17 @@ pub fn cmd_submit(a: SubmitArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// What a robot will make of a submission, checked before it is sent:
-/// with a scenario (and not a new version of a running mission, which a
-/// robot numbers against the mission it runs), loaded exactly as a robot
-/// loads it; otherwise the graph (YAML) and configuration are parsed (a
-/// mission in the command language needs a world to compile in: the
-/// robots' own).
-fn check_submission(body: &MissionBody) -> Result<(), String> {
+/// What a robot will make of a submission, checked before it is sent. A
+/// graph (YAML) or configuration that does not parse is refused: no robot
+/// could read it. With a scenario (and not a new version of a running
+/// mission, which a robot numbers against the mission it runs), the
+/// mission is also loaded as a robot with the default command library,
+/// team size and protocols loads it; since the robots may have been
+/// started with their own (`--library`, `--robots`, `--protocols`), what
+/// fails there is a warning (`Ok(Some(..))`), and the mission is sent.
+fn check_submission(body: &MissionBody, rtcl: bool) -> Result<Option<String>, String> {
     let refused = |e: String| format!("robots would refuse this mission: {e}");
-    if body.scenario.is_some() && !body.replace {
-        return loader(MissionArgs::default(), None, None)(body, None)
-            .map(|_| ())
-            .map_err(refused);
-    }
-    if let Some(text) = &body.graph {
+    if let Some(text) = body.graph.as_ref().filter(|_| !rtcl) {
         let label = format!("{} (submitted)", body.id);
         let graph = bite_core::graph::load_str(&Arc::from(label.as_str()), text)
             .map_err(|d| refused(d.to_string()))?;
@@ -956,7 +955,17 @@ fn check_submission(body: &MissionBody) -> Result<(), String> {
                 .map_err(|d| refused(d.to_string()))?;
         }
     }
-    Ok(())
+    if body.scenario.is_some() && !body.replace {
+        return Ok(loader(MissionArgs::default(), None, None)(body, None)
+            .err()
+            .map(|e| {
+                format!(
+                    "a robot with the default command library, team size and protocols would \
+                     refuse this mission ({e}); sent anyway, for robots started with their own"
+                )
+            }));
+    }
+    Ok(None)
 }
 
 /// The scenario `bite submit` sends: the one given, else the one next to

@@ -28,6 +28,10 @@ pub struct Watch {
     heard: BTreeMap<String, u64>,
     /// Wall µs since when the only robots still running are presumed lost.
     since: Option<u64>,
+    /// By robot: the team time (`t`) of its latest record.
+    last_t: BTreeMap<String, f64>,
+    /// By robot: the team time of the latest `member_lost` on it.
+    lost_t: BTreeMap<String, f64>,
 }
 
 impl Watch {
@@ -37,6 +41,11 @@ impl Watch {
             return;
         };
         self.heard.insert(robot.to_string(), now_us);
+        let t = rec["t"].as_f64();
+        if let Some(t) = t {
+            let last = self.last_t.entry(robot.to_string()).or_insert(t);
+            *last = last.max(t);
+        }
         let member = rec["member"].as_str();
         match (rec["event"].as_str(), member) {
             (Some("mission_completed"), _) => {
@@ -47,6 +56,10 @@ impl Watch {
                     .entry(m.to_string())
                     .or_default()
                     .insert(robot.to_string());
+                if let Some(t) = t {
+                    let at = self.lost_t.entry(m.to_string()).or_insert(t);
+                    *at = at.max(t);
+                }
             }
             (Some("member_back"), Some(m)) => {
                 if let Some(by) = self.lost_by.get_mut(m) {
@@ -58,9 +71,18 @@ impl Watch {
     }
 
     /// Presumed lost by a teammate that completed the mission (and has not
-    /// heard it again since).
+    /// heard it again since), and silent in its own log since: a robot
+    /// that wrote a record (team time) after it was presumed lost is alive,
+    /// only cut off or slow, and goes on alone (it was frozen, then
+    /// resumed after its teammates left): it is never stopped.
     fn presumed_lost(&self, robot: &str) -> bool {
-        (self.lost_by.get(robot)).is_some_and(|by| by.iter().any(|b| self.completed.contains(b)))
+        let wrote_since = match (self.last_t.get(robot), self.lost_t.get(robot)) {
+            (Some(last), Some(lost)) => last > lost,
+            _ => false,
+        };
+        !wrote_since
+            && (self.lost_by.get(robot))
+                .is_some_and(|by| by.iter().any(|b| self.completed.contains(b)))
     }
 
     /// The processes to stop now, by their index in `running` (the robots
@@ -124,6 +146,36 @@ mod tests {
         assert!(w.silent(&all, 31 * S).is_empty(), "within the grace");
         let gone = [None, Some(&r1[..]), None];
         assert_eq!(w.silent(&gone, 31 * S + GRACE.as_micros() as u64), vec![1]);
+    }
+
+    /// Frozen past its teammates' patience, then resumed after they
+    /// completed: it writes on (team time after the loss), and is left to
+    /// finish alone.
+    #[test]
+    fn a_robot_that_wrote_after_it_was_presumed_lost_is_not_stopped() {
+        let r1 = names(&["r1"]);
+        let mut w = Watch::default();
+        w.see(
+            &json!({"robot": "r1", "t": 10.0, "event": "selected"}),
+            10 * S,
+        );
+        w.see(
+            &json!({"robot": "r0", "t": 15.0, "event": "member_lost", "member": "r1"}),
+            15 * S,
+        );
+        w.see(
+            &json!({"robot": "r0", "t": 30.0, "event": "mission_completed"}),
+            30 * S,
+        );
+        w.see(
+            &json!({"robot": "r1", "t": 31.0, "event": "member_lost", "member": "r0"}),
+            31 * S,
+        );
+        let run = [None, Some(&r1[..])];
+        assert!(
+            w.silent(&run, 31 * S + 10 * GRACE.as_micros() as u64)
+                .is_empty()
+        );
     }
 
     #[test]

@@ -1160,12 +1160,12 @@ impl Node {
             *r.payload_rejects.entry("ros2-odom-malformed").or_insert(0) += 1;
             return;
         }
-        if let Some((x, y)) = ros.last_pos {
-            ros.odometer += ((p.x - x).powi(2) + (p.y - y).powi(2)).sqrt();
-        }
-        ros.last_pos = Some((p.x, p.y));
-        let camera = ros.camera.take();
-        r.last_sensed = Some(Sensed {
+        let odometer = match ros.last_pos {
+            Some((x, y)) => ros.odometer + ((p.x - x).powi(2) + (p.y - y).powi(2)).sqrt(),
+            None => ros.odometer,
+        };
+        let camera = ros.camera.clone();
+        let sensed = Sensed {
             t: o.header.stamp.as_secs(),
             pose: bite_agent::schema::Pose {
                 pos: glam::DVec2::new(p.x, p.y),
@@ -1177,9 +1177,19 @@ impl Node {
                 .as_ref()
                 .map(|c| c.objects.clone())
                 .unwrap_or_default(),
-            odometer: ros.odometer,
+            odometer,
             contact: camera.is_some_and(|c| c.contact),
-        });
+        };
+        // The same bounds as the simulator's readings (`readings_hold`):
+        // the ROS 2 topics are no more authenticated than `sim/**`.
+        if !readings_hold(&sensed) {
+            *r.payload_rejects.entry("ros2-odom-malformed").or_insert(0) += 1;
+            return;
+        }
+        ros.odometer = odometer;
+        ros.last_pos = Some((p.x, p.y));
+        ros.camera = None;
+        r.last_sensed = Some(sensed);
         self.control_tick();
     }
 

@@ -114,7 +114,8 @@ impl BehaviorGraph {
         for p in self.points() {
             known.push(format!("{}.{}", self.name_of(p.behavior), p.kind));
         }
-        let mut bound: Vec<((BehaviorId, Kind), &str, Loc)> = Vec::new();
+        let mut bound: std::collections::BTreeMap<(BehaviorId, Kind), (&str, Loc)> =
+            std::collections::BTreeMap::new();
         for (name, binding) in &cfg.bindings {
             match self.find_point(name) {
                 None => {
@@ -148,11 +149,7 @@ impl BehaviorGraph {
                     // A point answers to its label and to `behavior.kind`
                     // (and `alloc` for `allocate`): two of its names bound
                     // in one file were read silently, the last one winning.
-                    if let Some((first, at)) = bound
-                        .iter()
-                        .find(|(p, _, _)| *p == (b, kind))
-                        .map(|(_, n, l)| (n, l))
-                    {
+                    if let Some((first, at)) = bound.get(&(b, kind)) {
                         diags.push(
                             Diagnostic::error(
                                 &cfg.file,
@@ -167,7 +164,7 @@ impl BehaviorGraph {
                         );
                         continue;
                     }
-                    bound.push(((b, kind), name.as_str(), binding.loc));
+                    bound.insert((b, kind), (name.as_str(), binding.loc));
                     g.behaviors[b.index()].bindings[kind.index()] = Some(Box::new(binding.clone()));
                 }
             }
