@@ -1430,12 +1430,21 @@ pub fn launch(a: &LaunchArgs, quiet: bool) -> Result<(serde_json::Value, bool)> 
                 .filter(|r| r["event"] == "member_lost")
                 .map(|r| &r["member"])
                 .collect();
+            // Frames refused as forged, malformed or replayed: not its own
+            // echoes, nor a teammate's that came while this robot was still
+            // starting (`before-mission`, counted in its log: robots of a
+            // launch do not start at the same instant).
             let rejected: u64 = log
                 .iter()
                 .rev()
                 .find(|r| r["event"] == "run_finished")
                 .and_then(|r| r["auth"]["rejected"].as_object())
-                .map_or(0, |m| m.iter().filter(|(k, _)| *k != "own").filter_map(|(_, v)| v.as_u64()).sum());
+                .map_or(0, |m| {
+                    m.iter()
+                        .filter(|(k, _)| !matches!(k.as_str(), "own" | "before-mission"))
+                        .filter_map(|(_, v)| v.as_u64())
+                        .sum()
+                });
             json!({
                 "robot": name,
                 "process": p.name,
