@@ -290,7 +290,8 @@ struct RunArgs {
     gif: Option<PathBuf>,
     /// Seconds of simulated time between frames of `--frames` and
     /// `--gif`: at least 0.01 (a GIF's shortest delay, shown ten times
-    /// faster), and at most 10,000 frames over the run's time limit.
+    /// faster). At most 10,000 frames are drawn: a run that would take
+    /// more draws its first 10,000, with a warning.
     #[arg(long, default_value_t = 1.0, value_parser = parse_every)]
     every: f64,
     /// A fault laid over the scenario (repeatable): `loss=0.2`, `dup=0.3`,
@@ -308,10 +309,19 @@ struct RunArgs {
 /// a second, shown ten times faster than simulated time.
 const MIN_EVERY: f64 = 0.01;
 
-/// The most frames `--frames` and `--gif` may draw: a run's animation is
-/// one picture per frame (each with every trail so far), and more would
-/// fill a disk rather than show a run.
-const MAX_FRAMES: f64 = 10_000.0;
+/// The most frames `--frames` and `--gif` draw: a run's animation is one
+/// picture per frame (each with every trail so far), and more would fill a
+/// disk rather than show a run. A run that would take more draws its first
+/// ones, with a warning.
+const MAX_FRAMES: usize = 10_000;
+
+/// How many frames `--frames` and `--gif` draw of a run that ended at
+/// `end` seconds, one every `every` seconds, and how many the whole run
+/// would take: at most [`MAX_FRAMES`] are drawn (the first ones).
+fn frame_count(end: f64, every: f64) -> (usize, usize) {
+    let all = (end / every).floor().min(usize::MAX as f64 / 2.0) as usize + 1;
+    (all.min(MAX_FRAMES), all)
+}
 
 /// `--every`: seconds between frames, at least [`MIN_EVERY`].
 fn parse_every(s: &str) -> Result<f64, String> {
@@ -783,19 +793,6 @@ fn cmd_run(a: RunArgs) -> Result<ExitCode> {
     if !(a.every.is_finite() && a.every >= MIN_EVERY) {
         anyhow::bail!("--every must be at least {MIN_EVERY} seconds");
     }
-    if a.frames.is_some() || a.gif.is_some() {
-        // Refused before the run rather than after it: the frames of the
-        // whole time limit (a run that ends sooner draws fewer).
-        let limit = a.time_limit.unwrap_or(scenario.time_limit).as_secs_f64();
-        let most = (limit / a.every).floor() + 1.0;
-        if most > MAX_FRAMES {
-            anyhow::bail!(
-                "--every {} s over a time limit of {limit} s is up to {most} frames; the limit is {MAX_FRAMES}: \
-                 give a larger --every or a shorter --time-limit",
-                a.every
-            );
-        }
-    }
     let mission = prepare(&graph, &scenario, a.robots, &registry()).map_err(bad_input)?;
     if !a.faults.is_empty() {
         // A fault that names a robot the team lacks is an input error: the
@@ -1005,7 +1002,14 @@ fn draw_pictures(
     }
     if frames.is_some() || gif.is_some() {
         let every = if every > 0.0 { every } else { 1.0 };
-        let count = (end / every).floor() as usize + 1;
+        let (count, all) = frame_count(end, every);
+        if count < all {
+            eprintln!(
+                "warning: --every {every} s over the run's {end:.2} s is {all} frames; drawing the \
+                 first {count} (to t = {:.2} s): give a larger --every to draw the whole run",
+                (count - 1) as f64 * every
+            );
+        }
         if let Some(dir) = frames {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
         }
@@ -1782,5 +1786,17 @@ fn main() -> ExitCode {
                 ExitCode::from(3)
             }
         },
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_run_draws_at_most_ten_thousand_frames_its_first_ones() {
+        use super::frame_count;
+        assert_eq!(frame_count(55.2, 1.0), (56, 56));
+        assert_eq!(frame_count(0.0, 1.0), (1, 1));
+        assert_eq!(frame_count(200.0, 0.01), (10_000, 20_001));
+        assert_eq!(frame_count(1e300, 0.01).0, 10_000);
     }
 }
