@@ -416,8 +416,15 @@ fn options(kind: Kind, scenario: &Scenario, graph: &BehaviorGraph) -> Vec<String
     out
 }
 
+/// A configuration file to compare with, and the `--baseline` pattern
+/// that matched it (`None`: named plainly, or found next to the mission).
+struct Baseline {
+    path: PathBuf,
+    pattern: Option<String>,
+}
+
 /// The configuration files to compare with.
-fn baselines(a: &TuneArgs) -> Result<Vec<PathBuf>> {
+fn baselines(a: &TuneArgs) -> Result<Vec<Baseline>> {
     if a.baselines.is_empty() {
         // The configurations next to the mission (some of them for other
         // missions: those that do not fit this one are skipped).
@@ -427,14 +434,23 @@ fn baselines(a: &TuneArgs) -> Result<Vec<PathBuf>> {
             .map(|paths| paths.filter_map(Result::ok).collect())
             .unwrap_or_default();
         v.sort();
-        return Ok(v);
+        return Ok(v
+            .into_iter()
+            .map(|path| Baseline {
+                path,
+                pattern: None,
+            })
+            .collect());
     }
     let mut out = Vec::new();
     for p in &a.baselines {
         // A plain path is the file itself, there or not (its loading says
         // which); a pattern must match a file.
         if !p.contains(['*', '?', '[']) {
-            out.push(PathBuf::from(p));
+            out.push(Baseline {
+                path: PathBuf::from(p),
+                pattern: None,
+            });
             continue;
         }
         match glob::glob(p) {
@@ -444,9 +460,15 @@ fn baselines(a: &TuneArgs) -> Result<Vec<PathBuf>> {
                     anyhow::bail!("--baseline {p}: no file matches");
                 }
                 v.sort();
-                out.extend(v);
+                out.extend(v.into_iter().map(|path| Baseline {
+                    path,
+                    pattern: Some(p.clone()),
+                }));
             }
-            Err(_) => out.push(PathBuf::from(p)),
+            Err(_) => out.push(Baseline {
+                path: PathBuf::from(p),
+                pattern: None,
+            }),
         }
     }
     Ok(out)
@@ -529,8 +551,10 @@ pub fn cmd_tune(a: TuneArgs) -> Result<ExitCode> {
     if let Some(i) = search.candidate("own bindings", own.clone()) {
         base_cands.push(("own bindings".to_string(), i));
     }
-    // A baseline given with `--baseline` must load and fit the mission:
-    // one that does not is an error, not a baseline silently left out.
+    // A baseline named with `--baseline` must load and fit the mission:
+    // one that does not is an error, not a baseline silently left out. Of
+    // the files a pattern matches, those that do not fit are skipped, each
+    // said, and a pattern none of whose files fits is an error.
     let given = !a.baselines.is_empty();
     let refuse = |p: &Path, d: bite_core::diag::Diagnostics| {
         eprintln!(
@@ -540,15 +564,31 @@ pub fn cmd_tune(a: TuneArgs) -> Result<ExitCode> {
         );
         bad_input(d)
     };
-    for p in baselines(&a)? {
+    let mut fitting: std::collections::BTreeMap<String, bool> = Default::default();
+    for Baseline { path: p, pattern } in baselines(&a)? {
+        if let Some(pat) = &pattern {
+            fitting.entry(pat.clone()).or_insert(false);
+        }
         let m = match Config::load(&p)
             .and_then(|cfg| search.base.clone().with_config(&cfg))
             .and_then(|g| bite_sim::prepare(&g, &search.scenario, None, &registry()))
         {
             Ok(m) => m,
+            Err(_) if pattern.is_some() => {
+                eprintln!(
+                    "note: --baseline {}: {} skipped: not a configuration of mission {}",
+                    pattern.as_deref().unwrap_or_default(),
+                    p.display(),
+                    a.mission.display()
+                );
+                continue;
+            }
             Err(d) if given => return Err(refuse(&p, d)),
             Err(_) => continue,
         };
+        if let Some(pat) = pattern {
+            fitting.insert(pat, true);
+        }
         let b: Bindings = m
             .points()
             .iter()
@@ -563,6 +603,12 @@ pub fn cmd_tune(a: TuneArgs) -> Result<ExitCode> {
                 None => base_cands.push((label, i)),
             }
         }
+    }
+    if let Some((pat, _)) = fitting.iter().find(|(_, fits)| !**fits) {
+        anyhow::bail!(
+            "--baseline {pat}: no file it matches is a configuration of mission {}",
+            a.mission.display()
+        );
     }
     eprintln!(
         "tune {}: {} points, {} baselines, objective {} (at least {:.0} % completed), {} search seeds, {} held out, {jobs} threads",
