@@ -128,8 +128,8 @@ impl fmt::Display for Diagnostic {
         }
         write!(f, "{sev}[{}]: {}", self.code, clip(&self.message))?;
         if let Some(d) = &self.detail {
-            for line in d.lines() {
-                write!(f, "\n    {}", clip(line))?;
+            for line in around_carets(d) {
+                write!(f, "\n    {}", clip(&line))?;
             }
         }
         if let Some(h) = &self.hint {
@@ -152,6 +152,61 @@ fn clip(line: &str) -> std::borrow::Cow<'_, str> {
             format!("{}… ({more} more characters)", &line[..at]).into()
         }
     }
+}
+
+/// Where a snippet's caret line points: the character index of its first
+/// `^`, if everything before it is gutter (`12 | `) or blanks.
+fn caret_at(line: &str) -> Option<usize> {
+    let i = line.chars().position(|c| c == '^')?;
+    line.chars()
+        .take(i)
+        .all(|c| matches!(c, ' ' | '\t' | '|') || c.is_ascii_digit())
+        .then_some(i)
+}
+
+/// The width of a snippet line's gutter (`12 | `, `   | `): 0 if none.
+fn gutter(line: &str) -> usize {
+    match line.find("| ") {
+        Some(i) if i < 16 && line[..i].chars().all(|c| c == ' ' || c.is_ascii_digit()) => i + 2,
+        _ => 0,
+    }
+}
+
+/// A detail's lines, each source line over a caret that [`clip`] would
+/// cut away shown from a window around the caret instead (`…` where the
+/// window starts), the caret line moved with it: an error at column 5,000
+/// of a long line still points at its place.
+fn around_carets(detail: &str) -> Vec<std::borrow::Cow<'_, str>> {
+    let lines: Vec<&str> = detail.lines().collect();
+    let mut out: Vec<std::borrow::Cow<'_, str>> = lines.iter().map(|l| (*l).into()).collect();
+    let mut above = 0;
+    for (i, line) in lines.iter().enumerate() {
+        let Some(c) = caret_at(line) else {
+            continue;
+        };
+        let g = gutter(line);
+        let from = above;
+        above = i + 1;
+        if c < MAX_SHOWN.saturating_sub(MAX_SHOWN / 4) {
+            continue;
+        }
+        // Characters of each line's body (after the gutter) left out.
+        let skip = c.saturating_sub(g + MAX_SHOWN / 2);
+        let cut = |l: &str| -> String {
+            let head: String = l.chars().take(g).collect();
+            let body: String = l.chars().skip(g + skip).collect();
+            format!("{head}…{body}")
+        };
+        for j in from..i {
+            if gutter(lines[j]) == g {
+                out[j] = cut(lines[j]).into();
+            }
+        }
+        let head: String = line.chars().take(g).collect();
+        let body: String = line.chars().skip(g + skip).collect();
+        out[i] = format!("{head} {body}").into();
+    }
+    out
 }
 
 /// Several diagnostics, at least one of them an error.
@@ -216,6 +271,43 @@ mod tests {
         assert!(text.contains("(9700 more characters)"), "{text}");
         assert!(text.ends_with("\n    ^"), "{text}");
         assert_eq!(clip("short"), "short");
+    }
+
+    /// An error far along a long line keeps its caret under the place:
+    /// the line is shown from a window around it (input audit).
+    #[test]
+    fn a_caret_past_the_cut_is_kept_under_its_place() {
+        let f: Arc<str> = Arc::from("m.rtcl");
+        let line = format!("{}X{}", "a".repeat(5_000), "b".repeat(5_000));
+        let detail = format!("1 | {line}\n  | {}^", " ".repeat(5_000));
+        let d = Diagnostic::error(&f, Loc::new(1, 5_001), "x", "bad").with_detail(detail);
+        let text = d.to_string();
+        let lines: Vec<&str> = text.lines().collect();
+        let src = lines[1].strip_prefix("    1 | …").expect(&text);
+        let caret = lines[2].strip_prefix("      |  ").expect(&text);
+        let col = caret.chars().position(|c| c == '^').expect(&text);
+        assert_eq!(src.chars().nth(col), Some('X'), "{text}");
+        assert!(lines[1].chars().count() < MAX_SHOWN + 40, "{text}");
+        // A caret near the start is left as it was.
+        let d =
+            Diagnostic::error(&f, Loc::new(1, 3), "x", "bad").with_detail("1 | abcdef\n  |   ^");
+        assert!(
+            d.to_string().ends_with("    1 | abcdef\n      |   ^"),
+            "{d}"
+        );
+        // A condition's snippet, no gutter.
+        let cond = format!(
+            "{}x >= && y\n{}^^ expected an operand",
+            "a".repeat(400),
+            " ".repeat(402)
+        );
+        let d = Diagnostic::error(&f, Loc::new(1, 1), "x", "bad").with_detail(cond);
+        let text = d.to_string();
+        let lines: Vec<&str> = text.lines().collect();
+        let src = lines[1].strip_prefix("    …").expect(&text);
+        let caret = lines[2].strip_prefix("     ").expect(&text);
+        let col = caret.chars().position(|c| c == '^').expect(&text);
+        assert_eq!(&src[col..col + 2], ">=", "{text}");
     }
 
     #[test]
