@@ -7,7 +7,7 @@
 //! The format is described in `docs/rtcl.md`. A library is checked when it
 //! is loaded: every problem is reported with its file, line and column.
 
-use crate::template::{Guard, JsonTemplate, Template, Val};
+use crate::template::{Guard, JsonTemplate, Part, Template, Val};
 use bite_core::diag::{Diagnostic, Diagnostics, Loc, did_you_mean};
 use bite_core::graph::spec::MembersSpec;
 use bite_core::wm::Policy;
@@ -402,6 +402,19 @@ enum Scope {
     Repeated,
 }
 
+/// A condition's names, all taken: a library's template is checked for
+/// its syntax only (what a name means is known once it is filled in).
+struct AnyName;
+
+impl bite_core::cond::Resolver for AnyName {
+    fn belief(&mut self, _: &str) -> bite_core::ids::BeliefId {
+        bite_core::ids::BeliefId(0)
+    }
+    fn behavior(&self, _: &str) -> Option<bite_core::ids::BehaviorId> {
+        Some(bite_core::ids::BehaviorId(0))
+    }
+}
+
 struct Checker<'a> {
     file: Arc<str>,
     text: &'a str,
@@ -455,6 +468,43 @@ impl Checker<'_> {
                 None
             }
         }
+    }
+
+    /// [`Checker::template`] for a condition (an `until`, a belief): it
+    /// must also parse as one once its placeholders are filled in. Each
+    /// placeholder is tried as a name and as a number (it may become
+    /// either), and only a condition that parses as neither is an error,
+    /// here at the library's line rather than in the compiled graph.
+    fn condition(&mut self, text: &str, loc: Loc, vars: &Vars, scope: Scope) -> Option<Template> {
+        let t = self.template(text, loc, vars, scope)?;
+        let filled = |stand_in: &str| {
+            let mut out = String::new();
+            for p in &t.parts {
+                match p {
+                    Part::Lit(l) => out.push_str(l),
+                    Part::Expr(_) => out.push_str(stand_in),
+                }
+            }
+            out
+        };
+        let mut err = None;
+        for stand_in in ["x", "1"] {
+            match bite_core::cond::Expr::parse(&filled(stand_in), &mut AnyName) {
+                Ok(_) => return Some(t),
+                Err(e) => err = err.or(Some(e)),
+            }
+        }
+        if let Some(e) = err {
+            let d = self.err(
+                loc,
+                format!(
+                    "condition `{text}` does not parse (its placeholders read as a name): {}",
+                    e.message
+                ),
+            );
+            d.hint = e.hint;
+        }
+        None
     }
 
     fn var(&mut self, v: &str, text: &str, at: usize, loc: Loc, vars: &Vars, scope: Scope) {
@@ -948,14 +998,14 @@ fn command(
     // Beliefs.
     let mut beliefs = Vec::new();
     for (bname, b) in &cmd.beliefs.0 {
-        if let Some(t) = c.template(&b.value, loc_of(b), &vars, Scope::Belief) {
+        if let Some(t) = c.condition(&b.value, loc_of(b), &vars, Scope::Belief) {
             beliefs.push((bname.value.clone(), t));
         }
     }
     let until = cmd
         .until
         .as_ref()
-        .and_then(|u| c.template(&u.value, loc_of(u), &vars, Scope::Body));
+        .and_then(|u| c.condition(&u.value, loc_of(u), &vars, Scope::Body));
     // Phases.
     let mut phases = Vec::new();
     let mut names = BTreeSet::new();
@@ -1037,7 +1087,7 @@ fn phase(
     let until = p
         .until
         .as_ref()
-        .and_then(|u| c.template(&u.value, loc_of(u), vars, Scope::Body));
+        .and_then(|u| c.condition(&u.value, loc_of(u), vars, Scope::Body));
     let terminate = p.terminate.as_ref().map(|t| {
         if !t
             .value
@@ -1103,7 +1153,7 @@ fn phase(
                 let until = ch
                     .until
                     .as_ref()
-                    .and_then(|u| c.template(&u.value, loc_of(u), vars, scope));
+                    .and_then(|u| c.condition(&u.value, loc_of(u), vars, scope));
                 let then_list = ch.then.as_deref().unwrap_or_default();
                 let last_until = then_list
                     .last()
@@ -1147,7 +1197,7 @@ fn phase(
                     let until = t
                         .until
                         .as_ref()
-                        .and_then(|u| c.template(&u.value, loc_of(u), vars, scope));
+                        .and_then(|u| c.condition(&u.value, loc_of(u), vars, scope));
                     let skill = match &t.skill {
                         Some(s) if !s.is_empty() => c.schemas(s, vars, scope),
                         _ => {
@@ -1374,6 +1424,41 @@ commands:
                 "9:13: schema `stop` needs a `layer` (its priority, 0 to 3)",
                 "10:29: unknown variable `{secnds}`",
             ],
+            "{msgs:#?}"
+        );
+    }
+
+    /// A condition of the library that cannot parse is reported at the
+    /// library's line, not in the graph a mission compiles to; one that
+    /// parses once filled in (a placeholder as part of a name, or as a
+    /// number) is not.
+    #[test]
+    fn a_condition_that_cannot_parse_is_located_in_the_library() {
+        let text = "\
+commands:
+  wait:
+    params:
+      - { name: seconds, type: duration }
+      - { name: what, type: name }
+    beliefs:
+      close: \"known({what}_pos) &&\"
+    phases:
+      - name: hold
+        skill: [{ schema: stop, layer: 1 }]
+        until: \"elapsed >= {seconds} && {what}_ok || runs({what}) > {seconds}\"
+      - name: after
+        skill: [{ schema: stop, layer: 1 }]
+        until: \"elapsed >= {seconds} ! 2\"
+";
+        let e = lib_err(text);
+        let msgs: Vec<_> = e.iter().map(|(l, c, m)| format!("{l}:{c}: {m}")).collect();
+        assert_eq!(msgs.len(), 2, "{msgs:#?}");
+        assert!(
+            msgs[0].starts_with("7:14: condition `known({what}_pos) &&` does not parse"),
+            "{msgs:#?}"
+        );
+        assert!(
+            msgs[1].starts_with("14:16: condition `elapsed >= {seconds} ! 2` does not parse"),
             "{msgs:#?}"
         );
     }
