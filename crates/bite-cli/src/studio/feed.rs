@@ -167,15 +167,13 @@ impl Feed {
         self.touch();
     }
 
-    /// Add a record.
+    /// Add a record; the oldest quarter goes when the feed holds more
+    /// than [`MAX_RECORDS`] or [`MAX_BYTES`]. Its size is counted as it is
+    /// written out ([`json_len`]), the measure its dropping subtracts: a
+    /// payload's own length (its spacing, its escapes) would make the
+    /// count drift.
     pub fn push(&mut self, rec: J) {
         let len = json_len(&rec);
-        self.push_sized(rec, len);
-    }
-
-    /// Add a record of `len` bytes of JSON; the oldest quarter goes when
-    /// the feed holds more than [`MAX_RECORDS`] or [`MAX_BYTES`].
-    pub fn push_sized(&mut self, rec: J, len: usize) {
         self.records.push(rec);
         self.bytes = self.bytes.saturating_add(len);
         if self.records.len() > MAX_RECORDS || self.bytes > MAX_BYTES {
@@ -184,10 +182,10 @@ impl Feed {
         self.touch();
     }
 
-    /// A record from a live team ([`live_record`] of its `len` bytes):
-    /// kept if it is one, of a robot on the roster (when the roster is
-    /// known); counted otherwise.
-    pub fn push_live(&mut self, rec: Result<J, Refused>, len: usize) {
+    /// A record from a live team ([`live_record`] of its payload): kept
+    /// if it is one, of a robot on the roster (when the roster is known);
+    /// counted otherwise.
+    pub fn push_live(&mut self, rec: Result<J, Refused>) {
         let rec = match rec {
             Ok(r) => r,
             Err(Refused::Oversize) => {
@@ -218,7 +216,7 @@ impl Feed {
                 self.roster = Some(names);
             }
         }
-        self.push_sized(rec, len);
+        self.push(rec);
     }
 
     fn drop_oldest(&mut self) {
@@ -607,7 +605,7 @@ not json
         let mut f = Feed::new();
         f.reset(Source::Zenoh, "team".into(), true);
         let live = |f: &mut Feed, b: &[u8], status: bool| {
-            f.push_live(live_record(b, status), b.len());
+            f.push_live(live_record(b, status));
         };
         // Garbage, and a record too large.
         live(&mut f, b"not json", false);
@@ -639,6 +637,19 @@ not json
         f.reset(Source::Zenoh, "team".into(), true);
         assert_eq!(f.dropped, Dropped::default());
         assert!(f.roster.is_none());
+        // Records sent spaced out are counted as kept, not as sent: the
+        // count is what dropping them takes off again.
+        let spaced = format!(
+            "{{ \"t\" : 1.0 ,  \"robot\" : \"r0\" , \"event\" : \"x\", \"pad\": \"{}\" }}{}",
+            "b".repeat(4000),
+            " ".repeat(500)
+        );
+        for _ in 0..(MAX_BYTES / 4000 + 100) {
+            live(&mut f, spaced.as_bytes(), false);
+        }
+        assert!(f.dropped.oldest > 0);
+        let kept: usize = f.records.iter().map(json_len).sum();
+        assert_eq!(f.bytes, kept);
     }
 
     #[test]

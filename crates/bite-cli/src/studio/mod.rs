@@ -860,13 +860,15 @@ fn fetch_layout(studio: &Arc<Studio>) {
             if !got && let Ok(replies) = session.get(&key).timeout(Duration::from_secs(1)).wait() {
                 while let Ok(reply) = replies.recv() {
                     let Ok(sample) = reply.result() else { continue };
+                    if sample.payload().len() > feed::MAX_RECORD_BYTES {
+                        continue;
+                    }
                     if let Ok(rec) = serde_json::from_slice::<J>(&sample.payload().to_bytes())
                         && rec["event"] == "world"
                     {
                         let mut f = st.feed();
                         if f.source == Source::Zenoh && f.generation == generation {
-                            let len = sample.payload().len();
-                            f.push_live(Ok(rec), len);
+                            f.push_live(Ok(rec));
                         }
                         got = true;
                     }
@@ -917,7 +919,7 @@ fn subscribe(
                 };
                 let mut f = st.feed();
                 if f.source == Source::Zenoh {
-                    f.push_live(rec, len);
+                    f.push_live(rec);
                 }
             })
             .wait()
