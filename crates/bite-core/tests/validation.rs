@@ -350,6 +350,21 @@ fn empty_behaviors_section() {
     says(d, &["`behaviors:` is empty"]);
 }
 
+/// A robot's name is a chunk of its network keys and its log's file
+/// name: an empty one, or one with `/` or `*`, is refused where it is.
+#[test]
+fn bad_robot_names() {
+    for bad in ["\"\"", "\"r/1\"", "\"r*\"", "\"two words\""] {
+        let text = format!(
+            "graph: g\nteam:\n  robots:\n    - {{ name: r0 }}\n    - {{ name: {bad} }}\nbehaviors:\n  a: {{ team: true }}\n"
+        );
+        let e = graph_err("robots.yaml", &text);
+        let d = one(&e.0, "bad-name");
+        at(d, 5, 7);
+        says(d, &["is not a valid robot name"]);
+    }
+}
+
 #[test]
 fn bad_behavior_name() {
     let e = fixture_err(fixture!("bad-name.yaml"));

@@ -660,6 +660,19 @@ impl Builder<'_> {
                 let mut robots = Vec::new();
                 for r in list {
                     let rloc = Loc::from(r.referenced);
+                    // A robot's name is a chunk of its network keys
+                    // (`bite/<team>/net/<robot>`) and of its log's file
+                    // name: no `/`, `*`, spaces, nor an empty name.
+                    if !valid_name(&r.value.name) {
+                        self.err(
+                            rloc,
+                            "bad-name",
+                            format!(
+                                "`{}` is not a valid robot name: use letters, digits, `_` and `-`, starting with a letter",
+                                r.value.name
+                            ),
+                        );
+                    }
                     if !seen.insert(r.value.name.clone()) {
                         self.err(
                             rloc,
