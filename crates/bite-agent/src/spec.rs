@@ -14,8 +14,8 @@ use std::sync::Arc;
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(crate) struct PhysicsRaw {
-    hz: Option<f64>,
-    arena: [f64; 2],
+    hz: Option<Spanned<f64>>,
+    arena: Spanned<[f64; 2]>,
     #[serde(default)]
     robot: RobotRaw,
     #[serde(default)]
@@ -47,12 +47,12 @@ struct TargetRaw {
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
 struct RobotRaw {
-    radius: Option<f64>,
-    drive: Option<String>,
-    max_speed: Option<f64>,
-    max_turn: Option<f64>,
-    max_accel: Option<f64>,
-    mass: Option<f64>,
+    radius: Option<Spanned<f64>>,
+    drive: Option<Spanned<String>>,
+    max_speed: Option<Spanned<f64>>,
+    max_turn: Option<Spanned<f64>>,
+    max_accel: Option<Spanned<f64>>,
+    mass: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -470,15 +470,22 @@ impl PhysicsSpec {
         raw: PhysicsRaw,
         d: &mut Vec<Diagnostic>,
     ) -> PhysicsSpec {
-        let hz = positive(file, loc, "hz", raw.hz.unwrap_or(50.0), d);
+        // Each value's error at its key, the section's where it is left out.
+        let value = |v: &Option<Spanned<f64>>, default: f64| match v {
+            Some(s) => (Loc::from(s.referenced), s.value),
+            None => (loc, default),
+        };
+        let (at, v) = value(&raw.hz, 50.0);
+        let hz = positive(file, at, "hz", v, d);
+        let arena_at = Loc::from(raw.arena.referenced);
         let arena = DVec2::new(
-            positive(file, loc, "arena width", raw.arena[0], d),
-            positive(file, loc, "arena height", raw.arena[1], d),
+            positive(file, arena_at, "arena width", raw.arena.value[0], d),
+            positive(file, arena_at, "arena height", raw.arena.value[1], d),
         );
         if arena.x > MAX_ARENA || arena.y > MAX_ARENA {
             d.push(Diagnostic::error(
                 file,
-                loc,
+                arena_at,
                 "bad-value",
                 format!(
                     "the arena is at most {MAX_ARENA} m on a side, found {} x {}",
@@ -487,24 +494,34 @@ impl PhysicsSpec {
             ));
         }
         let r = &raw.robot;
-        let drive = match r.drive.as_deref() {
-            None | Some("differential") => Drive::Differential,
-            Some("holonomic") => Drive::Holonomic,
-            Some(other) => {
+        let drive = match r.drive.as_ref() {
+            None => Drive::Differential,
+            Some(s) if s.value == "differential" => Drive::Differential,
+            Some(s) if s.value == "holonomic" => Drive::Holonomic,
+            Some(s) => {
                 d.push(
-                    Diagnostic::error(file, loc, "bad-value", format!("unknown drive `{other}`"))
-                        .with_hint("`differential` or `holonomic`"),
+                    Diagnostic::error(
+                        file,
+                        Loc::from(s.referenced),
+                        "bad-value",
+                        format!("unknown drive `{}`", s.value),
+                    )
+                    .with_hint("`differential` or `holonomic`"),
                 );
                 Drive::Differential
             }
         };
+        let robot_value = |name: &str, v: &Option<Spanned<f64>>, default: f64, d: &mut Vec<_>| {
+            let (at, v) = value(v, default);
+            positive(file, at, name, v, d)
+        };
         let robot = RobotModel {
-            radius: positive(file, loc, "robot.radius", r.radius.unwrap_or(0.15), d),
+            radius: robot_value("robot.radius", &r.radius, 0.15, d),
             drive,
-            max_speed: positive(file, loc, "robot.max_speed", r.max_speed.unwrap_or(0.3), d),
-            max_turn: positive(file, loc, "robot.max_turn", r.max_turn.unwrap_or(3.0), d),
-            max_accel: positive(file, loc, "robot.max_accel", r.max_accel.unwrap_or(1.0), d),
-            mass: positive(file, loc, "robot.mass", r.mass.unwrap_or(10.0), d),
+            max_speed: robot_value("robot.max_speed", &r.max_speed, 0.3, d),
+            max_turn: robot_value("robot.max_turn", &r.max_turn, 3.0, d),
+            max_accel: robot_value("robot.max_accel", &r.max_accel, 1.0, d),
+            mass: robot_value("robot.mass", &r.mass, 10.0, d),
         };
         let start = raw
             .start
@@ -1008,6 +1025,39 @@ mod tests {
             "scenario: s\nworld: physics\nphysics:\n  arena: [7, 4]\n  objects:\n    - {{ name: box, box: [0.3, 0.3], at: {at} }}\n"
         );
         crate::scenario::Scenario::load_str(&Arc::from("s.yaml"), &text)
+    }
+
+    /// A bad value of the physics section is reported at its key, not at
+    /// the section's first line (input audit).
+    #[test]
+    fn a_bad_physics_value_is_an_error_at_its_key() {
+        let err = |body: &str| {
+            let text = format!("scenario: s\nworld: physics\nphysics:\n  hz: 50\n{body}");
+            match crate::scenario::Scenario::load_str(&Arc::from("s.yaml"), &text) {
+                Ok(_) => panic!("`{body}` accepted"),
+                Err(d) => d.to_string(),
+            }
+        };
+        let e = err("  arena: [7, -4]\n");
+        assert!(
+            e.contains("s.yaml:5:10: error[bad-value]: `arena height`"),
+            "{e}"
+        );
+        let e = err("  arena: [7, 4]\n  robot:\n    radius: 0.2\n    mass: 0\n");
+        assert!(
+            e.contains("s.yaml:8:11: error[bad-value]: `robot.mass`"),
+            "{e}"
+        );
+        let e = err("  arena: [7, 4]\n  robot: { drive: legs }\n");
+        assert!(
+            e.contains("s.yaml:6:19: error[bad-value]: unknown drive `legs`"),
+            "{e}"
+        );
+        let e = err("  arena: [1e9, 4]\n");
+        assert!(
+            e.contains("s.yaml:5:10: error[bad-value]: the arena is at most"),
+            "{e}"
+        );
     }
 
     #[test]
