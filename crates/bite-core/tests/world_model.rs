@@ -504,7 +504,8 @@ fn a_mistyped_policy_is_an_error_at_its_line_with_a_hint() {
     let err = bite_core::Config::load_str(&Arc::from("x.yaml"), text).expect_err("rejected");
     let d = &err.0[0];
     assert_eq!(d.code, "bad-sharing");
-    assert_eq!(d.loc.line, 3, "{d}");
+    // At the value, not the section.
+    assert_eq!((d.loc.line, d.loc.col), (3, 12), "{d}");
     assert!(
         d.hint
             .as_deref()
@@ -517,6 +518,23 @@ fn a_mistyped_policy_is_an_error_at_its_line_with_a_hint() {
     );
     let err = load_str(&Arc::from("g.yaml"), &g).expect_err("hz 0 rejected");
     assert!(err.has("bad-value"), "{err}");
+    let d = &err.0[0];
+    let line = g
+        .lines()
+        .position(|l| l.starts_with("world_model:"))
+        .expect("there")
+        + 1;
+    let col = g
+        .lines()
+        .nth(line - 1)
+        .and_then(|l| l.find("hz: 0"))
+        .expect("there")
+        + 5;
+    assert_eq!(
+        (d.loc.line as usize, d.loc.col as usize),
+        (line, col),
+        "{err}"
+    );
     // A configuration replaces the graph's settings.
     let g = load_str(&Arc::from("g.yaml"), GRAPH).expect("loads");
     assert_eq!(g.sharing().policy, Policy::None);

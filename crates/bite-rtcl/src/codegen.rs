@@ -1020,7 +1020,7 @@ impl GeneratedGraph {
             beliefs: Ordered::default(),
             world_model: (self.sharing != Policy::None).then(|| {
                 at(WorldModelSpec {
-                    sharing: Some(self.sharing.to_string()),
+                    sharing: Some(at(self.sharing.to_string())),
                     hz: None,
                     budget: None,
                 })

@@ -112,13 +112,19 @@ impl Sharing {
         let loc = Loc::from(spec.referenced);
         let w = &spec.value;
         let mut out = self;
-        if let Some(name) = &w.sharing {
+        // Each value's error at the value, not at the section.
+        let at = |l: serde_saphyr::Location| match Loc::from(l) {
+            l if l.is_known() => l,
+            _ => loc,
+        };
+        if let Some(spanned) = &w.sharing {
+            let name = &spanned.value;
             match Policy::parse(name) {
                 Some(p) => out.policy = p,
                 None => {
                     let mut d = Diagnostic::error(
                         file,
-                        loc,
+                        at(spanned.referenced),
                         "bad-sharing",
                         format!("unknown sharing policy `{name}`"),
                     );
@@ -129,25 +135,27 @@ impl Sharing {
                 }
             }
         }
-        if let Some(hz) = w.hz {
+        if let Some(spanned) = &w.hz {
+            let hz = spanned.value;
             if hz.is_finite() && hz > 0.0 && hz <= 1000.0 {
                 out.hz = hz;
             } else {
                 diags.push(Diagnostic::error(
                     file,
-                    loc,
+                    at(spanned.referenced),
                     "bad-value",
                     format!("`hz` is decisions per second, above 0 and at most 1000, found {hz}"),
                 ));
             }
         }
-        if let Some(b) = w.budget {
+        if let Some(spanned) = &w.budget {
+            let b = spanned.value;
             if b.is_finite() && b > 0.0 {
                 out.budget = Some(b);
             } else {
                 diags.push(Diagnostic::error(
                     file,
-                    loc,
+                    at(spanned.referenced),
                     "bad-value",
                     format!("`budget` is messages per second, above 0, found {b}"),
                 ));

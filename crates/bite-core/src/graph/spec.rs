@@ -38,11 +38,11 @@ pub struct GraphSpec {
 #[serde(deny_unknown_fields)]
 pub struct WorldModelSpec {
     /// `none`, `broadcast`, `focused`, `helpful` or `focused+helpful`.
-    pub sharing: Option<String>,
+    pub sharing: Option<Spanned<String>>,
     /// Decisions per second.
-    pub hz: Option<f64>,
+    pub hz: Option<Spanned<f64>>,
     /// Messages per second per robot (one per recipient).
-    pub budget: Option<f64>,
+    pub budget: Option<Spanned<f64>>,
 }
 
 /// The `team:` section.
