@@ -806,6 +806,11 @@ fn cases_that_failed_once() {
         (7_971_561_576_938_882_804, 8),
         (16_496_831_448_393_991_138, 3),
         (8_177_170_296_156_092_438, 6),
+        // "A teammate converged past an allocation it never started", seed
+        // 7816: r4 converged from `b2`#1 onto its teammates' `b2`#2, past
+        // `b1`#2, whose `alloc.optimal` r0 coordinated; r0 waited 14.5 s
+        // for r4's costs, until its deadline.
+        (216_557_608_976_084_570, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

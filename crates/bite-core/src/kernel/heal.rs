@@ -371,10 +371,27 @@ impl Kernel {
                     .any(|g| g.id == id && g.state != FrameState::Running && g.alloc.is_none())
                     && self.graph().is_alloc_point(id.behavior)
             };
+            // Or it follows it, converged past it, never having run it (it
+            // neither ended it nor runs it): it never started the
+            // execution, so it sends nothing to its allocation, where a
+            // coordinator would wait for it until its deadline (property
+            // seed 7816). It stays there if it leads it here: it may have
+            // run it and decided, its end no longer among those its
+            // heartbeat lists.
+            let converged_past = || {
+                slot.is_some()
+                    && !pos.ended.iter().any(|e| e.id == id)
+                    && !pos.burned.contains(&id)
+                    && !pos.frames.iter().any(|g| g.id == id)
+                    && pos.frames.iter().any(|g| g.follows(id))
+                    && self.graph().is_alloc_point(id.behavior)
+            };
             if went_past {
-                skipped = Some((id, false));
+                skipped = Some((id, false, false));
             } else if slot.is_some() && ran && unallocated() {
-                skipped = Some((id, true));
+                skipped = Some((id, true, false));
+            } else if ran && converged_past() {
+                skipped = Some((id, true, true));
             }
             let ended = ran || went_past || went_round;
             // Nothing to learn: the team is not looked up (its split is
@@ -458,8 +475,8 @@ impl Kernel {
         // before it was allocated decided none. One that went past it
         // without running it takes part in none of its points: it sends no
         // `Done` to its end either.
-        if let Some((id, allocation_only)) = skipped {
-            self.skip_execution(id, from, allocation_only);
+        if let Some((id, allocation_only, spare_coordinator)) = skipped {
+            self.skip_execution(id, from, allocation_only, spare_coordinator);
         }
         if newly_departed {
             self.note_left_ran(from, pos);
@@ -525,8 +542,15 @@ impl Kernel {
     /// Leave teammate `from` out of the points of execution `id` (only its
     /// allocation when `allocation_only`): it went past the execution
     /// without running it (`Kernel::went_past`), or ended it before it was
-    /// allocated.
-    fn skip_execution(&mut self, id: FrameId, from: RobotId, allocation_only: bool) {
+    /// allocated, or converged past it (not from an instance it coordinates
+    /// here when `spare_coordinator`).
+    fn skip_execution(
+        &mut self,
+        id: FrameId,
+        from: RobotId,
+        allocation_only: bool,
+        spare_coordinator: bool,
+    ) {
         let keys: SmallVec<[InstanceKey; 2]> = (self.instances.iter())
             .filter(|(k, i)| {
                 (k.kind == Kind::Allocate || !allocation_only)
@@ -534,6 +558,7 @@ impl Kernel {
                     && matches!(i.state, State::Armed | State::Active)
                     && i.team.contains(from)
                     && !i.excludes(from)
+                    && !(spare_coordinator && self.coordinator(*k, i) == Some(from))
             })
             .map(|(k, _)| k)
             .collect();

@@ -95,6 +95,9 @@ fn registry() -> Registry {
         ("term.test-barrier", Kind::Terminate, true, || {
             Box::new(BarrierInst)
         }),
+        ("alloc.test-never", Kind::Allocate, true, || {
+            Box::new(SilentInst)
+        }),
     ] {
         r.register(Arc::new(TestProtocol {
             name,
@@ -2557,6 +2560,47 @@ fn a_teammate_that_went_past_an_execution_without_running_it_is_left_out_of_it()
         RobotId(2),
         "robot 2 is done with `first`",
     );
+}
+
+/// A teammate that converged past an execution onto its successor, never
+/// having run it, is left out of its allocation (it sends nothing there),
+/// unless it coordinates it: it may have run it and decided, its end no
+/// longer among those its heartbeat lists. Found by
+/// `no_waiting_across_levels` (RNG seed 7816, graph seed
+/// 216557608976084570): a coordinator waited 14.5 s for the costs of a
+/// teammate that had converged past the allocation's execution.
+#[test]
+fn a_teammate_converged_past_an_allocation_is_left_out_of_it_unless_it_leads_it() {
+    const A_B: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, children: [x, y], allocate: alloc.test-never, next: [b] }
+  x: { team: true, skill: w }
+  y: { team: true, skill: w }
+  b: { team: true, until: never }";
+    let mut h = Harness::new(A_B, 3);
+    h.tick(0, &[]);
+    let [root, a, b] = behaviors(&h, 0, ["root", "a", "b"]);
+    let id = |behavior| FrameId {
+        team: TeamId::ROOT,
+        behavior,
+        epoch: 1,
+    };
+    let alloc = InstanceKey {
+        kind: Kind::Allocate,
+        ..first_termination(a)
+    };
+    for r in 0..3 {
+        assert!(h.kernels[r].instances.get(&alloc).is_some(), "r{r} waits");
+    }
+    // Robot 2, heard by robot 0 (which coordinates) in `b`#1 after `a`#1.
+    let past = [(id(root), None), (id(b), Some((id(a), false)))];
+    tell(&mut h, 0, 2, Time::from_millis(200), &past);
+    assert!(left_out(&h, 0, alloc, RobotId(2)), "robot 2 left out");
+    // Robot 0, the coordinator, heard so by robot 1: it stays.
+    tell(&mut h, 1, 0, Time::from_millis(200), &past);
+    assert!(!left_out(&h, 1, alloc, RobotId(0)), "the coordinator stays");
 }
 
 /// A robot whose deadline falls at a point with counted teammates it has
