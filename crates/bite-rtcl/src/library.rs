@@ -471,25 +471,48 @@ impl Checker<'_> {
     }
 
     /// [`Checker::template`] for a condition (an `until`, a belief): it
-    /// must also parse as one once its placeholders are filled in. Each
-    /// placeholder is tried as a name and as a number (it may become
-    /// either), and only a condition that parses as neither is an error,
-    /// here at the library's line rather than in the compiled graph.
+    /// must also parse as one once its placeholders are filled in. The
+    /// placeholders are tried as a name, as a number and as a comparison
+    /// (a choice may be one), and only a condition that parses as none of
+    /// them is an error, here at the library's line rather than in the
+    /// compiled graph.
     fn condition(&mut self, text: &str, loc: Loc, vars: &Vars, scope: Scope) -> Option<Template> {
         let t = self.template(text, loc, vars, scope)?;
-        let filled = |stand_in: &str| {
-            let mut out = String::new();
-            for p in &t.parts {
-                match p {
-                    Part::Lit(l) => out.push_str(l),
-                    Part::Expr(_) => out.push_str(stand_in),
-                }
+        // The distinct placeholders, each given a stand-in of its own:
+        // every combination while there are few of them, the same one for
+        // all beyond.
+        const STAND_INS: [&str; 3] = ["x", "1", "=="];
+        let mut distinct: Vec<&crate::template::Expr> = Vec::new();
+        for p in &t.parts {
+            if let Part::Expr(e) = p
+                && !distinct.contains(&e)
+            {
+                distinct.push(e);
             }
-            out
+        }
+        // Combination `n`'s stand-in for distinct placeholder `k`.
+        let each = distinct.len() <= 4;
+        let pick = |n: usize, k: usize| match each {
+            true => n / STAND_INS.len().pow(k as u32) % STAND_INS.len(),
+            false => n,
+        };
+        let count = match each {
+            true => STAND_INS.len().pow(distinct.len() as u32),
+            false => STAND_INS.len(),
         };
         let mut err = None;
-        for stand_in in ["x", "1"] {
-            match bite_core::cond::Expr::parse(&filled(stand_in), &mut AnyName) {
+        for n in 0..count {
+            let mut filled = String::new();
+            for p in &t.parts {
+                match p {
+                    Part::Lit(l) => filled.push_str(l),
+                    Part::Expr(e) => {
+                        let k = distinct.iter().position(|d| d == &e).unwrap_or(0);
+                        filled.push_str(STAND_INS[pick(n, k)]);
+                    }
+                }
+            }
+            match bite_core::cond::Expr::parse(&filled, &mut AnyName) {
                 Ok(_) => return Some(t),
                 Err(e) => err = err.or(Some(e)),
             }
@@ -498,7 +521,7 @@ impl Checker<'_> {
             let d = self.err(
                 loc,
                 format!(
-                    "condition `{text}` does not parse (its placeholders read as a name): {}",
+                    "condition `{text}` does not parse (its placeholders read as names, numbers or comparisons): {}",
                     e.message
                 ),
             );
@@ -1440,6 +1463,7 @@ commands:
     params:
       - { name: seconds, type: duration }
       - { name: what, type: name }
+      - { name: op, type: name }
     beliefs:
       close: \"known({what}_pos) &&\"
     phases:
@@ -1449,16 +1473,19 @@ commands:
       - name: after
         skill: [{ schema: stop, layer: 1 }]
         until: \"elapsed >= {seconds} ! 2\"
+      - name: compared
+        skill: [{ schema: stop, layer: 1 }]
+        until: \"runs({what}) {op} {seconds}\"
 ";
         let e = lib_err(text);
         let msgs: Vec<_> = e.iter().map(|(l, c, m)| format!("{l}:{c}: {m}")).collect();
         assert_eq!(msgs.len(), 2, "{msgs:#?}");
         assert!(
-            msgs[0].starts_with("7:14: condition `known({what}_pos) &&` does not parse"),
+            msgs[0].starts_with("8:14: condition `known({what}_pos) &&` does not parse"),
             "{msgs:#?}"
         );
         assert!(
-            msgs[1].starts_with("14:16: condition `elapsed >= {seconds} ! 2` does not parse"),
+            msgs[1].starts_with("15:16: condition `elapsed >= {seconds} ! 2` does not parse"),
             "{msgs:#?}"
         );
     }
