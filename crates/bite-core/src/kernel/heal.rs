@@ -21,6 +21,21 @@ const LEADS_BACK_WALK: usize = 64;
 /// two heartbeats; a larger gap is a teammate's word that cannot be true.
 const MAX_CATCH_UP: u32 = 64;
 
+/// Which points of an execution a teammate is left out of
+/// (`Kernel::skip_execution`).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Skip {
+    /// All of them: it went past the execution without running it
+    /// (`Kernel::went_past`).
+    Points,
+    /// Its allocation: it ended the execution before it was allocated.
+    Allocation,
+    /// Its allocation, unless it coordinates it here: it converged past
+    /// the execution (it may have run it and decided, its end no longer
+    /// among those its heartbeat lists).
+    AllocationButCoordinator,
+}
+
 impl Kernel {
     /// Allocation splits: a teammate under the same execution of an
     /// allocation point holds another allocation of it. The newest round
@@ -327,14 +342,16 @@ impl Kernel {
                 },
             };
             let id = f.id();
-            let report = (pos.frames.iter().find(|g| g.id == id)).and_then(|g| g.departed.as_ref());
-            // It ended the execution, or runs its successor (it may have
-            // gone past it without running it, converging on teammates
-            // further on).
-            let ran = pos.ended.iter().any(|e| e.id == id)
-                || pos.burned.contains(&id)
-                || (pos.frames.iter())
-                    .any(|g| (g.id == id && g.state != FrameState::Running) || g.follows(id));
+            // Its frame of the execution, if it shows one.
+            let shown = pos.frames.iter().find(|g| g.id == id);
+            let report = shown.and_then(|g| g.departed.as_ref());
+            // It ended the execution (or burned it), or runs its successor
+            // (it may have gone past it without running it, converging on
+            // teammates further on).
+            let ended_it = pos.ended.iter().any(|e| e.id == id) || pos.burned.contains(&id);
+            let follows = || pos.frames.iter().any(|g| g.follows(id));
+            let ran =
+                ended_it || shown.is_some_and(|g| g.state != FrameState::Running) || follows();
             // Else the teammate's frame beside it, if it runs one this
             // robot has yet to start (looked up once for the tests below).
             let ahead = if ran {
@@ -367,8 +384,7 @@ impl Kernel {
             // One that ended it before any allocation of it (its end, heard
             // with no allocation applied) neither decided one.
             let unallocated = || {
-                (pos.frames.iter())
-                    .any(|g| g.id == id && g.state != FrameState::Running && g.alloc.is_none())
+                shown.is_some_and(|g| g.state != FrameState::Running && g.alloc.is_none())
                     && self.graph().is_alloc_point(id.behavior)
             };
             // Or it follows it, converged past it, never having run it (it
@@ -380,18 +396,17 @@ impl Kernel {
             // heartbeat lists.
             let converged_past = || {
                 slot.is_some()
-                    && !pos.ended.iter().any(|e| e.id == id)
-                    && !pos.burned.contains(&id)
-                    && !pos.frames.iter().any(|g| g.id == id)
-                    && pos.frames.iter().any(|g| g.follows(id))
+                    && !ended_it
+                    && shown.is_none()
+                    && follows()
                     && self.graph().is_alloc_point(id.behavior)
             };
             if went_past {
-                skipped = Some((id, false, false));
+                skipped = Some((id, Skip::Points));
             } else if slot.is_some() && ran && unallocated() {
-                skipped = Some((id, true, false));
+                skipped = Some((id, Skip::Allocation));
             } else if ran && converged_past() {
-                skipped = Some((id, true, true));
+                skipped = Some((id, Skip::AllocationButCoordinator));
             }
             let ended = ran || went_past || went_round;
             // Nothing to learn: the team is not looked up (its split is
@@ -475,8 +490,8 @@ impl Kernel {
         // before it was allocated decided none. One that went past it
         // without running it takes part in none of its points: it sends no
         // `Done` to its end either.
-        if let Some((id, allocation_only, spare_coordinator)) = skipped {
-            self.skip_execution(id, from, allocation_only, spare_coordinator);
+        if let Some((id, skip)) = skipped {
+            self.skip_execution(id, from, skip);
         }
         if newly_departed {
             self.note_left_ran(from, pos);
@@ -539,26 +554,18 @@ impl Kernel {
         }
     }
 
-    /// Leave teammate `from` out of the points of execution `id` (only its
-    /// allocation when `allocation_only`): it went past the execution
-    /// without running it (`Kernel::went_past`), or ended it before it was
-    /// allocated, or converged past it (not from an instance it coordinates
-    /// here when `spare_coordinator`).
-    fn skip_execution(
-        &mut self,
-        id: FrameId,
-        from: RobotId,
-        allocation_only: bool,
-        spare_coordinator: bool,
-    ) {
+    /// Leave teammate `from` out of the points of execution `id` that
+    /// `skip` names.
+    fn skip_execution(&mut self, id: FrameId, from: RobotId, skip: Skip) {
         let keys: SmallVec<[InstanceKey; 2]> = (self.instances.iter())
             .filter(|(k, i)| {
-                (k.kind == Kind::Allocate || !allocation_only)
+                (k.kind == Kind::Allocate || skip == Skip::Points)
                     && (k.team, k.behavior, k.epoch) == (id.team, id.behavior, id.epoch)
                     && matches!(i.state, State::Armed | State::Active)
                     && i.team.contains(from)
                     && !i.excludes(from)
-                    && !(spare_coordinator && self.coordinator(*k, i) == Some(from))
+                    && !(skip == Skip::AllocationButCoordinator
+                        && self.coordinator(*k, i) == Some(from))
             })
             .map(|(k, _)| k)
             .collect();
