@@ -811,6 +811,15 @@ fn cases_that_failed_once() {
         // `b1`#2, whose `alloc.optimal` r0 coordinated; r0 waited 14.5 s
         // for r4's costs, until its deadline.
         (216_557_608_976_084_570, 6),
+        // "A teammate waiting at the end of a successor", seed 7900: r2,
+        // in `b4`#4 after `b3`#3, waited at its `term.majority` for
+        // teammates that waited for it at `b3`#4's `sync.elected-leader`,
+        // until a deadline, twice in the run.
+        (11_260_683_622_264_470_111, 4),
+        // "Following a teammate through its ends, past what came after",
+        // seed 8310: r5 followed r0 into `alt4`#2 and counted past `b3`#2,
+        // which came after it; r0 waited for it at `b1`#3's allocation.
+        (15_285_885_989_656_780_006, 6),
     ] {
         run_generated(seed, robots, 0.0, 0.0, 3, true).unwrap_or_else(|e| panic!("{e}"));
     }

@@ -606,11 +606,19 @@ impl Kernel {
                     epoch: a.epoch,
                 })
         });
+        // Unless it waits at `g`'s end: a termination that needs teammates
+        // there (one it could decide alone it would have), and this robot,
+        // yet to start `g`, gets there only past `id`. Waiting for it at
+        // `id` would be waiting in a circle (property seed 7900). Should
+        // other teammates end `g` with it and it come round to `id` after
+        // all, it finds `id`'s points decided and follows their outcome,
+        // as a departed teammate does.
+        let waits_there = g.state == FrameState::Ending;
         g.id.behavior != id.behavior
             && g.id.epoch > self.org.runs(id.team, g.id.behavior)
             && !(self.slot_at(k)).is_some_and(|(_, f)| f.anchor.is_some_and(before))
             && (self.graph().get(id.behavior)).is_some_and(|b| b.next.contains(&g.id.behavior))
-            && !(from_earlier && self.leads_back(g.id.behavior, id.behavior))
+            && !(from_earlier && !waits_there && self.leads_back(g.id.behavior, id.behavior))
     }
 
     /// True when a teammate runs, beside this robot's execution `id` at
@@ -1147,11 +1155,18 @@ impl Kernel {
             .runs_at_least(team, theirs.behavior, theirs.epoch.saturating_sub(1));
         let parent = self.stack.last().map(Frame::id);
         // Not `theirs`: the teammate may have ended it and wait at its
-        // termination, the execution this robot joins. Not an individual
-        // behavior's: each member numbers its runs of one at its own pace
-        // (`Kernel::meet`).
+        // termination, the execution this robot joins. Nor, when `theirs`
+        // is among its ends (this robot follows it through them:
+        // `Kernel::ran_another_successor`), any it ended after: those came
+        // after `theirs`, on the way this robot now takes, and counted past
+        // they would be numbered apart from the team's (property seed
+        // 8310). Not an individual behavior's: each member numbers its
+        // runs of one at its own pace (`Kernel::meet`).
         let graph = self.mission.graph();
-        for e in &pos.ended {
+        let before = (pos.ended.iter())
+            .rposition(|e| e.id == theirs && e.parent == parent)
+            .unwrap_or(pos.ended.len());
+        for e in &pos.ended[..before] {
             if e.id.team == team
                 && e.parent == parent
                 && e.id != theirs

@@ -2603,6 +2603,51 @@ behaviors:
     assert!(!left_out(&h, 1, alloc, RobotId(0)), "the coordinator stays");
 }
 
+/// A teammate that came from an earlier execution of this robot's
+/// behavior into a successor this robot has yet to start, a way that leads
+/// back round, may still come to this robot's execution: it stays in its
+/// points. Not when it waits there at its successor's end: it comes round
+/// only once its team has ended that successor, after this robot got there
+/// past its own execution, so waiting for it at this robot's point is
+/// waiting in a circle; it is left out. Found by `no_waiting_across_levels`
+/// (RNG seed 7900, graph seed 11260683622264470111): r2, in `b4`#4 after
+/// `b3`#3, waited 127 s at `b4`#4's `term.majority` for teammates who waited
+/// for it at `b3`#4's `sync.elected-leader`.
+#[test]
+fn a_teammate_waiting_at_the_end_of_a_successor_is_left_out_of_the_point_before_it() {
+    const A_B: &str = "start: root
+defaults: { terminate: term.local }
+behaviors:
+  root: { team: true, children: [a] }
+  a: { team: true, skill: w, until: a_done, next: [b, c], sync: sync.test-never }
+  b: { team: true, skill: w, until: b_done, next: [a] }
+  c: { team: true, skill: w }";
+    let mut h = Harness::new(A_B, 3);
+    let [root, a, b] = behaviors(&h, 0, ["root", "a", "b"]);
+    // Robot 0's count of `a` is past #1 (a teammate's word raised it): it
+    // starts `a`#2, ends it, and waits at its synchronization.
+    h.kernels[0].org.runs_at_least(TeamId::ROOT, a, 1);
+    h.tick_one(0, 0, &[("a_done", F), ("b_done", F)]);
+    h.tick_one(0, 100, &[("a_done", T)]);
+    let sync = InstanceKey {
+        kind: Kind::Sync,
+        epoch: 2,
+        ..first_termination(a)
+    };
+    assert!(h.kernels[0].instances.get(&sync).is_some(), "robot 0 waits");
+    // Robot 2 runs `b`#1 after `a`#1; then it waits at `b`#1's end.
+    let mut pos = running(&[
+        (at_root(root, 1), None),
+        (at_root(b, 1), Some((at_root(a, 1), false))),
+    ]);
+    pos.robot = RobotId(2);
+    h.kernels[0].peer(Time::from_millis(150), RobotId(2), &pos);
+    assert!(!left_out(&h, 0, sync, RobotId(2)), "it may come round");
+    pos.frames[1].state = FrameState::Ending;
+    h.kernels[0].peer(Time::from_millis(200), RobotId(2), &pos);
+    assert!(left_out(&h, 0, sync, RobotId(2)), "it waits for the team");
+}
+
 /// A robot whose deadline falls at a point with counted teammates it has
 /// never heard (their heartbeats go to a leader elsewhere) calls them once:
 /// its heartbeats go to them for two retries, and the deadline waits that
@@ -3126,12 +3171,7 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
         // runs alone.
         let mut theirs = running(&[(id(root, 1), None), (id(d, 1), Some((id(b, 1), false)))]);
         theirs.robot = RobotId(0);
-        theirs.ended = [a, b]
-            .map(|x| position::Ended {
-                id: id(x, 1),
-                parent: Some(id(root, 1)),
-            })
-            .to_vec();
+        theirs.ended = ends_under_root(root, &[(a, 1), (b, 1)]);
         (h, theirs, id(b, 1))
     };
     // Ended, but burned (it converged away from it): not followed.
@@ -3153,6 +3193,43 @@ fn a_split_the_other_side_went_through_is_seen_and_healed() {
         ),
         "and says it followed"
     );
+}
+
+/// A robot that follows a teammate through the executions it ended into
+/// the other side of a split counts past the team executions the teammate
+/// ended before the one it follows, not those it ended after: those come
+/// after it, on the way the robot now takes, and the robot joins them.
+/// Counted past, the robot numbered its next one apart from the team's and
+/// waited in it while the team, past it, waited for the robot at the next
+/// point (found by `no_waiting_across_levels`, RNG seed 8310, graph seed
+/// 15285885989656780006: r5 followed r0 into `alt4`#2, counted past `b3`#2,
+/// which came after it, ran `b3`#3 instead, and r0 waited for it at `b1`#3's
+/// allocation until its deadline).
+#[test]
+fn a_robot_following_a_teammate_through_its_ends_joins_what_came_after() {
+    let graph = CHOOSE.replace(
+        "d: { team: true, skill: w, until: d_done }",
+        "d: { team: true, skill: w, until: d_done, next: [e] }\n  e: { team: false, skill: w }",
+    );
+    let mut h = Harness::new(&graph, 2);
+    h.tick(0, &CHOOSE_OFF);
+    h.tick_one(1, 100, &[("a_done", T), ("want_c", T)]);
+    assert_eq!(h.stack(1), ["root", "c"]);
+    let [root, a, b, d, e] = behaviors(&h, 1, ["root", "a", "b", "d", "e"]);
+    // Robot 0 ran `a`#1, `b`#1 and `d`#1, and runs `e`#1.
+    let mut theirs = running(&[
+        (at_root(root, 1), None),
+        (at_root(e, 1), Some((at_root(d, 1), false))),
+    ]);
+    theirs.robot = RobotId(0);
+    theirs.ended = ends_under_root(root, &[(a, 1), (b, 1), (d, 1)]);
+    h.kernels[1].peer(Time::from_millis(150), RobotId(0), &theirs);
+    h.drain(1);
+    assert_eq!(h.stack(1), ["root", "b"], "robot 1 follows robot 0");
+    assert_eq!(h.kernels[1].org.runs(TeamId::ROOT, d), 0, "`d`#1 is next");
+    h.tick_one(1, 200, &[("b_done", T)]);
+    let epoch = (h.kernels[1].stack().iter()).find(|f| f.behavior == d);
+    assert_eq!(epoch.map(|f| f.epoch), Some(1), "{:?}", h.stack(1));
 }
 
 /// The same split when the other side is an individual behavior that the
@@ -3235,13 +3312,19 @@ fn robot_0_in_d2(
         (at_root(d, 2), Some((at_root(a, after), false))),
     ]);
     theirs.robot = RobotId(0);
-    theirs.ended = (ended.iter())
+    theirs.ended = ends_under_root(root, ended);
+    theirs
+}
+
+/// A position's ended executions `ends` (behavior, epoch) of the root
+/// team, oldest first, each under the root's first execution.
+fn ends_under_root(root: BehaviorId, ends: &[(BehaviorId, u32)]) -> Vec<position::Ended> {
+    (ends.iter())
         .map(|&(b, n)| position::Ended {
             id: at_root(b, n),
             parent: Some(at_root(root, 1)),
         })
-        .collect();
-    theirs
+        .collect()
 }
 
 /// A robot that follows a teammate into another execution after the same
