@@ -970,6 +970,27 @@ fn unreachable_behavior_is_a_warning() {
 }
 
 #[test]
+fn initial_belief_no_condition_can_read_is_a_warning() {
+    let (name, text) = fixture!("unreadable-belief.yaml");
+    let g = graph_ok(name, text);
+    let ws: Vec<&Diagnostic> = (g.warnings().iter())
+        .filter(|d| d.code == "unreadable-belief")
+        .collect();
+    assert_eq!(ws.len(), 2, "{:?}", g.warnings());
+    is_warning(ws[0]);
+    at(ws[0], 4, 3);
+    says(ws[0], &["`box found`", "no condition can read"]);
+    // A condition reads the name with `_`: the hint names it.
+    let hint = ws[0].hint.as_deref().unwrap_or("");
+    assert!(hint.contains("did you mean `box_found`"), "{hint}");
+    at(ws[1], 5, 3);
+    let hint = ws[1].hint.as_deref().unwrap_or("");
+    assert!(hint.contains("letters, digits and `_`"), "{hint}");
+    // `ready` is a name a condition reads: no warning for it.
+    assert!(!(ws.iter()).any(|d| d.message.contains("`ready`")));
+}
+
+#[test]
 fn binding_on_a_behavior_that_is_no_point_is_a_warning() {
     let (name, text) = fixture!("binding-unused.yaml");
     let g = graph_ok(name, text);

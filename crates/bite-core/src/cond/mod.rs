@@ -69,6 +69,19 @@ use node::{Node, Ty};
 use std::fmt;
 use std::ops::Range;
 
+/// True when a condition can name a belief `name`: the lexer reads all of
+/// it as one name (ASCII letters, digits and `_`, not starting with a
+/// digit), and it is no keyword (`and`, `or`, `not`, `true`, `false`).
+pub fn readable_name(name: &str) -> bool {
+    lexer::lex(name).is_ok_and(|l| {
+        matches!(
+            l.toks.as_slice(),
+            [w, e] if w.tok == lexer::Tok::Ident && w.start == 0 && w.end == name.len()
+                && e.tok == lexer::Tok::Eof
+        )
+    })
+}
+
 /// Longest accepted source, in bytes.
 pub const MAX_SOURCE_LEN: usize = 4096;
 /// Most tokens in one expression.

@@ -843,3 +843,15 @@ fn eval_through_dyn_env() {
     assert!(e.eval(env));
     assert_eq!(e.eval_value(env), Some(Value::Bool(true)));
 }
+
+#[test]
+fn readable_names_are_what_a_condition_can_name() {
+    for ok in ["a", "box_found", "_x", "b2", "runs", "X_1"] {
+        assert!(readable_name(ok), "{ok}");
+    }
+    for bad in [
+        "", "a b", "mode-b", "2a", "and", "not", "true", "false", "or", "a.x", " a", "é", "a;",
+    ] {
+        assert!(!readable_name(bad), "{bad:?}");
+    }
+}

@@ -606,7 +606,7 @@ impl Builder<'_> {
             Some(w) => crate::graph::Sharing::default().with_spec(&self.file, w, &mut self.diags),
             None => crate::graph::Sharing::default(),
         };
-        let initial_beliefs = self.beliefs(&spec.beliefs);
+        let initial_beliefs = self.beliefs(&spec.beliefs, &symbols);
 
         if self.diags.iter().any(Diagnostic::is_error) {
             return Err(Diagnostics(self.diags));
@@ -790,9 +790,37 @@ impl Builder<'_> {
         out
     }
 
-    fn beliefs(&mut self, spec: &Ordered<serde_json::Value>) -> Vec<(String, Value)> {
+    /// The initial beliefs. One whose name no condition can read (a
+    /// condition names a belief with letters, digits and `_`) is a
+    /// warning: nothing can ever read it, a protocol's expression no more
+    /// than a behavior's condition, so it is most likely a misspelling.
+    fn beliefs(
+        &mut self,
+        spec: &Ordered<serde_json::Value>,
+        symbols: &Symbols,
+    ) -> Vec<(String, Value)> {
         let mut out = Vec::new();
         for (k, v) in &spec.0 {
+            if !crate::cond::readable_name(&k.value) {
+                let mut d = Diagnostic::warning(
+                    &self.file,
+                    Loc::from(k.referenced),
+                    "unreadable-belief",
+                    format!(
+                        "initial belief `{}` has a name no condition can read",
+                        k.value
+                    ),
+                );
+                let near: String = (k.value.chars())
+                    .map(|c| if c.is_ascii_alphanumeric() { c } else { '_' })
+                    .collect();
+                d.hint = Some(if symbols.get(&near).is_some() {
+                    format!("did you mean `{near}`? A condition reads it")
+                } else {
+                    "conditions name beliefs with ASCII letters, digits and `_`, starting with a letter or `_` (not `and`, `or`, `not`, `true`, `false`)".into()
+                });
+                self.diags.push(d);
+            }
             match json_to_value(&v.value) {
                 Some(val) => out.push((k.value.clone(), val)),
                 None => {
