@@ -335,20 +335,18 @@ pub fn load(path: &Path, seeds_override: Option<&str>) -> Result<Experiment> {
                 ConfigEntry::Full(f) => (f.file.clone(), f.label.clone(), f.seed_offset),
             };
             let full = rel(&pattern);
-            let found: Vec<PathBuf> = if pattern.contains(['*', '?', '[']) {
-                match glob::glob(&full.to_string_lossy()) {
-                    Ok(paths) => {
-                        let mut v: Vec<PathBuf> = paths.filter_map(Result::ok).collect();
-                        v.sort();
-                        v
-                    }
+            let found: Vec<PathBuf> = if crate::globwalk::is_pattern(&pattern) {
+                // The spec's folder is a place, not a pattern.
+                let under =
+                    Path::new(&glob::Pattern::escape(&dir.to_string_lossy())).join(&pattern);
+                match crate::globwalk::glob_files(&normalize(&under).to_string_lossy()) {
+                    Ok(v) => v,
                     Err(e) => {
-                        diags.push(error(
-                            &file,
-                            loc(c),
-                            "bad-glob",
-                            format!("`{pattern}`: {e}"),
-                        ));
+                        let code = match e {
+                            crate::globwalk::GlobError::Pattern(_) => "bad-glob",
+                            crate::globwalk::GlobError::TooWide { .. } => "too-wide-glob",
+                        };
+                        diags.push(error(&file, loc(c), code, format!("`{pattern}`: {e}")));
                         continue;
                     }
                 }

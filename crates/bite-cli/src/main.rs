@@ -50,6 +50,7 @@ macro_rules! out {
 }
 
 mod experiment;
+mod globwalk;
 mod lapbench;
 mod outputs;
 mod stats;

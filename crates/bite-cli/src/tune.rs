@@ -429,11 +429,11 @@ fn baselines(a: &TuneArgs) -> Result<Vec<Baseline>> {
         // The configurations next to the mission (some of them for other
         // missions: those that do not fit this one are skipped).
         let dir = a.mission.parent().unwrap_or(Path::new(""));
-        let pattern = dir.join("configs").join("*.yaml");
-        let mut v: Vec<PathBuf> = glob::glob(&pattern.to_string_lossy())
-            .map(|paths| paths.filter_map(Result::ok).collect())
-            .unwrap_or_default();
-        v.sort();
+        let pattern = Path::new(&glob::Pattern::escape(&dir.to_string_lossy()))
+            .join("configs")
+            .join("*.yaml");
+        let v = crate::globwalk::glob_files(&pattern.to_string_lossy())
+            .map_err(|e| anyhow::anyhow!("{}: {e}", pattern.display()))?;
         return Ok(v
             .into_iter()
             .map(|path| Baseline {
@@ -446,26 +446,27 @@ fn baselines(a: &TuneArgs) -> Result<Vec<Baseline>> {
     for p in &a.baselines {
         // A plain path is the file itself, there or not (its loading says
         // which); a pattern must match a file.
-        if !p.contains(['*', '?', '[']) {
+        if !crate::globwalk::is_pattern(p) {
             out.push(Baseline {
                 path: PathBuf::from(p),
                 pattern: None,
             });
             continue;
         }
-        match glob::glob(p) {
-            Ok(paths) => {
-                let mut v: Vec<PathBuf> = paths.filter_map(Result::ok).collect();
+        match crate::globwalk::glob_files(p) {
+            Ok(v) => {
                 if v.is_empty() {
                     anyhow::bail!("--baseline {p}: no file matches");
                 }
-                v.sort();
                 out.extend(v.into_iter().map(|path| Baseline {
                     path,
                     pattern: Some(p.clone()),
                 }));
             }
-            Err(_) => out.push(Baseline {
+            Err(e @ crate::globwalk::GlobError::TooWide { .. }) => {
+                anyhow::bail!("--baseline {p}: {e}")
+            }
+            Err(crate::globwalk::GlobError::Pattern(_)) => out.push(Baseline {
                 path: PathBuf::from(p),
                 pattern: None,
             }),

@@ -273,6 +273,16 @@ fn an_experiment_that_would_count_a_run_twice_or_merge_rows_is_refused() {
             7,
             "past the largest seed",
         ),
+        (
+            // Matched by a bounded walk: refused with a word, not a
+            // walk of the whole file system.
+            "glob",
+            format!(
+                "missions:\n  - graph: {g}\n    worlds: [timed]\n    configs: [\"/**/*.yaml\"]\n"
+            ),
+            5,
+            "name a narrower folder",
+        ),
     ];
     for (name, body, line, says) in cases {
         let (f, err) = refused_experiment(&d, name, &body);
