@@ -106,8 +106,12 @@ pub struct Feed {
     pub dropped: Dropped,
     /// The team's roster, once known (a live team: from the world's layout
     /// or a robot's membership answer): records of other robots are not
-    /// kept.
+    /// kept. Set through [`Feed::set_roster`].
     pub roster: Option<Vec<String>>,
+    /// Times kept records were taken out from among the others (those of
+    /// robots off a roster learned late): a page that sees it change
+    /// rebuilds its view from the start.
+    pub purges: u64,
     /// How a run the studio started ended (outcome, exit code, log path,
     /// violations), once it has.
     pub ended: Option<J>,
@@ -133,6 +137,7 @@ impl Feed {
             bytes: 0,
             dropped: Dropped::default(),
             roster: None,
+            purges: 0,
             ended: None,
             problems: Vec::new(),
             changed: tokio::sync::watch::Sender::new(0),
@@ -213,10 +218,32 @@ impl Feed {
                 .filter_map(|n| n.as_str().map(String::from))
                 .collect();
             if !names.is_empty() {
-                self.roster = Some(names);
+                self.set_roster(names);
             }
         }
         self.push(rec);
+    }
+
+    /// The team's roster is known: records kept before it of robots off it
+    /// (anyone could publish them: a forged status, a stray team's) are
+    /// taken out and counted as [`Dropped::not_on_roster`], and pages
+    /// rebuild their views without them.
+    pub fn set_roster(&mut self, names: Vec<String>) {
+        let on = |r: &J| {
+            r.get("robot")
+                .is_none_or(|robot| robot.as_str().is_some_and(|n| names.iter().any(|m| m == n)))
+        };
+        let before = self.records.len() + self.pinned.len();
+        self.records.retain(on);
+        self.pinned.retain(on);
+        let gone = before - self.records.len() - self.pinned.len();
+        self.roster = Some(names);
+        if gone > 0 {
+            self.dropped.not_on_roster += gone as u64;
+            self.bytes = self.records.iter().map(json_len).sum();
+            self.purges += 1;
+        }
+        self.touch();
     }
 
     fn drop_oldest(&mut self) {
@@ -288,6 +315,8 @@ const DECISION_SETTLES: f64 = 30.0;
 /// One page's place in the feed.
 pub struct Cursor {
     generation: u64,
+    /// The feed's [`Feed::purges`] the view was built after.
+    purges: u64,
     /// Records applied to the view.
     applied: usize,
     /// The feed's version last seen.
@@ -310,6 +339,7 @@ impl Cursor {
     pub fn new() -> Self {
         Cursor {
             generation: u64::MAX,
+            purges: 0,
             applied: 0,
             version: u64::MAX,
             view: View::new(),
@@ -361,7 +391,14 @@ impl Cursor {
     pub fn catch_up(&mut self, feed: &Feed) {
         if feed.generation != self.generation {
             self.restart(feed.generation);
+            self.purges = feed.purges;
             self.at = None;
+        }
+        if feed.purges != self.purges {
+            // Records it applied were taken out: start over, at the same
+            // time.
+            self.restart(feed.generation);
+            self.purges = feed.purges;
         }
         if feed.version != self.version {
             self.version = feed.version;
@@ -618,20 +655,39 @@ not json
         assert_eq!(f.records.len(), 0);
         assert_eq!(f.dropped.garbage, 2);
         assert_eq!(f.dropped.oversize, 1);
-        // Before the roster is known, any robot; after, only its members.
+        // Before the roster is known, any robot; once it is, only its
+        // members, and what was kept of others is taken out: a page that
+        // showed a forged robot shows it no more.
         live(&mut f, br#"{"t":0.5,"robot":"r9","event":"x"}"#, false);
-        let world = br#"{"t":0.0,"event":"world","robots":["r0","r1","r2"]}"#;
-        live(&mut f, world, false);
-        assert_eq!(f.roster.as_deref().map(<[String]>::len), Some(3));
-        live(&mut f, br#"{"robot":"r9","state":"running"}"#, true);
-        live(&mut f, br#"{"robot":"r1","state":"running"}"#, true);
-        assert_eq!(f.dropped.not_on_roster, 1);
-        assert_eq!(f.records.len(), 3);
-        assert_eq!(f.records[2]["event"], "status");
+        live(&mut f, br#"{"robot":"r8","state":"running"}"#, true);
+        live(&mut f, br#"{"robot":"r0","state":"running"}"#, true);
         let mut c = Cursor::new();
         c.catch_up(&f);
         let s = c.snapshot(&f);
-        assert_eq!(s["dropped"]["not_on_roster"], 1, "{s}");
+        let shown = |s: &J| -> Vec<String> {
+            (s["robots"].as_array().into_iter().flatten())
+                .filter_map(|r| r["name"].as_str().map(String::from))
+                .collect()
+        };
+        assert!(shown(&s).contains(&"r8".to_string()), "{s}");
+        let world = br#"{"t":0.0,"event":"world","robots":["r0","r1","r2"]}"#;
+        live(&mut f, world, false);
+        assert_eq!(f.roster.as_deref().map(<[String]>::len), Some(3));
+        assert_eq!(f.dropped.not_on_roster, 2);
+        assert_eq!(f.records.len(), 2, "r0's status and the layout");
+        live(&mut f, br#"{"robot":"r9","state":"running"}"#, true);
+        live(&mut f, br#"{"robot":"r1","state":"running"}"#, true);
+        assert_eq!(f.dropped.not_on_roster, 3);
+        assert_eq!(f.records.len(), 3);
+        assert_eq!(f.records[2]["event"], "status");
+        c.catch_up(&f);
+        let s = c.snapshot(&f);
+        assert_eq!(s["reset"], true, "the page drops what it has: {s}");
+        assert!(!shown(&s).iter().any(|n| n == "r8" || n == "r9"), "{s}");
+        assert!(shown(&s).contains(&"r0".to_string()), "{s}");
+        let kept: usize = f.records.iter().map(json_len).sum();
+        assert_eq!(f.bytes, kept);
+        assert_eq!(s["dropped"]["not_on_roster"], 3, "{s}");
         assert_eq!(s["dropped"]["garbage"], 2, "{s}");
         // A new source starts its counts again.
         f.reset(Source::Zenoh, "team".into(), true);

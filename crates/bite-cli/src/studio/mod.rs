@@ -850,7 +850,7 @@ fn fetch_layout(studio: &Arc<Studio>) {
                     };
                     let mut f = st.feed();
                     if !m.roster.is_empty() && f.generation == generation && f.roster.is_none() {
-                        f.roster = Some(m.roster);
+                        f.set_roster(m.roster);
                     }
                 }
             }
