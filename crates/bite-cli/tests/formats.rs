@@ -332,6 +332,26 @@ fn a_live_run_is_served_over_the_foxglove_websocket_protocol() {
         .insert("Sec-WebSocket-Protocol", "foxglove.sdk.v1".parse().unwrap());
     let (mut ws, resp) = tungstenite::connect(req).expect("connects");
     assert_eq!(resp.headers()["sec-websocket-protocol"], "foxglove.sdk.v1");
+    // A viewer that asks by the older name (Lichtblick before December
+    // 2025, PlotJuggler) is answered by that name and served the same.
+    let mut old = format!("ws://127.0.0.1:{port}")
+        .into_client_request()
+        .unwrap();
+    old.headers_mut().insert(
+        "Sec-WebSocket-Protocol",
+        "foxglove.websocket.v1".parse().unwrap(),
+    );
+    let (mut legacy, resp) = tungstenite::connect(old).expect("connects by the older name");
+    assert_eq!(
+        resp.headers()["sec-websocket-protocol"],
+        "foxglove.websocket.v1"
+    );
+    let Some(tungstenite::Message::Text(t)) = next(&mut legacy) else {
+        panic!("no serverInfo by the older name");
+    };
+    let info: serde_json::Value = serde_json::from_str(&t).unwrap();
+    assert_eq!(info["op"], "serverInfo", "{info}");
+    drop(legacy);
     // serverInfo, then the channels advertised.
     let mut channels: BTreeMap<String, (u64, String)> = BTreeMap::new();
     let deadline = Instant::now() + Duration::from_secs(20);

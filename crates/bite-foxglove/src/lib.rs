@@ -22,6 +22,7 @@
 //! | `/bite/summary` | `bite.Summary` (JSON) | the run's summary, at its end |
 //! | `/bite/events` | `bite.Record` (JSON) | every record, as logged |
 
+pub mod legacy;
 pub mod view;
 
 use foxglove::messages as fx;
@@ -38,6 +39,14 @@ pub enum Error {
     /// The Foxglove SDK refused (a file, a port).
     #[error(transparent)]
     Foxglove(#[from] foxglove::FoxgloveError),
+    /// The live view's port could not be opened.
+    #[error("the live view's port {port}: {reason}")]
+    Listen {
+        /// The port asked for (0: any).
+        port: u16,
+        /// Why.
+        reason: std::io::Error,
+    },
     /// Reading a run log (or clearing the place of an MCAP file).
     // The reason is in the message and not a `source` as well: an error
     // printed with its chain (`{:#}`) would say it twice.
@@ -837,9 +846,12 @@ pub fn merge(logs: Vec<Vec<J>>) -> Vec<J> {
 }
 
 /// A live Foxglove WebSocket server on 127.0.0.1 showing a recorder's
-/// channels.
+/// channels: the SDK's server on a private port behind
+/// [`legacy::Front`], which lets in viewers asking by the subprotocol's
+/// older name too.
 pub struct Live {
     handle: foxglove::WebSocketServerHandle,
+    front: legacy::Front,
 }
 
 impl Live {
@@ -849,15 +861,22 @@ impl Live {
         let handle = foxglove::WebSocketServer::new()
             .name(name)
             .context(recorder.context())
-            .bind("127.0.0.1", port)
+            .bind("127.0.0.1", 0)
             .capabilities([foxglove::websocket::Capability::Time])
             .start_blocking()?;
-        Ok(Live { handle })
+        let inner = std::net::SocketAddr::from(([127, 0, 0, 1], handle.port()));
+        match legacy::Front::start(port, inner) {
+            Ok(front) => Ok(Live { handle, front }),
+            Err(reason) => {
+                let _ = handle.stop();
+                Err(Error::Listen { port, reason })
+            }
+        }
     }
 
-    /// The port it listens on.
+    /// The port viewers connect to.
     pub fn port(&self) -> u16 {
-        self.handle.port()
+        self.front.port()
     }
 
     /// Clients connected now.
@@ -872,6 +891,7 @@ impl Live {
 
     /// Stop serving.
     pub fn stop(self) {
+        self.front.stop();
         let _ = self.handle.stop();
     }
 }
