@@ -19,7 +19,7 @@ one() {
     if out=$(PROPTEST_RNG_SEED=$1 "$BIN" --exact no_waiting_across_levels 2>&1); then
         echo "$1 pass"
     else
-        echo "$1 fail $(grep -m3 -E 'graph seed|deadline|stalled|violat|panicked' <<<"$out" | tr '\n' ' ')"
+        echo "$1 fail $(grep -m3 -E 'Test failed|outcome|invariants' <<<"$out" | sed 's/  */ /g' | tr '\n' ' ')"
     fi
 }
 export -f one
