@@ -112,10 +112,9 @@ fn serve(client: TcpStream, inner: SocketAddr) -> io::Result<()> {
     server.set_nodelay(true)?;
     client.set_nodelay(true)?;
     let mut server_w = server.try_clone()?;
-    server_w.write_all(head.as_ref().map_or(&rest, |_| &request))?;
-    if head.is_some() {
-        server_w.write_all(&rest)?;
-    }
+    // The request (none when unreadable), then what came after it.
+    server_w.write_all(&request)?;
+    server_w.write_all(&rest)?;
     // The answer's head, renamed back for a viewer that asked by the
     // older name.
     let mut server_r = server.try_clone()?;

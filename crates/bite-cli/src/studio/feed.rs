@@ -202,10 +202,8 @@ impl Feed {
                 return self.touch();
             }
         };
-        if let (Some(roster), Some(robot)) = (&self.roster, rec.get("robot"))
-            && !robot
-                .as_str()
-                .is_some_and(|r| roster.iter().any(|n| n == r))
+        if let Some(roster) = &self.roster
+            && !on_roster(roster, &rec)
         {
             self.dropped.not_on_roster += 1;
             return self.touch();
@@ -229,10 +227,7 @@ impl Feed {
     /// taken out and counted as [`Dropped::not_on_roster`], and pages
     /// rebuild their views without them.
     pub fn set_roster(&mut self, names: Vec<String>) {
-        let on = |r: &J| {
-            r.get("robot")
-                .is_none_or(|robot| robot.as_str().is_some_and(|n| names.iter().any(|m| m == n)))
-        };
+        let on = |r: &J| on_roster(&names, r);
         let before = self.records.len() + self.pinned.len();
         self.records.retain(on);
         self.pinned.retain(on);
@@ -275,6 +270,16 @@ impl Feed {
             .find_map(|r| r["t"].as_f64())
             .unwrap_or(0.0)
     }
+}
+
+/// True when `rec` is of no robot (the world's layout, the run's start)
+/// or of a robot on `roster`.
+fn on_roster(roster: &[String], rec: &J) -> bool {
+    rec.get("robot").is_none_or(|robot| {
+        robot
+            .as_str()
+            .is_some_and(|n| roster.iter().any(|m| m == n))
+    })
 }
 
 /// Parse a run log (JSON lines) as `bite log convert` reads one; lines
